@@ -1,0 +1,165 @@
+"""Every tunable parameter of shapedb, in frozen, typed dataclasses.
+
+A :class:`Config` (an :class:`MDBDConfig` plus a :class:`KernelConfig`) is stored
+with every record and in every store manifest, so a store always knows how it was
+built, and a query computed with another configuration is refused.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass, field, fields, replace
+from typing import Any
+
+from shapedb.errors import ConfigError
+
+__all__ = ["MDBDConfig", "KernelConfig", "Config"]
+
+
+def _check(cond: bool, name: str, value: Any, why: str) -> None:
+    if not cond:
+        raise ConfigError(f"{name}={value!r} is invalid: {why}")
+
+
+@dataclass(frozen=True)
+class MDBDConfig:
+    """Parameters of the decomposition and of its contact graph.
+
+    Attributes
+    ----------
+    resolution : int
+        Grid cells along the longest side of the padded bounding box.
+    n_balls : int
+        Maximum number of balls (the paper's n).
+    min_radius_cells : float
+        Stop when the largest remaining ball is smaller than this, in grid cells.
+    padding_cells : int
+        Empty cells added around the bounding box on every side.
+    contact_tol_cells : float
+        Two balls are in contact when the gap between them, |ci - cj| - ri - rj,
+        is at most this many grid cells. Tied to the grid spacing so that it is
+        scale invariant (the paper used an absolute 0.05 on normalised models).
+    refine : bool
+        Refine every ball off the grid against the representation's own distance
+        (sub-cell centre and radius) so that features do not snap to the grid.
+    """
+
+    resolution: int = 128
+    n_balls: int = 512
+    min_radius_cells: float = 0.5
+    padding_cells: int = 2
+    contact_tol_cells: float = 0.5
+    refine: bool = True
+
+    def __post_init__(self) -> None:
+        _check(isinstance(self.resolution, int) and 8 <= self.resolution <= 1024,
+               "resolution", self.resolution, "must be an integer in [8, 1024]")
+        _check(isinstance(self.n_balls, int) and 1 <= self.n_balls <= 100_000,
+               "n_balls", self.n_balls, "must be an integer in [1, 100000]")
+        _check(0.0 <= self.min_radius_cells <= 64, "min_radius_cells",
+               self.min_radius_cells, "must be in [0, 64]")
+        _check(isinstance(self.padding_cells, int) and 1 <= self.padding_cells <= 32,
+               "padding_cells", self.padding_cells, "must be an integer in [1, 32]")
+        _check(0.0 <= self.contact_tol_cells <= 8, "contact_tol_cells",
+               self.contact_tol_cells, "must be in [0, 8]")
+
+
+@dataclass(frozen=True)
+class KernelConfig:
+    """Parameters of the paper's Eq. 1-3 random-walk graph kernel.
+
+    Attributes
+    ----------
+    n_r : int
+        Representative nodes: the n_r largest balls.
+    t : int
+        Random-walk steps.
+    w : float
+        Decay of the walk average, P_i = (1/t) sum_k w^k p_i^k.
+    la, lb : float
+        Geometric weights of Eq. 2 on the initial attributes and on the walk averages.
+    lam : float
+        Scale of Eq. 3, k = exp(-lam * d).
+    """
+
+    n_r: int = 32
+    t: int = 10
+    w: float = 0.9
+    la: float = 0.75
+    lb: float = 0.75
+    lam: float = 1.0
+
+    def __post_init__(self) -> None:
+        _check(isinstance(self.n_r, int) and 1 <= self.n_r <= 4096, "n_r", self.n_r,
+               "must be an integer in [1, 4096]")
+        _check(isinstance(self.t, int) and 1 <= self.t <= 1000, "t", self.t,
+               "must be an integer in [1, 1000]")
+        _check(0.0 < self.w <= 1.0, "w", self.w, "must be in (0, 1]")
+        _check(0.0 < self.la <= 1.0, "la", self.la, "must be in (0, 1]")
+        _check(0.0 < self.lb <= 1.0, "lb", self.lb, "must be in (0, 1]")
+        _check(self.lam > 0.0, "lam", self.lam, "must be > 0")
+
+    @property
+    def dim(self) -> int:
+        """Length of the Eq. 1 feature vector, 2 * n_r."""
+        return 2 * self.n_r
+
+
+@dataclass(frozen=True)
+class Config:
+    """Everything that determines a store's records: decomposition plus kernel."""
+
+    mdbd: MDBDConfig = field(default_factory=MDBDConfig)
+    kernel: KernelConfig = field(default_factory=KernelConfig)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain, JSON-serialisable nested dict."""
+        return {"mdbd": asdict(self.mdbd), "kernel": asdict(self.kernel)}
+
+    def to_json(self) -> str:
+        """Canonical JSON (sorted keys), as stored in the store."""
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Config:
+        """Inverse of :meth:`to_dict`; unknown keys are refused."""
+        try:
+            return cls(mdbd=_build(MDBDConfig, data.get("mdbd", {})),
+                       kernel=_build(KernelConfig, data.get("kernel", {})))
+        except TypeError as exc:
+            raise ConfigError(f"cannot read configuration {data!r}: {exc}") from exc
+
+    @classmethod
+    def from_json(cls, text: str) -> Config:
+        """Inverse of :meth:`to_json`."""
+        return cls.from_dict(json.loads(text))
+
+    @property
+    def fingerprint(self) -> str:
+        """Short hash of the decomposition parameters (what changes the graphs)."""
+        text = json.dumps(asdict(self.mdbd), sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    def with_options(self, **options: Any) -> Config:
+        """A copy with some fields changed; each name must belong to one sub-config.
+
+        >>> Config().with_options(resolution=64, n_r=10).mdbd.resolution
+        64
+        """
+        mdbd_names = {f.name for f in fields(MDBDConfig)}
+        kernel_names = {f.name for f in fields(KernelConfig)}
+        unknown = set(options) - mdbd_names - kernel_names
+        if unknown:
+            raise ConfigError(f"unknown configuration option(s): {sorted(unknown)}")
+        mdbd = replace(self.mdbd, **{k: v for k, v in options.items() if k in mdbd_names})
+        kernel = replace(self.kernel, **{k: v for k, v in options.items() if k in kernel_names})
+        return Config(mdbd=mdbd, kernel=kernel)
+
+
+def _build(cls: type, data: dict[str, Any]) -> Any:
+    known = {f.name for f in fields(cls)}
+    unknown = set(data) - known
+    if unknown:
+        raise ConfigError(f"unknown {cls.__name__} option(s): {sorted(unknown)}")
+    return cls(**data)
