@@ -1,0 +1,1 @@
+"""Benchmarks of shapedb: retrieval tables, baselines and descriptor prototypes."""

@@ -1,0 +1,352 @@
+"""Shared pieces of the bench scripts: tables, JSON, retrieval scores, cached decompositions.
+
+Decompositions are cached in ``bench/results/cache/dec/`` as npz files keyed by the
+model's source (path, size and modification time, or generator spec), the
+representation variant and the decomposition parameters, so that reruns only compute
+what changed. They are computed by a pool of worker processes (2 by default).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from bench.datasets import CACHE_DIR, Model, mesh_arrays, point_cloud, stable_seed
+from shapedb.config import MDBDConfig
+
+__all__ = [
+    "format_table",
+    "write_json",
+    "retrieval_scores",
+    "Balls",
+    "VARIANTS",
+    "decompose_all",
+]
+
+logger = logging.getLogger(__name__)
+
+#: Measures reported in every table, in order.
+MEASURES = ("nn", "first_tier", "second_tier", "e_measure", "dcg")
+
+
+# --------------------------------------------------------------------------------------
+# Tables and JSON
+# --------------------------------------------------------------------------------------
+
+
+def format_table(title: str, columns: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    """A plain-text table: floats with 3 decimals, columns aligned.
+
+    Parameters
+    ----------
+    title : str
+        Printed above the table.
+    columns : sequence of str
+        Header.
+    rows : sequence of sequences
+        Cells; floats are formatted ``.3f``, ``None`` as ``-``.
+    """
+
+    def cell(x: Any) -> str:
+        if x is None:
+            return "-"
+        if isinstance(x, float | np.floating):
+            return f"{x:.3f}"
+        return str(x)
+
+    text = [[cell(c) for c in columns]] + [[cell(c) for c in r] for r in rows]
+    widths = [max(len(r[k]) for r in text) for k in range(len(columns))]
+    lines = [title, "-" * len(title)]
+    for n, r in enumerate(text):
+        lines.append(
+            "  ".join(
+                c.ljust(w) if k == 0 else c.rjust(w)
+                for k, (c, w) in enumerate(zip(r, widths, strict=True))
+            )
+        )
+        if n == 0:
+            lines.append("  ".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+def _plain(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _plain(obj.tolist())
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.floating | float):
+        return None if not np.isfinite(obj) else round(float(obj), 5)
+    return obj
+
+
+def write_json(path: Path | str, data: Any) -> None:
+    """Write ``data`` (numpy values allowed) as indented JSON, atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(_plain(data), indent=1, sort_keys=False) + "\n")
+    tmp.replace(path)
+
+
+# --------------------------------------------------------------------------------------
+# Retrieval scores (Princeton Shape Benchmark measures)
+# --------------------------------------------------------------------------------------
+
+
+def _psb_scores(similarity: NDArray[np.float64], labels: NDArray[Any]) -> dict[str, float]:
+    """NN, 1-T, 2-T, E (top 32) and normalised DCG, each query excluding itself."""
+    n = len(labels)
+    sums = dict.fromkeys(MEASURES, 0.0)
+    counted = 0
+    _, inverse, counts = np.unique(labels, return_inverse=True, return_counts=True)
+    for i in range(n):
+        c = int(counts[inverse[i]])
+        if c < 2:
+            continue
+        others = np.delete(np.arange(n), i)
+        order = others[np.argsort(-similarity[i, others], kind="stable")]
+        rel = (inverse[order] == inverse[i]).astype(np.float64)
+        k = c - 1
+        sums["nn"] += rel[0]
+        sums["first_tier"] += rel[:k].sum() / k
+        sums["second_tier"] += rel[: 2 * k].sum() / k
+        hits = rel[:32].sum()
+        p, r = hits / 32, hits / k
+        sums["e_measure"] += 0.0 if hits == 0 else 2 * p * r / (p + r)
+        disc = np.ones(len(rel))
+        disc[1:] = 1.0 / np.log2(np.arange(2, len(rel) + 1))
+        sums["dcg"] += (rel * disc).sum() / disc[:k].sum()
+        counted += 1
+    return {m: sums[m] / max(counted, 1) for m in MEASURES}
+
+
+def retrieval_scores(similarity: ArrayLike, labels: ArrayLike) -> dict[str, float]:
+    """PSB measures of an (n, n) similarity matrix; larger is more similar.
+
+    Uses ``query.evaluate.retrieval_scores`` when that module exists, so the bench
+    and ``db.evaluate`` agree; otherwise the same definitions implemented here.
+    """
+    s = np.asarray(similarity, dtype=np.float64)
+    lab = np.asarray(labels)
+    try:
+        from query.evaluate import retrieval_scores as library_scores
+    except ImportError:
+        return _psb_scores(s, lab)
+    res = library_scores(s, lab)
+    out = {}
+    for m in MEASURES:
+        v = getattr(res, m, None)
+        if v is None and isinstance(res, dict):
+            v = res.get(m)
+        out[m] = float(v) if v is not None else float("nan")
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# Cached decompositions
+# --------------------------------------------------------------------------------------
+
+#: Representation variants a model can be decomposed in.
+VARIANTS = ("mesh", "pointcloud", "mesh_shift", "mesh_rotate", "mesh_decimate", "pointcloud_b")
+
+
+@dataclass(frozen=True, eq=False)
+class Balls:
+    """A cached decomposition: the arrays the descriptors need, and the timing.
+
+    Attributes
+    ----------
+    centers : (n, 3) float64
+    radii : (n,) float64
+        Non-increasing.
+    edges : (m, 2) int64
+    spacing : float
+        Grid cell size, model units.
+    seconds : float
+        Wall-clock time of geometry construction plus decomposition.
+    timings : dict
+        The decomposition's own per-stage timings.
+    """
+
+    centers: NDArray[np.float64]
+    radii: NDArray[np.float64]
+    edges: NDArray[np.int64]
+    spacing: float
+    seconds: float
+    timings: dict[str, float] = field(default_factory=dict)
+
+    def truncate(self, n: int) -> Balls:
+        """The first ``n`` balls and the contacts among them (greedy MDBD prefix)."""
+        if n >= len(self.radii):
+            return self
+        e = self.edges[(self.edges < n).all(axis=1)]
+        return Balls(self.centers[:n], self.radii[:n], e, self.spacing, self.seconds, self.timings)
+
+    def decomposition(self) -> Any:
+        """A :class:`shapedb.mdbd.Decomposition` with these balls."""
+        from shapedb.mdbd import Decomposition
+
+        lo = (self.centers - self.radii[:, None]).min(axis=0)
+        hi = (self.centers + self.radii[:, None]).max(axis=0)
+        return Decomposition(
+            centers=self.centers,
+            radii=self.radii,
+            edges=self.edges.astype(np.int32),
+            spacing=self.spacing,
+            bounds=np.stack([lo, hi]),
+        )
+
+
+def _source_key(model: Model) -> str:
+    if os.path.exists(model.source):
+        st = os.stat(model.source)
+        return f"{model.source}:{st.st_size}:{int(st.st_mtime)}"
+    return model.source
+
+
+def cache_path(model: Model, variant: str, config: MDBDConfig) -> Path:
+    """Where the decomposition of ``model`` in ``variant`` with ``config`` is cached."""
+    text = json.dumps([_source_key(model), variant, asdict(config)], sort_keys=True)
+    digest = hashlib.sha256(text.encode()).hexdigest()[:20]
+    return CACHE_DIR / "dec" / f"{digest}.npz"
+
+
+def _rotation(seed: int) -> NDArray[np.float64]:
+    q, r = np.linalg.qr(np.random.default_rng(seed).normal(size=(3, 3)))
+    q = q * np.sign(np.diag(r))
+    return q if np.linalg.det(q) > 0 else -q
+
+
+def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
+    """The geometry of ``model`` in a representation variant.
+
+    ``mesh`` the mesh; ``pointcloud`` the paper's point cloud (seeded by the name);
+    ``pointcloud_b`` another draw of it; ``mesh_shift`` the mesh translated by
+    (0.37, 0.21, 0.43) grid cells; ``mesh_rotate`` randomly rotated (seeded);
+    ``mesh_decimate`` decimated to 25 % of its faces (fast-simplification).
+    """
+    from shapedb.mesh import TriangleMesh
+
+    v, f = mesh_arrays(model)
+    if variant in ("pointcloud", "pointcloud_b"):
+        from shapedb.pointcloud import PointCloud
+
+        seed = stable_seed(model.name, variant)
+        return PointCloud(point_cloud(v, f, seed=seed))
+    if variant == "mesh_shift":
+        extent = float((v.max(axis=0) - v.min(axis=0)).max())
+        cell = extent / max(config.resolution - 2 * config.padding_cells, 1)
+        v = v + cell * np.array([0.37, 0.21, 0.43])
+    elif variant == "mesh_rotate":
+        v = v @ _rotation(stable_seed(model.name, "rotate")).T
+    elif variant == "mesh_decimate":
+        import fast_simplification
+
+        v, f = fast_simplification.simplify(
+            v.astype(np.float32), f.astype(np.int32), target_reduction=0.75
+        )
+    elif variant != "mesh":
+        raise ValueError(f"unknown variant {variant!r}; known: {VARIANTS}")
+    return TriangleMesh(v, f, name=model.name)
+
+
+def _work(model: Model, variant: str, config: MDBDConfig, path: str) -> tuple[str, str | None]:
+    """Worker: decompose one model variant and write its npz (or return the error)."""
+    from shapedb.mdbd import decompose
+
+    try:
+        t0 = time.perf_counter()
+        geom = variant_geometry(model, variant, config)
+        dec = decompose(geom, config=config)
+        seconds = time.perf_counter() - t0
+        tmp = path + f".{os.getpid()}.tmp.npz"
+        np.savez_compressed(
+            tmp,
+            centers=np.asarray(dec.centers, dtype=np.float64),
+            radii=np.asarray(dec.radii, dtype=np.float64),
+            edges=np.asarray(dec.edges, dtype=np.int64).reshape(-1, 2),
+            spacing=np.float64(dec.spacing),
+            seconds=np.float64(seconds),
+            timings=np.asarray(json.dumps(dict(dec.timings))),
+        )
+        os.replace(tmp, path)
+        return path, None
+    except Exception as exc:  # noqa: BLE001 - reported per model, the run goes on
+        return path, f"{type(exc).__name__}: {exc}"
+
+
+def load_balls(path: Path | str) -> Balls:
+    """Read a cached decomposition."""
+    with np.load(path) as z:
+        return Balls(
+            centers=z["centers"],
+            radii=z["radii"],
+            edges=z["edges"],
+            spacing=float(z["spacing"]),
+            seconds=float(z["seconds"]),
+            timings=json.loads(str(z["timings"])),
+        )
+
+
+def decompose_all(
+    models: Sequence[Model],
+    variant: str,
+    config: MDBDConfig,
+    *,
+    workers: int = 2,
+    progress: Callable[[str], None] | None = print,
+) -> list[Balls | None]:
+    """Decompositions of ``models`` in ``variant``, from the cache or computed in parallel.
+
+    Returns
+    -------
+    list of Balls or None
+        One entry per model; None where the decomposition failed (reported).
+    """
+    paths = [cache_path(m, variant, config) for m in models]
+    todo = [i for i, p in enumerate(paths) if not p.exists()]
+    errors: dict[int, str] = {}
+    if todo:
+        paths[0].parent.mkdir(parents=True, exist_ok=True)
+        t0 = time.perf_counter()
+        if workers <= 1:
+            results = [_work(models[i], variant, config, str(paths[i])) for i in todo]
+            for i, (_, err) in zip(todo, results, strict=True):
+                if err:
+                    errors[i] = err
+        else:
+            with ProcessPoolExecutor(max_workers=workers) as pool:
+                futs = {
+                    pool.submit(_work, models[i], variant, config, str(paths[i])): i for i in todo
+                }
+                for done, fut in enumerate(as_completed(futs), 1):
+                    _, err = fut.result()
+                    if err:
+                        errors[futs[fut]] = err
+                    if progress and (done % 10 == 0 or done == len(todo)):
+                        progress(
+                            f"  [{variant}] {done}/{len(todo)} decomposed "
+                            f"({time.perf_counter() - t0:.0f} s)"
+                        )
+    for i, err in errors.items():
+        msg = f"  decomposition failed: {models[i].name} [{variant}]: {err}"
+        if progress:
+            progress(msg)
+        else:
+            logger.warning(msg)
+    return [load_balls(p) if p.exists() else None for p in paths]

@@ -1,0 +1,314 @@
+"""Labelled data sets for the retrieval benchmarks, and their point-cloud versions.
+
+Three sets, each a :class:`Dataset` of :class:`Model` entries with a fixed, seeded
+validation/test split by model (stratified by class: a third of each class goes to
+validation, the rest to test; parameter studies see only the validation split):
+
+``capod``
+    The 180 real meshes of ../shared/data/capod (15 classes x 12), labels from
+    ``labels.csv``. Cite: P. Papadakis, "The Canonically Posed 3D Objects Dataset",
+    3DOR 2014.
+``articulated``
+    Jointed figures from :func:`shapedb.examples.figure`: several subjects with
+    different limb proportions, each in many poses (the class is the subject),
+    like SHREC'14's 15 subjects x 20 poses. Meshed with :func:`shapedb.examples.to_mesh`.
+``parts``
+    Machined parts from :func:`shapedb.examples.part` (the class is the kind,
+    seeds vary the dimensions and features).
+
+Point-cloud versions follow the paper: a random 20 % of the mesh vertices, seeded by
+the model name; meshes so coarse that this gives fewer than ``min_points`` points are
+sampled uniformly on their surface instead (``min_points`` = 2000).
+"""
+
+from __future__ import annotations
+
+import csv
+import inspect
+import zlib
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "CAPOD_ROOT",
+    "CACHE_DIR",
+    "Model",
+    "Dataset",
+    "stable_seed",
+    "split_by_model",
+    "capod",
+    "articulated",
+    "parts",
+    "load_dataset",
+    "mesh_arrays",
+    "point_cloud",
+]
+
+REPO = Path(__file__).resolve().parents[1]
+#: The real data set (outside the repository; never copied into it).
+CAPOD_ROOT = REPO.parent / "shared" / "data" / "capod"
+#: Decompositions and generated meshes (git-ignored).
+CACHE_DIR = REPO / "bench" / "results" / "cache"
+
+#: Marching-cubes resolution of the generated sets' meshes.
+GENERATED_MESH_RESOLUTION = 96
+
+
+@dataclass(frozen=True)
+class Model:
+    """One labelled model of a benchmark set.
+
+    Attributes
+    ----------
+    name : str
+        Unique id inside the set, e.g. ``"class1/m3"`` or ``"s04_p11"``.
+    label : str
+        Class used for retrieval scoring.
+    source : str
+        A file path (``capod``) or a generator spec ``"figure:subject:pose"`` /
+        ``"part:kind:seed"``.
+    split : str
+        ``"validation"`` or ``"test"``.
+    """
+
+    name: str
+    label: str
+    source: str
+    split: str = "test"
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """A named, labelled collection of models.
+
+    Attributes
+    ----------
+    name : str
+        ``"capod"``, ``"articulated"`` or ``"parts"``.
+    models : tuple of Model
+        In a fixed order.
+    """
+
+    name: str
+    models: tuple[Model, ...]
+
+    def __len__(self) -> int:
+        return len(self.models)
+
+    @property
+    def labels(self) -> NDArray[np.str_]:
+        """(n,) str: class of each model."""
+        return np.asarray([m.label for m in self.models])
+
+    def split(self, which: str) -> Dataset:
+        """The models of one split (``"validation"``, ``"test"`` or ``"all"``)."""
+        if which == "all":
+            return self
+        if which not in ("validation", "test"):
+            raise ValueError(f"unknown split {which!r}: use validation, test or all")
+        return Dataset(self.name, tuple(m for m in self.models if m.split == which))
+
+    def head(self, per_class: int | None = None, classes: int | None = None) -> Dataset:
+        """A deterministic subset: the first ``per_class`` models of the first ``classes``."""
+        order: list[str] = []
+        for m in self.models:
+            if m.label not in order:
+                order.append(m.label)
+        keep = set(order[:classes] if classes else order)
+        count: dict[str, int] = {}
+        out = []
+        for m in self.models:
+            if m.label in keep and count.get(m.label, 0) < (per_class or 10**9):
+                count[m.label] = count.get(m.label, 0) + 1
+                out.append(m)
+        return Dataset(self.name, tuple(out))
+
+
+def stable_seed(*parts: object) -> int:
+    """A seed that depends only on ``parts`` (not on PYTHONHASHSEED)."""
+    return zlib.crc32("/".join(map(str, parts)).encode())
+
+
+def split_by_model(
+    models: Sequence[Model], *, validation: float = 1 / 3, seed: int = 2024
+) -> tuple[Model, ...]:
+    """Assign each model to ``validation`` or ``test``, stratified by class, seeded.
+
+    Parameters
+    ----------
+    models : sequence of Model
+        Models of one set.
+    validation : float
+        Fraction of each class that goes to validation (at least one model, at
+        most all but one).
+    seed : int
+        Seed of the shuffle; the split is fixed for a given seed and model list.
+    """
+    by_class: dict[str, list[int]] = {}
+    for i, m in enumerate(models):
+        by_class.setdefault(m.label, []).append(i)
+    chosen: set[int] = set()
+    for label, idx in sorted(by_class.items()):
+        rng = np.random.default_rng(stable_seed(seed, label))
+        k = min(max(int(round(validation * len(idx))), 1), max(len(idx) - 1, 1))
+        chosen.update(np.asarray(idx)[rng.permutation(len(idx))[:k]].tolist())
+    return tuple(
+        replace(m, split="validation" if i in chosen else "test") for i, m in enumerate(models)
+    )
+
+
+# --------------------------------------------------------------------------------------
+# The three sets
+# --------------------------------------------------------------------------------------
+
+
+def capod(root: Path | str = CAPOD_ROOT) -> Dataset:
+    """The CAPOD meshes with their labels (``labels.csv``), split by model."""
+    root = Path(root)
+    with open(root / "labels.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    models = [
+        Model(name=r["path"].removesuffix(".obj"), label=r["label"], source=str(root / r["path"]))
+        for r in rows
+    ]
+    return Dataset("capod", split_by_model(models))
+
+
+def articulated(subjects: int = 15, poses: int = 20) -> Dataset:
+    """Jointed figures: ``subjects`` classes x ``poses`` models (SHREC'14-like)."""
+    models = [
+        Model(name=f"s{s:02d}_p{p:02d}", label=f"subject{s:02d}", source=f"figure:{s}:{p}")
+        for s in range(subjects)
+        for p in range(poses)
+    ]
+    return Dataset("articulated", split_by_model(models))
+
+
+def part_kinds() -> tuple[str, ...]:
+    """The machined-part kinds that :func:`shapedb.examples.part` offers."""
+    from shapedb import examples
+
+    for attr in ("PART_KINDS", "PARTS", "KINDS"):
+        kinds = getattr(examples, attr, None)
+        if kinds:
+            return tuple(kinds)
+    raise RuntimeError("shapedb.examples exposes no list of part kinds (PART_KINDS)")
+
+
+def parts(per_kind: int = 12, kinds: Sequence[str] | None = None) -> Dataset:
+    """Generated engineering parts: one class per kind, ``per_kind`` seeds each."""
+    kinds = tuple(kinds) if kinds else part_kinds()
+    models = [
+        Model(name=f"{k}_{i:02d}", label=k, source=f"part:{k}:{i}")
+        for k in kinds
+        for i in range(per_kind)
+    ]
+    return Dataset("parts", split_by_model(models))
+
+
+def load_dataset(name: str) -> Dataset:
+    """One of ``capod``, ``articulated``, ``parts`` with its default size."""
+    makers = {"capod": capod, "articulated": articulated, "parts": parts}
+    if name not in makers:
+        raise ValueError(f"unknown data set {name!r}: choose from {sorted(makers)}")
+    return makers[name]()
+
+
+# --------------------------------------------------------------------------------------
+# Geometry of a model
+# --------------------------------------------------------------------------------------
+
+
+def _generated(source: str) -> object:
+    from shapedb import examples
+
+    kind, a, b = source.split(":")
+    if kind == "figure":
+        return examples.figure(int(a), int(b))
+    if kind == "part":
+        return examples.part(a, seed=int(b))
+    raise ValueError(f"unknown generator spec {source!r}")
+
+
+def _to_mesh(geometry: object, resolution: int) -> object:
+    from shapedb import examples
+
+    params = inspect.signature(examples.to_mesh).parameters
+    if "resolution" in params:
+        return examples.to_mesh(geometry, resolution=resolution)
+    return examples.to_mesh(geometry, resolution)
+
+
+def mesh_arrays(
+    model: Model, *, cache: bool = True
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Vertices (v, 3) and faces (f, 3) of a model's mesh.
+
+    CAPOD meshes are read as they are (triangle soups included); generated shapes
+    are meshed at :data:`GENERATED_MESH_RESOLUTION` and cached as npz.
+    """
+    if not model.source.startswith(("figure:", "part:")):
+        import trimesh
+
+        m = trimesh.load(model.source, force="mesh", process=False)
+        return np.asarray(m.vertices, dtype=np.float64), np.asarray(m.faces, dtype=np.int64)
+    path = (
+        CACHE_DIR / "meshes" / f"{model.source.replace(':', '_')}_{GENERATED_MESH_RESOLUTION}.npz"
+    )
+    if cache and path.exists():
+        with np.load(path) as z:
+            return z["vertices"], z["faces"]
+    mesh = _to_mesh(_generated(model.source), GENERATED_MESH_RESOLUTION)
+    v = np.asarray(mesh.vertices, dtype=np.float64)  # type: ignore[attr-defined]
+    f = np.asarray(mesh.faces, dtype=np.int64)  # type: ignore[attr-defined]
+    if cache:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp.npz")
+        np.savez_compressed(tmp, vertices=v, faces=f)
+        tmp.replace(path)
+    return v, f
+
+
+def point_cloud(
+    vertices: NDArray[np.float64],
+    faces: NDArray[np.int64],
+    *,
+    seed: int,
+    fraction: float = 0.2,
+    min_points: int = 2000,
+) -> NDArray[np.float64]:
+    """The paper's point-cloud version of a mesh.
+
+    Parameters
+    ----------
+    vertices : (v, 3) float
+        Mesh vertices.
+    faces : (f, 3) int
+        Mesh faces (used only for coarse meshes).
+    seed : int
+        Seed of the selection.
+    fraction : float
+        Fraction of the vertices kept (the paper: about 20 %).
+    min_points : int
+        Meshes for which ``fraction`` of the vertices is fewer points than this are
+        sampled uniformly by area on their surface instead, ``min_points`` points.
+
+    Returns
+    -------
+    (k, 3) float64
+        The points.
+    """
+    from bench.baselines import sample_surface
+
+    rng = np.random.default_rng(seed)
+    v = np.asarray(vertices, dtype=np.float64)
+    # Only vertices that some face uses: unreferenced ones are not on the surface.
+    v = v[np.unique(np.asarray(faces).ravel())]
+    k = int(round(fraction * len(v)))
+    if k >= min_points:
+        return v[rng.choice(len(v), size=k, replace=False)]
+    return sample_surface(vertices, faces, min_points, rng=rng)

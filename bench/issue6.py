@@ -1,0 +1,218 @@
+"""Issue 6 measurements: descriptor prototypes and stability, beside the paper's kernel and D2.
+
+``run_descriptors``
+    Every block of :mod:`bench.descriptors` alone and in combinations, on the
+    validation split (mesh vs mesh retrieval and point-cloud queries against the mesh
+    database); a greedy forward selection of blocks on validation; then the chosen
+    combinations, the paper's kernel and D2 on the test split.
+``run_stability``
+    A model and its copy shifted by a fraction of a cell, rotated, decimated to 25 %
+    of its faces, or re-sampled as another point cloud: how often the copy ranks its
+    original first among all mesh models of the test split.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from bench import descriptors as desc
+from bench.baselines import D2Config, d2_descriptor, l1_similarity
+from bench.common import Balls, decompose_all, format_table, retrieval_scores
+from bench.datasets import Dataset, mesh_arrays
+from shapedb.config import KernelConfig, MDBDConfig
+
+__all__ = ["CANDIDATES", "run_descriptors", "run_stability"]
+
+#: Hand-made combinations (equal weights after scaling each block by its median distance).
+CANDIDATES: dict[str, tuple[str, ...]] = {
+    "geom": ("d2c", "radius", "inertia"),
+    "geom+d1": ("d2c", "d1c", "radius", "inertia"),
+    "geom+graph": ("d2c", "radius", "inertia", "degree", "spectrum"),
+    "geom+wwl": ("d2c", "radius", "inertia", "wwl"),
+    "geom+wwl+walk": ("d2c", "radius", "inertia", "wwl", "walk"),
+    "all": ("d2c", "d2c_mean", "d1c", "radius", "inertia", "degree", "spectrum", "wwl", "walk"),
+}
+
+
+def _scales(blocks: Mapping[str, NDArray[np.float64]]) -> dict[str, float]:
+    out = {}
+    for name, x in blocks.items():
+        d = desc.l1_matrix(x, x)
+        iu = np.triu_indices(len(x), 1)
+        out[name] = float(np.median(d[iu])) or 1.0
+    return out
+
+
+def _eval(
+    q: Mapping[str, NDArray[np.float64]],
+    db: Mapping[str, NDArray[np.float64]],
+    names: Sequence[str],
+    scales: Mapping[str, float],
+    labels: NDArray[Any],
+) -> dict[str, float]:
+    d = desc.combined_distance(q, db, dict.fromkeys(names, 1.0), scales)
+    return retrieval_scores(-d, labels)
+
+
+def _objective(s: Mapping[str, float]) -> float:
+    return (s["nn"] + s["first_tier"] + s["dcg"]) / 3
+
+
+def _both(ds: Dataset, mdbd: MDBDConfig, workers: int) -> tuple[Dataset, list[Balls], list[Balls]]:
+    mesh = decompose_all(ds.models, "mesh", mdbd, workers=workers)
+    pc = decompose_all(ds.models, "pointcloud", mdbd, workers=workers)
+    keep = [i for i in range(len(ds)) if mesh[i] is not None and pc[i] is not None]
+    sub = Dataset(ds.name, tuple(ds.models[i] for i in keep))
+    return sub, [mesh[i] for i in keep], [pc[i] for i in keep]  # type: ignore[misc]
+
+
+def run_descriptors(ds: Dataset, mdbd: MDBDConfig, *, workers: int = 2) -> dict[str, Any]:
+    """Blocks and combinations on validation; chosen ones, paper kernel and D2 on test."""
+    val, vm, vp = _both(ds.split("validation"), mdbd, workers)
+    labels = val.labels
+    bm, bp = desc.describe(vm), desc.describe(vp)
+    scales = _scales(bm)
+    rows: list[list[Any]] = []
+    results: dict[str, dict[str, float]] = {}
+
+    def record(name: str, names: Sequence[str]) -> None:
+        s = _eval(bm, bm, names, scales, labels)
+        x = _eval(bp, bm, names, scales, labels)
+        results[name] = {**s, "pc_to_mesh_nn": x["nn"]}
+        rows.append([name, s["nn"], s["first_tier"], s["dcg"], x["nn"], x["dcg"]])
+
+    for b in desc.BLOCKS:
+        record(b, (b,))
+    for name, names in CANDIDATES.items():
+        record(name, names)
+    # Greedy forward selection on validation (mesh retrieval + pc->mesh NN).
+    chosen: list[str] = []
+    best = -1.0
+    pool = [b for b in desc.BLOCKS if b != "paper"]
+    while pool and len(chosen) < 6:
+        trial = {}
+        for b in pool:
+            s = _eval(bm, bm, chosen + [b], scales, labels)
+            x = _eval(bp, bm, chosen + [b], scales, labels)
+            trial[b] = _objective(s) + 0.5 * x["nn"]
+        b, v = max(trial.items(), key=lambda kv: kv[1])
+        if v <= best + 1e-4:
+            break
+        best = v
+        chosen.append(b)
+        pool.remove(b)
+    greedy = "greedy:" + "+".join(chosen)
+    record(greedy, chosen)
+    print()
+    print(
+        format_table(
+            f"descriptor prototypes, {ds.name} validation split ({len(val)} models)",
+            ("descriptor", "NN", "1-T", "DCG", "pc->mesh NN", "pc->mesh DCG"),
+            rows,
+        )
+    )
+
+    # Test split: the candidates and the greedy choice, the paper kernel, D2.
+    test, tm, tp = _both(ds.split("test"), mdbd, workers)
+    tl = test.labels
+    qm, qp = desc.describe(tm), desc.describe(tp)
+    test_rows: list[list[Any]] = []
+    test_res: dict[str, dict[str, float]] = {}
+    combos = {**CANDIDATES, greedy: tuple(chosen), "paper kernel (Eq. 2)": ("paper",)}
+    for name, names in combos.items():
+        s = _eval(qm, qm, names, scales, tl)
+        x = _eval(qp, qm, names, scales, tl)
+        p = _eval(qp, qp, names, scales, tl)
+        test_res[name] = {**s, "pc_to_mesh_nn": x["nn"], "pc_to_pc_nn": p["nn"]}
+        test_rows.append([name, s["nn"], s["first_tier"], s["dcg"], x["nn"], p["nn"]])
+    dd = np.stack([d2_descriptor(*mesh_arrays(m), D2Config(n_pairs=2**18)) for m in test.models])
+    s = retrieval_scores(l1_similarity(dd), tl)
+    test_res["D2"] = s
+    test_rows.append(["D2 (meshes)", s["nn"], s["first_tier"], s["dcg"], None, None])
+    print()
+    print(
+        format_table(
+            f"descriptors on the {ds.name} test split ({len(test)} models; block scales from validation)",
+            ("descriptor", "NN", "1-T", "DCG", "pc->mesh NN", "pc->pc NN"),
+            test_rows,
+        )
+    )
+    return {
+        "validation": results,
+        "greedy": chosen,
+        "scales": scales,
+        "test": test_res,
+    }
+
+
+STABILITY_VARIANTS = ("mesh_shift", "mesh_rotate", "mesh_decimate", "pointcloud")
+
+
+def run_stability(
+    ds: Dataset, mdbd: MDBDConfig, kcfg: KernelConfig, *, workers: int = 2, quick: bool = False
+) -> dict[str, Any]:
+    """Does a transformed copy rank its original first among all test-split meshes?"""
+    test = ds.split("test")
+    mesh = decompose_all(test.models, "mesh", mdbd, workers=workers)
+    keep = [i for i, b in enumerate(mesh) if b is not None]
+    test = Dataset(ds.name, tuple(test.models[i] for i in keep))
+    mesh = [mesh[i] for i in keep]
+    step = max(1, len(test) // (12 if quick else 30))
+    probe = list(range(0, len(test), step))
+    db = desc.describe(mesh)  # type: ignore[arg-type]
+    scales = _scales(db)
+    methods = {
+        "paper kernel": ("paper",),
+        **{k: CANDIDATES[k] for k in ("geom", "geom+wwl", "all")},
+    }
+    out: dict[str, Any] = {}
+    rows = []
+    for variant in STABILITY_VARIANTS:
+        copies = decompose_all([test.models[i] for i in probe], variant, mdbd, workers=workers)
+        ok = [k for k, b in enumerate(copies) if b is not None]
+        if not ok:
+            continue
+        q = desc.describe([copies[k] for k in ok])  # type: ignore[misc]
+        target = np.asarray([probe[k] for k in ok])
+        res = {}
+        for name, names in methods.items():
+            d = desc.combined_distance(q, db, dict.fromkeys(names, 1.0), scales)
+            first = float(np.mean(np.argmin(d, axis=1) == target))
+            res[name] = first
+        if variant != "pointcloud":
+            v_arr = [mesh_arrays(test.models[probe[k]]) for k in ok]
+            res["D2"] = _d2_first(test, v_arr, target, variant, mdbd)
+        out[variant] = {"copies": len(ok), **res}
+        rows.append([variant, len(ok), *(res.get(m) for m in [*methods, "D2"])])
+    print()
+    print(
+        format_table(
+            f"stability, {ds.name}: copy ranks its original first (among {len(test)} meshes)",
+            ("variant", "copies", *methods, "D2"),
+            rows,
+        )
+    )
+    return out
+
+
+def _d2_first(
+    test: Dataset,
+    arrays: Sequence[tuple[NDArray[np.float64], NDArray[np.int64]]],
+    target: NDArray[np.int64],
+    variant: str,
+    mdbd: MDBDConfig,
+) -> float:
+    from bench.common import variant_geometry
+
+    cfg = D2Config(n_pairs=2**18)
+    db = np.stack([d2_descriptor(*mesh_arrays(m), cfg) for m in test.models])
+    qs = []
+    for t in target:
+        g = variant_geometry(test.models[int(t)], variant, mdbd)
+        qs.append(d2_descriptor(g.vertices, g.faces, D2Config(n_pairs=2**18, seed=1)))
+    sim = l1_similarity(np.stack(qs), db)
+    return float(np.mean(np.argmax(sim, axis=1) == target))

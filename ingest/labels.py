@@ -1,0 +1,124 @@
+"""Labels and metadata for ingested files: from a CSV, or from folder names.
+
+A labels CSV has a header with a ``path`` column, usually a ``label`` column, and
+any other columns, which are kept as string metadata::
+
+    path,label,author
+    chairs/c1.obj,chair,alice
+    /abs/path/t7.ply,table,bob
+
+Relative paths are relative to the CSV's folder. A file is matched by its absolute
+path, or failing that by the longest CSV path that is a suffix of it (so a CSV
+written for ``capod/`` still matches when the folder is given another way).
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from shapedb.errors import LoadError
+
+__all__ = ["LabelEntry", "LabelTable", "read_labels", "folder_label"]
+
+
+@dataclass(frozen=True)
+class LabelEntry:
+    """Label and extra metadata of one file."""
+
+    label: str | None
+    metadata: Mapping[str, str] = field(default_factory=dict)
+
+
+class LabelTable:
+    """Lookup of :class:`LabelEntry` by file path.
+
+    Parameters
+    ----------
+    entries : mapping of path -> LabelEntry
+        Absolute paths, or paths relative to ``root``.
+    root : str or Path, optional
+        Folder that relative paths are relative to (the CSV's folder).
+    """
+
+    def __init__(
+        self,
+        entries: Mapping[str | os.PathLike[str], LabelEntry],
+        *,
+        root: str | os.PathLike[str] | None = None,
+    ) -> None:
+        base = Path(root or ".").absolute()
+        self._exact: dict[str, LabelEntry] = {}
+        self._suffix: dict[tuple[str, ...], LabelEntry] = {}
+        for key, entry in entries.items():
+            p = Path(key)
+            full = p if p.is_absolute() else base / p
+            self._exact[os.path.normpath(full)] = entry
+            parts = tuple(x for x in Path(os.path.normpath(key)).parts if x not in ("/", "."))
+            self._suffix[parts] = entry
+
+    def __len__(self) -> int:
+        return len(self._exact)
+
+    def lookup(self, path: str | os.PathLike[str]) -> LabelEntry | None:
+        """The entry of ``path``, or None when the table does not list it."""
+        full = os.path.normpath(Path(path).absolute())
+        if full in self._exact:
+            return self._exact[full]
+        parts = Path(full).parts
+        for k in range(max(len(parts) - 1, 1), 0, -1):
+            hit = self._suffix.get(parts[-k:])
+            if hit is not None:
+                return hit
+        return None
+
+    @classmethod
+    def from_mapping(cls, labels: Mapping[str, str]) -> LabelTable:
+        """A table from ``{path: label}``."""
+        return cls({k: LabelEntry(v) for k, v in labels.items()})
+
+
+def read_labels(path: str | os.PathLike[str]) -> LabelTable:
+    """Read a labels CSV (``path,label,...``; extra columns become metadata).
+
+    Raises
+    ------
+    LoadError
+        The file is missing, has no ``path`` column, or a row has no path.
+    """
+    src = str(path)
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            reader = csv.DictReader(fh)
+            header = [h.strip() for h in (reader.fieldnames or [])]
+            lower = {h.lower(): h for h in header}
+            if "path" not in lower:
+                raise LoadError(f"labels CSV needs a 'path' column; header is {header}", source=src)
+            pcol, lcol = lower["path"], lower.get("label")
+            entries: dict[str, LabelEntry] = {}
+            for k, raw in enumerate(reader, start=2):
+                row = {
+                    (a or "").strip(): (b or "").strip()
+                    for a, b in raw.items()
+                    if a is not None and not isinstance(b, list)
+                }
+                if not row.get(pcol):
+                    raise LoadError(f"row {k} has no path", source=src)
+                meta = {a: b for a, b in row.items() if a not in (pcol, lcol) and b != ""}
+                entries[row[pcol]] = LabelEntry(row.get(lcol) or None if lcol else None, meta)
+    except OSError as exc:
+        if isinstance(exc, LoadError):
+            raise
+        raise LoadError(f"cannot read labels CSV: {exc.strerror or exc}", source=src) from exc
+    except (csv.Error, UnicodeDecodeError) as exc:
+        raise LoadError(f"malformed labels CSV: {exc}", source=src) from exc
+    return LabelTable(entries, root=Path(path).absolute().parent)
+
+
+def folder_label(path: str | os.PathLike[str]) -> str | None:
+    """The label a file gets from its folder: the name of its parent directory."""
+    parent = Path(path).absolute().parent.name
+    return parent or None

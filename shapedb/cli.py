@@ -1,0 +1,337 @@
+"""The ``shapedb`` command line: one entry point, one subcommand per task.
+
+::
+
+    shapedb ingest PATH... --db DIR [--labels CSV] [--label-from-folder] [--as pointcloud]
+                   [--resolution N] [--balls N] [--workers N] [--scheduler ADDR] [--force] [--json]
+    shapedb info --db DIR [--json]
+    shapedb delete ID_OR_NAME... --db DIR
+    shapedb search QUERY --db DIR [-k 10] [--where SQL] [--json]
+    shapedb sql "SELECT ..." --db DIR [--json | --csv]
+    shapedb eval --db DIR [--label label] [--json] [--plot pr.png]
+    shapedb demo [--db DIR]
+
+It only calls the :class:`~shapedb.database.Database` facade. Errors of shapedb are
+printed as one line, ``shapedb: error: ...``, on stderr, with exit status 1 (2 for
+usage errors). ``ingest`` also exits with 1 when some input failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import os
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from shapedb.errors import ShapeDBError
+
+__all__ = ["main", "build_parser"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``shapedb`` command."""
+    p = argparse.ArgumentParser(
+        prog="shapedb", description="3-D shape retrieval with maximal disjoint ball decompositions."
+    )
+    p.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def db_arg(sp: argparse.ArgumentParser, required: bool = True) -> None:
+        sp.add_argument("--db", required=required, metavar="DIR", help="store directory")
+
+    s = sub.add_parser("ingest", help="add model files or folders to a store")
+    s.add_argument("paths", nargs="+", metavar="PATH", help="files or folders")
+    db_arg(s)
+    s.add_argument("--labels", metavar="CSV", help="CSV with path,label[,extra columns]")
+    s.add_argument("--label-from-folder", action="store_true", help="label = parent folder")
+    s.add_argument("--as", dest="as_", choices=["mesh", "pointcloud"], help="force representation")
+    s.add_argument("--resolution", type=int, metavar="N", help="grid cells (new store)")
+    s.add_argument("--balls", type=int, metavar="N", help="max balls per shape (new store)")
+    s.add_argument("--workers", type=int, metavar="N", help="worker processes (default: all cores)")
+    s.add_argument("--scheduler", metavar="ADDR", help="Dask scheduler address, e.g. tcp://h:8786")
+    s.add_argument("--batch-size", type=int, default=32, metavar="N", help="shapes per commit")
+    s.add_argument("--force", action="store_true", help="rebuild shapes already stored")
+    s.add_argument("--json", action="store_true", help="print the report as JSON")
+
+    s = sub.add_parser("info", help="counts, labels, failures and configuration of a store")
+    db_arg(s)
+    s.add_argument("--json", action="store_true")
+
+    s = sub.add_parser("delete", help="remove shapes by id or name")
+    s.add_argument("targets", nargs="+", metavar="ID_OR_NAME")
+    db_arg(s)
+
+    s = sub.add_parser("search", help="the stored shapes most like QUERY")
+    s.add_argument("query", metavar="QUERY", help="a model file, or a stored shape's id or name")
+    db_arg(s)
+    s.add_argument("-k", type=int, default=10, help="number of hits (default 10)")
+    s.add_argument("--where", metavar="SQL", help="filter, e.g. \"label = 'Chair'\"")
+    s.add_argument("--json", action="store_true")
+
+    s = sub.add_parser("sql", help="run DuckDB SQL over the views shapes, balls, edges")
+    s.add_argument("statement", metavar="SQL")
+    db_arg(s)
+    fmt = s.add_mutually_exclusive_group()
+    fmt.add_argument("--json", action="store_true")
+    fmt.add_argument("--csv", action="store_true")
+
+    s = sub.add_parser("eval", help="leave-one-out retrieval scores by label")
+    db_arg(s)
+    s.add_argument("--label", default="label", help="column or metadata key of the class")
+    s.add_argument("--json", action="store_true")
+    s.add_argument("--plot", metavar="PNG", help="save the precision-recall curve")
+
+    s = sub.add_parser("demo", help="ingest the built-in example shapes and search them")
+    db_arg(s, required=False)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    level = logging.WARNING - 10 * min(args.verbose, 2)
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        return int(_COMMANDS[args.command](args))
+    except ShapeDBError as exc:
+        print(f"shapedb: error: {_one_line(exc)}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("shapedb: interrupted", file=sys.stderr)
+        return 130
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())
+
+
+def _open(path: str, **kwargs: Any) -> Any:
+    from shapedb.database import connect
+
+    return connect(path, **kwargs)
+
+
+def _existing(path: str) -> Any:
+    return _open(path, create=False)
+
+
+# ---------------------------------------------------------------- commands
+def _ingest(args: argparse.Namespace) -> int:
+    options = {}
+    if args.resolution is not None:
+        options["resolution"] = args.resolution
+    if args.balls is not None:
+        options["n_balls"] = args.balls
+    db = _open(args.db, **options)
+    bar = _Bar(enabled=not args.json)
+    try:
+        report = db.ingest(
+            args.paths,
+            labels=args.labels,
+            label_from_folder=args.label_from_folder,
+            as_=args.as_,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            force=args.force,
+            progress=bar,
+            batch_size=args.batch_size,
+        )
+    finally:
+        bar.close()
+    if args.json:
+        _print_json(report.to_dict())
+    else:
+        print(
+            f"ingested {len(report.ingested)}, skipped {len(report.skipped)}, "
+            f"failed {len(report.failed)} ({report.seconds:.1f} s)"
+        )
+        for path, error in report.failed:
+            print(f"  failed: {path}: {error}")
+    return 1 if report.failed else 0
+
+
+class _Bar:
+    """A tqdm progress bar on stderr, fed by the ingest's progress callback."""
+
+    def __init__(self, *, enabled: bool) -> None:
+        self.enabled = enabled and sys.stderr.isatty()
+        self._bar: Any = None
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.enabled:
+            return
+        if self._bar is None:
+            from tqdm import tqdm
+
+            self._bar = tqdm(total=total, unit="model", file=sys.stderr, dynamic_ncols=True)
+        self._bar.update(done - self._bar.n)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+
+
+def _info(args: argparse.Namespace) -> int:
+    info = _existing(args.db).info()
+    if args.json:
+        _print_json(info)
+        return 0
+    print(f"store:    {os.path.abspath(args.db)}")
+    print(f"shapes:   {info['shapes']}")
+    labels = info["labels"]
+    print(f"labels:   {len(labels)}" + (":" if labels else ""))
+    for name, count in labels.items():
+        print(f"  {count:6d}  {name}")
+    mdbd, kernel = info["config"]["mdbd"], info["config"]["kernel"]
+    print("config:   " + ", ".join(f"{k}={v}" for k, v in {**mdbd, **kernel}.items()))
+    print(f"failures: {len(info['failures'])}")
+    for f in info["failures"]:
+        print(f"  {f['path']}: {f['error']}")
+    return 0
+
+
+def _delete(args: argparse.Namespace) -> int:
+    n = _existing(args.db).delete(args.targets)
+    print(f"deleted {n} shape(s)")
+    return 0
+
+
+def _query_arg(text: str) -> Any:
+    """A path when such a file exists, an int id for digits, else a name."""
+    if os.path.exists(text):
+        return text
+    return int(text) if text.strip().isdigit() else text
+
+
+def _search(args: argparse.Namespace) -> int:
+    db = _existing(args.db)
+    hits = db.search(_query_arg(args.query), k=args.k, where=args.where)
+    rows = [_hit(h) for h in hits]
+    if args.json:
+        _print_json(rows)
+        return 0
+    _print_rows(rows, ["id", "name", "label", "similarity", "distance"])
+    return 0
+
+
+def _hit(h: Any) -> dict[str, Any]:
+    if hasattr(h, "to_dict"):
+        return dict(h.to_dict())
+    return {k: getattr(h, k) for k in ("id", "name", "label", "similarity", "distance")}
+
+
+def _sql(args: argparse.Namespace) -> int:
+    table = _existing(args.db).sql(args.statement)
+    if args.csv:
+        import io
+
+        import pyarrow.csv as pacsv
+
+        buf = io.BytesIO()
+        pacsv.write_csv(table, buf)
+        sys.stdout.write(buf.getvalue().decode())
+        return 0
+    rows = table.to_pylist()
+    if args.json:
+        _print_json(rows)
+        return 0
+    _print_rows(rows, table.column_names)
+    return 0
+
+
+def _eval(args: argparse.Namespace) -> int:
+    db = _existing(args.db)
+    scores = db.evaluate(label=args.label, plot=args.plot) if args.plot else db.evaluate(
+        label=args.label
+    )
+    out = scores.to_dict() if hasattr(scores, "to_dict") else dict(vars(scores))
+    if args.json:
+        _print_json(out)
+        return 0
+    print(f"queries: {out.get('queries')}")
+    for key in ("nn", "first_tier", "second_tier", "e_measure", "dcg"):
+        if key in out:
+            print(f"{key:12s} {out[key]:.4f}")
+    if args.plot:
+        print(f"precision-recall curve: {args.plot}")
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from shapedb.examples import catalogue  # type: ignore[import-not-found]
+
+    path = args.db or tempfile.mkdtemp(prefix="shapedb-demo-")
+    db = _open(path, resolution=48, n_balls=128)
+    shapes = catalogue()
+    items = list(shapes.items()) if isinstance(shapes, dict) else list(shapes)
+    report = db.ingest(items, workers=1)
+    print(f"demo store {path}: ingested {len(report.ingested)}, skipped {len(report.skipped)}")
+    first = db.shapes(["id", "name"]).to_pylist()
+    if first:
+        query = first[0]
+        print(f"shapes most like {query['name']!r}:")
+        _print_rows([_hit(h) for h in db.search(int(query["id"]), k=5)],
+                    ["id", "name", "label", "similarity", "distance"])
+    return 0
+
+
+_COMMANDS = {
+    "ingest": _ingest,
+    "info": _info,
+    "delete": _delete,
+    "search": _search,
+    "sql": _sql,
+    "eval": _eval,
+    "demo": _demo,
+}
+
+
+# ---------------------------------------------------------------- output
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, (str, int, float, bool)) or x is None:
+        return x
+    if hasattr(x, "tolist"):
+        return _jsonable(x.tolist())
+    if hasattr(x, "isoformat"):
+        return x.isoformat()
+    if isinstance(x, (bytes, Path)):
+        return str(x)
+    return str(x)
+
+
+def _print_json(data: Any) -> None:
+    print(json.dumps(_jsonable(data), indent=None))
+
+
+def _cell(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    text = "" if v is None else str(v)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _print_rows(rows: list[dict[str, Any]], columns: Sequence[str]) -> None:
+    cells = [[_cell(r.get(c)) for c in columns] for r in rows]
+    widths = [max([len(c)] + [len(row[k]) for row in cells]) for k, c in enumerate(columns)]
+    print("  ".join(c.ljust(w) for c, w in zip(columns, widths, strict=True)).rstrip())
+    for row in cells:
+        print("  ".join(v.ljust(w) for v, w in zip(row, widths, strict=True)).rstrip())
+    if not rows:
+        print("(no rows)")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,306 @@
+"""Triangle meshes: robust signed distance for real, imperfect meshes.
+
+Real meshes are rarely watertight: open surfaces, polygon soups, duplicated and
+inconsistently oriented faces, several overlapping components. :class:`TriangleMesh`
+therefore decides inside/outside with the *generalised winding number* (Jacobson
+et al. 2013; libigl's fast Barnes-Hut evaluation, ``igl.FastWindingNumberBVH``),
+after cleaning:
+
+1. merge duplicate vertices, drop degenerate faces and duplicated faces (also
+   duplicates with opposite orientation, which would cancel each other);
+2. make the winding consistent inside each connected component
+   (``trimesh.repair.fix_winding``) and flip components whose signed volume is
+   negative, so that nested or overlapping components add up rather than cancel;
+3. classify a point as inside when ``|w| > 0.5`` (a component that is still
+   inverted contributes -1 and counts as inside too).
+
+Distances are exact point-to-triangle distances from open3d's C++
+``RaycastingScene`` (float32, evaluated in coordinates centred on the mesh).
+
+Whole-grid evaluation (:meth:`TriangleMesh.grid_sdf`) never queries every cell:
+
+* narrow band: triangles are sampled on a lattice finer than half a cell and the
+  hit cells dilated by one (``_meshing.triangle_band``); only these cells (a few
+  per cent of the grid) get an exact closest-point query;
+* closest-point propagation: every other cell takes the closest surface point of
+  its nearest band cell (exact EDT with indices) and measures its distance to it.
+  This is an upper bound of the true distance, typically within 0.01-0.05 cells;
+* sign: winding numbers on a stride-4 sub-grid, inherited by every fine cell that
+  is farther from the surface than from its sub-grid node, and evaluated directly
+  on the remaining shell of cells near the surface.
+
+Measured on this machine (2 cores), 128^3 cells: ~0.3 s for a 50k-face mesh against
+~30 s for exact distances at every cell (see the report in the tests' docstring).
+"""
+
+from __future__ import annotations
+
+import logging
+from functools import cached_property
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from shapedb._meshing import (
+    coarse_to_fine_inside,
+    propagate_closest,
+    refine_closest,
+    triangle_band,
+)
+from shapedb.errors import (
+    DegenerateGeometryError,
+    EmptyGeometryError,
+    InvalidShapeError,
+    NonFiniteGeometryError,
+)
+from shapedb.geometry import Geometry, Grid, as_points
+
+if TYPE_CHECKING:
+    import trimesh
+
+__all__ = ["TriangleMesh"]
+
+logger = logging.getLogger(__name__)
+
+#: Relative size below which an extent (or a singular value) counts as zero.
+_FLAT = 1e-9
+
+
+class TriangleMesh(Geometry):
+    """A solid bounded by a (possibly imperfect) triangle mesh.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+        Vertex positions, model units.
+    faces : (m, 3) int
+        Vertex indices of each triangle. Orientation need not be consistent.
+    name : str, optional
+        Used in error messages.
+
+    Raises
+    ------
+    EmptyGeometryError
+        No vertices or no faces.
+    NonFiniteGeometryError
+        NaN or infinite vertex coordinates.
+    DegenerateGeometryError
+        All faces degenerate, or the mesh is flat (encloses no volume).
+    InvalidShapeError
+        Wrong array shapes, non-integer faces or out-of-range indices.
+    """
+
+    representation = "mesh"
+
+    def __init__(self, vertices: ArrayLike, faces: ArrayLike, *, name: str | None = None) -> None:
+        self.name = name
+        v = np.asarray(vertices)
+        f = np.asarray(faces)
+        if v.size == 0 or f.size == 0:
+            raise EmptyGeometryError(
+                f"mesh has {v.size // 3} vertices and {f.size // 3} faces; it needs both",
+                source=name,
+            )
+        if v.ndim != 2 or v.shape[1] != 3:
+            raise InvalidShapeError(f"vertices must have shape (n, 3), got {v.shape}", source=name)
+        if f.ndim != 2 or f.shape[1] != 3:
+            raise InvalidShapeError(f"faces must have shape (m, 3), got {f.shape}", source=name)
+        if not np.issubdtype(v.dtype, np.number) or np.iscomplexobj(v):
+            raise InvalidShapeError(f"vertices must be real numbers, got {v.dtype}", source=name)
+        if not np.issubdtype(f.dtype, np.integer):
+            if not (np.issubdtype(f.dtype, np.floating) and np.all(f == np.round(f))):
+                raise InvalidShapeError(f"faces must be integers, got {f.dtype}", source=name)
+        v = np.ascontiguousarray(v, dtype=np.float64)
+        f = np.ascontiguousarray(f, dtype=np.int64)
+        if not np.all(np.isfinite(v)):
+            bad = int((~np.isfinite(v)).any(axis=1).sum())
+            raise NonFiniteGeometryError(
+                f"{bad} of {len(v)} vertices have NaN or infinite coordinates", source=name
+            )
+        if f.min() < 0 or f.max() >= len(v):
+            raise InvalidShapeError(
+                f"face indices must be in [0, {len(v) - 1}], got [{f.min()}, {f.max()}]",
+                source=name,
+            )
+        used = v[np.unique(f)]
+        extent = used.max(0) - used.min(0)
+        scale = float(extent.max())
+        centred = used - used.mean(0)
+        sv = np.linalg.svd(centred[:: max(1, len(centred) // 20000)], compute_uv=False)
+        if scale <= 0 or len(sv) < 3 or sv[2] <= _FLAT * sv[0]:
+            raise DegenerateGeometryError(
+                f"mesh is flat (extent {extent.tolist()}): it encloses no volume", source=name
+            )
+        self._vertices = v
+        self._faces = f
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_trimesh(cls, mesh: trimesh.Trimesh, *, name: str | None = None) -> TriangleMesh:
+        """Wrap a :class:`trimesh.Trimesh` (its arrays are copied, not processed)."""
+        return cls(np.asarray(mesh.vertices), np.asarray(mesh.faces), name=name)
+
+    def to_trimesh(self) -> trimesh.Trimesh:
+        """The mesh as given, as an unprocessed :class:`trimesh.Trimesh`."""
+        import trimesh
+
+        return trimesh.Trimesh(self._vertices.copy(), self._faces.copy(), process=False)
+
+    @property
+    def vertices(self) -> NDArray[np.float64]:
+        """(n, 3) float64: vertex positions as given (read-only view)."""
+        out = self._vertices.view()
+        out.flags.writeable = False
+        return out
+
+    @property
+    def faces(self) -> NDArray[np.int64]:
+        """(m, 3) int64: triangle vertex indices as given (read-only view)."""
+        out = self._faces.view()
+        out.flags.writeable = False
+        return out
+
+    @cached_property
+    def bounds(self) -> NDArray[np.float64]:
+        """(2, 3) float64: corners of the box around the referenced vertices."""
+        used = self._vertices[np.unique(self._faces)]
+        return np.stack([used.min(0), used.max(0)])
+
+    def sample_surface(self, n: int, *, seed: int | None = None) -> NDArray[np.float64]:
+        """``n`` points (n, 3) drawn uniformly by area on the surface, model units."""
+        tri = self._vertices[self._faces]
+        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        rng = np.random.default_rng(seed)
+        face = rng.choice(len(tri), size=n, p=area / area.sum())
+        r = rng.random((n, 2))
+        flip = r.sum(1) > 1
+        r[flip] = 1 - r[flip]
+        t = tri[face]
+        return t[:, 0] + r[:, :1] * (t[:, 1] - t[:, 0]) + r[:, 1:] * (t[:, 2] - t[:, 0])
+
+    # ------------------------------------------------------------------ cleaning
+    @cached_property
+    def _clean(self) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        """Cleaned, consistently oriented (vertices, faces) used for every query."""
+        import trimesh
+
+        tm = trimesh.Trimesh(self._vertices, self._faces, process=False)
+        tm.merge_vertices(digits_vertex=None)
+        f = tm.faces
+        v = tm.vertices
+        tri = v[f]
+        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        scale = float(np.ptp(v, axis=0).max())
+        area2 = np.linalg.norm(cross, axis=1)
+        keep = (area2 > (1e-12 * scale) ** 2) & (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2])
+        keep &= f[:, 0] != f[:, 2]
+        f = f[keep]
+        _, first = np.unique(np.sort(f, axis=1), axis=0, return_index=True)
+        f = f[np.sort(first)]
+        if len(f) == 0:
+            raise DegenerateGeometryError("every face is degenerate (zero area)", source=self.name)
+        dropped = len(self._faces) - len(f)
+        tm = trimesh.Trimesh(v, f, process=False)
+        trimesh.repair.fix_winding(tm)
+        f = np.array(tm.faces, dtype=np.int64)
+        # flip components whose signed volume is negative (open ones included)
+        labels = trimesh.graph.connected_component_labels(tm.face_adjacency, node_count=len(f))
+        tri = v[f]
+        centre = v[np.unique(f)].mean(0)
+        det = np.einsum("ij,ij->i", tri[:, 0] - centre, np.cross(tri[:, 1] - centre, tri[:, 2] - centre))
+        vol = np.bincount(labels, weights=det)
+        flip = vol[labels] < 0
+        f[flip] = f[flip][:, ::-1]
+        logger.debug(
+            "cleaned mesh %s: %d faces dropped, %d components, %d faces flipped",
+            self.name, dropped, int(labels.max()) + 1, int(flip.sum()),
+        )
+        return np.ascontiguousarray(v, dtype=np.float64), np.ascontiguousarray(f)
+
+    @cached_property
+    def _centre(self) -> NDArray[np.float64]:
+        return 0.5 * (self.bounds[0] + self.bounds[1])
+
+    @cached_property
+    def _scene(self) -> Any:
+        import open3d as o3d
+
+        v, f = self._clean
+        scene = o3d.t.geometry.RaycastingScene()
+        scene.add_triangles(
+            o3d.core.Tensor((v - self._centre).astype(np.float32)),
+            o3d.core.Tensor(f.astype(np.uint32)),
+        )
+        return scene
+
+    @cached_property
+    def _winding(self) -> Any:
+        import igl
+
+        v, f = self._clean
+        bvh = igl.FastWindingNumberBVH()
+        bvh.init(v - self._centre, f)
+        return bvh
+
+    # ------------------------------------------------------------------ queries
+    def winding_number(self, points: ArrayLike) -> NDArray[np.float64]:
+        """Generalised winding number (n,) of points (n, 3) w.r.t. the cleaned mesh."""
+        p = as_points(points)
+        if len(p) == 0:
+            return np.zeros(0)
+        q = np.ascontiguousarray(p - self._centre)
+        return np.asarray(self._winding.winding_number(q), dtype=np.float64)
+
+    def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
+        """Point-membership classification (n,) bool: ``|winding number| > 0.5``."""
+        return np.abs(self.winding_number(points)) > 0.5
+
+    def _closest(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Exact closest surface points (n, 3), model units."""
+        import open3d as o3d
+
+        q = o3d.core.Tensor((points - self._centre).astype(np.float32))
+        cp = self._scene.compute_closest_points(q)["points"].numpy().astype(np.float64)
+        return cp + self._centre
+
+    def unsigned_distance(self, points: ArrayLike) -> NDArray[np.float64]:
+        """Exact distance (n,) of points (n, 3) to the surface, model units."""
+        p = as_points(points)
+        if len(p) == 0:
+            return np.zeros(0)
+        return np.linalg.norm(p - self._closest(p), axis=1)
+
+    def signed_distance(self, points: ArrayLike) -> NDArray[np.float64]:
+        """Signed distance (n,) of points (n, 3), model units, positive inside.
+
+        Exact point-to-triangle distance times the sign of ``|w| - 0.5``.
+        """
+        p = as_points(points)
+        if len(p) == 0:
+            return np.zeros(0)
+        d = self.unsigned_distance(p)
+        return np.where(self.contains(p), d, -d)
+
+    def grid_sdf(self, grid: Grid) -> NDArray[np.float32]:
+        """Signed distance at every cell centre, ``grid.shape`` float32, model units.
+
+        Narrow band + closest-point propagation + coarse-to-fine winding numbers;
+        see the module docstring.
+        """
+        h = grid.spacing
+        v, f = self._clean
+        tri = (v[f] - grid.origin) / h
+        band = triangle_band(tri, grid.shape)
+        if not band.any():  # surface entirely outside the grid: use the exact query
+            return super().grid_sdf(grid)
+        band_pts = grid.to_point(np.argwhere(band))
+        closest = (self._closest(band_pts) - grid.origin) / h
+        dist, owner = propagate_closest(band, closest)
+        inside = coarse_to_fine_inside(
+            grid, dist, lambda p: np.abs(self.winding_number(p))
+        )
+        refine_closest(dist, owner, closest, inside & ~band)
+        out = np.where(inside, dist, -dist) * np.float32(h)
+        logger.debug("grid_sdf %s: %d band cells of %d", grid.shape, len(band_pts), grid.size)
+        return out.astype(np.float32, copy=False)

@@ -1,0 +1,725 @@
+"""A crash-safe store: a directory of Parquet segments and one JSON manifest.
+
+Layout of a store directory (see ``docs/store.md``)::
+
+    DIR/
+      manifest.json              the only source of truth: committed segments, config, version
+      .lock                      fcntl lock file: one writer at a time
+      data/shapes/*.parquet      segments of each table
+      data/balls/*.parquet
+      data/edges/*.parquet
+      data/failures/*.parquet
+      staging/<txn>/             segments being written (never read)
+
+A commit writes its new segments under ``staging/``, fsyncs them, renames them into
+``data/`` and then swaps the manifest atomically (temp file + fsync + ``os.replace`` +
+fsync of the directory). Readers only open the files the manifest lists, so a reader
+sees a batch entirely or not at all, and a crash at any moment leaves the store as it
+was before the batch or after it. Files a commit replaced (deletion, compaction) are
+*retired*: kept for ``retain_seconds`` so that readers holding an older manifest can
+finish, then removed by a later writer, which also removes staging leftovers and
+orphans (segments renamed into place by a writer that died before its manifest swap).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import fcntl
+import json
+import logging
+import os
+import time
+import uuid
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.dataset as ds
+import pyarrow.parquet as pq
+from numpy.typing import NDArray
+
+from shapedb.config import Config
+from shapedb.errors import ConfigError, NotFoundError, QueryError, StoreError, StoreLockedError
+from shapedb.schema import (
+    SCHEMA_VERSION,
+    TABLES,
+    Failure,
+    ShapeRecord,
+    balls_table,
+    edges_table,
+    failures_table,
+    record_from_rows,
+    schema_for,
+    shapes_table,
+)
+
+__all__ = ["Store", "CommitResult", "FORMAT_VERSION", "MANIFEST"]
+
+log = logging.getLogger(__name__)
+
+FORMAT_VERSION = 1
+"""Version of the directory layout and manifest format."""
+
+MANIFEST = "manifest.json"
+_LOCK = ".lock"
+_STAGING = "staging"
+_DATA = "data"
+
+
+@dataclass(frozen=True)
+class CommitResult:
+    """What one commit did.
+
+    Attributes
+    ----------
+    version : int
+        Manifest version after the commit.
+    added : tuple[int, ...]
+        Ids of the shapes added.
+    deleted : tuple[int, ...]
+        Ids of the shapes removed.
+    failures : int
+        Failures recorded.
+    """
+
+    version: int
+    added: tuple[int, ...] = ()
+    deleted: tuple[int, ...] = ()
+    failures: int = 0
+
+
+@dataclass(frozen=True)
+class _Snapshot:
+    """A parsed manifest: one consistent view of the store."""
+
+    data: dict[str, Any] = field(repr=False)
+
+    @property
+    def version(self) -> int:
+        return int(self.data["version"])
+
+    def segments(self, table: str) -> list[dict[str, Any]]:
+        return list(self.data["tables"][table])
+
+
+def _fsync_dir(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _fsync_file(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+class Store:
+    """A shape store on disk; open one with :meth:`open` or :meth:`create`.
+
+    Reading methods take a fresh snapshot of the manifest on each call (so they see
+    every commit made so far, and only whole commits). Writing methods take the
+    store's write lock for the duration of the call, or use :meth:`writer` to hold it
+    across several commits.
+
+    Parameters
+    ----------
+    path : str or Path
+        The store directory; it must hold a ``manifest.json``.
+    lock_timeout : float
+        Seconds a writer waits for the lock before raising :class:`StoreLockedError`;
+        0 fails at once.
+    retain_seconds : float
+        How long replaced segments are kept for readers still using an older manifest.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        lock_timeout: float = 0.0,
+        retain_seconds: float = 300.0,
+    ) -> None:
+        self.path = Path(path).absolute()
+        self.lock_timeout = float(lock_timeout)
+        self.retain_seconds = float(retain_seconds)
+        self._lock_fd: int | None = None
+        self._lock_depth = 0
+        snap = self._snapshot()  # validates
+        self._config = Config.from_dict(snap.data["config"])
+        self._dim = int(snap.data["dim"])
+
+    # ------------------------------------------------------------------ opening
+    @classmethod
+    def open(cls, path: str | os.PathLike[str], **kwargs: Any) -> Store:
+        """Open an existing store; :class:`StoreError` when there is none."""
+        return cls(path, **kwargs)
+
+    @classmethod
+    def create(
+        cls, path: str | os.PathLike[str], config: Config | None = None, **kwargs: Any
+    ) -> Store:
+        """Create an empty store in ``path`` (which must not hold one already).
+
+        Parameters
+        ----------
+        path : str or Path
+            Directory to create (it may exist and be empty).
+        config : Config, optional
+            Configuration every record of the store is built with; the default one
+            when omitted.
+        """
+        config = config or Config()
+        root = Path(path).absolute()
+        if (root / MANIFEST).exists():
+            raise StoreError("a store already exists here", source=str(root))
+        if root.exists() and not root.is_dir():
+            raise StoreError("exists and is not a directory", source=str(root))
+        root.mkdir(parents=True, exist_ok=True)
+        for t in TABLES:
+            (root / _DATA / t).mkdir(parents=True, exist_ok=True)
+        now = time.time()
+        manifest = {
+            "format": "shapedb-store",
+            "format_version": FORMAT_VERSION,
+            "schema_version": SCHEMA_VERSION,
+            "version": 0,
+            "next_id": 1,
+            "created_at": now,
+            "updated_at": now,
+            "config": config.to_dict(),
+            "config_fingerprint": config.fingerprint,
+            "dim": config.kernel.dim,
+            "tables": {t: [] for t in TABLES},
+            "retired": [],
+        }
+        (root / _LOCK).touch()
+        _write_manifest(root, manifest)
+        log.info("created store %s (config %s)", root, config.fingerprint)
+        return cls(root, **kwargs)
+
+    @staticmethod
+    def exists(path: str | os.PathLike[str]) -> bool:
+        """Whether ``path`` holds a store."""
+        return (Path(path) / MANIFEST).is_file()
+
+    # --------------------------------------------------------------- properties
+    @property
+    def config(self) -> Config:
+        """The configuration every record of this store was built with."""
+        return self._config
+
+    @property
+    def dim(self) -> int:
+        """Length of the stored feature vectors (2 * n_r)."""
+        return self._dim
+
+    @property
+    def version(self) -> int:
+        """Manifest version: 0 when created, +1 on every commit."""
+        return self._snapshot().version
+
+    def __len__(self) -> int:
+        return sum(int(s["rows"]) for s in self._snapshot().segments("shapes"))
+
+    def __repr__(self) -> str:
+        return f"<Store {str(self.path)!r} version={self.version} shapes={len(self)}>"
+
+    # ------------------------------------------------------------------ reading
+    def _snapshot(self) -> _Snapshot:
+        try:
+            text = (self.path / MANIFEST).read_text()
+        except FileNotFoundError:
+            raise StoreError(
+                "no shapedb store here (manifest.json missing)", source=str(self.path)
+            ) from None
+        except OSError as exc:
+            raise StoreError(f"cannot read manifest: {exc}", source=str(self.path)) from exc
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise StoreError(f"manifest is not valid JSON: {exc}", source=str(self.path)) from exc
+        if data.get("format") != "shapedb-store":
+            raise StoreError("manifest.json is not a shapedb manifest", source=str(self.path))
+        if data.get("format_version") != FORMAT_VERSION:
+            raise StoreError(
+                f"store format version {data.get('format_version')} is not supported "
+                f"(this shapedb reads version {FORMAT_VERSION})",
+                source=str(self.path),
+            )
+        return _Snapshot(data)
+
+    def files(self, table: str = "shapes") -> list[str]:
+        """Absolute paths of the committed Parquet files of ``table`` (for DuckDB)."""
+        _check_table(table)
+        return [str(self.path / s["file"]) for s in self._snapshot().segments(table)]
+
+    def _read(
+        self,
+        table: str,
+        *,
+        columns: Sequence[str] | None = None,
+        filter: pc.Expression | None = None,
+        snapshot: _Snapshot | None = None,
+    ) -> pa.Table:
+        _check_table(table)
+        for attempt in range(5):
+            snap = snapshot if snapshot is not None and attempt == 0 else self._snapshot()
+            schema = schema_for(table, int(snap.data["dim"]))
+            paths = [str(self.path / s["file"]) for s in snap.segments(table)]
+            if columns is not None:
+                unknown = set(columns) - set(schema.names)
+                if unknown:
+                    raise QueryError(f"unknown column(s) of {table}: {sorted(unknown)}")
+            try:
+                if not paths:
+                    out = schema.empty_table()
+                    if filter is not None:
+                        out = out.filter(filter)
+                    return out.select(list(columns)) if columns is not None else out
+                dataset = ds.dataset(paths, schema=schema, format="parquet")
+                return dataset.to_table(columns=list(columns) if columns else None, filter=filter)
+            except FileNotFoundError:
+                # a writer retired a file after we read the manifest: read again
+                time.sleep(0.01 * (attempt + 1))
+        raise StoreError(f"cannot read a consistent snapshot of {table}", source=str(self.path))
+
+    def shapes(
+        self, columns: Sequence[str] | None = None, *, ids: Iterable[int] | None = None
+    ) -> pa.Table:
+        """The ``shapes`` table (all columns, or ``columns``), sorted by id.
+
+        Parameters
+        ----------
+        columns : sequence of str, optional
+            Columns to read (``id`` is always read first for sorting).
+        ids : iterable of int, optional
+            Only these shapes.
+        """
+        cols = None if columns is None else list(dict.fromkeys(["id", *columns]))
+        t = self._read("shapes", columns=cols, filter=_ids_filter("id", ids))
+        t = t.sort_by("id")
+        return t if columns is None else t.select(list(columns))
+
+    def balls(self, ids: Iterable[int] | None = None) -> pa.Table:
+        """The ``balls`` table, or the balls of the shapes ``ids``, sorted."""
+        t = self._read("balls", filter=_ids_filter("shape_id", ids))
+        return t.sort_by([("shape_id", "ascending"), ("ball", "ascending")])
+
+    def edges(self, ids: Iterable[int] | None = None) -> pa.Table:
+        """The ``edges`` table, or the edges of the shapes ``ids``, sorted."""
+        t = self._read("edges", filter=_ids_filter("shape_id", ids))
+        return t.sort_by([("shape_id", "ascending"), ("i", "ascending"), ("j", "ascending")])
+
+    def failures(self) -> pa.Table:
+        """The ``failures`` table: inputs that could not be ingested, and why."""
+        return self._read("failures").sort_by("time")
+
+    def ids(self) -> NDArray[np.int64]:
+        """Ids of all stored shapes, ascending."""
+        return self.shapes(["id"]).column("id").to_numpy()
+
+    def features(self) -> tuple[NDArray[np.int64], NDArray[np.float32]]:
+        """All Eq. 1 feature vectors.
+
+        Returns
+        -------
+        ids : (n,) int64
+            Shape ids, ascending.
+        matrix : (n, d) float32
+            Row k is the feature of ``ids[k]``; d = 2 * n_r.
+        """
+        t = self.shapes(["id", "feature"])
+        ids = t.column("id").to_numpy()
+        col = t.column("feature").combine_chunks()
+        flat = col.values.to_numpy(zero_copy_only=False) if len(col) else np.zeros(0, np.float32)
+        return ids, np.asarray(flat, dtype=np.float32).reshape(len(ids), self.dim)
+
+    def hashes(self) -> dict[str, int]:
+        """Content hash -> id of every stored shape (for idempotent ingest)."""
+        t = self.shapes(["id", "content_hash"])
+        return dict(
+            zip(t.column("content_hash").to_pylist(), t.column("id").to_pylist(), strict=True)
+        )
+
+    def resolve(self, id_or_name: int | str) -> int:
+        """The id of a shape given its id or its name.
+
+        An int is an id. A string is a name; a string of digits that is no shape's
+        name is taken as an id. Raises :class:`NotFoundError` when there is no such
+        shape, and :class:`QueryError` when a name is ambiguous.
+        """
+        if isinstance(id_or_name, (int, np.integer)) and not isinstance(id_or_name, bool):
+            sid = int(id_or_name)
+            if len(self.shapes(["id"], ids=[sid])) == 0:
+                raise NotFoundError("no shape with this id", source=sid)
+            return sid
+        name = str(id_or_name)
+        t = self._read("shapes", columns=["id"], filter=pc.field("name") == name)
+        ids = sorted(t.column("id").to_pylist())
+        if len(ids) == 1:
+            return int(ids[0])
+        if len(ids) > 1:
+            raise QueryError(f"name is ambiguous: shapes {ids} have it; use an id", source=name)
+        if name.strip().isdigit():
+            return self.resolve(int(name))
+        raise NotFoundError("no shape with this name or id", source=name)
+
+    def get(self, id_or_name: int | str) -> ShapeRecord:
+        """One shape as a :class:`ShapeRecord`, with its :class:`Decomposition` rebuilt."""
+        sid = self.resolve(id_or_name)
+        snap = self._snapshot()
+        rows = self._read("shapes", filter=pc.field("id") == sid, snapshot=snap).to_pylist()
+        if not rows:
+            raise NotFoundError("no shape with this id", source=sid)
+        balls = self._read("balls", filter=pc.field("shape_id") == sid, snapshot=snap)
+        edges = self._read("edges", filter=pc.field("shape_id") == sid, snapshot=snap)
+        return record_from_rows(rows[0], balls, edges)
+
+    # ------------------------------------------------------------------ locking
+    @contextlib.contextmanager
+    def writer(self, *, timeout: float | None = None) -> Iterator[Store]:
+        """Hold the write lock for the duration of a ``with`` block (re-entrant).
+
+        Parameters
+        ----------
+        timeout : float, optional
+            Seconds to wait for the lock; defaults to ``lock_timeout``.
+        """
+        self._acquire(self.lock_timeout if timeout is None else timeout)
+        try:
+            yield self
+        finally:
+            self._release()
+
+    def _acquire(self, timeout: float) -> None:
+        if self._lock_depth:
+            self._lock_depth += 1
+            return
+        fd = os.open(self.path / _LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+        deadline = time.monotonic() + max(timeout, 0.0)
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except OSError as exc:
+                if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
+                    os.close(fd)
+                    raise
+                if time.monotonic() >= deadline:
+                    holder = _read_holder(fd)
+                    os.close(fd)
+                    raise StoreLockedError(
+                        f"another writer holds the store's lock{holder}; "
+                        "wait for it to finish or retry with a lock timeout",
+                        source=str(self.path),
+                    ) from None
+                time.sleep(0.05)
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        self._lock_fd = fd
+        self._lock_depth = 1
+        try:
+            self._cleanup()
+        except Exception:
+            self._release()
+            raise
+
+    def _release(self) -> None:
+        self._lock_depth -= 1
+        if self._lock_depth == 0 and self._lock_fd is not None:
+            fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
+            os.close(self._lock_fd)
+            self._lock_fd = None
+
+    def _cleanup(self) -> None:
+        """Remove staging leftovers, orphans and expired retired files (lock held)."""
+        staging = self.path / _STAGING
+        if staging.exists():
+            for txn in staging.iterdir():
+                for f in txn.iterdir() if txn.is_dir() else []:
+                    f.unlink(missing_ok=True)
+                if txn.is_dir():
+                    txn.rmdir()
+                else:
+                    txn.unlink(missing_ok=True)
+        for tmp in self.path.glob(f".{MANIFEST}.*.tmp"):
+            tmp.unlink(missing_ok=True)
+        snap = self._snapshot()
+        live = {s["file"] for t in TABLES for s in snap.segments(t)}
+        retired = {r["file"]: float(r["since"]) for r in snap.data.get("retired", [])}
+        now = time.time()
+        expired = {f for f, since in retired.items() if now - since > self.retain_seconds}
+        removed = 0
+        for t in TABLES:
+            folder = self.path / _DATA / t
+            folder.mkdir(parents=True, exist_ok=True)
+            for f in folder.iterdir():
+                rel = f"{_DATA}/{t}/{f.name}"
+                if rel in live or (rel in retired and rel not in expired):
+                    continue
+                f.unlink(missing_ok=True)
+                removed += 1
+        if removed:
+            log.info("store %s: removed %d orphan or expired segment(s)", self.path, removed)
+        if expired:
+            data = dict(snap.data)
+            data["retired"] = [r for r in data["retired"] if r["file"] not in expired]
+            _write_manifest(self.path, data)  # same version: content unchanged for readers
+
+    # ------------------------------------------------------------------ writing
+    def add(
+        self, records: Sequence[ShapeRecord], failures: Sequence[Failure] = ()
+    ) -> list[ShapeRecord]:
+        """Commit records (and failures) atomically; returns them with their ids."""
+        with self.writer():
+            out: list[ShapeRecord] = []
+            self.commit(records, failures=failures, assigned=out)
+            return out
+
+    def delete(self, ids: Iterable[int]) -> int:
+        """Remove shapes by id in one commit; returns how many were removed."""
+        result = self.commit(delete=ids)
+        return len(result.deleted)
+
+    def commit(
+        self,
+        records: Sequence[ShapeRecord] = (),
+        *,
+        failures: Sequence[Failure] = (),
+        delete: Iterable[int] = (),
+        assigned: list[ShapeRecord] | None = None,
+    ) -> CommitResult:
+        """One atomic transaction: delete shapes, add records, record failures.
+
+        Parameters
+        ----------
+        records : sequence of ShapeRecord
+            New shapes. A record without an id gets the next free one; a record with
+            an id keeps it (the id must be free or deleted by this same commit).
+        failures : sequence of Failure
+            Inputs that failed. Earlier failures of the same sources, and of the
+            sources of ``records``, are dropped, so the table says what is wrong now.
+        delete : iterable of int
+            Ids to remove (unknown ids are ignored).
+        assigned : list, optional
+            Receives the committed records, with their ids.
+
+        Returns
+        -------
+        CommitResult
+        """
+        with self.writer():
+            snap = self._snapshot()
+            data = json.loads(json.dumps(snap.data))  # deep copy
+            dim = int(data["dim"])
+            for r in records:
+                if r.config != self._config:
+                    raise ConfigError(
+                        f"record was built with configuration {r.config.fingerprint} "
+                        f"({r.config.to_json()}), but this store holds configuration "
+                        f"{self._config.fingerprint} ({self._config.to_json()})",
+                        source=r.name,
+                    )
+            delete_ids = {int(i) for i in delete}
+            live_ids = set(self.ids().tolist()) if (delete_ids or records) else set()
+            delete_ids &= live_ids
+            next_id = int(data["next_id"])
+            new: list[ShapeRecord] = []
+            for r in records:
+                if r.id is None:
+                    new.append(replace(r, id=next_id))
+                    next_id += 1
+                else:
+                    if r.id in live_ids and r.id not in delete_ids:
+                        raise StoreError(f"id {r.id} is already in use", source=r.name)
+                    new.append(r)
+                    next_id = max(next_id, int(r.id) + 1)
+            if len({r.id for r in new}) != len(new):
+                raise StoreError("duplicate ids in one commit", source=str(self.path))
+            if not new and not delete_ids and not failures:
+                return CommitResult(version=snap.version)
+
+            txn = uuid.uuid4().hex[:12]
+            stage = self.path / _STAGING / txn
+            stage.mkdir(parents=True)
+            version = snap.version + 1
+            staged: list[tuple[str, Path]] = []  # (table, staged file)
+            retired: list[str] = []
+            tables = data["tables"]
+
+            def stage_table(table: str, t: pa.Table, id_col: str | None) -> dict[str, Any]:
+                name = f"{version:08d}-{uuid.uuid4().hex[:8]}.parquet"
+                path = stage / f"{table}-{name}"
+                pq.write_table(t, path, compression="zstd", row_group_size=1 << 17)
+                _fsync_file(path)
+                staged.append((table, path))
+                seg: dict[str, Any] = {"file": f"{_DATA}/{table}/{name}", "rows": t.num_rows}
+                if id_col is not None and t.num_rows:
+                    ids = t.column(id_col)
+                    seg["min_id"] = int(pc.min(ids).as_py())
+                    seg["max_id"] = int(pc.max(ids).as_py())
+                return seg
+
+            # copy-on-write deletion: rewrite every segment holding a deleted id
+            if delete_ids:
+                lo, hi = min(delete_ids), max(delete_ids)
+                for table, col in (("shapes", "id"), ("balls", "shape_id"), ("edges", "shape_id")):
+                    kept = []
+                    for seg in tables[table]:
+                        if "min_id" not in seg or seg["max_id"] < lo or seg["min_id"] > hi:
+                            kept.append(seg)
+                            continue
+                        t = pq.read_table(self.path / seg["file"], schema=schema_for(table, dim))
+                        mask = pc.is_in(t.column(col), pa.array(sorted(delete_ids), pa.int64()))
+                        if not pc.any(mask).as_py():
+                            kept.append(seg)
+                            continue
+                        rest = t.filter(pc.invert(mask))
+                        retired.append(seg["file"])
+                        if rest.num_rows:
+                            kept.append(stage_table(table, rest, col))
+                    tables[table] = kept
+
+            if new:
+                tables["shapes"].append(stage_table("shapes", shapes_table(new, dim), "id"))
+                balls = balls_table(new)
+                if balls.num_rows:
+                    tables["balls"].append(stage_table("balls", balls, "shape_id"))
+                edges = edges_table(new)
+                if edges.num_rows:
+                    tables["edges"].append(stage_table("edges", edges, "shape_id"))
+
+            # failures: one small segment, rewritten whenever it changes
+            gone = {f.source for f in failures} | {r.source for r in new if r.source}
+            gone |= {r.name for r in new}
+            old = self._read("failures", snapshot=snap)
+            if old.num_rows and gone:
+                keep = pc.invert(pc.is_in(old.column("source"), pa.array(sorted(gone))))
+                remaining = old.filter(keep)
+            else:
+                remaining = old
+            if failures or remaining.num_rows != old.num_rows:
+                merged = pa.concat_tables([remaining, failures_table(failures)])
+                retired.extend(s["file"] for s in tables["failures"])
+                tables["failures"] = (
+                    [stage_table("failures", merged, None)] if merged.num_rows else []
+                )
+
+            for table, path in staged:
+                os.rename(path, self.path / _DATA / table / path.name.split("-", 1)[1])
+            for table in {t for t, _ in staged}:
+                _fsync_dir(self.path / _DATA / table)
+            stage.rmdir()
+
+            now = time.time()
+            data["version"] = version
+            data["next_id"] = next_id
+            data["updated_at"] = now
+            data["retired"] = data.get("retired", []) + [{"file": f, "since": now} for f in retired]
+            _write_manifest(self.path, data)
+            if assigned is not None:
+                assigned.extend(new)
+            log.info(
+                "store %s: committed version %d (+%d shapes, -%d, %d failures)",
+                self.path,
+                version,
+                len(new),
+                len(delete_ids),
+                len(failures),
+            )
+            return CommitResult(
+                version=version,
+                added=tuple(int(r.id) for r in new),  # type: ignore[arg-type]
+                deleted=tuple(sorted(delete_ids)),
+                failures=len(failures),
+            )
+
+    def compact(self, *, min_segments: int = 2) -> CommitResult:
+        """Merge each table's segments into one, in one commit (readers unaffected).
+
+        Parameters
+        ----------
+        min_segments : int
+            Only tables with at least this many segments are rewritten.
+        """
+        with self.writer():
+            snap = self._snapshot()
+            data = json.loads(json.dumps(snap.data))
+            todo = [
+                t
+                for t in ("shapes", "balls", "edges")
+                if len(snap.segments(t)) >= max(min_segments, 2)
+            ]
+            if not todo:
+                return CommitResult(version=snap.version)
+            version = snap.version + 1
+            stage = self.path / _STAGING / uuid.uuid4().hex[:12]
+            stage.mkdir(parents=True)
+            moves, retired = [], []
+            for table in todo:
+                t = self._read(table, snapshot=snap)
+                t = t.sort_by("id" if table == "shapes" else "shape_id")
+                col = "id" if table == "shapes" else "shape_id"
+                name = f"{version:08d}-{uuid.uuid4().hex[:8]}.parquet"
+                path = stage / name
+                pq.write_table(t, path, compression="zstd", row_group_size=1 << 17)
+                _fsync_file(path)
+                moves.append((path, self.path / _DATA / table / name))
+                retired.extend(s["file"] for s in snap.segments(table))
+                seg: dict[str, Any] = {"file": f"{_DATA}/{table}/{name}", "rows": t.num_rows}
+                if t.num_rows:
+                    seg["min_id"] = int(pc.min(t.column(col)).as_py())
+                    seg["max_id"] = int(pc.max(t.column(col)).as_py())
+                data["tables"][table] = [seg] if t.num_rows else []
+            for src, dst in moves:
+                os.rename(src, dst)
+                _fsync_dir(dst.parent)
+            stage.rmdir()
+            now = time.time()
+            data["version"] = version
+            data["updated_at"] = now
+            data["retired"] = data.get("retired", []) + [{"file": f, "since": now} for f in retired]
+            _write_manifest(self.path, data)
+            return CommitResult(version=version)
+
+
+def _check_table(table: str) -> None:
+    if table not in TABLES:
+        raise QueryError(f"unknown table {table!r}; the store has {list(TABLES)}")
+
+
+def _ids_filter(column: str, ids: Iterable[int] | None) -> pc.Expression | None:
+    if ids is None:
+        return None
+    values = pa.array(sorted({int(i) for i in ids}), pa.int64())
+    return pc.field(column).isin(values)
+
+
+def _read_holder(fd: int) -> str:
+    try:
+        pid = os.pread(fd, 32, 0).decode().strip()
+    except OSError:
+        return ""
+    return f" (pid {pid})" if pid else ""
+
+
+def _write_manifest(root: Path, data: dict[str, Any]) -> None:
+    """Atomically replace ``root/manifest.json`` (temp + fsync + replace + fsync dir)."""
+    tmp = root / f".{MANIFEST}.{uuid.uuid4().hex[:8]}.tmp"
+    text = json.dumps(data, indent=1, sort_keys=True)
+    with open(tmp, "w") as fh:
+        fh.write(text)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, root / MANIFEST)
+    _fsync_dir(root)

@@ -1,0 +1,207 @@
+"""Graph CNN classification of contact graphs (query.classify, query.gnn).
+
+The tests that train need the ``learn`` extra (torch + torch_geometric) and are
+skipped cleanly without it; the others run everywhere.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from shapedb.config import Config, MDBDConfig
+from shapedb.errors import ConfigError, MissingDependencyError, NotFittedError
+from shapedb.mdbd import Decomposition
+
+from query.classify import GraphClassifier, train_classifier
+from query.gnn import edge_arrays, node_features, stratified_split
+
+
+@pytest.fixture(scope="module")
+def pyg() -> None:
+    from query.gnn import import_torch
+
+    try:
+        import_torch()
+    except MissingDependencyError:
+        pytest.skip("needs the learn extra: pip install 'shapedb[learn]'")
+
+
+@dataclass(frozen=True)
+class Graph:
+    centers: np.ndarray
+    radii: np.ndarray
+    edges: np.ndarray
+
+
+def _graph(kind: int, rng: np.random.Generator, n: int = 24) -> tuple[np.ndarray, ...]:
+    """Balls along a line (0), in a flat disc (1) or in a blob (2), with contacts."""
+    scale = (np.array([4.0, 0.5, 0.5]), np.array([2.0, 2.0, 0.2]), np.array([1.0, 1.0, 1.0]))
+    c = rng.normal(size=(n, 3)) * scale[kind]
+    r = np.sort(rng.uniform(0.1, 0.6, n))[::-1]
+    d = np.linalg.norm(c[:, None] - c[None], axis=2)
+    i, j = np.nonzero(np.triu(d < 1.0, 1))
+    return c, r, np.stack([i, j], 1).astype(np.int32)
+
+
+def _decomposition(kind: int, rng: np.random.Generator, config: MDBDConfig) -> Decomposition:
+    c, r, e = _graph(kind, rng)
+    return Decomposition(
+        centers=c,
+        radii=r,
+        edges=e,
+        spacing=0.05,
+        bounds=np.array([c.min(0), c.max(0)]),
+        config=config,
+        representation="implicit",
+    )
+
+
+@pytest.fixture(scope="module")
+def tiny() -> tuple[list[Decomposition], list[str]]:
+    rng = np.random.default_rng(0)
+    labels = ["line", "disc", "blob"] * 8
+    kinds = {"line": 0, "disc": 1, "blob": 2}
+    graphs = [_decomposition(kinds[y], rng, MDBDConfig()) for y in labels]
+    return graphs, labels
+
+
+@pytest.fixture(scope="module")
+def fitted(pyg: None, tiny: tuple[list[Decomposition], list[str]]) -> GraphClassifier:
+    graphs, labels = tiny
+    return GraphClassifier("tag", epochs=6, rotate=True, batch_size=8, hidden=16).fit(
+        graphs, labels
+    )
+
+
+def test_import_stays_light() -> None:
+    code = "import query.classify, query.gnn, sys; print('torch' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_node_features_are_normalised() -> None:
+    rng = np.random.default_rng(1)
+    c, r, e = _graph(2, rng)
+    x = node_features(c * 7.0 + 100.0, r * 7.0)
+    assert x.shape == (len(r), 4) and x.dtype == np.float32
+    np.testing.assert_allclose(x, node_features(c, r), atol=1e-5)  # position and scale free
+    assert x[0, 3] == 1.0 and np.linalg.norm(x[:, :3], axis=1).max() <= 1.0
+    index, attr = edge_arrays(e, len(r))
+    deg = np.bincount(e.ravel(), minlength=len(r))
+    assert index.shape == (2, 2 * len(e))
+    np.testing.assert_allclose(attr, 1.0 / deg[index[0]], rtol=1e-6)
+
+
+def test_stratified_split_keeps_every_class_in_every_part() -> None:
+    labels = ["a"] * 10 + ["b"] * 5 + ["c"] * 3
+    parts = stratified_split(labels, (0.6, 0.2, 0.2), seed=3)
+    assert sorted(np.concatenate(parts).tolist()) == list(range(len(labels)))
+    for p in parts:
+        assert {labels[i] for i in p} == {"a", "b", "c"}
+
+
+def test_unfitted_use_raises() -> None:
+    model = GraphClassifier("tag")
+    with pytest.raises(NotFittedError, match="not fitted"):
+        model.predict([])
+    with pytest.raises(NotFittedError):
+        model.save("never.pt")
+
+
+@pytest.mark.parametrize("conv", ["tag", "arma", "spline"])
+def test_few_steps_reduce_the_loss(pyg: None, tiny: tuple[list, list], conv: str) -> None:
+    graphs, labels = tiny
+    model = GraphClassifier(
+        conv,
+        epochs=12,
+        lr=3e-3,
+        rotate=False,
+        batch_size=8,
+        hidden=32,
+        dropout=0.0,
+        warmup=1,
+        validation=0,
+    ).fit(graphs, labels)
+    loss = model.history_["loss"]
+    assert np.mean(loss[-3:]) < 0.8 * np.mean(loss[:3]), loss
+    proba = model.predict_proba(graphs[:5])
+    assert proba.shape == (5, 3)
+    np.testing.assert_allclose(proba.sum(1), 1.0, rtol=1e-6)
+
+
+def test_accepts_contact_graphs_and_keeps_label_names(pyg: None, fitted: GraphClassifier) -> None:
+    rng = np.random.default_rng(5)
+    g = Graph(*_graph(0, rng))
+    assert fitted.classes_ == ["blob", "disc", "line"]
+    assert fitted.predict([g])[0] in fitted.classes_
+    assert fitted.embed([g]).shape == (1, 32)
+
+
+def test_saved_model_reloads_with_identical_predictions(
+    pyg: None, fitted: GraphClassifier, tiny: tuple[list, list], tmp_path
+) -> None:
+    graphs, _ = tiny
+    path = fitted.save(tmp_path / "model.pt")
+    again = GraphClassifier.load(path)
+    assert again.classes_ == fitted.classes_ and again.fingerprint_ == fitted.fingerprint_
+    np.testing.assert_array_equal(again.predict_proba(graphs), fitted.predict_proba(graphs))
+    assert again.predict(graphs) == fitted.predict(graphs)
+
+
+def test_graph_of_another_config_is_refused(pyg: None, fitted: GraphClassifier) -> None:
+    other = _decomposition(0, np.random.default_rng(2), MDBDConfig(resolution=64))
+    with pytest.raises(ConfigError, match="configuration"):
+        fitted.predict([other])
+
+
+def test_mixed_configs_are_refused_in_training(pyg: None, tiny: tuple[list, list]) -> None:
+    graphs, labels = tiny
+    other = _decomposition(0, np.random.default_rng(2), MDBDConfig(resolution=64))
+    with pytest.raises(ConfigError, match="several configurations"):
+        GraphClassifier("tag", epochs=1).fit([*graphs, other], [*labels, "line"])
+
+
+def _store_db(tmp_path, graphs: list[Decomposition], labels: list[str], config: Config):
+    import shapedb.database as database
+    from shapedb.schema import ShapeRecord
+
+    db = database.connect(tmp_path / "db", config=config)
+    records = [
+        ShapeRecord(
+            name=f"s{k}",
+            decomposition=g,
+            feature=np.zeros(config.kernel.dim, np.float32),
+            config=config,
+            content_hash=f"h{k}",
+            representation="implicit",
+            label=y,
+        )
+        for k, (g, y) in enumerate(zip(graphs, labels, strict=True))
+    ]
+    db.store.commit(records)
+    return db
+
+
+def test_train_classifier_on_a_store_and_refuse_another_store(
+    pyg: None, tiny: tuple[list, list], tmp_path
+) -> None:
+    graphs, labels = tiny
+    db = _store_db(tmp_path, graphs, labels, Config())
+    out = tmp_path / "m.pt"
+    model = train_classifier(db, conv="tag", out=out, epochs=3, hidden=16, batch_size=8)
+    assert out.is_file() and out.with_suffix(".png").is_file()
+    assert model.fingerprint_ == db.config.fingerprint
+    assert 0.0 <= model.test_accuracy_ <= 1.0 and sum(model.split_.values()) == len(graphs)
+    from query.classify import classify
+
+    result = classify(db, out, graphs[0])
+    assert result.label in model.classes_ and abs(sum(result.probabilities.values()) - 1) < 1e-6
+    other = Config().with_options(resolution=64)
+    db2 = _store_db(tmp_path / "b", [], [], other)
+    with pytest.raises(ConfigError, match="train a model on this database"):
+        classify(db2, out, graphs[0])

@@ -1,0 +1,34 @@
+"""The query package's public names, and that importing it stays light."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import query
+
+
+def test_public_all():
+    assert sorted(query.__all__) == [
+        "FeatureIndex",
+        "Hit",
+        "RetrievalScores",
+        "build_index",
+        "evaluate",
+        "open_index",
+        "query_features",
+        "retrieval_scores",
+        "search",
+        "search_batch",
+        "sql",
+    ]
+    assert all(hasattr(query, name) for name in query.__all__)
+
+
+def test_import_is_light():
+    code = (
+        "import sys, query, query.index, query.engine, query.sql, query.evaluate; "
+        "print(sorted(m for m in ('faiss', 'duckdb', 'matplotlib', 'torch') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

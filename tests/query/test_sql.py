@@ -1,0 +1,96 @@
+"""db.sql: views over the manifest's files, Eq. 2/3 macros agreeing with search."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import CONFIG
+
+from query.engine import search
+from query.sql import connect, sql
+from shapedb.errors import QueryError
+from shapedb.kernel import distance
+
+
+def test_issue_example_agrees_with_search(tmp_db):
+    t = sql(
+        tmp_db,
+        "SELECT s.id, s.name, mdbd_kernel(s.feature, q.feature) AS k "
+        "FROM shapes s, shapes q WHERE q.name = 'torus1' ORDER BY k DESC, s.id LIMIT 5",
+    )
+    hits = search(tmp_db, "torus1", k=5)
+    assert t.column("id").to_pylist() == [h.id for h in hits]
+    np.testing.assert_allclose(t.column("k").to_numpy(), [h.similarity for h in hits], rtol=1e-12)
+
+
+def test_distance_macro_matches_eq2(tmp_db):
+    t = sql(
+        tmp_db,
+        "SELECT a.feature AS fa, b.feature AS fb, mdbd_distance(a.feature, b.feature) AS d "
+        "FROM shapes a, shapes b",
+    )
+    fa = np.array(t.column("fa").to_pylist(), np.float64)
+    fb = np.array(t.column("fb").to_pylist(), np.float64)
+    ref = [distance(x, y, CONFIG.kernel) for x, y in zip(fa, fb, strict=True)]
+    np.testing.assert_allclose(t.column("d").to_numpy(), ref, rtol=1e-12, atol=1e-15)
+    w = sql(tmp_db, "SELECT mdbd_weights() AS w").column("w")[0].as_py()
+    assert len(w) == CONFIG.kernel.dim and w[0] == pytest.approx(CONFIG.kernel.la)
+
+
+def test_views_cover_the_store(tmp_db):
+    n = len(tmp_db.store)
+    assert sql(tmp_db, "SELECT count(*) AS n FROM shapes").column("n")[0].as_py() == n
+    balls = sql(tmp_db, "SELECT shape_id, count(*) AS c FROM balls GROUP BY shape_id")
+    assert balls.num_rows == n
+    per_shape = dict(
+        zip(balls.column("shape_id").to_pylist(), balls.column("c").to_pylist(), strict=True)
+    )
+    stored = tmp_db.store.shapes(["id", "n_balls"]).to_pylist()
+    assert all(per_shape[r["id"]] == r["n_balls"] for r in stored)
+    edges = sql(tmp_db, "SELECT count(*) AS m FROM edges").column("m")[0].as_py()
+    assert edges == len(tmp_db.store.edges())
+    assert sql(tmp_db, "SELECT count(*) AS f FROM failures").column("f")[0].as_py() == 0
+
+
+def test_deleted_shapes_are_gone(tmp_db):
+    tmp_db.delete(["box0", "torus2"])
+    names = set(sql(tmp_db, "SELECT name FROM shapes").column("name").to_pylist())
+    assert not names & {"box0", "torus2"} and len(names) == len(tmp_db.store)
+    assert (
+        sql(tmp_db, "SELECT count(*) AS n FROM balls WHERE shape_id NOT IN (SELECT id FROM shapes)")
+        .column("n")[0]
+        .as_py()
+        == 0
+    )
+
+
+def test_empty_store(tmp_path):
+    import shapedb.database as database
+
+    db = database.connect(tmp_path / "empty", config=CONFIG)
+    for table in ("shapes", "balls", "edges", "failures"):
+        assert sql(db, f"SELECT * FROM {table}").num_rows == 0
+    assert search(db, np.zeros(CONFIG.kernel.dim)) == []
+
+
+def test_errors(tmp_db):
+    with pytest.raises(QueryError, match="Parser Error") as info:
+        sql(tmp_db, "SELEC name FROM shapes")
+    assert "SELEC name FROM shapes" in str(info.value)
+    with pytest.raises(QueryError, match="nosuchtable"):
+        sql(tmp_db, "SELECT * FROM nosuchtable")
+    with pytest.raises(QueryError, match="length 64"):
+        sql(tmp_db, "SELECT mdbd_distance([1.0, 2.0], feature) FROM shapes")
+    with pytest.raises(QueryError, match="empty"):
+        sql(tmp_db, "   ")
+
+
+def test_connection_for_duckdb_users(tmp_db):
+    con = connect(tmp_db)
+    try:
+        rows = con.sql(
+            "SELECT label, count(*) AS n FROM shapes GROUP BY label ORDER BY label"
+        ).fetchall()
+    finally:
+        con.close()
+    assert rows == [("box", 4), ("capsule", 4), ("cylinder", 3), ("torus", 3)]
