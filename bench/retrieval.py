@@ -258,7 +258,9 @@ def run_study(
 # --------------------------------------------------------------------------------------
 
 
-def build_sets(names: Sequence[str], quick: bool) -> list[Dataset]:
+def build_sets(
+    names: Sequence[str], quick: bool, subjects: int = 15, poses: int = 20, per_kind: int = 12
+) -> list[Dataset]:
     """The requested data sets, subset when ``quick``."""
     out = []
     for name in names:
@@ -266,10 +268,10 @@ def build_sets(names: Sequence[str], quick: bool) -> list[Dataset]:
             ds = capod()
             out.append(ds.head(per_class=6, classes=8) if quick else ds)
         elif name == "articulated":
-            out.append(articulated(6, 6) if quick else articulated(15, 20))
+            out.append(articulated(6, 6) if quick else articulated(subjects, poses))
         elif name == "parts":
             try:
-                out.append(parts(4) if quick else parts(12))
+                out.append(parts(4) if quick else parts(per_kind))
             except (ImportError, AttributeError, RuntimeError) as exc:
                 print(f"parts set unavailable: {exc}")
         else:
@@ -288,11 +290,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--resolution", type=int, default=None)
     ap.add_argument("--n-balls", type=int, default=None)
     ap.add_argument("--n-r", type=int, default=None)
+    ap.add_argument(
+        "--no-refine", action="store_true", help="MDBDConfig(refine=False): no off-grid refinement"
+    )
+    ap.add_argument("--subjects", type=int, default=15, help="articulated set: subjects")
+    ap.add_argument("--poses", type=int, default=20, help="articulated set: poses per subject")
+    ap.add_argument("--per-kind", type=int, default=12, help="parts set: models per kind")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-grakel", action="store_true")
     ap.add_argument("--study", action="store_true", help="parameter study on the validation split")
     ap.add_argument("--descriptors", action="store_true", help="issue 6 descriptor prototypes")
     ap.add_argument("--stability", action="store_true", help="shift / rotation / decimation")
+    ap.add_argument(
+        "--refine-shift", action="store_true", help="sub-cell shift with and without refinement"
+    )
     ap.add_argument("--out", type=Path, default=RESULTS / "retrieval.json")
     args = ap.parse_args(argv)
 
@@ -303,14 +314,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         mdbd = dataclasses.replace(mdbd, resolution=args.resolution)
     if args.n_balls:
         mdbd = dataclasses.replace(mdbd, n_balls=args.n_balls)
+    if args.no_refine:
+        mdbd = dataclasses.replace(mdbd, refine=False)
     kcfg = KernelConfig() if args.n_r is None else KernelConfig(n_r=args.n_r)
     d2 = D2Config(n_pairs=2**18 if args.quick else 1024**2)
     report: dict[str, Any] = {"quick": args.quick, "split": args.split, "datasets": {}}
-    for ds in build_sets(args.datasets, args.quick):
+    for ds in build_sets(args.datasets, args.quick, args.subjects, args.poses, args.per_kind):
         entry: dict[str, Any] = {}
         if args.study:
             res = [48, 64, 96] if args.quick else [64, 96, 128]
             entry["study"] = run_study(ds, mdbd, kcfg, workers=args.workers, resolutions=res)
+        if args.refine_shift:
+            from bench.issue6 import run_refine_shift
+
+            entry["refine_shift"] = run_refine_shift(ds, mdbd, kcfg, workers=args.workers)
         if args.descriptors or args.stability:
             from bench.issue6 import run_descriptors, run_stability
 
@@ -320,7 +337,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 entry["stability"] = run_stability(
                     ds, mdbd, kcfg, workers=args.workers, quick=args.quick
                 )
-        if not (args.study or args.descriptors or args.stability):
+        if not (args.study or args.descriptors or args.stability or args.refine_shift):
             entry["tables"] = run_tables(
                 ds.split(args.split),
                 mdbd,

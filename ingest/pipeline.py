@@ -159,12 +159,14 @@ def geometry_hash(geometry: Geometry) -> str:
 
 
 # ---------------------------------------------------------------- inputs
-def expand(inputs: Any) -> Iterator[tuple[str, Path | Geometry, bool]]:
-    """Yield ``(source, path_or_geometry, explicit)`` for files, folders and shapes.
+def expand(inputs: Any) -> Iterator[tuple[str, Path | Geometry, bool, str | None]]:
+    """Yield ``(source, path_or_geometry, explicit, label)`` for files, folders and shapes.
 
-    Folders are walked recursively in sorted order; hidden files and companion files
+    Inputs are paths, Geometry objects, ``(name, geometry)`` or
+    ``(name, label, geometry)`` tuples, or a ``{name: geometry}`` mapping. Folders are
+    walked recursively in sorted order; hidden files and companion files
     (:data:`COMPANION_SUFFIXES`) found there are skipped. ``explicit`` is False for
-    files found by walking.
+    files found by walking; ``label`` is set only by ``(name, label, geometry)``.
     """
     if isinstance(inputs, (str, os.PathLike, Geometry)):
         inputs = [inputs]
@@ -172,9 +174,10 @@ def expand(inputs: Any) -> Iterator[tuple[str, Path | Geometry, bool]]:
         inputs = list(inputs.items())
     for entry in inputs:
         if isinstance(entry, Geometry):
-            yield (getattr(entry, "name", None) or "", entry, True)
-        elif isinstance(entry, tuple) and len(entry) == 2 and isinstance(entry[1], Geometry):
-            yield (str(entry[0]), entry[1], True)
+            yield (getattr(entry, "name", None) or "", entry, True, None)
+        elif isinstance(entry, tuple) and entry and isinstance(entry[-1], Geometry):
+            label = str(entry[1]) if len(entry) == 3 and entry[1] is not None else None
+            yield (str(entry[0]), entry[-1], True, label)
         else:
             p = Path(entry).absolute()
             if p.is_dir():
@@ -184,9 +187,9 @@ def expand(inputs: Any) -> Iterator[tuple[str, Path | Geometry, bool]]:
                         q = Path(root) / f
                         if f.startswith(".") or q.suffix.lower() in COMPANION_SUFFIXES:
                             continue
-                        yield (str(q), q, False)
+                        yield (str(q), q, False, None)
             else:
-                yield (str(p), p, True)
+                yield (str(p), p, True, None)
 
 
 # ---------------------------------------------------------------- the work
@@ -198,7 +201,7 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
     from shapedb.kernel import features
     from shapedb.mdbd import decompose
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         geometry = item.geometry if item.geometry is not None else load(item.path, as_=item.as_)  # type: ignore[arg-type]
         t_load = time.perf_counter() - t0
@@ -214,6 +217,7 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
         timings = dict(decomposition.timings)
         timings["load"] = t_load
         timings["features"] = time.perf_counter() - t1
+        timings["cpu"] = time.process_time() - c0  # this process's CPU seconds
         decomposition = replace(decomposition, timings=timings)
     except Exception as exc:  # any bad input becomes a recorded failure, never a crash
         if not isinstance(exc, ShapeDBError):
@@ -263,9 +267,27 @@ def _executor(workers: int, scheduler: Any) -> tuple[Any, Callable[[], None], st
         return client, client.close, f"dask {scheduler}"
     if workers <= 1:
         return _Serial(), lambda: None, "serial"
+    # forkserver, not fork: the caller may run threads (progress bars, Dask). Workers
+    # fork from a server that imported and warmed everything once (ingest._warmup).
     ctx = multiprocessing.get_context("forkserver")
-    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+    ctx.set_forkserver_preload(["__main__", "ingest.pipeline", "ingest._warmup"])
+    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_watch_parent)
     return pool, lambda: pool.shutdown(wait=True, cancel_futures=True), f"{workers} processes"
+
+
+def _watch_parent() -> None:
+    """Worker initializer: exit when the ingesting process dies (even by SIGKILL)."""
+    import threading
+
+    parent = multiprocessing.parent_process()
+    if parent is None:  # pragma: no cover
+        return
+
+    def watch() -> None:
+        parent.join()
+        os._exit(70)
+
+    threading.Thread(target=watch, name="shapedb-parent-watch", daemon=True).start()
 
 
 def _wait_any(futures: Iterable[Any], dask: bool) -> set[Any]:
@@ -350,13 +372,14 @@ def ingest(
     skipped: list[str] = []
     with store.writer():
         present = store.hashes()
-        for k, (source, obj, explicit) in enumerate(entries):
+        for k, (source, obj, explicit, given_label) in enumerate(entries):
             try:
                 item = _make_item(
                     k,
                     source,
                     obj,
                     explicit,
+                    given_label,
                     as_=as_,
                     table=table,
                     label_from_folder=label_from_folder,
@@ -427,11 +450,11 @@ def ingest(
                             pending.append((it.index, result))
                         done += 1
                         notify(done, total)
-                    if (
-                        len(pending) + len(failures) >= batch_size
-                        or time.monotonic() - last_commit > commit_seconds
-                    ):
-                        flush()
+                        if (
+                            len(pending) + len(failures) >= batch_size
+                            or time.monotonic() - last_commit > commit_seconds
+                        ):
+                            flush()
             finally:
                 close()
         flush()
@@ -490,6 +513,7 @@ def _make_item(
     source: str,
     obj: Path | Geometry,
     explicit: bool,
+    given_label: str | None,
     *,
     as_: str | None,
     table: LabelTable | None,

@@ -110,7 +110,19 @@ class GraphClassifier:
         Per epoch: "loss", "accuracy", "val_loss", "val_accuracy", "lr", "seconds".
     best_epoch_ : int
     n_parameters_ : int
+    test_accuracy_ : float
+        Set by :func:`train_classifier`: accuracy on its held-out test split.
     """
+
+    classes_: list[str]
+    fingerprint_: str | None
+    config_json_: str | None
+    history_: dict[str, list[float]]
+    best_epoch_: int
+    n_parameters_: int
+    model_: Any
+    test_accuracy_: float
+    split_: dict[str, int]
 
     def __init__(
         self,
@@ -146,8 +158,8 @@ class GraphClassifier:
     # ------------------------------------------------------------------ helpers
     def get_params(self) -> dict[str, Any]:
         """Constructor settings (not the learned state)."""
-        keys = ("conv", "epochs", "lr", "rotate", "device", "seed", "batch_size", "hidden")
-        keys += ("dropout", "weight_decay", "warmup", "validation")
+        keys: tuple[str, ...] = ("conv", "epochs", "lr", "rotate", "device", "seed")
+        keys += ("batch_size", "hidden", "dropout", "weight_decay", "warmup", "validation")
         return {k: getattr(self, k) for k in keys}
 
     def _device(self) -> Any:
@@ -229,7 +241,9 @@ class GraphClassifier:
             raise ConfigError(f"need at least 2 classes to train, got {classes}")
         fps = {fingerprint_of(g) for g in graphs} - {None}
         if len(fps) > 1:
-            raise ConfigError(f"training graphs come from several configurations: {sorted(fps)}")
+            raise ConfigError(
+                f"training graphs come from several configurations: {sorted(map(str, fps))}"
+            )
         self.fingerprint_ = fps.pop() if fps else (self.config.fingerprint if self.config else None)
         self.config_json_ = self.config.to_json() if self.config is not None else None
         self.classes_ = classes
@@ -345,7 +359,7 @@ class GraphClassifier:
         torch, _ = import_torch()
         params = self.get_params()
         params["device"] = None
-        state = {
+        state: dict[str, Any] = {
             "format": FORMAT,
             "params": params,
             "classes": list(self.classes_),

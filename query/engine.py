@@ -278,7 +278,7 @@ _CATALOGS: dict[str, tuple[int | None, _Catalog]] = {}
 
 
 def _catalog(db: Any, version: int | None) -> _Catalog:
-    key = os.path.realpath(os.fspath(db.store.path))
+    key = os.fspath(db.store.path)
     cached = _CATALOGS.get(key)
     if cached is not None and cached[0] == version and version is not None:
         return cached[1]

@@ -172,7 +172,13 @@ def _score(
     by_id = np.argsort(id_arr, kind="stable")  # column order that breaks ties by id
     k_e = min(E_MEASURE_K, max(n - 1, 1))
 
-    results: dict[str, list[NDArray[Any]]] = {m: [] for m in (*MEASURES, "index")}
+    disc = np.ones(max(n, 1))  # disc[i - 1] = DCG gain of rank i: 1, then 1 / log2(i)
+    disc[1:] = 1.0 / np.log2(np.arange(2, max(n, 1) + 1))
+    ideal = np.cumsum(disc)
+    col_code = code[by_id]
+    col_of = np.empty(n, np.int64)
+    col_of[by_id] = np.arange(n)
+    results: dict[str, list[float]] = {m: [] for m in (*MEASURES, "index")}
     pr_sum = np.zeros(len(levels))
     for idx, block in rows():
         c = code[idx]
@@ -180,38 +186,36 @@ def _score(
         if not keep.any():
             continue
         idx, block, c = idx[keep], np.asarray(block, np.float64)[keep], c[keep]
-        key = block[:, by_id] if distance else -block[:, by_id]
-        key = np.where(np.isnan(key), np.inf, key)
-        order = by_id[np.argsort(key, axis=1, kind="stable")]
-        order = order[order != idx[:, None]].reshape(len(idx), n - 1)  # drop the query
-        g = code[order] == c[:, None]  # (b, n - 1) relevance G_i
-        hits = np.cumsum(g, axis=1)
-        rel = size[c] - 1  # C - 1
-        first = hits[np.arange(len(idx)), rel - 1] / rel
-        second = hits[np.arange(len(idx)), np.minimum(2 * rel, n - 1) - 1] / rel
-        h32 = hits[:, k_e - 1]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            p, r = h32 / k_e, h32 / rel
-            e = np.where(h32 > 0, 2.0 / (1.0 / p + 1.0 / r), 0.0)
-        disc = np.ones(n - 1)
-        disc[1:] = 1.0 / np.log2(np.arange(2, n))
-        dcg = (g * disc).sum(axis=1)
-        ideal = np.cumsum(disc)[rel - 1]
-        results["nn"].append(g[:, 0].astype(np.float64))
-        results["first_tier"].append(first)
-        results["second_tier"].append(second)
-        results["e_measure"].append(e)
-        results["dcg"].append(dcg / ideal)
-        results["index"].append(idx)
+        key = block[:, by_id] if distance else -block[:, by_id]  # columns in id order
+        key[np.isnan(key)] = np.inf
+        key[np.arange(len(idx)), col_of[idx]] = np.inf  # the query itself ranks last...
+        ordered = np.sort(key, axis=1)  # values only: much faster than a stable argsort
         for row in range(len(idx)):
-            ranks = np.flatnonzero(g[row]) + 1  # 1-based ranks of the relevant results
-            prec = np.arange(1, len(ranks) + 1) / ranks
-            rec = np.arange(1, len(ranks) + 1) / rel[row]
+            me = col_of[idx[row]]
+            cols = np.flatnonzero(col_code == c[row])
+            cols = cols[cols != me]  # ...and is never counted
+            kv = key[row, cols]
+            ranks = np.searchsorted(ordered[row], kv, side="left") + 1
+            tied = np.searchsorted(ordered[row], kv, side="right") - ranks + 1 > 1
+            for t in np.flatnonzero(tied):  # equal scores: smaller id first, query excluded
+                before = np.flatnonzero(key[row, : cols[t]] == kv[t])
+                ranks[t] += len(before[before != me])
+            ranks = np.sort(ranks)
+            rel = len(ranks)  # C - 1
+            results["index"].append(float(idx[row]))
+            results["nn"].append(float(ranks[0] == 1))
+            results["first_tier"].append(np.count_nonzero(ranks <= rel) / rel)
+            results["second_tier"].append(np.count_nonzero(ranks <= 2 * rel) / rel)
+            h = np.count_nonzero(ranks <= k_e)
+            results["e_measure"].append(2.0 * h / (k_e + rel) if h else 0.0)
+            results["dcg"].append(float(disc[ranks - 1].sum() / ideal[rel - 1]))
+            prec = np.arange(1, rel + 1) / ranks
+            rec = np.arange(1, rel + 1) / rel
             interp = np.maximum.accumulate(prec[::-1])[::-1]  # max precision at recall >= r
             at = np.searchsorted(rec, levels - 1e-12, side="left")
-            pr_sum += np.where(at < len(interp), interp[np.minimum(at, len(interp) - 1)], 0.0)
+            pr_sum += np.where(at < rel, interp[np.minimum(at, rel - 1)], 0.0)
 
-    per_query = {m: np.concatenate(v) if v else np.zeros(0) for m, v in results.items()}
+    per_query = {m: np.asarray(v, np.float64) for m, v in results.items()}
     per_query["index"] = per_query["index"].astype(np.int64)
     q = len(per_query["index"])
     if q == 0:

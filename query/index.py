@@ -5,10 +5,9 @@ Eq. 2 is a weighted L1 distance, ``d(a, b) = sum_i w_i |a_i - b_i|`` with
 ``b * w``. The index therefore holds the *weighted* vectors under faiss's
 ``METRIC_L1``:
 
-* ``kind="flat"`` -- ``IndexFlat(d, METRIC_L1)``, exact (default below
-  ``hnsw_threshold`` vectors);
-* ``kind="hnsw"`` -- ``IndexHNSWFlat(d, M, METRIC_L1)``, approximate;
-* ``kind="auto"`` -- flat below ``hnsw_threshold`` vectors, HNSW above.
+``kind="flat"`` is ``IndexFlat(d, METRIC_L1)`` (exact), ``kind="hnsw"`` is
+``IndexHNSWFlat(d, M, METRIC_L1)`` (approximate) and ``kind="auto"`` picks flat
+below ``hnsw_threshold`` vectors, HNSW above.
 
 Either way faiss only proposes candidates (``max(oversample * k, min_candidates)``
 of them); they are re-ranked with the exact Eq. 2 in float64 on the raw stored
@@ -22,8 +21,7 @@ records the store version the index reflects; when the store has moved on, the i
 is brought up to date: new ids are added, and deletions are tombstoned (HNSW) or
 rebuilt (flat, or HNSW once a fifth of it is dead).
 
-faiss is imported only when an index is built or loaded, so ``import shapedb``
-stays light.
+faiss is imported only when an index is built or loaded.
 """
 
 from __future__ import annotations
@@ -33,6 +31,7 @@ import logging
 import os
 import shutil
 import threading
+import time
 import uuid
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -53,9 +52,13 @@ INDEX_DIR = "index"
 _POINTER = "current.json"
 _FORMAT = 1
 _KINDS = ("auto", "flat", "hnsw")
+_PARAMS = tuple(
+    "kind hnsw_threshold hnsw_m ef_construction ef_search oversample min_candidates".split()
+)
 _REBUILD_DEAD_FRACTION = 0.2
 _RERANK_CHUNK = 256
 _SCAN_BLOCK = 65_536
+_SMALL_BATCH = 4
 
 
 def _faiss() -> Any:
@@ -120,19 +123,10 @@ class FeatureIndex:
         self.min_candidates = min_candidates
         self.version_: int | None = None
 
-    # ------------------------------------------------------------------ state
     @property
     def params(self) -> dict[str, Any]:
         """The constructor's settings, as a JSON-serialisable dict."""
-        return {
-            "kind": self.kind,
-            "hnsw_threshold": self.hnsw_threshold,
-            "hnsw_m": self.hnsw_m,
-            "ef_construction": self.ef_construction,
-            "ef_search": self.ef_search,
-            "oversample": self.oversample,
-            "min_candidates": self.min_candidates,
-        }
+        return {name: getattr(self, name) for name in _PARAMS}
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "faiss_index_"):
@@ -155,19 +149,9 @@ class FeatureIndex:
             return self.kind
         return "hnsw" if n >= self.hnsw_threshold else "flat"
 
-    def _new_faiss(self, kind: str, d: int) -> Any:
-        faiss = _faiss()
-        if kind == "flat":
-            return faiss.IndexFlat(d, faiss.METRIC_L1)
-        index = faiss.IndexHNSWFlat(d, self.hnsw_m, faiss.METRIC_L1)
-        index.hnsw.efConstruction = self.ef_construction
-        index.hnsw.efSearch = self.ef_search
-        return index
-
     def _weighted(self, features: NDArray[Any]) -> NDArray[np.float32]:
         return np.ascontiguousarray(np.asarray(features, np.float64) * self.weights_, np.float32)
 
-    # -------------------------------------------------------------- building
     def fit(self, ids: ArrayLike, features: ArrayLike, weights: ArrayLike) -> FeatureIndex:
         """Build the index from scratch.
 
@@ -189,11 +173,16 @@ class FeatureIndex:
         ids_a, feats = _check_rows(ids, features, w.shape[0])
         self.weights_ = w
         self.kind_ = self._resolve_kind(len(ids_a))
-        self.faiss_index_ = self._new_faiss(self.kind_, w.shape[0])
+        faiss = _faiss()
+        if self.kind_ == "flat":
+            self.faiss_index_ = faiss.IndexFlat(w.shape[0], faiss.METRIC_L1)
+        else:
+            self.faiss_index_ = faiss.IndexHNSWFlat(w.shape[0], self.hnsw_m, faiss.METRIC_L1)
+            self.faiss_index_.hnsw.efConstruction = self.ef_construction
         self.ids_ = np.empty(0, np.int64)
         self.features_ = np.empty((0, w.shape[0]), np.float32)
         self.alive_ = np.empty(0, bool)
-        self._pos: dict[int, int] | None = None
+        self._pos: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
         self._append(ids_a, feats)
         log.info("built %s index of %d vectors (d=%d)", self.kind_, len(ids_a), w.shape[0])
         return self
@@ -206,22 +195,6 @@ class FeatureIndex:
         self.alive_ = np.concatenate([self.alive_, np.ones(len(ids), bool)])
         self._pos = None
 
-    def add(self, ids: ArrayLike, features: ArrayLike) -> FeatureIndex:
-        """Add new vectors (ids not already in the index).
-
-        Parameters
-        ----------
-        ids : (m,) int
-        features : (m, d) float
-        """
-        self._check_fitted()
-        ids_a, feats = _check_rows(ids, features, self.dim)
-        known = [i for i in ids_a.tolist() if i in self.positions]
-        if known:
-            raise QueryError("ids already in the index", source=f"ids {known[:5]}")
-        self._append(ids_a, feats)
-        return self
-
     def remove(self, ids: ArrayLike) -> FeatureIndex:
         """Tombstone vectors by id; they are never returned again.
 
@@ -229,21 +202,28 @@ class FeatureIndex:
         ----------
         ids : (m,) int
         """
-        self._check_fitted()
-        for i in np.asarray(ids, np.int64).ravel().tolist():
-            p = self.positions.get(i)
-            if p is not None:
-                self.alive_[p] = False
+        pos = self.lookup(ids)
+        self.alive_[pos[pos >= 0]] = False
+        self._pos = None
         return self
 
-    @property
-    def positions(self) -> dict[int, int]:
-        """Map shape id -> faiss position, live vectors only."""
+    def lookup(self, ids: ArrayLike) -> NDArray[np.int64]:
+        """faiss position of each id, -1 for ids not (or no longer) indexed: (m,) int64."""
         self._check_fitted()
         if self._pos is None:
             live = np.flatnonzero(self.alive_)
-            self._pos = dict(zip(self.ids_[live].tolist(), live.tolist(), strict=True))
-        return self._pos
+            order = np.argsort(self.ids_[live], kind="stable")
+            self._pos = (self.ids_[live][order], live[order])
+        keys, pos = self._pos
+        q = np.asarray(ids, dtype=np.int64).ravel()
+        if len(keys) == 0:
+            return np.full(len(q), -1, np.int64)
+        i = np.minimum(np.searchsorted(keys, q), len(keys) - 1)
+        return np.where(keys[i] == q, pos[i], -1)
+
+    def __contains__(self, shape_id: object) -> bool:
+        ok = isinstance(shape_id, (int, np.integer))
+        return ok and bool(self.lookup([int(shape_id)])[0] >= 0)  # type: ignore[call-overload]
 
     def sync(self, ids: ArrayLike, features: ArrayLike) -> str:
         """Bring the index up to date with the store's current ``(ids, features)``.
@@ -259,15 +239,14 @@ class FeatureIndex:
         """
         self._check_fitted()
         ids_a, feats = _check_rows(ids, features, self.dim)
-        pos = self.positions
-        new_mask = np.fromiter((i not in pos for i in ids_a.tolist()), bool, len(ids_a))
-        old_ids = ids_a[~new_mask]
-        old_pos = np.fromiter((pos[i] for i in old_ids.tolist()), np.int64, len(old_ids))
+        found = self.lookup(ids_a)
+        new_mask = found < 0
+        old_pos = found[~new_mask]
         changed = not np.array_equal(np.asarray(self.features_)[old_pos], feats[~new_mask])
-        n_deleted = len(pos) - len(old_ids)
-        dead_after = (len(self.ids_) - len(pos) + n_deleted) / max(
-            len(self.ids_) + new_mask.sum(), 1
-        )
+        n_live = self.n_alive
+        n_deleted = n_live - len(old_pos)
+        dead = len(self.ids_) - n_live + n_deleted
+        dead_after = dead / max(len(self.ids_) + int(new_mask.sum()), 1)
         rebuild = (
             changed
             or self._resolve_kind(len(ids_a)) != self.kind_
@@ -280,12 +259,13 @@ class FeatureIndex:
         if not n_deleted and not new_mask.any():
             return "unchanged"
         if n_deleted:
-            keep = set(old_ids.tolist())
-            self.remove([i for i in pos if i not in keep])
+            gone = np.ones(len(self.ids_), bool)
+            gone[old_pos] = False
+            self.alive_[gone] = False
+            self._pos = None
         self._append(ids_a[new_mask], feats[new_mask])
         return "updated"
 
-    # ------------------------------------------------------------- searching
     def search(
         self, queries: ArrayLike, k: int = 10, *, allowed: ArrayLike | None = None
     ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
@@ -313,23 +293,15 @@ class FeatureIndex:
         if q.ndim == 1:
             q = q[None, :]
         if q.ndim != 2 or q.shape[1] != self.dim:
-            raise QueryError(
-                f"expected feature vectors of length {self.dim}", source=f"query shape {q.shape}"
-            )
+            raise QueryError(f"expected vectors of length {self.dim}", source=f"shape {q.shape}")
         if not np.all(np.isfinite(q)):
             raise QueryError("feature vector has NaN or inf entries", source="query")
         k = int(k)
         if k < 1:
             raise QueryError("k must be >= 1", source=f"k={k}")
         if allowed is not None:
-            pos = self.positions
-            cand = np.array(
-                sorted(
-                    {pos[i] for i in np.asarray(allowed, np.int64).ravel().tolist() if i in pos}
-                ),
-                dtype=np.int64,
-            )
-            return self._scan(q, cand, k)
+            cand = np.unique(self.lookup(allowed))
+            return self._scan(q, cand[cand >= 0], k)
         n_live = self.n_alive
         if n_live == 0:
             return np.full((len(q), k), -1, np.int64), np.full((len(q), k), np.inf)
@@ -337,9 +309,8 @@ class FeatureIndex:
         n_cand = max(self.oversample * k, self.min_candidates, k)
         n_cand = int(np.ceil(n_cand * len(self.ids_) / n_live)) if dead else n_cand
         n_cand = min(n_cand, len(self.ids_))
-        if self.kind_ == "hnsw":
-            self.faiss_index_.hnsw.efSearch = max(self.ef_search, n_cand)
-        _, cand = self.faiss_index_.search(self._weighted(q), n_cand)
+        ef = max(self.ef_search, n_cand) if self.kind_ == "hnsw" else None
+        cand = _faiss_search(self.faiss_index_, self._weighted(q), n_cand, ef_search=ef)
         return self._rerank(q, cand, k)
 
     def _rerank(
@@ -354,8 +325,9 @@ class FeatureIndex:
             valid = c >= 0
             valid[valid] = self.alive_[c[valid]]
             cc = np.where(valid, c, 0)
+            x = feats[cc].astype(np.float64)  # (b, c, d): Eq. 2 in float64
             d = np.where(
-                valid, _weighted_l1(q[s : s + _RERANK_CHUNK], feats[cc], self.weights_), np.inf
+                valid, np.abs(x - q[s : s + _RERANK_CHUNK, None, :]) @ self.weights_, np.inf
             )
             ids = np.where(valid, self.ids_[cc], np.iinfo(np.int64).max)
             order = np.lexsort((ids, d), axis=-1)[:, :k]
@@ -395,18 +367,27 @@ class FeatureIndex:
 
     def exact_search(
         self, queries: ArrayLike, k: int = 10
-    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    ) -> tuple[NDArray[np.int64], NDArray[Any]]:
         """Brute-force exact search over every live vector (reference for recall)."""
         self._check_fitted()
         q = np.atleast_2d(np.asarray(queries, np.float64))
         return self._scan(q, np.flatnonzero(self.alive_), k)
 
+    def copy(self) -> FeatureIndex:
+        """An independent copy: faiss index cloned, ``alive_`` copied (the other
+        arrays are only ever replaced, never modified in place, so they are shared)."""
+        self._check_fitted()
+        other = FeatureIndex(**self.params)
+        other.__dict__.update(self.__dict__)
+        other.faiss_index_ = _faiss().clone_index(self.faiss_index_)
+        other.alive_ = self.alive_.copy()
+        return other
+
     def features_of(self, shape_id: int) -> NDArray[np.float64] | None:
         """Stored feature vector of a shape id, or None when it is not indexed."""
-        p = self.positions.get(int(shape_id))
-        return None if p is None else np.asarray(self.features_[p], np.float64)
+        p = int(self.lookup([shape_id])[0])
+        return None if p < 0 else np.asarray(self.features_[p], np.float64)
 
-    # ----------------------------------------------------------- persistence
     def save(self, directory: str | os.PathLike[str], *, version: int | None = None) -> Path:
         """Write the index atomically under ``directory`` (an ``index/`` folder).
 
@@ -441,8 +422,9 @@ class FeatureIndex:
         ptmp.write_text(json.dumps(meta, indent=1))
         os.replace(ptmp, root / _POINTER)
         self.version_ = version
-        for old in root.iterdir():
-            if old.is_dir() and old.name != name and old.name.startswith("v"):
+        for old in root.iterdir():  # superseded versions, and temp dirs of dead writers
+            stale = old.name.startswith(".tmp-") and time.time() - old.stat().st_mtime > 3600
+            if old.is_dir() and old.name != name and (old.name.startswith("v") or stale):
                 shutil.rmtree(old, ignore_errors=True)
         log.debug("saved %s index (version %s) to %s", self.kind_, version, root / name)
         return root / name
@@ -463,27 +445,46 @@ class FeatureIndex:
             if meta.get("format") != _FORMAT:
                 raise StoreError(f"unknown index format {meta.get('format')!r}", source=root)
             sub = root / meta["dir"]
-            self = cls(**meta["params"])
-            self.faiss_index_ = faiss.read_index(str(sub / "faiss.index"))
-            self.ids_ = np.load(sub / "ids.npy")
-            self.features_ = np.load(sub / "features.npy", mmap_mode="r")
-            self.alive_ = np.load(sub / "alive.npy")
+            index = cls(**meta["params"])
+            index.faiss_index_ = faiss.read_index(str(sub / "faiss.index"))
+            index.ids_ = np.load(sub / "ids.npy")
+            index.features_ = np.load(sub / "features.npy", mmap_mode="r")
+            index.alive_ = np.load(sub / "alive.npy")
         except (OSError, ValueError, KeyError, RuntimeError) as exc:
             raise StoreError(f"cannot read the feature index: {exc}", source=root) from exc
-        self.weights_ = np.asarray(meta["weights"], np.float64)
-        self.kind_ = meta["kind"]
-        self.version_ = meta["version"]
-        self._pos = None
-        if self.faiss_index_.ntotal != len(self.ids_) or len(self.features_) != len(self.ids_):
+        index.weights_ = np.asarray(meta["weights"], np.float64)
+        index.kind_, index.version_, index._pos = meta["kind"], meta["version"], None
+        n = len(index.ids_)
+        if index.faiss_index_.ntotal != n or len(index.features_) != n or len(index.alive_) != n:
             raise StoreError("index files disagree on the number of vectors", source=root)
-        if self.kind_ == "hnsw":
-            self.faiss_index_.hnsw.efSearch = self.ef_search
-        return self
+        return index
 
     def __repr__(self) -> str:
         if not hasattr(self, "faiss_index_"):
             return f"FeatureIndex(kind={self.kind!r}, unfitted)"
         return f"FeatureIndex(kind={self.kind_!r}, n={self.n_alive}, d={self.dim}, version={self.version_})"
+
+
+def _faiss_search(
+    index: Any, x: NDArray[np.float32], k: int, *, ef_search: int | None = None
+) -> NDArray[np.int64]:
+    """faiss search; a few queries run on one OpenMP thread.
+
+    For one query faiss parallelises the flat scan across threads, which on a busy
+    machine costs far more than it saves (16 ms instead of 0.5 ms at 50 000 vectors
+    on 2 loaded cores). ``omp_set_num_threads`` sets the calling thread's own ICV,
+    so other Python threads are unaffected.
+    """
+    faiss = _faiss()
+    params = None if ef_search is None else faiss.SearchParametersHNSW(efSearch=ef_search)
+    if len(x) > _SMALL_BATCH:
+        return index.search(x, k, params=params)[1]
+    before = faiss.omp_get_max_threads()
+    faiss.omp_set_num_threads(1)
+    try:
+        return index.search(x, k, params=params)[1]
+    finally:
+        faiss.omp_set_num_threads(before)
 
 
 def _check_rows(
@@ -494,9 +495,7 @@ def _check_rows(
     if len(ids_a) == 0:
         feats = feats.reshape(0, d)
     if feats.ndim != 2 or feats.shape != (len(ids_a), d):
-        raise QueryError(
-            f"expected features of shape ({len(ids_a)}, {d})", source=f"features {feats.shape}"
-        )
+        raise QueryError(f"expected shape ({len(ids_a)}, {d})", source=f"features {feats.shape}")
     if len(np.unique(ids_a)) != len(ids_a):
         raise QueryError("ids are not unique", source="ids")
     if not np.all(np.isfinite(feats)):
@@ -504,26 +503,13 @@ def _check_rows(
     return ids_a, np.ascontiguousarray(feats)
 
 
-def _weighted_l1(
-    q: NDArray[np.float64], x: NDArray[Any], w: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """Eq. 2 between q (b, d) and candidate rows x (b, c, d): (b, c) float64."""
-    return np.abs(x.astype(np.float64) - q[:, None, :]) @ w
-
-
 # ------------------------------------------------------------------ store glue
-_CACHE: dict[str, FeatureIndex] = {}
+_CACHE: dict[str, tuple[KernelConfig, FeatureIndex]] = {}
 _LOCK = threading.Lock()
 
 
-def _kernel_weights(config: KernelConfig) -> NDArray[np.float64]:
-    from shapedb.kernel import weights
-
-    return np.asarray(weights(config), dtype=np.float64)
-
-
 def _store_key(db: Any) -> str:
-    return os.path.realpath(os.fspath(db.store.path))
+    return os.fspath(db.store.path)
 
 
 def open_index(
@@ -550,37 +536,48 @@ def open_index(
     """
     store = db.store
     key = _store_key(db)
-    root = Path(key) / INDEX_DIR
-    w = _kernel_weights(db.config.kernel)
+    config = db.config.kernel
     with _LOCK:
         version = store.version
-        index = None if rebuild else _CACHE.get(key)
-        if index is None and not rebuild and (root / _POINTER).exists():
-            try:
-                index = FeatureIndex.load(root)
-            except StoreError as exc:
-                log.warning("rebuilding the feature index: %s", exc)
+        cached = None if rebuild else _CACHE.get(key)
+        if cached is not None and cached[0] == config and kind in (None, cached[1].kind):
+            if cached[1].version_ == version:
+                return cached[1]
+            index: FeatureIndex | None = cached[1].copy()  # searches in flight keep the old one
+        else:
+            index = None if rebuild else _load(Path(key) / INDEX_DIR)
+        from shapedb.kernel import weights
+
+        w = np.asarray(weights(config), dtype=np.float64)
         if index is not None and (
             index.weights_.shape != w.shape
             or not np.allclose(index.weights_, w, rtol=1e-12, atol=0)
-            or (kind is not None and kind != index.kind)
+            or kind not in (None, index.kind)
         ):
             index = None  # kernel configuration or requested type changed
-        if index is not None and index.version_ == version:
-            _CACHE[key] = index
-            return index
-        ids, feats = store.features()
-        feats = np.asarray(feats, np.float32).reshape(len(ids), w.shape[0])
-        if index is None:
-            settings = {**params, "kind": kind or params.get("kind", "auto")}
-            index = FeatureIndex(**settings).fit(ids, feats, w)
-            action = "built"
-        else:
-            action = index.sync(ids, feats)
-        index.save(root, version=version)
-        log.info("feature index %s at store version %s: %r", action, version, index)
-        _CACHE[key] = index
+        if index is None or index.version_ != version:
+            ids, feats = store.features()
+            feats = np.asarray(feats, np.float32).reshape(len(ids), w.shape[0])
+            if index is None:
+                settings = {**params, "kind": kind or params.get("kind", "auto")}
+                index = FeatureIndex(**settings).fit(ids, feats, w)
+                action = "built"
+            else:
+                action = index.sync(ids, feats)
+            index.save(Path(key) / INDEX_DIR, version=version)
+            log.info("feature index %s at store version %s: %r", action, version, index)
+        _CACHE[key] = (config, index)
         return index
+
+
+def _load(root: Path) -> FeatureIndex | None:
+    if not (root / _POINTER).exists():
+        return None
+    try:
+        return FeatureIndex.load(root)
+    except StoreError as exc:
+        log.warning("rebuilding the feature index: %s", exc)
+        return None
 
 
 def build_index(db: Any, *, kind: str = "auto", **params: Any) -> FeatureIndex:
@@ -594,11 +591,9 @@ def on_commit(db: Any, *args: Any, **kwargs: Any) -> None:
     Only an index that was already built is updated (incrementally when possible);
     a store that was never searched gets its index lazily on the first search.
     """
-    root = Path(_store_key(db)) / INDEX_DIR
-    if _store_key(db) in _CACHE or (root / _POINTER).exists():
+    if _store_key(db) in _CACHE or (Path(_store_key(db)) / INDEX_DIR / _POINTER).exists():
         open_index(db)
 
 
-def _forget(db: Any) -> None:
-    """Drop the in-process cache entry of a store (tests)."""
+def _forget(db: Any) -> None:  # drop a store's in-process cache entry (tests)
     _CACHE.pop(_store_key(db), None)

@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 
 from shapedb.errors import QueryError, StoreError, require
 
-__all__ = ["sql", "connect", "allowed_ids", "macros"]
+__all__ = ["sql", "connect", "script", "allowed_ids", "macros"]
 
 log = logging.getLogger(__name__)
 
@@ -110,6 +110,31 @@ def connect(db: Any) -> Any:
     return con
 
 
+def script(db: Any) -> str:
+    """SQL that sets up a plain ``duckdb`` session like :func:`connect` does.
+
+    The views name the files of the store's current version explicitly (absolute
+    paths), so the script is a snapshot: regenerate it after the store changes.
+
+    Parameters
+    ----------
+    db : shapedb.Database
+
+    Returns
+    -------
+    str
+        ``CREATE MACRO`` and ``CREATE VIEW`` statements, one per line.
+    """
+    lines = [stmt + ";" for stmt in macros(db.config.kernel)]
+    for table, paths in _files(db.store).items():
+        if paths:
+            listing = ", ".join(_quote(p) for p in paths)
+            lines.append(
+                f"CREATE OR REPLACE VIEW {table} AS SELECT * FROM read_parquet([{listing}]);"
+            )
+    return "\n".join(lines) + "\n"
+
+
 def sql(db: Any, statement: str) -> pa.Table:
     """Run one SQL statement over the store and return its result.
 
@@ -175,7 +200,7 @@ def allowed_ids(db: Any, where: str) -> NDArray[np.int64]:
 
     if not isinstance(where, str) or not where.strip():
         raise QueryError("empty filter predicate", source=repr(where))
-    key = os.path.realpath(os.fspath(db.store.path))
+    key = os.fspath(db.store.path)
     version = db.store.version
     cached = _CONNECTIONS.get(key)
     if cached is None or cached[0] != version:

@@ -178,7 +178,9 @@ def _distance_to(
     """|cell - closest[owner]| for every cell of ``shape`` (owner has that shape)."""
     out = np.zeros(shape, dtype=np.float32)
     for k in range(3):
-        coord = np.arange(shape[k], dtype=np.float32).reshape([-1 if j == k else 1 for j in range(3)])
+        coord = np.arange(shape[k], dtype=np.float32).reshape(
+            [-1 if j == k else 1 for j in range(3)]
+        )
         out += (coord - closest[owner, k]) ** 2
     return np.sqrt(out, out=out)
 

@@ -30,8 +30,7 @@ __all__ = ["ContactGraph", "contact_edges"]
 _DENSE_LIMIT = 4096  # up to this many balls, all pairs are tested in dense blocks
 
 
-def _balls(centers: ArrayLike, radii: ArrayLike) -> tuple[NDArray[np.float64],
-                                                           NDArray[np.float64]]:
+def _balls(centers: ArrayLike, radii: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     c = np.asarray(centers, dtype=np.float64)
     r = np.asarray(radii, dtype=np.float64)
     if c.ndim != 2 or c.shape[1] != 3:
@@ -68,8 +67,8 @@ def contact_edges(centers: ArrayLike, radii: ArrayLike, tol: float) -> NDArray[n
     if n <= _DENSE_LIMIT:
         step = max(1, (1 << 22) // n)
         for s in range(0, n, step):
-            d = np.sqrt(((c[s:s + step, None, :] - c[None, :, :]) ** 2).sum(axis=2))
-            gap = d - r[s:s + step, None] - r[None, :]
+            d = np.sqrt(((c[s : s + step, None, :] - c[None, :, :]) ** 2).sum(axis=2))
+            gap = d - r[s : s + step, None] - r[None, :]
             i, j = np.nonzero(gap <= tol)
             i = i + s
             keep = i < j
@@ -104,8 +103,14 @@ class ContactGraph:
         Original node numbers (set by :meth:`subgraph`); defaults to 0..n-1.
     """
 
-    def __init__(self, centers: ArrayLike, radii: ArrayLike, edges: ArrayLike, *,
-                 ids: ArrayLike | None = None) -> None:
+    def __init__(
+        self,
+        centers: ArrayLike,
+        radii: ArrayLike,
+        edges: ArrayLike,
+        *,
+        ids: ArrayLike | None = None,
+    ) -> None:
         self.centers, self.radii = _balls(centers, radii)
         n = len(self.radii)
         e = np.asarray(edges, dtype=np.int64)
@@ -169,8 +174,7 @@ class ContactGraph:
     @cached_property
     def _transition(self) -> sp.csr_matrix:
         deg = self.degrees.astype(np.float64)
-        a = self._adjacency @ sp.diags(np.divide(1.0, deg, out=np.zeros_like(deg),
-                                                 where=deg > 0))
+        a = self._adjacency @ sp.diags(np.divide(1.0, deg, out=np.zeros_like(deg), where=deg > 0))
         a = a + sp.diags((deg == 0).astype(np.float64))
         a = sp.csr_matrix(a)
         a.eliminate_zeros()
@@ -201,7 +205,7 @@ class ContactGraph:
         for _ in range(int(hops)):
             if not len(frontier):
                 break
-            nbrs = np.concatenate([a.indices[a.indptr[u]:a.indptr[u + 1]] for u in frontier])
+            nbrs = np.concatenate([a.indices[a.indptr[u] : a.indptr[u + 1]] for u in frontier])
             nbrs = np.unique(nbrs[~seen[nbrs]])
             seen[nbrs] = True
             frontier = nbrs
@@ -230,13 +234,19 @@ class ContactGraph:
         g = nx.Graph()
         attrs = self.node_attributes()
         for i in range(self.n_nodes):
-            g.add_node(i, center=tuple(float(x) for x in self.centers[i]),
-                       radius=float(self.radii[i]), r_norm=float(attrs[i, 3]),
-                       id=int(self.ids[i]))
+            g.add_node(
+                i,
+                center=tuple(float(x) for x in self.centers[i]),
+                radius=float(self.radii[i]),
+                r_norm=float(attrs[i, 3]),
+                id=int(self.ids[i]),
+            )
         if self.n_edges:
             i, j = self.edges[:, 0], self.edges[:, 1]
             dist = np.linalg.norm(self.centers[i] - self.centers[j], axis=1)
             gap = dist - self.radii[i] - self.radii[j]
-            g.add_edges_from((int(a), int(b), {"weight": float(w), "gap": float(q)})
-                             for a, b, w, q in zip(i, j, dist, gap, strict=True))
+            g.add_edges_from(
+                (int(a), int(b), {"weight": float(w), "gap": float(q)})
+                for a, b, w, q in zip(i, j, dist, gap, strict=True)
+            )
         return g

@@ -124,6 +124,11 @@ class Implicit(Geometry):
         """(2, 3) float: minimum and maximum corner, model units."""
         return self._bounds
 
+    def __repr__(self) -> str:
+        lo, hi = np.round(self.bounds, 4).tolist()
+        label = "" if self.name == type(self).__name__ else f" {self.name!r}"
+        return f"<{type(self).__name__}{label} bounds={lo}..{hi}>"
+
     def _evaluate(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
         """Raw distances of validated points p (n, 3); subclasses override."""
         return np.asarray(self._fn(p), dtype=np.float64)
@@ -240,8 +245,9 @@ class Box(Implicit):
         if np.any(size_ <= 0):
             raise DegenerateGeometryError(f"box size must be > 0, got {size_.tolist()}")
         self.half = 0.5 * size_
-        super().__init__(self._evaluate, [self.center - self.half, self.center + self.half],
-                         name="Box")
+        super().__init__(
+            self._evaluate, [self.center - self.half, self.center + self.half], name="Box"
+        )
 
     def _evaluate(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
         q = np.abs(p - self.center) - self.half
@@ -250,9 +256,9 @@ class Box(Implicit):
         return -(outside + inside)
 
 
-def _segment_frame(a: NDArray[np.float64], b: NDArray[np.float64], name: str) -> tuple[
-    NDArray[np.float64], float
-]:
+def _segment_frame(
+    a: NDArray[np.float64], b: NDArray[np.float64], name: str
+) -> tuple[NDArray[np.float64], float]:
     axis = b - a
     length = float(np.linalg.norm(axis))
     if length == 0:
@@ -328,8 +334,9 @@ class Torus(Implicit):
 
     _trusted = True
 
-    def __init__(self, center: ArrayLike, major: float, minor: float,
-                 axis: ArrayLike = (0.0, 0.0, 1.0)) -> None:
+    def __init__(
+        self, center: ArrayLike, major: float, minor: float, axis: ArrayLike = (0.0, 0.0, 1.0)
+    ) -> None:
         self.center = _vector(center, "center")
         self.major = _positive(major, "major")
         self.minor = _positive(minor, "minor")
@@ -369,12 +376,20 @@ class Union(Implicit):
     def __init__(self, *children: Implicit) -> None:
         self.children = _operands(children, "Union", 1)
         b = np.stack([c.bounds for c in self.children])
-        super().__init__(self._evaluate, [b[:, 0].min(axis=0), b[:, 1].max(axis=0)],
-                         name="Union")
+        super().__init__(self._evaluate, [b[:, 0].min(axis=0), b[:, 1].max(axis=0)], name="Union")
 
     def _evaluate(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
         out = self.children[0]._nested(p)
+        if len(p) == 0:
+            return out
+        pmin, pmax = p.min(axis=0), p.max(axis=0)
         for c in self.children[1:]:
+            lo, hi = c.bounds
+            # Whole-batch cull: every point is at least `gap` outside the child's box,
+            # so the child's distance is <= -gap and cannot raise the max.
+            gap = float(np.linalg.norm(np.maximum(np.maximum(lo - pmax, pmin - hi), 0.0)))
+            if gap > 0 and gap >= float(np.abs(out).max()):
+                continue
             np.maximum(out, _culled(c, p, out), out=out)
         return out
 
@@ -429,10 +444,14 @@ class Difference(Implicit):
     def _evaluate(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
         out = self.children[0]._nested(p)
         for c in self.children[1:]:
+            # A tool changes min(out, -tool) only at points inside the solid so far
+            # whose distance to the tool is below their depth: near the tool's box.
             lo, hi = c.bounds
-            near = np.all((p >= lo - np.maximum(out, 0)[:, None]) &
-                          (p <= hi + np.maximum(out, 0)[:, None]), axis=1) & (out > 0)
-            if near.any():
+            reach = np.maximum(out, 0.0)[:, None]
+            near = (out > 0) & np.all((p >= lo - reach) & (p <= hi + reach), axis=1)
+            if near.all():
+                np.minimum(out, -c._nested(p), out=out)
+            elif near.any():
                 out[near] = np.minimum(out[near], -c._nested(p[near]))
         return out
 
@@ -442,8 +461,14 @@ class Transformed(Implicit):
 
     _trusted = True
 
-    def __init__(self, child: Implicit, *, rotation: ArrayLike | None = None,
-                 translation: ArrayLike | None = None, scale: float = 1.0) -> None:
+    def __init__(
+        self,
+        child: Implicit,
+        *,
+        rotation: ArrayLike | None = None,
+        translation: ArrayLike | None = None,
+        scale: float = 1.0,
+    ) -> None:
         R = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
         t = np.zeros(3) if translation is None else _vector(translation, "translation")
         s = float(scale)
@@ -452,11 +477,15 @@ class Transformed(Implicit):
             child = child.child
         self.child, self.rotation, self.translation, self.factor = child, R, t, s
         lo, hi = child.bounds
-        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
-                            for z in (lo[2], hi[2])])
+        corners = np.array(
+            [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+        )
         moved = s * corners @ R.T + t
-        super().__init__(self._evaluate, [moved.min(axis=0), moved.max(axis=0)],
-                         name=f"Transformed({child.name})")
+        super().__init__(
+            self._evaluate,
+            [moved.min(axis=0), moved.max(axis=0)],
+            name=f"Transformed({child.name})",
+        )
 
     def _evaluate(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
         local = (p - self.translation) @ self.rotation / self.factor

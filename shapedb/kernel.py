@@ -87,12 +87,13 @@ def features(x: Any, config: KernelConfig | None = None, **options: Any) -> NDAr
         acc += wk * p
     k = len(rep)
     out[:k] = g.radii[rep] / r1
-    out[cfg.n_r:cfg.n_r + k] = acc[rep] / cfg.t
+    out[cfg.n_r : cfg.n_r + k] = acc[rep] / cfg.t
     return out
 
 
-def features_batch(xs: Iterable[Any], config: KernelConfig | None = None,
-                   **options: Any) -> NDArray[np.float64]:
+def features_batch(
+    xs: Iterable[Any], config: KernelConfig | None = None, **options: Any
+) -> NDArray[np.float64]:
     """Stacked :func:`features` of several graphs: (N, 2 * n_r) float64."""
     cfg = _config(config, options)
     rows = [features(x, cfg) for x in xs]
@@ -111,12 +112,14 @@ def _check(f: ArrayLike, name: str, cfg: KernelConfig) -> NDArray[np.float64]:
     if a.ndim not in (1, 2) or a.shape[-1] != cfg.dim:
         raise ConfigError(
             f"{name} has shape {a.shape} but this kernel's features have length "
-            f"2 * n_r = {cfg.dim}; were they computed with another n_r?")
+            f"2 * n_r = {cfg.dim}; were they computed with another n_r?"
+        )
     return a
 
 
-def distance(fa: ArrayLike, fb: ArrayLike, config: KernelConfig | None = None,
-             **options: Any) -> NDArray[np.float64] | float:
+def distance(
+    fa: ArrayLike, fb: ArrayLike, config: KernelConfig | None = None, **options: Any
+) -> NDArray[np.float64] | float:
     """Eq. 2: weighted L1 distance between feature vectors.
 
     Parameters
@@ -140,8 +143,9 @@ def distance(fa: ArrayLike, fb: ArrayLike, config: KernelConfig | None = None,
     return float(d) if b.ndim == 1 else d
 
 
-def kernel(fa: ArrayLike, fb: ArrayLike, config: KernelConfig | None = None,
-           **options: Any) -> NDArray[np.float64] | float:
+def kernel(
+    fa: ArrayLike, fb: ArrayLike, config: KernelConfig | None = None, **options: Any
+) -> NDArray[np.float64] | float:
     """Eq. 3: ``exp(-lam * d)``, a similarity in (0, 1]; shapes as in :func:`distance`."""
     cfg = _config(config, options)
     d = distance(fa, fb, cfg)

@@ -100,8 +100,9 @@ class Decomposition:
 @njit(cache=True)
 def _block_maxima(F: np.ndarray, B: int) -> np.ndarray:  # pragma: no cover - compiled
     nx, ny, nz = F.shape
-    out = np.full(((nx + B - 1) // B, (ny + B - 1) // B, (nz + B - 1) // B), -np.inf,
-                  dtype=np.float32)
+    out = np.full(
+        ((nx + B - 1) // B, (ny + B - 1) // B, (nz + B - 1) // B), -np.inf, dtype=np.float32
+    )
     for i in range(nx):
         bi = i // B
         for j in range(ny):
@@ -114,8 +115,9 @@ def _block_maxima(F: np.ndarray, B: int) -> np.ndarray:  # pragma: no cover - co
 
 
 @njit(cache=True)
-def _recompute_blocks(F: np.ndarray, bmax: np.ndarray, B: int, b0: np.ndarray,
-                      b1: np.ndarray) -> None:  # pragma: no cover - compiled
+def _recompute_blocks(
+    F: np.ndarray, bmax: np.ndarray, B: int, b0: np.ndarray, b1: np.ndarray
+) -> None:  # pragma: no cover - compiled
     nx, ny, nz = F.shape
     for bi in range(b0[0], b1[0] + 1):
         for bj in range(b0[1], b1[1] + 1):
@@ -162,8 +164,16 @@ def _argmax(F: np.ndarray, bmax: np.ndarray, B: int) -> tuple[int, float]:  # pr
 
 
 @njit(cache=True)
-def _carve(F: np.ndarray, bmax: np.ndarray, B: int, origin: np.ndarray, h: float,
-           c: np.ndarray, r: float, reach: float) -> None:  # pragma: no cover - compiled
+def _carve(
+    F: np.ndarray,
+    bmax: np.ndarray,
+    B: int,
+    origin: np.ndarray,
+    h: float,
+    c: np.ndarray,
+    r: float,
+    reach: float,
+) -> None:  # pragma: no cover - compiled
     """F <- min(F, |p - c| - r) for cells with |p - c| < reach; refresh touched blocks."""
     nx, ny, nz = F.shape
     lo = np.empty(3, dtype=np.int64)
@@ -194,14 +204,21 @@ def _carve(F: np.ndarray, bmax: np.ndarray, B: int, origin: np.ndarray, h: float
 
 
 # -- refinement -------------------------------------------------------------------------
-_STENCIL = np.stack(np.meshgrid(*([np.arange(-2.0, 3.0)] * 3), indexing="ij"), -1).reshape(-1, 3)
-# Pattern-search levels, as step sizes in cells: +-1 cell, then +-1/4, then +-1/16.
-_LEVELS = (0.5, 0.125, 0.03125)
+_STENCIL = np.stack(np.meshgrid(*([np.arange(-1.0, 2.0)] * 3), indexing="ij"), -1).reshape(-1, 3)
+# Pattern search: a 3^3 pattern of step 1/2 cell about the grid cell, then about the
+# best point so far with steps 1/4, 1/8, 1/16 cell (so centres to ~1/32 cell). Few
+# points per call matter for meshes, whose distance queries at medial points are slow.
+_LEVELS = (0.5, 0.25, 0.125, 0.0625)
 
 
-def _refine(geometry: Geometry, c0: NDArray[np.float64], depth: float, h: float,
-            centers: NDArray[np.float64], radii: NDArray[np.float64]) -> tuple[
-                NDArray[np.float64], float]:
+def _refine(
+    geometry: Geometry,
+    c0: NDArray[np.float64],
+    depth: float,
+    h: float,
+    centers: NDArray[np.float64],
+    radii: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], float]:
     """Centre within one cell of ``c0`` maximising g and its radius g (see module doc).
 
     ``depth`` is the grid's distance value at ``c0``; ``centers`` (k, 3) and ``radii``
@@ -246,8 +263,9 @@ def _resolve_config(config: MDBDConfig | None, options: dict[str, Any]) -> MDBDC
     return cfg
 
 
-def _loop(geometry: Geometry, grid: Grid, F: NDArray[np.float32], cfg: MDBDConfig, *,
-          naive: bool) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _loop(
+    geometry: Geometry, grid: Grid, F: NDArray[np.float32], cfg: MDBDConfig, *, naive: bool
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Run the decomposition on the field F (modified in place); balls in found order."""
     h = grid.spacing
     min_r = cfg.min_radius_cells * h
@@ -286,8 +304,14 @@ def _loop(geometry: Geometry, grid: Grid, F: NDArray[np.float32], cfg: MDBDConfi
         n += 1
         reach = r + top + 2.0 * h
         if naive:
-            d = np.sqrt((x[:, None, None] - c[0]) ** 2 + (y[None, :, None] - c[1]) ** 2
-                        + (z[None, None, :] - c[2]) ** 2) - r
+            d = (
+                np.sqrt(
+                    (x[:, None, None] - c[0]) ** 2
+                    + (y[None, :, None] - c[1]) ** 2
+                    + (z[None, None, :] - c[2]) ** 2
+                )
+                - r
+            )
             np.minimum(F, d.astype(np.float32), out=F)
         else:
             _carve(F, bmax, BLOCK, origin, h, c, r, reach)
@@ -297,38 +321,55 @@ def _loop(geometry: Geometry, grid: Grid, F: NDArray[np.float32], cfg: MDBDConfi
 def _prepare(geometry: Geometry, cfg: MDBDConfig) -> tuple[Grid, NDArray[np.float32], float]:
     if not isinstance(geometry, Geometry):
         raise InvalidShapeError(
-            f"decompose needs a shapedb Geometry, got {type(geometry).__name__}")
+            f"decompose needs a shapedb Geometry, got {type(geometry).__name__}"
+        )
     grid = Grid.fit(geometry.bounds, resolution=cfg.resolution, padding=cfg.padding_cells)
     t0 = time.perf_counter()
     F = np.ascontiguousarray(geometry.grid_sdf(grid), dtype=np.float32)
     if F.shape != grid.shape:
         raise InvalidShapeError(
-            f"grid_sdf returned shape {F.shape}, expected {grid.shape}", source=repr(geometry))
+            f"grid_sdf returned shape {F.shape}, expected {grid.shape}", source=repr(geometry)
+        )
     return grid, F, time.perf_counter() - t0
 
 
-def _finish(geometry: Geometry, grid: Grid, cfg: MDBDConfig, centers: NDArray[np.float64],
-            radii: NDArray[np.float64], timings: dict[str, float]) -> Decomposition:
+def _finish(
+    geometry: Geometry,
+    grid: Grid,
+    cfg: MDBDConfig,
+    centers: NDArray[np.float64],
+    radii: NDArray[np.float64],
+    timings: dict[str, float],
+) -> Decomposition:
     from shapedb.graph import contact_edges
 
     if len(radii) == 0:
         raise DegenerateGeometryError(
             f"no ball of radius >= {cfg.min_radius_cells} cell(s) fits inside the solid at "
             f"resolution {cfg.resolution} (cell {grid.spacing:.4g}); the solid is thinner "
-            "than the grid: increase resolution", source=repr(geometry))
+            "than the grid: increase resolution",
+            source=repr(geometry),
+        )
     order = np.argsort(-radii, kind="stable")
     centers, radii = centers[order], radii[order]
     t0 = time.perf_counter()
     edges = contact_edges(centers, radii, cfg.contact_tol_cells * grid.spacing)
     timings["graph"] = time.perf_counter() - t0
     return Decomposition(
-        centers=centers, radii=radii, edges=edges, spacing=float(grid.spacing),
-        bounds=np.asarray(geometry.bounds, dtype=np.float64).copy(), config=cfg,
-        representation=str(getattr(geometry, "representation", "unknown")), timings=timings)
+        centers=centers,
+        radii=radii,
+        edges=edges,
+        spacing=float(grid.spacing),
+        bounds=np.asarray(geometry.bounds, dtype=np.float64).copy(),
+        config=cfg,
+        representation=str(getattr(geometry, "representation", "unknown")),
+        timings=timings,
+    )
 
 
-def decompose(geometry: Geometry, *, config: MDBDConfig | None = None,
-              **options: Any) -> Decomposition:
+def decompose(
+    geometry: Geometry, *, config: MDBDConfig | None = None, **options: Any
+) -> Decomposition:
     """Truncated MDBD of ``geometry``, with its contact graph.
 
     Parameters
@@ -362,8 +403,9 @@ def decompose(geometry: Geometry, *, config: MDBDConfig | None = None,
     return out
 
 
-def _decompose_naive(geometry: Geometry, *, config: MDBDConfig | None = None,
-                     **options: Any) -> Decomposition:
+def _decompose_naive(
+    geometry: Geometry, *, config: MDBDConfig | None = None, **options: Any
+) -> Decomposition:
     """Reference implementation: full-grid argmax and full-grid update, plain numpy.
 
     Same results as :func:`decompose` (same tie-breaking, same refinement); used by

@@ -93,7 +93,7 @@ class PointCloud(Geometry):
         *,
         name: str | None = None,
         k: int = 10,
-        shell: float = 1.0,
+        shell: float = 1.5,
         orient_resolution: int = 96,
     ) -> None:
         self.name = name
@@ -180,15 +180,17 @@ class PointCloud(Geometry):
         return vecs[:, :, 0]
 
     @cached_property
-    def _exterior_direction(self) -> NDArray[np.float64]:
-        """(n, 3): unit vector from each point to its nearest exterior cell."""
-        grid = Grid.fit(self.bounds, resolution=self.orient_resolution, padding=3)
+    def _shell(self) -> tuple[Grid, NDArray[np.bool_], NDArray[np.bool_]]:
+        """(grid, wall, exterior) of the adaptive shell on the orientation grid."""
+        reach = self.shell * np.minimum(self.spacing, 4 * np.median(self.spacing))
+        b = self.bounds + np.array([[-1.0], [1.0]]) * reach.max()  # the wall stays inside
+        grid = Grid.fit(b, resolution=self.orient_resolution, padding=2)
         h = grid.spacing
         band = cell_band((self._points - grid.origin) / h, grid.shape, dilate=2)
         cells = grid.to_point(np.argwhere(band))
         _, nearest = self._tree.query(cells)
         dist, owner = propagate_closest(band, (self._points[nearest] - grid.origin) / h)
-        radius = np.maximum(self.shell * self.spacing / h, 1.5)
+        radius = np.maximum(reach / h, 1.5)
         wall = dist <= radius[nearest[owner]]
         labels, _ = ndimage.label(~wall)
         border = np.unique(
@@ -197,18 +199,24 @@ class PointCloud(Geometry):
             )
         )
         exterior = np.isin(labels, border[border > 0])
-        if not exterior.any():  # pragma: no cover - padding guarantees a border
-            raise DegenerateGeometryError("could not find the exterior", source=self.name)
+        logger.debug(
+            "point cloud %s: exterior %.1f%% of %s orientation grid, wall %.1f%%",
+            self.name,
+            100 * exterior.mean(),
+            grid.shape,
+            100 * wall.mean(),
+        )
+        return grid, wall, exterior
+
+    @cached_property
+    def _exterior_direction(self) -> NDArray[np.float64]:
+        """(n, 3): unit vector from each point to its nearest exterior cell."""
+        grid, _, exterior = self._shell
         ind = ndimage.distance_transform_edt(~exterior, return_distances=False, return_indices=True)
         ijk = grid.to_index(self._points)
         target = ind[:, ijk[:, 0], ijk[:, 1], ijk[:, 2]].T
         v = grid.to_point(target) - self._points
-        norm = np.linalg.norm(v, axis=1, keepdims=True)
-        logger.debug(
-            "point cloud %s: exterior %.1f%% of %s orientation grid, wall %.1f%%",
-            self.name, 100 * exterior.mean(), grid.shape, 100 * wall.mean(),
-        )
-        return v / np.maximum(norm, 1e-300)
+        return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-300)
 
     @cached_property
     def normals(self) -> NDArray[np.float64]:
@@ -229,7 +237,7 @@ class PointCloud(Geometry):
         if unsure.any() and not unsure.all():
             _, nb = self._tree.query(self._points, k=self.k + 1)
             nb = nb[:, 1:]
-            for _ in range(4):
+            for _ in range(8):
                 idx = np.flatnonzero(unsure)
                 vote = np.einsum("mkj,mj->mk", n[nb[idx]] * (~unsure[nb[idx]])[..., None], n[idx])
                 s = np.sign(vote.sum(1))
@@ -279,6 +287,9 @@ class PointCloud(Geometry):
         _, nearest = self._tree.query(grid.to_point(np.argwhere(band)))
         closest = (self._points[nearest] - grid.origin) / h
         dist, owner = propagate_closest(band, closest)
-        inside = coarse_to_fine_inside(grid, dist, self.winding_number, near=1.0)
+        # the sampled surface may pass up to about half a sample gap closer than the
+        # nearest sample: widen the safety margin of the nearest-node inheritance
+        margin = 0.5 + 0.5 * float(np.median(self.spacing)) / h
+        inside = coarse_to_fine_inside(grid, dist, self.winding_number, near=1.0, margin=margin)
         refine_closest(dist, owner, closest, inside & ~band)
         return (np.where(inside, dist, -dist) * np.float32(h)).astype(np.float32, copy=False)

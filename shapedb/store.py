@@ -24,13 +24,10 @@ orphans (segments renamed into place by a writer that died before its manifest s
 from __future__ import annotations
 
 import contextlib
-import errno
-import fcntl
 import json
 import logging
 import os
 import time
-import uuid
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -43,8 +40,16 @@ import pyarrow.dataset as ds
 import pyarrow.parquet as pq
 from numpy.typing import NDArray
 
+from shapedb._transaction import (
+    DATA,
+    MANIFEST,
+    FileLock,
+    Transaction,
+    cleanup,
+    write_manifest,
+)
 from shapedb.config import Config
-from shapedb.errors import ConfigError, NotFoundError, QueryError, StoreError, StoreLockedError
+from shapedb.errors import ConfigError, NotFoundError, QueryError, StoreError
 from shapedb.schema import (
     SCHEMA_VERSION,
     TABLES,
@@ -65,10 +70,7 @@ log = logging.getLogger(__name__)
 FORMAT_VERSION = 1
 """Version of the directory layout and manifest format."""
 
-MANIFEST = "manifest.json"
 _LOCK = ".lock"
-_STAGING = "staging"
-_DATA = "data"
 
 
 @dataclass(frozen=True)
@@ -107,22 +109,6 @@ class _Snapshot:
         return list(self.data["tables"][table])
 
 
-def _fsync_dir(path: Path) -> None:
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-def _fsync_file(path: Path) -> None:
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
 class Store:
     """A shape store on disk; open one with :meth:`open` or :meth:`create`.
 
@@ -152,7 +138,7 @@ class Store:
         self.path = Path(path).absolute()
         self.lock_timeout = float(lock_timeout)
         self.retain_seconds = float(retain_seconds)
-        self._lock_fd: int | None = None
+        self._lock = FileLock(self.path / _LOCK)
         self._lock_depth = 0
         snap = self._snapshot()  # validates
         self._config = Config.from_dict(snap.data["config"])
@@ -186,7 +172,7 @@ class Store:
             raise StoreError("exists and is not a directory", source=str(root))
         root.mkdir(parents=True, exist_ok=True)
         for t in TABLES:
-            (root / _DATA / t).mkdir(parents=True, exist_ok=True)
+            (root / DATA / t).mkdir(parents=True, exist_ok=True)
         now = time.time()
         manifest = {
             "format": "shapedb-store",
@@ -203,7 +189,7 @@ class Store:
             "retired": [],
         }
         (root / _LOCK).touch()
-        _write_manifest(root, manifest)
+        write_manifest(root, manifest)
         log.info("created store %s (config %s)", root, config.fingerprint)
         return cls(root, **kwargs)
 
@@ -405,28 +391,7 @@ class Store:
         if self._lock_depth:
             self._lock_depth += 1
             return
-        fd = os.open(self.path / _LOCK, os.O_RDWR | os.O_CREAT, 0o644)
-        deadline = time.monotonic() + max(timeout, 0.0)
-        while True:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                break
-            except OSError as exc:
-                if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
-                    os.close(fd)
-                    raise
-                if time.monotonic() >= deadline:
-                    holder = _read_holder(fd)
-                    os.close(fd)
-                    raise StoreLockedError(
-                        f"another writer holds the store's lock{holder}; "
-                        "wait for it to finish or retry with a lock timeout",
-                        source=str(self.path),
-                    ) from None
-                time.sleep(0.05)
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-        self._lock_fd = fd
+        self._lock.acquire(timeout, source=str(self.path))
         self._lock_depth = 1
         try:
             self._cleanup()
@@ -436,45 +401,14 @@ class Store:
 
     def _release(self) -> None:
         self._lock_depth -= 1
-        if self._lock_depth == 0 and self._lock_fd is not None:
-            fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
-            os.close(self._lock_fd)
-            self._lock_fd = None
+        if self._lock_depth == 0:
+            self._lock.release()
 
     def _cleanup(self) -> None:
         """Remove staging leftovers, orphans and expired retired files (lock held)."""
-        staging = self.path / _STAGING
-        if staging.exists():
-            for txn in staging.iterdir():
-                for f in txn.iterdir() if txn.is_dir() else []:
-                    f.unlink(missing_ok=True)
-                if txn.is_dir():
-                    txn.rmdir()
-                else:
-                    txn.unlink(missing_ok=True)
-        for tmp in self.path.glob(f".{MANIFEST}.*.tmp"):
-            tmp.unlink(missing_ok=True)
-        snap = self._snapshot()
-        live = {s["file"] for t in TABLES for s in snap.segments(t)}
-        retired = {r["file"]: float(r["since"]) for r in snap.data.get("retired", [])}
-        now = time.time()
-        expired = {f for f, since in retired.items() if now - since > self.retain_seconds}
-        removed = 0
-        for t in TABLES:
-            folder = self.path / _DATA / t
-            folder.mkdir(parents=True, exist_ok=True)
-            for f in folder.iterdir():
-                rel = f"{_DATA}/{t}/{f.name}"
-                if rel in live or (rel in retired and rel not in expired):
-                    continue
-                f.unlink(missing_ok=True)
-                removed += 1
+        removed = cleanup(self.path, self._snapshot().data, TABLES, self.retain_seconds)
         if removed:
             log.info("store %s: removed %d orphan or expired segment(s)", self.path, removed)
-        if expired:
-            data = dict(snap.data)
-            data["retired"] = [r for r in data["retired"] if r["file"] not in expired]
-            _write_manifest(self.path, data)  # same version: content unchanged for readers
 
     # ------------------------------------------------------------------ writing
     def add(
@@ -549,30 +483,12 @@ class Store:
             if not new and not delete_ids and not failures:
                 return CommitResult(version=snap.version)
 
-            txn = uuid.uuid4().hex[:12]
-            stage = self.path / _STAGING / txn
-            stage.mkdir(parents=True)
-            version = snap.version + 1
-            staged: list[tuple[str, Path]] = []  # (table, staged file)
-            retired: list[str] = []
-            tables = data["tables"]
-
-            def stage_table(table: str, t: pa.Table, id_col: str | None) -> dict[str, Any]:
-                name = f"{version:08d}-{uuid.uuid4().hex[:8]}.parquet"
-                path = stage / f"{table}-{name}"
-                pq.write_table(t, path, compression="zstd", row_group_size=1 << 17)
-                _fsync_file(path)
-                staged.append((table, path))
-                seg: dict[str, Any] = {"file": f"{_DATA}/{table}/{name}", "rows": t.num_rows}
-                if id_col is not None and t.num_rows:
-                    ids = t.column(id_col)
-                    seg["min_id"] = int(pc.min(ids).as_py())
-                    seg["max_id"] = int(pc.max(ids).as_py())
-                return seg
-
+            txn = Transaction(self.path, snap.data)
+            tables = txn.tables
             # copy-on-write deletion: rewrite every segment holding a deleted id
             if delete_ids:
                 lo, hi = min(delete_ids), max(delete_ids)
+                doomed = pa.array(sorted(delete_ids), pa.int64())
                 for table, col in (("shapes", "id"), ("balls", "shape_id"), ("edges", "shape_id")):
                     kept = []
                     for seg in tables[table]:
@@ -580,53 +496,38 @@ class Store:
                             kept.append(seg)
                             continue
                         t = pq.read_table(self.path / seg["file"], schema=schema_for(table, dim))
-                        mask = pc.is_in(t.column(col), pa.array(sorted(delete_ids), pa.int64()))
+                        mask = pc.is_in(t.column(col), doomed)
                         if not pc.any(mask).as_py():
                             kept.append(seg)
                             continue
                         rest = t.filter(pc.invert(mask))
-                        retired.append(seg["file"])
+                        txn.retire([seg["file"]])
                         if rest.num_rows:
-                            kept.append(stage_table(table, rest, col))
+                            kept.append(txn.stage(table, rest, col))
                     tables[table] = kept
 
             if new:
-                tables["shapes"].append(stage_table("shapes", shapes_table(new, dim), "id"))
-                balls = balls_table(new)
-                if balls.num_rows:
-                    tables["balls"].append(stage_table("balls", balls, "shape_id"))
-                edges = edges_table(new)
-                if edges.num_rows:
-                    tables["edges"].append(stage_table("edges", edges, "shape_id"))
+                tables["shapes"].append(txn.stage("shapes", shapes_table(new, dim), "id"))
+                for table, t in (("balls", balls_table(new)), ("edges", edges_table(new))):
+                    if t.num_rows:
+                        tables[table].append(txn.stage(table, t, "shape_id"))
 
             # failures: one small segment, rewritten whenever it changes
             gone = {f.source for f in failures} | {r.source for r in new if r.source}
             gone |= {r.name for r in new}
             old = self._read("failures", snapshot=snap)
+            remaining = old
             if old.num_rows and gone:
                 keep = pc.invert(pc.is_in(old.column("source"), pa.array(sorted(gone))))
                 remaining = old.filter(keep)
-            else:
-                remaining = old
             if failures or remaining.num_rows != old.num_rows:
                 merged = pa.concat_tables([remaining, failures_table(failures)])
-                retired.extend(s["file"] for s in tables["failures"])
+                txn.retire([s["file"] for s in tables["failures"]])
                 tables["failures"] = (
-                    [stage_table("failures", merged, None)] if merged.num_rows else []
+                    [txn.stage("failures", merged, None)] if merged.num_rows else []
                 )
 
-            for table, path in staged:
-                os.rename(path, self.path / _DATA / table / path.name.split("-", 1)[1])
-            for table in {t for t, _ in staged}:
-                _fsync_dir(self.path / _DATA / table)
-            stage.rmdir()
-
-            now = time.time()
-            data["version"] = version
-            data["next_id"] = next_id
-            data["updated_at"] = now
-            data["retired"] = data.get("retired", []) + [{"file": f, "since": now} for f in retired]
-            _write_manifest(self.path, data)
+            version = txn.publish(next_id=next_id)
             if assigned is not None:
                 assigned.extend(new)
             log.info(
@@ -654,7 +555,6 @@ class Store:
         """
         with self.writer():
             snap = self._snapshot()
-            data = json.loads(json.dumps(snap.data))
             todo = [
                 t
                 for t in ("shapes", "balls", "edges")
@@ -662,35 +562,13 @@ class Store:
             ]
             if not todo:
                 return CommitResult(version=snap.version)
-            version = snap.version + 1
-            stage = self.path / _STAGING / uuid.uuid4().hex[:12]
-            stage.mkdir(parents=True)
-            moves, retired = [], []
+            txn = Transaction(self.path, snap.data)
             for table in todo:
-                t = self._read(table, snapshot=snap)
-                t = t.sort_by("id" if table == "shapes" else "shape_id")
                 col = "id" if table == "shapes" else "shape_id"
-                name = f"{version:08d}-{uuid.uuid4().hex[:8]}.parquet"
-                path = stage / name
-                pq.write_table(t, path, compression="zstd", row_group_size=1 << 17)
-                _fsync_file(path)
-                moves.append((path, self.path / _DATA / table / name))
-                retired.extend(s["file"] for s in snap.segments(table))
-                seg: dict[str, Any] = {"file": f"{_DATA}/{table}/{name}", "rows": t.num_rows}
-                if t.num_rows:
-                    seg["min_id"] = int(pc.min(t.column(col)).as_py())
-                    seg["max_id"] = int(pc.max(t.column(col)).as_py())
-                data["tables"][table] = [seg] if t.num_rows else []
-            for src, dst in moves:
-                os.rename(src, dst)
-                _fsync_dir(dst.parent)
-            stage.rmdir()
-            now = time.time()
-            data["version"] = version
-            data["updated_at"] = now
-            data["retired"] = data.get("retired", []) + [{"file": f, "since": now} for f in retired]
-            _write_manifest(self.path, data)
-            return CommitResult(version=version)
+                t = self._read(table, snapshot=snap).sort_by(col)
+                txn.retire([s["file"] for s in snap.segments(table)])
+                txn.tables[table] = [txn.stage(table, t, col)] if t.num_rows else []
+            return CommitResult(version=txn.publish())
 
 
 def _check_table(table: str) -> None:
@@ -703,23 +581,3 @@ def _ids_filter(column: str, ids: Iterable[int] | None) -> pc.Expression | None:
         return None
     values = pa.array(sorted({int(i) for i in ids}), pa.int64())
     return pc.field(column).isin(values)
-
-
-def _read_holder(fd: int) -> str:
-    try:
-        pid = os.pread(fd, 32, 0).decode().strip()
-    except OSError:
-        return ""
-    return f" (pid {pid})" if pid else ""
-
-
-def _write_manifest(root: Path, data: dict[str, Any]) -> None:
-    """Atomically replace ``root/manifest.json`` (temp + fsync + replace + fsync dir)."""
-    tmp = root / f".{MANIFEST}.{uuid.uuid4().hex[:8]}.tmp"
-    text = json.dumps(data, indent=1, sort_keys=True)
-    with open(tmp, "w") as fh:
-        fh.write(text)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, root / MANIFEST)
-    _fsync_dir(root)

@@ -87,7 +87,9 @@ def tmp_db(tmp_path: Path, example_records: list[ShapeRecord]) -> Iterator[Any]:
 
 
 def _forget(db: Any) -> None:
-    from query import engine, index, sql
+    import importlib
+
+    engine, index, sql = (importlib.import_module(f"query.{m}") for m in ("engine", "index", "sql"))
 
     index._forget(db)
     key = index._store_key(db)

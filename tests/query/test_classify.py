@@ -84,6 +84,12 @@ def test_import_stays_light() -> None:
     assert out.stdout.strip() == "False"
 
 
+def test_missing_extra_gives_the_install_hint(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "torch_geometric", None)  # import fails as if absent
+    with pytest.raises(MissingDependencyError, match=r"pip install 'shapedb\[learn\]'"):
+        GraphClassifier("tag").fit([], [])
+
+
 def test_node_features_are_normalised() -> None:
     rng = np.random.default_rng(1)
     c, r, e = _graph(2, rng)

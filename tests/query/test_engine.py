@@ -124,6 +124,17 @@ def test_errors(tmp_db, tmp_path):
         database.connect(tmp_path / "missing", create=False)
 
 
+def test_store_removed_under_an_open_database(tmp_db):
+    import shutil
+
+    search(tmp_db, "box0")
+    shutil.rmtree(tmp_db.store.path)
+    with pytest.raises(StoreError, match="manifest.json missing"):
+        search(tmp_db, "box0")
+    with pytest.raises(StoreError, match="manifest.json missing"):
+        tmp_db.sql("SELECT 1")
+
+
 def test_index_follows_ingest_and_deletion(tmp_db):
     open_index(tmp_db)
     pointer = Path(tmp_db.store.path) / INDEX_DIR / "current.json"
@@ -132,7 +143,7 @@ def test_index_follows_ingest_and_deletion(tmp_db):
     _, committed = tmp_db.commit([new])  # on_commit updates the index
     new_id = committed[0].id
     index = open_index(tmp_db)
-    assert index.version_ == tmp_db.store.version and new_id in index.positions
+    assert index.version_ == tmp_db.store.version and new_id in index
     assert search(tmp_db, "capsule_new", k=1)[0].id == new_id
     tmp_db.delete("capsule_new")
     assert all(h.id != new_id for h in search(tmp_db, "capsule1", k=20))
@@ -140,7 +151,7 @@ def test_index_follows_ingest_and_deletion(tmp_db):
 
 
 def test_index_is_rebuilt_when_damaged(tmp_db):
-    index = open_index(tmp_db)
+    open_index(tmp_db)
     sub = Path(tmp_db.store.path) / INDEX_DIR
     (sub / index_dir_name(sub) / "faiss.index").write_bytes(b"garbage")
     from query.index import _forget

@@ -127,8 +127,6 @@ def test_errors():
     index = FeatureIndex().fit([1, 2], synthetic_features(2), W)
     with pytest.raises(QueryError, match="length 64"):
         index.search(np.zeros(10), 3)
-    with pytest.raises(QueryError, match="already"):
-        index.add([2], synthetic_features(1))
     with pytest.raises(QueryError, match="unique"):
         FeatureIndex().fit([1, 1], synthetic_features(2), W)
     with pytest.raises(StoreError):

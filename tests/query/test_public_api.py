@@ -14,13 +14,11 @@ def test_public_all():
         "Hit",
         "RetrievalScores",
         "build_index",
-        "evaluate",
         "open_index",
         "query_features",
         "retrieval_scores",
         "search",
         "search_batch",
-        "sql",
     ]
     assert all(hasattr(query, name) for name in query.__all__)
 
@@ -32,3 +30,13 @@ def test_import_is_light():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_modules_are_not_shadowed():
+    import importlib
+
+    for name in ("index", "engine", "sql", "evaluate"):
+        assert (
+            getattr(query, name, importlib.import_module(f"query.{name}")).__name__
+            == f"query.{name}"
+        )

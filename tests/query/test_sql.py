@@ -94,3 +94,22 @@ def test_connection_for_duckdb_users(tmp_db):
     finally:
         con.close()
     assert rows == [("box", 4), ("capsule", 4), ("cylinder", 3), ("torus", 3)]
+
+
+def test_script_sets_up_a_plain_duckdb_session(tmp_db):
+    import duckdb
+
+    from query.sql import script
+
+    con = duckdb.connect()
+    try:
+        con.execute(script(tmp_db))
+        got = con.sql(
+            "SELECT s.id, mdbd_kernel(s.feature, q.feature) AS k FROM shapes s, shapes q "
+            "WHERE q.name = 'box2' ORDER BY k DESC, s.id LIMIT 3"
+        ).fetchall()
+    finally:
+        con.close()
+    hits = search(tmp_db, "box2", k=3)
+    assert [r[0] for r in got] == [h.id for h in hits]
+    np.testing.assert_allclose([r[1] for r in got], [h.similarity for h in hits], rtol=1e-12)

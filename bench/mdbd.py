@@ -1,0 +1,174 @@
+"""Seconds per stage of the decomposition pipeline, against the naive reference loop.
+
+For each model and grid resolution: SDF on the grid, the block-max decomposition loop
+with and without off-grid refinement, the contact graph, the kernel features, and,
+as the baseline measured in the same run, the naive loop (full-grid argmax and
+full-grid update per ball, plain numpy) on the same field. Peak memory is the
+tracemalloc peak of one whole ``decompose`` call.
+
+    python bench/mdbd.py            # 64, 96, 128, 192 cells; generated meshes + CAPOD
+    python bench/mdbd.py --quick    # 64 and 128 cells, smaller models
+
+Writes ``bench/results/mdbd.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import resource
+import sys
+import time
+import tracemalloc
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from shapedb import examples  # noqa: E402
+from shapedb.config import MDBDConfig  # noqa: E402
+from shapedb.geometry import Geometry, Grid  # noqa: E402
+from shapedb.graph import contact_edges  # noqa: E402
+from shapedb.kernel import features  # noqa: E402
+from shapedb.mdbd import _loop, decompose  # noqa: E402
+
+logger = logging.getLogger("bench.mdbd")
+CAPOD = Path("/work/shared/data/capod")
+OUT = ROOT / "bench" / "results" / "mdbd.json"
+
+
+def _mesh(vertices: np.ndarray, faces: np.ndarray, name: str) -> Geometry:
+    from shapedb.mesh import TriangleMesh
+
+    return TriangleMesh(vertices, faces, name=name)
+
+
+def models(quick: bool) -> list[tuple[str, Geometry, int]]:
+    """(name, geometry, face count) of the benchmark models."""
+    import trimesh
+
+    out: list[tuple[str, Geometry, int]] = []
+    fig = examples.figure(0, 2)
+    for res in (140,) if quick else (160, 310):  # ~50k and ~200k faces
+        m = examples.to_mesh(fig, resolution=res)
+        out.append((f"figure-mc{res}", _mesh(m.vertices, m.faces, f"figure-mc{res}"), len(m.faces)))
+    out.append(("figure-implicit", fig, 0))
+    for rel in ["class1/m1.obj"] if quick else ["class1/m1.obj", "class5/m3.obj", "class9/m7.obj"]:
+        path = CAPOD / rel
+        if path.exists():
+            m = trimesh.load(path, force="mesh", process=False)
+            out.append((f"capod/{rel}", _mesh(m.vertices, m.faces, rel), len(m.faces)))
+    return out
+
+
+def run_one(name: str, g: Geometry, res: int, n_balls: int, naive_limit: int) -> dict[str, Any]:
+    cfg = MDBDConfig(resolution=res, n_balls=n_balls)
+    grid = Grid.fit(g.bounds, resolution=res, padding=cfg.padding_cells)
+    row: dict[str, Any] = {"model": name, "resolution": res, "cells": grid.size}
+    t0 = time.perf_counter()
+    F = np.ascontiguousarray(g.grid_sdf(grid), dtype=np.float32)
+    row["sdf"] = time.perf_counter() - t0
+    for label, refine in (("grid_loop", False), ("refined_loop", True)):
+        t0 = time.perf_counter()
+        c, r = _loop(
+            g,
+            grid,
+            F.copy(),
+            MDBDConfig(resolution=res, n_balls=n_balls, refine=refine),
+            naive=False,
+        )
+        row[label] = time.perf_counter() - t0
+    row["n_balls"] = len(r)
+    order = np.argsort(-r, kind="stable")
+    t0 = time.perf_counter()
+    edges = contact_edges(c[order], r[order], cfg.contact_tol_cells * grid.spacing)
+    row["graph"] = time.perf_counter() - t0
+    from shapedb.graph import ContactGraph
+
+    graph = ContactGraph(c[order], r[order], edges)
+    t0 = time.perf_counter()
+    features(graph)
+    row["features"] = time.perf_counter() - t0
+    if res <= naive_limit:
+        t0 = time.perf_counter()
+        cn, rn = _loop(
+            g, grid, F.copy(), MDBDConfig(resolution=res, n_balls=n_balls, refine=False), naive=True
+        )
+        row["naive_loop"] = time.perf_counter() - t0
+    else:
+        row["naive_loop"] = None
+    tracemalloc.start()
+    decompose(g, config=cfg)
+    row["peak_mb"] = tracemalloc.get_traced_memory()[1] / 2**20
+    tracemalloc.stop()
+    return row
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="fewer models and resolutions")
+    ap.add_argument("--n-balls", type=int, default=512)
+    ap.add_argument("--out", type=Path, default=OUT)
+    args = ap.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    resolutions = (64, 128) if args.quick else (64, 96, 128, 192)
+    naive_limit = 128 if args.quick else 192
+    # compile (or load) the numba kernels outside the timings
+    decompose(examples.part("plate", 0), resolution=32, n_balls=8)
+    rows = []
+    for name, g, faces in models(args.quick):
+        for res in resolutions:
+            row = run_one(name, g, res, args.n_balls, naive_limit)
+            row["faces"] = faces
+            rows.append(row)
+            logger.info(
+                "%s @%d: %s",
+                name,
+                res,
+                {
+                    k: round(v, 3) if isinstance(v, float) else v
+                    for k, v in row.items()
+                    if k not in ("model",)
+                },
+            )
+    cols = [
+        "model",
+        "faces",
+        "resolution",
+        "n_balls",
+        "sdf",
+        "grid_loop",
+        "refined_loop",
+        "graph",
+        "features",
+        "naive_loop",
+        "peak_mb",
+    ]
+    width = {c: max(len(c), *(len(_fmt(r.get(c))) for r in rows)) for c in cols}
+    print("seconds per stage (naive_loop: reference, full argmax + full update per ball)")
+    print("  ".join(c.rjust(width[c]) for c in cols))
+    for r in rows:
+        print("  ".join(_fmt(r.get(c)).rjust(width[c]) for c in cols))
+    maxrss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"process peak RSS: {maxrss:.0f} MB")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(
+        json.dumps({"n_balls": args.n_balls, "rows": rows, "peak_rss_mb": maxrss}, indent=1) + "\n"
+    )
+    return 0
+
+
+def _fmt(v: Any) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.3f}"
+    return str(v)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,307 @@
+"""Retrieval at scale: the faiss index + exact re-rank against numpy brute force.
+
+For each size (default 1e4, 1e5, 1e6 stored vectors) this builds a
+:class:`query.index.FeatureIndex` (``kind="auto"``: flat below 50 000 vectors, HNSW
+above) over synthetic Eq. 1 vectors shaped like real ones (sorted, decreasing
+radius ratios in (0, 1] followed by walk averages; d = 2 * n_r with the default
+KernelConfig), and measures, with a numpy brute-force baseline in the same run:
+
+* recall@10 of the index (faiss candidates + exact Eq. 2 re-rank) against the
+  exact ranking (a result counts when its distance is within the exact 10th);
+* p50 / p99 latency of single k=10 queries (one query per call);
+* build time and memory (resident-set growth and size on disk).
+
+With ``--store-sizes`` it also times ``query.engine.search`` end to end on a real
+store (synthetic records committed through ``Store.commit``), i.e. including the
+version check, id lookup and Hit construction.
+
+Run ``python -m bench.query`` (all sizes; about 8 minutes on 2 cores, most of it the
+HNSW build at 1e6 and the brute-force ground truth) or ``--sizes 10000 100000`` for a
+quicker run. Prints a table and writes ``bench/results/query.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import platform
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from query.index import FeatureIndex
+from shapedb.config import Config, KernelConfig
+from shapedb.kernel import weights
+
+log = logging.getLogger("bench.query")
+
+RESULTS = Path(__file__).parent / "results" / "query.json"
+
+
+def synthetic_features(n: int, n_r: int, seed: int, *, chunk: int = 100_000) -> NDArray[np.float32]:
+    """(n, 2 n_r) float32 vectors shaped like Eq. 1 features (see module docstring)."""
+    rng = np.random.default_rng(seed)
+    out = np.empty((n, 2 * n_r), np.float32)
+    i = np.arange(n_r)
+    for lo in range(0, n, chunk):
+        m = min(chunk, n - lo)
+        alpha = rng.uniform(0.01, 0.3, (m, 1))
+        beta = rng.uniform(0.5, 1.5, (m, 1))
+        r = np.exp(-alpha * i**beta) * (1 + 0.05 * rng.standard_normal((m, n_r)))
+        r = -np.sort(-np.clip(r, 1e-3, None), axis=1)
+        r /= r[:, :1]
+        nb = rng.integers(0, n_r, (m, n_r, 3))
+        mean_nb = np.take_along_axis(np.repeat(r[:, :, None], 3, 2), nb, 1).mean(2)
+        walk = rng.uniform(0.5, 0.7, (m, 1)) * (0.5 * r + 0.5 * mean_nb)
+        out[lo : lo + m, :n_r] = r
+        out[lo : lo + m, n_r:] = walk
+    return out
+
+
+def _rss_mb() -> float:
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def brute_force(
+    x: NDArray[np.float32], q: NDArray[np.float64], w: NDArray[np.float64], k: int
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """The numpy baseline: exact Eq. 2 of one query against every row, top k by (d, id)."""
+    d = np.abs(x - q.astype(np.float32)) @ w.astype(np.float32)  # float32 scan
+    part = np.argpartition(d, k + 16)[: k + 16]
+    exact = np.abs(x[part].astype(np.float64) - q) @ w  # float64 re-rank of the head
+    order = np.lexsort((part, exact))[:k]
+    return part[order], exact[order]
+
+
+def exact_topk(
+    x: NDArray[np.float32], q: NDArray[np.float64], w: NDArray[np.float64], k: int
+) -> NDArray[np.float64]:
+    """Exact Eq. 2 distances of the k nearest rows of each query: (nq, k) float64."""
+    import faiss
+
+    flat = faiss.IndexFlat(x.shape[1], faiss.METRIC_L1)
+    flat.add(np.ascontiguousarray(x * w.astype(np.float32)))
+    _, cand = flat.search(np.ascontiguousarray((q * w).astype(np.float32)), 128)
+    exact = np.abs(x[cand].astype(np.float64) - q[:, None, :]) @ w
+    return np.sort(exact, axis=1)[:, :k]
+
+
+def _percentiles(seconds: list[float]) -> tuple[float, float]:
+    a = np.asarray(seconds) * 1e3
+    return float(np.percentile(a, 50)), float(np.percentile(a, 99))
+
+
+def run_size(
+    n: int, *, n_queries: int, n_latency: int, n_baseline: int, seed: int = 0
+) -> dict[str, Any]:
+    """All measures for one size; returns one JSON row."""
+    config = KernelConfig()
+    w = weights(config)
+    t0 = time.perf_counter()
+    x = synthetic_features(n, config.n_r, seed)
+    log.info("n=%d: generated in %.1f s", n, time.perf_counter() - t0)
+    ids = np.arange(n, dtype=np.int64)
+    queries = synthetic_features(max(n_queries, n_latency), config.n_r, seed + 1).astype(np.float64)
+
+    rss0 = _rss_mb()
+    t0 = time.perf_counter()
+    index = FeatureIndex(kind="auto").fit(ids, x, w)
+    build = time.perf_counter() - t0
+    rss_index = _rss_mb() - rss0
+    with tempfile.TemporaryDirectory() as tmp:
+        index.save(tmp, version=0)
+        disk = sum(f.stat().st_size for f in Path(tmp).rglob("*") if f.is_file()) / 2**20
+    log.info("n=%d: built %s index in %.1f s", n, index.kind_, build)
+
+    # single-query latency first (before numpy's BLAS threads are woken up)
+    k = 10
+    lat = []
+    for j in range(n_latency):
+        t0 = time.perf_counter()
+        index.search(queries[j], k)
+        lat.append(time.perf_counter() - t0)
+
+    # exact ground truth: faiss flat L1 (batched) + float64 Eq. 2 re-rank of 128 candidates
+    ref_d = exact_topk(x, queries[:n_queries], w, k)
+    got, got_d = index.search(queries[:n_queries], k)
+    recall = float(np.mean(got_d <= ref_d[:, -1:] * (1 + 1e-12) + 1e-15))
+
+    # numpy brute-force baseline (one query per call), checked against the ground truth
+    base_lat, base_hits = [], 0
+    for j in range(n_baseline):
+        t0 = time.perf_counter()
+        _, bd = brute_force(x, queries[j], w, k)
+        base_lat.append(time.perf_counter() - t0)
+        base_hits += int(np.sum(bd <= ref_d[j, -1] * (1 + 1e-12) + 1e-15))
+    p50, p99 = _percentiles(lat)
+    b50, b99 = _percentiles(base_lat)
+    row = {
+        "n": n,
+        "kind": index.kind_,
+        "dim": int(x.shape[1]),
+        "recall_at_10": recall,
+        "p50_ms": p50,
+        "p99_ms": p99,
+        "build_s": build,
+        "index_rss_mb": rss_index,
+        "index_disk_mb": disk,
+        "baseline_p50_ms": b50,
+        "baseline_p99_ms": b99,
+        "baseline_recall_at_10": base_hits / (k * max(n_baseline, 1)),
+        "queries_recall": n_queries,
+        "queries_latency": n_latency,
+        "params": index.params,
+    }
+    log.info("n=%d: %s", n, row)
+    return row
+
+
+def run_store(n: int, *, n_latency: int = 300) -> dict[str, Any]:
+    """End-to-end ``query.engine.search`` latency on a real store of n synthetic shapes."""
+    import shapedb.database as database
+    from query.engine import search
+    from query.index import open_index
+    from shapedb.mdbd import Decomposition
+    from shapedb.schema import ShapeRecord
+
+    config = Config()
+    x = synthetic_features(n, config.kernel.n_r, 7)
+    one = Decomposition(
+        centers=np.zeros((1, 3)),
+        radii=np.ones(1),
+        edges=np.zeros((0, 2), np.int32),
+        spacing=0.1,
+        bounds=np.array([[-1.0, -1, -1], [1, 1, 1]]),
+        config=config.mdbd,
+        representation="implicit",
+    )
+    with tempfile.TemporaryDirectory() as tmp:
+        db = database.connect(Path(tmp) / "store", config=config)
+        records = [
+            ShapeRecord(f"s{i}", one, x[i], config, f"h{i}", "implicit", label=f"c{i % 50}")
+            for i in range(n)
+        ]
+        t0 = time.perf_counter()
+        db.commit(records)
+        commit = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        open_index(db)
+        build = time.perf_counter() - t0
+        rng = np.random.default_rng(0)
+        picks = rng.integers(1, n + 1, n_latency).tolist()
+        lat, lat_where = [], []
+        for sid in picks:
+            t0 = time.perf_counter()
+            search(db, int(sid), k=10)
+            lat.append(time.perf_counter() - t0)
+        for sid in picks[:50]:
+            t0 = time.perf_counter()
+            search(db, int(sid), k=10, where="label = 'c7'")
+            lat_where.append(time.perf_counter() - t0)
+    p50, p99 = _percentiles(lat)
+    w50, w99 = _percentiles(lat_where)
+    return {
+        "n": n,
+        "commit_s": commit,
+        "index_build_s": build,
+        "search_p50_ms": p50,
+        "search_p99_ms": p99,
+        "filtered_search_p50_ms": w50,
+        "filtered_search_p99_ms": w99,
+    }
+
+
+def format_table(rows: list[dict[str, Any]], columns: list[tuple[str, str, str]]) -> str:
+    """Aligned plain-text table of ``rows`` with (key, header, format) columns."""
+    cells = [[h for _, h, _ in columns]] + [
+        [f.format(r[key]) for key, _, f in columns] for r in rows
+    ]
+    widths = [max(len(c[i]) for c in cells) for i in range(len(columns))]
+    lines = ["  ".join(c.rjust(wd) for c, wd in zip(row, widths, strict=True)) for row in cells]
+    lines.insert(1, "  ".join("-" * wd for wd in widths))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000, 1_000_000])
+    parser.add_argument("--store-sizes", type=int, nargs="*", default=[10_000])
+    parser.add_argument("--queries", type=int, default=1000, help="queries for recall@10")
+    parser.add_argument("--latency-queries", type=int, default=1000)
+    parser.add_argument("--baseline-queries", type=int, default=50)
+    parser.add_argument("--out", type=Path, default=RESULTS)
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
+
+    started = time.perf_counter()
+    rows = [
+        run_size(
+            n,
+            n_queries=args.queries,
+            n_latency=args.latency_queries,
+            n_baseline=args.baseline_queries,
+        )
+        for n in args.sizes
+    ]
+    stores = [run_store(n) for n in args.store_sizes]
+    import faiss
+
+    result = {
+        "machine": {
+            "cpus": os.cpu_count(),
+            "faiss_threads": faiss.omp_get_max_threads(),
+            "python": platform.python_version(),
+            "faiss": faiss.__version__,
+        },
+        "index": rows,
+        "store_search": stores,
+        "total_seconds": time.perf_counter() - started,
+    }
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=1))
+    print("Feature index (faiss candidates + exact Eq. 2 re-rank) vs numpy brute force, k=10")
+    print(
+        format_table(
+            rows,
+            [
+                ("n", "vectors", "{:,}"),
+                ("kind", "index", "{}"),
+                ("recall_at_10", "recall@10", "{:.4f}"),
+                ("p50_ms", "p50 ms", "{:.2f}"),
+                ("p99_ms", "p99 ms", "{:.2f}"),
+                ("build_s", "build s", "{:.1f}"),
+                ("index_rss_mb", "RSS MB", "{:.0f}"),
+                ("index_disk_mb", "disk MB", "{:.0f}"),
+                ("baseline_p50_ms", "numpy p50 ms", "{:.2f}"),
+                ("baseline_p99_ms", "numpy p99 ms", "{:.2f}"),
+            ],
+        )
+    )
+    if stores:
+        print("\nEnd-to-end search(db, id, k=10) on a real store")
+        print(
+            format_table(
+                stores,
+                [
+                    ("n", "shapes", "{:,}"),
+                    ("search_p50_ms", "p50 ms", "{:.2f}"),
+                    ("search_p99_ms", "p99 ms", "{:.2f}"),
+                    ("filtered_search_p50_ms", "where p50 ms", "{:.2f}"),
+                    ("filtered_search_p99_ms", "where p99 ms", "{:.2f}"),
+                    ("index_build_s", "index build s", "{:.2f}"),
+                ],
+            )
+        )
+    print(f"\n{result['total_seconds']:.0f} s in all; written to {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

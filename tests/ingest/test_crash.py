@@ -1,0 +1,243 @@
+"""Crash safety: SIGKILL an ingesting process at random moments and at every commit step.
+
+After each kill the store must open, be internally consistent, hold exactly the
+shapes of the batches committed before the kill (or all of them), and a re-run
+must complete the ingest.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+import shapedb.database as database
+from shapedb.store import MANIFEST, Store
+
+OPTIONS = {"resolution": 24, "n_balls": 32}
+N_FILES = 12
+
+SCRIPT = r"""
+import os, signal, sys
+import pyarrow.parquet as pq
+import shapedb.database as database
+from shapedb.store import Store
+
+db_path, folder, batch, kill_at = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
+
+# fault injection: SIGKILL ourselves at the n-th call of one step of a commit
+if kill_at != "none":
+    step, nth = kill_at.split(":")
+    calls = {"n": 0}
+    def hit():
+        calls["n"] += 1
+        if calls["n"] == int(nth):
+            os.kill(os.getpid(), signal.SIGKILL)
+    def wrap(fn, after=False):
+        def inner(*a, **k):
+            if not after:
+                hit()
+            out = fn(*a, **k)
+            if after:
+                hit()
+            return out
+        return inner
+    if step == "write":
+        pq.write_table = wrap(pq.write_table)
+    elif step == "rename":
+        os.rename = wrap(os.rename)
+    elif step == "replace":
+        os.replace = wrap(os.replace)
+    elif step == "replaced":
+        os.replace = wrap(os.replace, after=True)
+
+commit = Store.commit
+def logged(self, *a, **k):
+    result = commit(self, *a, **k)
+    print("COMMIT", result.version, len(self), flush=True)
+    return result
+Store.commit = logged
+
+if __name__ == "__main__":
+    db = database.connect(db_path, resolution=24, n_balls=32)
+    print("START", flush=True)
+    db.ingest(folder, workers=int(os.environ.get("WORKERS", "1")), batch_size=batch)
+    print("DONE", flush=True)
+"""
+
+
+@pytest.fixture(scope="module")
+def models(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("crash-models")
+    for k in range(N_FILES):
+        box = trimesh.creation.box(extents=(1.0, 1.0 + 0.1 * k, 1.5))
+        box.export(folder / f"m{k:02d}.obj")
+    return folder
+
+
+def _run(
+    tmp_path: Path,
+    db: Path,
+    folder: Path,
+    *,
+    batch: int,
+    kill_at: str = "none",
+    kill_after: float | None = None,
+    workers: int = 1,
+) -> tuple[str, int]:
+    script = tmp_path / "ingest_script.py"
+    script.write_text(SCRIPT)
+    env = {**os.environ, "WORKERS": str(workers)}
+    proc = subprocess.Popen(
+        [sys.executable, str(script), str(db), str(folder), str(batch), kill_at],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        start_new_session=True,
+    )
+    try:
+        if kill_after is not None:
+            time.sleep(kill_after)
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=300)
+        # worker processes and the fork server must go away with their parent
+        deadline = time.monotonic() + 20
+        while _group_alive(proc.pid) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        stragglers = _group_alive(proc.pid)
+        out, _ = proc.communicate(timeout=30) if not stragglers else ("", None)
+    finally:
+        if proc.poll() is None or _group_alive(proc.pid):  # only on a hung child
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert not stragglers, "processes of the killed ingest outlived it"
+    return out, proc.returncode
+
+
+def _group_alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def _committed(out: str) -> int:
+    """Shapes in the store after the last commit the child reported."""
+    counts = [int(line.split()[2]) for line in out.splitlines() if line.startswith("COMMIT")]
+    return counts[-1] if counts else 0
+
+
+def check_consistent(path: Path) -> Store:
+    """The store opens and every table agrees with every other."""
+    store = Store.open(path)
+    for table in ("shapes", "balls", "edges", "failures"):
+        for f in store.files(table):
+            assert Path(f).is_file(), f
+    shapes = store.shapes(["id", "name", "content_hash", "n_balls", "n_edges"])
+    ids = shapes.column("id").to_numpy()
+    assert len(np.unique(ids)) == len(ids)
+    assert len(set(shapes.column("content_hash").to_pylist())) == len(ids)
+    for table, column in (("balls", "n_balls"), ("edges", "n_edges")):
+        t = store.balls() if table == "balls" else store.edges()
+        sid, counts = np.unique(t.column("shape_id").to_numpy(), return_counts=True)
+        got = dict(zip(sid.tolist(), counts.tolist(), strict=True))
+        want = {
+            i: n for i, n in zip(ids.tolist(), shapes.column(column).to_pylist(), strict=True) if n
+        }
+        assert got == want, table
+    return store
+
+
+def _names(store: Store) -> list[str]:
+    return sorted(store.shapes(["name"]).column("name").to_pylist())
+
+
+def _complete(path: Path, folder: Path, already: int) -> None:
+    """A re-run adds exactly the missing shapes and leaves no leftovers."""
+    db = database.connect(path, **OPTIONS)
+    report = db.ingest(folder, workers=1)
+    assert len(report.skipped) == already
+    assert len(report.ingested) == N_FILES - already and report.failed == ()
+    store = check_consistent(path)
+    assert _names(store) == [f"m{k:02d}" for k in range(N_FILES)]
+    assert not any((path / "staging").iterdir())
+    import json
+
+    manifest = json.loads((path / MANIFEST).read_text())
+    listed = {s["file"] for t in manifest["tables"].values() for s in t}
+    listed |= {r["file"] for r in manifest["retired"]}
+    on_disk = {str(p.relative_to(path)) for p in (path / "data").rglob("*.parquet")}
+    assert on_disk <= listed  # no orphans
+
+
+def test_sigkill_at_random_moments(tmp_path: Path, models: Path) -> None:
+    rng = random.Random(1234)
+    batch = 2
+    # how long a whole run takes here, to aim the kills inside it
+    t0 = time.monotonic()
+    out, code = _run(tmp_path, tmp_path / "full", models, batch=batch)
+    duration = time.monotonic() - t0
+    assert code == 0 and "DONE" in out, out
+    assert len(check_consistent(tmp_path / "full")) == N_FILES
+    outcomes = []
+    for trial in range(5):
+        path = tmp_path / f"db{trial}"
+        database.connect(path, **OPTIONS)  # the store exists before the child starts
+        kill_after = rng.uniform(0.3 * duration, 0.95 * duration)
+        out, code = _run(tmp_path, path, models, batch=batch, kill_after=kill_after)
+        store = check_consistent(path)
+        n = len(store)
+        reported = _committed(out)
+        # exactly the batches committed before the kill; the kill may fall between
+        # the manifest swap and the child's report of it: then one batch more
+        assert n in (reported, min(reported + batch, N_FILES)), (n, reported, out)
+        assert n % batch == 0 or n == N_FILES
+        # ingest is in input order with one worker: the stored shapes are a prefix
+        assert _names(store) == [f"m{k:02d}" for k in range(n)]
+        outcomes.append((code, n))
+        _complete(path, models, n)
+    assert any(code == -signal.SIGKILL for code, _ in outcomes), outcomes
+
+
+@pytest.mark.parametrize(
+    ("kill_at", "expect"),
+    [
+        ("write:5", "before"),  # writing the second batch's segments to staging
+        ("rename:5", "before"),  # second batch half renamed into data/
+        ("replace:2", "before"),  # just before the second manifest swap
+        ("replaced:2", "after"),  # just after it, before the directory fsync
+    ],
+)
+def test_sigkill_at_each_commit_step(
+    tmp_path: Path, models: Path, kill_at: str, expect: str
+) -> None:
+    path = tmp_path / "db"
+    database.connect(path, **OPTIONS)
+    batch = 3
+    out, code = _run(tmp_path, path, models, batch=batch, kill_at=kill_at)
+    assert code == -signal.SIGKILL, out
+    store = check_consistent(path)
+    # the first batch is committed; the second is entirely absent or entirely present
+    assert len(store) == (batch if expect == "before" else 2 * batch)
+    _complete(path, models, len(store))
+
+
+def test_sigkill_with_worker_processes(tmp_path: Path, models: Path) -> None:
+    path = tmp_path / "db"
+    database.connect(path, **OPTIONS)
+    out, code = _run(tmp_path, path, models, batch=2, kill_at="replace:3", workers=2)
+    assert code == -signal.SIGKILL, out
+    store = check_consistent(path)
+    assert len(store) == 4
+    _complete(path, models, 4)

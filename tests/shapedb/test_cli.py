@@ -1,0 +1,151 @@
+"""The ``shapedb`` command line, called through ``main([...])``."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import trimesh
+
+from shapedb.cli import main
+
+
+@pytest.fixture()
+def models(tmp_path: Path) -> Path:
+    folder = tmp_path / "models"
+    for cls, shapes in {
+        "boxes": [(1, 1, 1), (1, 2, 1), (1, 1, 3)],
+        "rods": [(0.6, 0.6, 3), (0.7, 0.7, 4), (0.6, 0.8, 2.5)],
+    }.items():
+        (folder / cls).mkdir(parents=True)
+        for k, ext in enumerate(shapes):
+            trimesh.creation.box(extents=ext).export(folder / cls / f"{cls}{k}.obj")
+    (folder / "broken.stl").write_bytes(b"\0" * 80 + b"\x05\0\0\0" + b"\1")
+    return folder
+
+
+def _json(capsys: pytest.CaptureFixture[str]) -> object:
+    return json.loads(capsys.readouterr().out)
+
+
+def _ingest(models: Path, db: Path, *extra: str) -> int:
+    return main(
+        [
+            "ingest",
+            str(models),
+            "--db",
+            str(db),
+            "--resolution",
+            "32",
+            "--balls",
+            "64",
+            "--workers",
+            "1",
+            "--label-from-folder",
+            *extra,
+        ]
+    )
+
+
+def test_ingest_info_delete(
+    tmp_path: Path, models: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    db = tmp_path / "db"
+    assert _ingest(models, db, "--json") == 1  # one input failed
+    report = _json(capsys)
+    assert report["ingested"] == 6 and report["skipped"] == 0
+    assert [Path(f["path"]).name for f in report["failed"]] == ["broken.stl"]
+    assert "truncated" in report["failed"][0]["error"]
+    assert set(report) == {"ingested", "skipped", "failed"}
+
+    assert main(["info", "--db", str(db), "--json"]) == 0
+    info = _json(capsys)
+    assert set(info) == {"shapes", "labels", "failures", "config"}
+    assert info["shapes"] == 6 and info["labels"] == {"boxes": 3, "rods": 3}
+    assert info["config"]["mdbd"]["resolution"] == 32
+    assert [Path(f["path"]).name for f in info["failures"]] == ["broken.stl"]
+
+    (models / "broken.stl").unlink()
+    assert _ingest(models, db, "--json") == 0  # idempotent
+    assert _json(capsys) == {"ingested": 0, "skipped": 6, "failed": []}
+
+    assert main(["delete", "boxes0", "2", "--db", str(db)]) == 0
+    assert "deleted 2" in capsys.readouterr().out
+    assert main(["info", "--db", str(db)]) == 0
+    text = capsys.readouterr().out
+    assert "shapes:   4" in text and "rods" in text
+
+
+def test_plain_output(tmp_path: Path, models: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert _ingest(models, tmp_path / "db") == 1
+    out = capsys.readouterr().out
+    assert out.startswith("ingested 6, skipped 0, failed 1")
+    assert "broken.stl" in out
+
+
+def test_errors_are_one_line(
+    tmp_path: Path, models: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["info", "--db", str(tmp_path / "missing")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("shapedb: error: ") and err.count("\n") == 1
+    assert "no shapedb store" in err
+    assert not (tmp_path / "missing").exists()
+    db = tmp_path / "db"
+    _ingest(models, db)
+    capsys.readouterr()
+    assert main(["ingest", str(models), "--db", str(db), "--resolution", "64"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("shapedb: error: ") and "resolution" in err
+    assert main(["delete", "nope", "--db", str(db)]) == 1
+    assert "nope" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_info:
+        main(["ingest", "--db", str(db)])  # argparse: PATH is required
+    assert exit_info.value.code == 2
+
+
+def test_search_sql_eval(tmp_path: Path, models: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("faiss")
+    db = tmp_path / "db"
+    _ingest(models, db)
+    capsys.readouterr()
+    assert main(["search", "rods1", "--db", str(db), "-k", "3", "--json"]) == 0
+    hits = _json(capsys)
+    assert len(hits) == 3
+    assert set(hits[0]) == {"id", "name", "label", "similarity", "distance"}
+    assert hits[0]["name"] == "rods1" and hits[0]["similarity"] == pytest.approx(1.0)
+    query = models / "boxes" / "boxes2.obj"
+    assert (
+        main(
+            [
+                "search",
+                str(query),
+                "--db",
+                str(db),
+                "-k",
+                "2",
+                "--where",
+                "label = 'boxes'",
+                "--json",
+            ]
+        )
+        == 0
+    )
+    assert {h["label"] for h in _json(capsys)} == {"boxes"}
+
+    sql = "SELECT label, count(*) AS n FROM shapes GROUP BY label ORDER BY label"
+    assert main(["sql", sql, "--db", str(db), "--json"]) == 0
+    assert _json(capsys) == [{"label": "boxes", "n": 3}, {"label": "rods", "n": 3}]
+    assert main(["sql", sql, "--db", str(db), "--csv"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0].replace('"', "") == "label,n" and len(lines) == 3
+    assert main(["sql", sql, "--db", str(db)]) == 0
+    assert "boxes" in capsys.readouterr().out
+    assert main(["sql", "SELEC nonsense", "--db", str(db)]) == 1
+    assert capsys.readouterr().err.startswith("shapedb: error: ")
+
+    assert main(["eval", "--db", str(db), "--json", "--plot", str(tmp_path / "pr.png")]) == 0
+    scores = _json(capsys)
+    assert scores["queries"] == 6 and 0.0 <= scores["nn"] <= 1.0
+    assert (tmp_path / "pr.png").stat().st_size > 0

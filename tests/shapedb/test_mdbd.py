@@ -1,0 +1,146 @@
+"""MDBD against analytic truth, its invariants, and the fast loop against the reference."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from shapedb.config import MDBDConfig
+from shapedb.errors import ConfigError, DegenerateGeometryError, InvalidShapeError
+from shapedb.implicit import Implicit, Sphere
+from shapedb.mdbd import Decomposition, _decompose_naive, decompose
+
+
+def assert_valid(d: Decomposition, geometry: Implicit, tol: float = 1e-6) -> None:
+    """Balls inside, pairwise disjoint, radii non-increasing, edges well formed."""
+    c, r = d.centers, d.radii
+    assert c.shape == (d.n_balls, 3) and r.shape == (d.n_balls,)
+    assert np.all(np.diff(r) <= 0), "radii must be non-increasing"
+    assert np.all(geometry.signed_distance(c) >= r - tol), "balls must lie inside"
+    gap = np.linalg.norm(c[:, None] - c[None], axis=2) - r[:, None] - r[None]
+    np.fill_diagonal(gap, np.inf)
+    assert gap.min() >= -tol, "balls must be disjoint"
+    e = d.edges
+    assert e.dtype == np.int32 and e.ndim == 2 and e.shape[1] == 2
+    assert np.all(e[:, 0] < e[:, 1])
+    assert np.array_equal(e, e[np.lexsort((e[:, 1], e[:, 0]))])
+    if len(e):  # edges index the sorted order: every edge is a contact of sorted balls
+        g = np.linalg.norm(c[e[:, 0]] - c[e[:, 1]], axis=1) - r[e[:, 0]] - r[e[:, 1]]
+        assert np.all(g <= d.config.contact_tol_cells * d.spacing + 1e-9)
+
+
+@pytest.mark.parametrize("refine", [True, False])
+def test_sphere_first_ball_is_the_sphere(sphere: Sphere, refine: bool) -> None:
+    d = decompose(sphere, resolution=48, n_balls=16, refine=refine)
+    assert abs(d.radii[0] - 1.0) <= d.spacing
+    assert np.linalg.norm(d.centers[0] - sphere.center) <= d.spacing
+    if refine:  # off the grid, the ball is the sphere itself to a small fraction of a cell
+        assert abs(d.radii[0] - 1.0) <= 0.05 * d.spacing
+        assert np.linalg.norm(d.centers[0] - sphere.center) <= 0.05 * d.spacing
+    assert_valid(d, sphere)
+
+
+def test_box_first_radius_is_half_the_smallest_side(box: Implicit) -> None:
+    d = decompose(box, resolution=48, n_balls=32)
+    assert d.radii[0] == pytest.approx(0.4, abs=1e-3 * d.spacing)
+    assert_valid(d, box)
+
+
+def test_two_far_spheres_give_two_balls_and_no_edge() -> None:
+    g = Sphere([0, 0, 0], 1.0) | Sphere([3.0, 0.5, 0], 0.6)
+    d = decompose(g, resolution=64, n_balls=64)
+    np.testing.assert_allclose(d.radii[:2], [1.0, 0.6], atol=0.05 * d.spacing)
+    np.testing.assert_allclose(d.centers[:2], [[0, 0, 0], [3.0, 0.5, 0]], atol=0.05 * d.spacing)
+    assert not np.any(np.all(d.edges == [0, 1], axis=1))
+    assert_valid(d, g)
+
+
+def test_two_touching_spheres_are_joined_by_an_edge() -> None:
+    g = Sphere([0, 0, 0], 1.0) | Sphere([1.7, 0, 0], 0.7)
+    d = decompose(g, resolution=64, n_balls=32)
+    np.testing.assert_allclose(d.radii[:2], [1.0, 0.7], atol=0.05 * d.spacing)
+    assert np.any(np.all(d.edges == [0, 1], axis=1))
+    assert_valid(d, g)
+
+
+def test_capsule_balls_lie_along_the_axis(capsule: Implicit) -> None:
+    d = decompose(capsule, resolution=64, n_balls=32)
+    big = d.radii > 0.3 - 0.05 * d.spacing
+    assert big.sum() >= 3  # 2 / (2 * 0.3): at least three full-radius balls fit on the axis
+    assert np.all(np.abs(d.centers[big, 1:]) <= 0.05 * d.spacing)
+    assert_valid(d, capsule)
+
+
+@pytest.mark.parametrize("refine", [True, False])
+def test_invariants_on_csg_shapes(csg_shapes: dict[str, Implicit], refine: bool) -> None:
+    for name, g in csg_shapes.items():
+        d = decompose(g, resolution=48, n_balls=200, refine=refine)
+        assert d.n_balls > 20, name
+        assert_valid(d, g, tol=1e-6 if refine else 1e-5 * float(d.radii[0]))
+        assert d.representation == "implicit"
+        assert set(d.timings) == {"sdf", "decompose", "graph"}
+        assert d.graph.n_nodes == d.n_balls
+
+
+@pytest.mark.parametrize("refine", [False, True])
+def test_block_max_loop_equals_naive_reference(
+    csg_shapes: dict[str, Implicit], refine: bool
+) -> None:
+    for name, g in csg_shapes.items():
+        fast = decompose(g, resolution=40, n_balls=150, refine=refine)
+        ref = _decompose_naive(g, resolution=40, n_balls=150, refine=refine)
+        assert fast.n_balls == ref.n_balls, name
+        np.testing.assert_allclose(fast.radii, ref.radii, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(fast.centers, ref.centers, rtol=0, atol=1e-9)
+        assert np.array_equal(fast.edges, ref.edges)
+
+
+def test_ties_go_to_the_smallest_flat_index(box: Implicit) -> None:
+    # The box's largest balls form a plateau: both loops must pick the same cells.
+    fast = decompose(box, resolution=32, n_balls=40, refine=False)
+    ref = _decompose_naive(box, resolution=32, n_balls=40, refine=False)
+    np.testing.assert_array_equal(fast.centers, ref.centers)
+
+
+def test_stops_at_min_radius_and_n_balls(sphere: Sphere) -> None:
+    g = Sphere([0, 0, 0], 1.0) | Sphere([1.2, 0, 0], 0.5)
+    d = decompose(g, resolution=32, n_balls=10_000, min_radius_cells=1.0)
+    assert d.n_balls < 10_000 and d.radii[-1] >= 0.5 * d.spacing
+    assert decompose(g, resolution=32, n_balls=7).n_balls == 7
+
+
+def test_refinement_beats_the_grid() -> None:
+    # Sub-cell shifts of the grid barely move refined radii; grid radii move by cells.
+    g = Sphere([0, 0, 0], 1.0) | Sphere([1.1, 0.4, 0.2], 0.6) | Sphere([-0.3, 0.9, -0.5], 0.45)
+    shifted = Implicit(g.signed_distance, g.bounds + [[-0.011, -0.007, 0.0], [0.0, 0.013, 0.004]])
+    errs = {}
+    for refine in (False, True):
+        a = decompose(g, resolution=48, n_balls=8, refine=refine)
+        b = decompose(shifted, resolution=48, n_balls=8, refine=refine)
+        errs[refine] = np.abs(a.radii[:3] - b.radii[:3]).max() / a.spacing
+    assert errs[True] < 0.05
+    assert errs[True] < errs[False]
+
+
+def test_options_and_errors(sphere: Sphere) -> None:
+    d = decompose(sphere, config=MDBDConfig(resolution=16, n_balls=4), refine=False)
+    assert d.config.resolution == 16 and d.config.refine is False
+    with pytest.raises(ConfigError, match="bogus"):
+        decompose(sphere, bogus=1)
+    with pytest.raises(ConfigError):
+        decompose(sphere, resolution=2)
+    with pytest.raises(InvalidShapeError):
+        decompose(np.zeros((3, 3)))  # type: ignore[arg-type]
+    thin = Implicit(lambda p: 1e-4 - np.abs(p[:, 2]), [[-1, -1, -1e-4], [1, 1, 1e-4]], name="sheet")
+    with pytest.raises(DegenerateGeometryError, match="sheet.*thinner"):
+        decompose(thin, resolution=16)
+
+
+def test_translation_and_scale_give_congruent_decompositions(generic: Implicit) -> None:
+    a = decompose(generic, resolution=48, n_balls=64)
+    t = np.array([0.31, -1.7, 2.2])
+    b = decompose(generic.translate(t), resolution=48, n_balls=64)
+    c = decompose(generic.scale(2.5), resolution=48, n_balls=64)
+    np.testing.assert_allclose(b.centers, a.centers + t, atol=1e-6)
+    np.testing.assert_allclose(c.radii, 2.5 * a.radii, rtol=1e-6)
+    assert np.array_equal(a.edges, b.edges) and np.array_equal(a.edges, c.edges)

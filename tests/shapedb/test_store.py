@@ -1,0 +1,329 @@
+"""The Parquet + manifest store: round trips, atomic commits, locking, cleanup."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import duckdb
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from shapedb.config import Config
+from shapedb.errors import ConfigError, NotFoundError, QueryError, StoreError, StoreLockedError
+from shapedb.mdbd import Decomposition
+from shapedb.schema import (
+    SCHEMA_VERSION,
+    Failure,
+    ShapeRecord,
+    balls_table,
+    shapes_schema,
+    shapes_table,
+)
+from shapedb.store import MANIFEST, Store
+
+CONFIG = Config().with_options(resolution=32, n_balls=64, n_r=4)
+
+
+def make_record(
+    name: str,
+    n: int = 6,
+    *,
+    seed: int | None = None,
+    label: str | None = "a",
+    config: Config = CONFIG,
+    content: str | None = None,
+) -> ShapeRecord:
+    """A hand-made record: n balls on a line, touching neighbours."""
+    rng = np.random.default_rng(seed if seed is not None else sum(map(ord, name)))
+    radii = np.sort(rng.uniform(0.1, 1.0, n))[::-1]
+    centers = rng.normal(size=(n, 3))
+    edges = np.array([[i, i + 1] for i in range(n - 1)], dtype=np.int32).reshape(-1, 2)
+    d = Decomposition(
+        centers=centers,
+        radii=radii,
+        edges=edges,
+        spacing=0.05,
+        bounds=np.array([[-1.0, -2, -3], [1, 2, 3]]),
+        config=config.mdbd,
+        representation="mesh",
+        timings={"sdf": 0.5, "decompose": 0.25},
+    )
+    return ShapeRecord(
+        name=name,
+        decomposition=d,
+        feature=rng.random(config.kernel.dim).astype(np.float32),
+        config=config,
+        content_hash=content or f"hash-{name}",
+        representation="mesh",
+        label=label,
+        metadata={"k": name.upper()},
+        source=f"/data/{name}.obj",
+        build_seconds=1.5,
+    )
+
+
+@pytest.fixture()
+def tmp_store(tmp_path: Path) -> Store:
+    return Store.create(tmp_path / "store", CONFIG)
+
+
+def test_create_open_and_empty_reads(tmp_path: Path) -> None:
+    store = Store.create(tmp_path / "s", CONFIG)
+    assert store.version == 0 and len(store) == 0
+    again = Store.open(tmp_path / "s")
+    assert again.config == CONFIG and again.dim == 8
+    assert store.shapes().num_rows == 0
+    assert store.shapes().schema.equals(shapes_schema(8), check_metadata=False)
+    ids, x = store.features()
+    assert ids.shape == (0,) and x.shape == (0, 8)
+    assert store.balls().num_rows == 0 and store.failures().num_rows == 0
+    with pytest.raises(StoreError, match="already exists"):
+        Store.create(tmp_path / "s", CONFIG)
+    with pytest.raises(StoreError, match="no shapedb store"):
+        Store.open(tmp_path / "nothing")
+
+
+def test_add_assigns_ids_and_round_trips(tmp_store: Store) -> None:
+    recs = [make_record("a"), make_record("bb", 3), make_record("c", 1)]
+    out = tmp_store.add(recs)
+    assert [r.id for r in out] == [1, 2, 3]
+    assert tmp_store.version == 1 and len(tmp_store) == 3
+    for original in recs:
+        got = tmp_store.get(original.name)
+        d0, d1 = original.decomposition, got.decomposition
+        np.testing.assert_array_equal(d1.centers, d0.centers)
+        np.testing.assert_array_equal(d1.radii, d0.radii)
+        np.testing.assert_array_equal(d1.edges, d0.edges)
+        np.testing.assert_array_equal(d1.bounds, d0.bounds)
+        assert d1.spacing == d0.spacing and d1.config == CONFIG.mdbd
+        assert d1.timings == d0.timings
+        np.testing.assert_array_equal(got.feature, original.feature)
+        assert got.config == CONFIG and got.metadata == {"k": original.name.upper()}
+        assert (got.label, got.source, got.content_hash) == (
+            original.label,
+            original.source,
+            original.content_hash,
+        )
+    ids, x = tmp_store.features()
+    assert ids.tolist() == [1, 2, 3] and x.dtype == np.float32 and x.shape == (3, 8)
+    np.testing.assert_array_equal(x[1], recs[1].feature)
+    assert tmp_store.hashes() == {"hash-a": 1, "hash-bb": 2, "hash-c": 3}
+    balls = tmp_store.balls([2])
+    assert balls.num_rows == 3 and balls.column("r_norm").to_pylist()[0] == 1.0
+    assert tmp_store.edges([1]).num_rows == 5 and tmp_store.edges([3]).num_rows == 0
+
+
+def test_reads_through_pyarrow_and_duckdb(tmp_store: Store) -> None:
+    tmp_store.add([make_record("a"), make_record("b")])
+    tmp_store.add([make_record("c")])
+    files = tmp_store.files("shapes")
+    assert len(files) == 2
+    t = pq.read_table(files[0])
+    assert t.schema.metadata[b"shapedb.schema_version"] == str(SCHEMA_VERSION).encode()
+    rows = duckdb.sql(
+        f"SELECT id, name, metadata['k'] AS k, len(feature) AS d "
+        f"FROM read_parquet({tmp_store.files('shapes')}) ORDER BY id"
+    ).fetchall()
+    assert rows == [(1, "a", "A", 8), (2, "b", "B", 8), (3, "c", "C", 8)]
+    n = duckdb.sql(f"SELECT count(*) FROM read_parquet({tmp_store.files('balls')})").fetchall()
+    assert n == [(18,)]
+
+
+def test_get_by_id_name_and_errors(tmp_store: Store) -> None:
+    tmp_store.add(
+        [
+            make_record("a"),
+            make_record("7"),
+            make_record("dup"),
+            make_record("dup", content="other"),
+        ]
+    )
+    assert tmp_store.get(1).name == "a"
+    assert tmp_store.get("1").name == "a"  # digits that are no name: an id
+    assert tmp_store.get("7").id == 2  # a name wins over an id
+    with pytest.raises(NotFoundError, match="nope"):
+        tmp_store.get("nope")
+    with pytest.raises(NotFoundError):
+        tmp_store.get(99)
+    with pytest.raises(QueryError, match="ambiguous"):
+        tmp_store.get("dup")
+    with pytest.raises(QueryError, match="unknown column"):
+        tmp_store.shapes(["id", "colour"])
+
+
+def test_config_mismatch_is_refused(tmp_store: Store) -> None:
+    other = CONFIG.with_options(resolution=64)
+    with pytest.raises(ConfigError, match="configuration"):
+        tmp_store.add([make_record("x", config=other)])
+    kernel = CONFIG.with_options(lam=2.0)
+    with pytest.raises(ConfigError):
+        tmp_store.add([make_record("x", config=kernel)])
+    assert tmp_store.version == 0
+
+
+def test_delete_is_copy_on_write(tmp_store: Store) -> None:
+    tmp_store.add([make_record("a"), make_record("b"), make_record("c")])
+    before = set(tmp_store.files("shapes"))
+    assert tmp_store.delete([2, 42]) == 1
+    assert tmp_store.ids().tolist() == [1, 3]
+    assert set(tmp_store.balls().column("shape_id").to_pylist()) == {1, 3}
+    assert set(tmp_store.edges().column("shape_id").to_pylist()) == {1, 3}
+    assert tmp_store.version == 2
+    assert not before & set(tmp_store.files("shapes"))
+    for f in before:  # retired, still readable by older readers
+        assert Path(f).exists()
+    assert tmp_store.delete([1, 3]) == 2 and len(tmp_store) == 0
+    assert tmp_store.files("shapes") == []
+    # ids are never reused
+    assert tmp_store.add([make_record("d")])[0].id == 4
+
+
+def test_explicit_ids_replace_in_one_commit(tmp_store: Store) -> None:
+    tmp_store.add([make_record("a"), make_record("b")])
+    new = replace(make_record("a", seed=5), id=1)
+    with pytest.raises(StoreError, match="already in use"):
+        tmp_store.commit([new])
+    result = tmp_store.commit([new], delete=[1])
+    assert result.added == (1,) and result.deleted == (1,)
+    np.testing.assert_array_equal(tmp_store.get(1).feature, new.feature)
+    assert len(tmp_store) == 2
+
+
+def test_failures_are_recorded_and_superseded(tmp_store: Store) -> None:
+    tmp_store.add(
+        [],
+        [Failure("/data/x.obj", "LoadError", "junk"), Failure("/data/y.obj", "LoadError", "empty")],
+    )
+    assert tmp_store.failures().num_rows == 2
+    tmp_store.add([], [Failure("/data/x.obj", "LoadError", "still junk")])
+    f = tmp_store.failures().to_pylist()
+    assert sorted((r["source"], r["message"]) for r in f) == [
+        ("/data/x.obj", "still junk"),
+        ("/data/y.obj", "empty"),
+    ]
+    rec = make_record("y")
+    assert rec.source == "/data/y.obj"
+    tmp_store.add([rec])  # y now ingests: its failure goes
+    assert tmp_store.failures().column("source").to_pylist() == ["/data/x.obj"]
+
+
+def test_empty_commit_is_a_no_op(tmp_store: Store) -> None:
+    assert tmp_store.commit().version == 0
+    assert tmp_store.version == 0
+
+
+def test_lock_is_exclusive(tmp_store: Store) -> None:
+    other = Store.open(tmp_store.path)
+    with tmp_store.writer():
+        with pytest.raises(StoreLockedError, match="lock"):
+            other.add([make_record("a")])
+        with tmp_store.writer():  # re-entrant
+            tmp_store.add([make_record("b")])
+    other.add([make_record("a")])
+    assert len(tmp_store) == 2
+
+
+def test_lock_waits_with_timeout(tmp_store: Store) -> None:
+    other = Store.open(tmp_store.path, lock_timeout=5.0)
+    release = threading.Event()
+
+    def hold() -> None:
+        with tmp_store.writer():
+            release.wait(5)
+            time.sleep(0.3)
+
+    t = threading.Thread(target=hold)
+    t.start()
+    time.sleep(0.1)
+    release.set()
+    t0 = time.monotonic()
+    other.add([make_record("a")])  # waits for the holder, then commits
+    assert time.monotonic() - t0 >= 0.1
+    t.join()
+    assert len(tmp_store) == 1
+
+
+def test_next_writer_removes_orphans_and_staging(tmp_store: Store) -> None:
+    tmp_store.add([make_record("a")])
+    root = tmp_store.path
+    stage = root / "staging" / "dead"
+    stage.mkdir(parents=True)
+    (stage / "shapes-x.parquet").write_bytes(b"partial")
+    orphan = root / "data" / "shapes" / "99999999-orphan.parquet"
+    pq.write_table(shapes_table([replace(make_record("zz"), id=50)], 8), orphan)
+    (root / ".manifest.json.dead.tmp").write_text("{")
+    assert len(tmp_store) == 1  # readers ignore all of it
+    tmp_store.add([make_record("b")])
+    assert not orphan.exists() and not stage.exists()
+    assert not (root / ".manifest.json.dead.tmp").exists()
+    assert tmp_store.ids().tolist() == [1, 2]
+
+
+def test_retired_files_expire(tmp_path: Path) -> None:
+    store = Store.create(tmp_path / "s", CONFIG, retain_seconds=0.0)
+    store.add([make_record("a"), make_record("b")])
+    old = store.files("shapes")
+    store.delete([1])
+    assert all(Path(f).exists() for f in old)
+    time.sleep(0.01)
+    store.add([make_record("c")])  # the next writer removes expired files
+    assert not any(Path(f).exists() for f in old)
+    manifest = json.loads((store.path / MANIFEST).read_text())
+    assert all(Path(store.path / r["file"]).exists() for r in manifest["retired"])
+
+
+def test_compact_merges_segments(tmp_store: Store) -> None:
+    for name in "abcde":
+        tmp_store.add([make_record(name)])
+    before = (tmp_store.shapes(), tmp_store.balls(), tmp_store.edges())
+    assert len(tmp_store.files("shapes")) == 5
+    tmp_store.compact()
+    assert len(tmp_store.files("shapes")) == 1 and len(tmp_store.files("balls")) == 1
+    after = (tmp_store.shapes(), tmp_store.balls(), tmp_store.edges())
+    for a, b in zip(before, after, strict=True):
+        assert a.equals(b)
+
+
+def test_bad_manifest_is_a_store_error(tmp_store: Store) -> None:
+    path = tmp_store.path / MANIFEST
+    data = json.loads(path.read_text())
+    data["format_version"] = 999
+    path.write_text(json.dumps(data))
+    with pytest.raises(StoreError, match="format version 999"):
+        Store.open(tmp_store.path)
+    path.write_text("{not json")
+    with pytest.raises(StoreError, match="not valid JSON"):
+        Store.open(tmp_store.path)
+
+
+def test_table_conversions_check_ids_and_dims() -> None:
+    with pytest.raises(ValueError, match="ids"):
+        balls_table([make_record("a")])
+    rec = replace(make_record("a"), id=1)
+    with pytest.raises(ValueError, match="length"):
+        shapes_table([rec], 10)
+
+
+def test_plain_duckdb_reads_through_the_manifest(
+    tmp_store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The recipe of docs/store.md: no shapedb, just the manifest and Parquet."""
+    tmp_store.add([make_record("a"), make_record("b")])
+    tmp_store.delete([1])  # leaves a retired segment on disk, which must not be read
+    monkeypatch.chdir(tmp_store.path)
+    con = duckdb.connect()
+    for table in ("shapes", "balls"):
+        con.execute(
+            f"SET VARIABLE {table}_files = (SELECT list('./' || s.file) FROM "
+            f"(SELECT unnest(tables.{table}) AS s FROM read_json_auto('manifest.json')))"
+        )
+        con.execute(
+            f"CREATE VIEW {table} AS SELECT * FROM read_parquet(getvariable('{table}_files'))"
+        )
+    assert con.sql("SELECT id, name FROM shapes").fetchall() == [(2, "b")]
+    assert con.sql("SELECT count(*) FROM balls").fetchall() == [(6,)]
