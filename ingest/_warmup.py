@@ -20,13 +20,14 @@ def warm() -> None:
         import numpy as np
 
         from shapedb.config import Config
+        from shapedb.geometry import Geometry
         from shapedb.kernel import features
         from shapedb.mdbd import decompose
         from shapedb.mesh import TriangleMesh
 
         v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=np.float64)
         f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
-        shapes = [TriangleMesh(v, f)]
+        shapes: list[Geometry] = [TriangleMesh(v, f)]
         try:
             from shapedb.pointcloud import PointCloud
 

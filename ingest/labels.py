@@ -46,7 +46,7 @@ class LabelTable:
 
     def __init__(
         self,
-        entries: Mapping[str | os.PathLike[str], LabelEntry],
+        entries: Mapping[str, LabelEntry] | Mapping[str | os.PathLike[str], LabelEntry],
         *,
         root: str | os.PathLike[str] | None = None,
     ) -> None:

@@ -283,7 +283,7 @@ def _load_pcd(p: Path, head: bytes, size: int) -> Geometry:
     import open3d as o3d
 
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-        pcd = o3d.io.read_point_cloud(str(p), format="pcd")
+        pcd = o3d.io.read_point_cloud(str(p), format="pcd")  # type: ignore[arg-type]
     pts = np.asarray(pcd.points)
     if len(pts) == 0:
         raise LoadError("no points read: the PCD file is empty, truncated or junk", source=str(p))

@@ -523,15 +523,15 @@ def _make_item(
     if isinstance(obj, Geometry):
         h = geometry_hash(obj)
         nm = name or source or f"shape-{h[:8]}"
-        entry = table.lookup(nm) if table is not None else None
+        found = table.lookup(nm) if table is not None else None
         return _Item(
             index=index,
             source=nm,
             name=nm,
             content_hash=h,
             geometry=obj,
-            label=entry.label if entry else None,
-            metadata=dict(entry.metadata) if entry else {},
+            label=given_label if given_label is not None else (found.label if found else None),
+            metadata=dict(found.metadata) if found else {},
         )
     path = Path(obj)
     if not path.is_file():

@@ -292,15 +292,9 @@ class GraphClassifier:
         return self
 
     def predict_proba(self, graphs: Sequence[Any]) -> NDArray[np.float64]:
-        """Class probabilities.
+        """Class probabilities: (n, n_classes) float64, columns in the order of ``classes_``.
 
-        Parameters
-        ----------
-        graphs : sequence of Decomposition / ContactGraph / ShapeRecord, length n
-
-        Returns
-        -------
-        (n, n_classes) float64, columns in the order of ``classes_``
+        ``graphs``: n Decompositions, ContactGraphs or ShapeRecords.
         """
         self._check_fitted()
         import torch

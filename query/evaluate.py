@@ -87,21 +87,18 @@ class RetrievalScores:
     def plot(self, path: str | os.PathLike[str], *, title: str | None = None) -> Path:
         """Save the precision-recall curve as a PNG (matplotlib, Agg backend)."""
         require("matplotlib", extra="plot", feature="the precision-recall plot")
-        import matplotlib
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
 
-        matplotlib.use("Agg", force=False)
-        import matplotlib.pyplot as plt
-
-        fig, ax = plt.subplots(figsize=(5, 4), dpi=120)
-        try:
-            ax.plot(self.recall, self.precision, marker="o")
-            ax.set(xlabel="recall", ylabel="precision", xlim=(0, 1), ylim=(0, 1.02))
-            ax.set_title(title or f"precision-recall ({self.queries} queries)")
-            ax.grid(True, alpha=0.3)
-            out = Path(path)
-            fig.savefig(out, format="png", bbox_inches="tight")
-        finally:
-            plt.close(fig)
+        fig = Figure(figsize=(5, 4), dpi=120)  # no pyplot: no global backend, thread-safe
+        FigureCanvasAgg(fig)
+        ax = fig.add_subplot()
+        ax.plot(self.recall, self.precision, marker="o")
+        ax.set(xlabel="recall", ylabel="precision", xlim=(0, 1), ylim=(0, 1.02))
+        ax.set_title(title or f"precision-recall ({self.queries} queries)")
+        ax.grid(True, alpha=0.3)
+        out = Path(path)
+        fig.savefig(out, format="png", bbox_inches="tight")
         return out
 
 

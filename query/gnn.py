@@ -1,11 +1,8 @@
 """The paper's Figure 3 graph CNN and the conversion of contact graphs into its input.
 
-Also the helpers of :mod:`query.classify` that do not need torch: the stratified
-split, reading contact graphs back from a store, and the training-curve plot.
-
-Building, converting and training need the optional ``learn`` extra (torch and
-torch_geometric); both are imported inside the functions, so importing this module
-stays light.
+Also the torch-free helpers of :mod:`query.classify` (stratified split, graphs read
+back from a store, training-curve plot). Building, converting and training need the
+``learn`` extra (torch, torch_geometric), imported inside the functions only.
 
 Network (Fig. 3 of the paper, 4 input channels)::
 
@@ -177,9 +174,7 @@ def to_data(graph: Any, y: int | None = None) -> Any:
 def random_rotations(k: int, generator: torch.Generator | None = None) -> torch.Tensor:
     """``k`` rotation matrices drawn uniformly from SO(3) (QR of Gaussian matrices).
 
-    Returns
-    -------
-    (k, 3, 3) float32
+    Returns (k, 3, 3) float32.
     """
     import torch
 
@@ -420,10 +415,7 @@ def train_network(
     ----------
     model : torch.nn.Module from :func:`build_network`, on its device
     train_set, val_set : sequences of torch_geometric Data with ``y``
-    epochs, lr, weight_decay, warmup, batch_size : training settings
-    rotate : bool
-        Random rotation of every training graph in every epoch.
-    seed : int
+    epochs, lr, weight_decay, warmup, batch_size, rotate, seed : as in GraphClassifier
     callback : callable, optional
         ``callback(epoch, epochs, metrics)`` after every epoch.
 

@@ -11,9 +11,10 @@ Each call opens an in-memory DuckDB connection with
   written in as constants; ``mdbd_weights()`` returns the weight list.
 
 The distance is a SQL macro (``list_zip`` + ``list_transform`` + ``list_sum``) rather
-than a Python UDF: it runs inside DuckDB's vectorised, multi-threaded engine, is
-as fast as a vectorised Arrow UDF (about 1.2 us a row either way, measured on
-200 000 rows) and can be pasted into a plain ``duckdb`` session (docs/sql.md).
+than a Python UDF: it runs inside DuckDB's vectorised, multi-threaded engine, is at
+least as fast as a vectorised Arrow UDF (1.2 us a row against 1.4 us, ranking
+200 000 rows against one query) and can be pasted into a plain ``duckdb`` session
+(docs/sql.md).
 """
 
 from __future__ import annotations

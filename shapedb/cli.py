@@ -89,6 +89,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("demo", help="ingest the built-in example shapes and search them")
     db_arg(s, required=False)
+    s.add_argument("--workers", type=int, metavar="N", help="worker processes")
     return p
 
 
@@ -248,8 +249,10 @@ def _sql(args: argparse.Namespace) -> int:
 
 def _eval(args: argparse.Namespace) -> int:
     db = _existing(args.db)
-    scores = db.evaluate(label=args.label, plot=args.plot) if args.plot else db.evaluate(
-        label=args.label
+    scores = (
+        db.evaluate(label=args.label, plot=args.plot)
+        if args.plot
+        else db.evaluate(label=args.label)
     )
     out = scores.to_dict() if hasattr(scores, "to_dict") else dict(vars(scores))
     if args.json:
@@ -265,20 +268,27 @@ def _eval(args: argparse.Namespace) -> int:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from shapedb.examples import catalogue  # type: ignore[import-not-found]
+    from shapedb.examples import catalogue
 
     path = args.db or tempfile.mkdtemp(prefix="shapedb-demo-")
-    db = _open(path, resolution=48, n_balls=128)
-    shapes = catalogue()
-    items = list(shapes.items()) if isinstance(shapes, dict) else list(shapes)
-    report = db.ingest(items, workers=1)
-    print(f"demo store {path}: ingested {len(report.ingested)}, skipped {len(report.skipped)}")
-    first = db.shapes(["id", "name"]).to_pylist()
-    if first:
-        query = first[0]
-        print(f"shapes most like {query['name']!r}:")
-        _print_rows([_hit(h) for h in db.search(int(query["id"]), k=5)],
-                    ["id", "name", "label", "similarity", "distance"])
+    db = _open(path, resolution=64, n_balls=256)
+    bar = _Bar(enabled=True)
+    try:
+        report = db.ingest(catalogue(), workers=args.workers, progress=bar)
+    finally:
+        bar.close()
+    print(
+        f"demo store {path}: ingested {len(report.ingested)}, skipped {len(report.skipped)}, "
+        f"failed {len(report.failed)}"
+    )
+    rows = db.shapes(["id", "name", "label"]).to_pylist()
+    if not rows:
+        return 1
+    query = rows[0]
+    print(f"\nshapes most like {query['name']!r} (label {query['label']!r}):")
+    hits = db.search(int(query["id"]), k=5)
+    _print_rows([_hit(h) for h in hits], ["id", "name", "label", "similarity", "distance"])
+    print(f'\ntry:  shapedb sql "SELECT label, count(*) FROM shapes GROUP BY label" --db {path}')
     return 0
 
 

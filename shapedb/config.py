@@ -14,7 +14,7 @@ from typing import Any
 
 from shapedb.errors import ConfigError
 
-__all__ = ["MDBDConfig", "KernelConfig", "Config"]
+__all__ = ["MDBDConfig", "KernelConfig", "PartConfig", "Config"]
 
 
 def _check(cond: bool, name: str, value: Any, why: str) -> None:
@@ -43,6 +43,18 @@ class MDBDConfig:
     refine : bool
         Refine every ball off the grid against the representation's own distance
         (sub-cell centre and radius) so that features do not snap to the grid.
+    canonical_frame : bool
+        Lay the grid along the solid's principal axes of inertia, centred on its
+        centroid (from a coarse pass), so that a rigid motion of the model moves the
+        grid with it and does not change the decomposition relative to the solid.
+        Off: the grid is aligned with the model's axes and bounding box.
+    frame_resolution : int
+        Cells along the longest side of the coarse grid that estimates the frame.
+    tie_cells : float
+        Grid values within this many cells of the maximum count as tied; the tie
+        goes to the smallest flat (C-order) cell index, i.e. lexicographically along
+        the frame's axes. Makes the choice among (near-)equal balls depend on where
+        they lie on the solid rather than on sampling noise of the field.
     """
 
     resolution: int = 128
@@ -51,6 +63,9 @@ class MDBDConfig:
     padding_cells: int = 2
     contact_tol_cells: float = 0.5
     refine: bool = True
+    canonical_frame: bool = True
+    frame_resolution: int = 48
+    tie_cells: float = 0.0
 
     def __post_init__(self) -> None:
         _check(isinstance(self.resolution, int) and 8 <= self.resolution <= 1024,
@@ -63,6 +78,9 @@ class MDBDConfig:
                "padding_cells", self.padding_cells, "must be an integer in [1, 32]")
         _check(0.0 <= self.contact_tol_cells <= 8, "contact_tol_cells",
                self.contact_tol_cells, "must be in [0, 8]")
+        _check(isinstance(self.frame_resolution, int) and 16 <= self.frame_resolution <= 256,
+               "frame_resolution", self.frame_resolution, "must be an integer in [16, 256]")
+        _check(0.0 <= self.tie_cells <= 4, "tie_cells", self.tie_cells, "must be in [0, 4]")
 
 
 @dataclass(frozen=True)
@@ -104,6 +122,55 @@ class KernelConfig:
     def dim(self) -> int:
         """Length of the Eq. 1 feature vector, 2 * n_r."""
         return 2 * self.n_r
+
+
+@dataclass(frozen=True)
+class PartConfig:
+    """Parameters of substructure matching (paper, section 3.3: K = 2, n_r = 10).
+
+    A part is the neighbourhood subgraph G[N(v, K)] of a node v; it is compared with
+    the Eq. 1-3 kernel computed on that subgraph alone (its own largest ball, its own
+    random walk).
+
+    Attributes
+    ----------
+    hops : int
+        Neighbourhood range K: nodes within ``hops`` contact edges of v.
+    n_r : int
+        Representative nodes of a part: its n_r largest balls.
+    t, w, la, lb, lam
+        As in :class:`KernelConfig`.
+    """
+
+    hops: int = 2
+    n_r: int = 10
+    t: int = 10
+    w: float = 0.9
+    la: float = 0.75
+    lb: float = 0.75
+    lam: float = 1.0
+
+    def __post_init__(self) -> None:
+        _check(isinstance(self.hops, int) and 0 <= self.hops <= 64, "hops", self.hops,
+               "must be an integer in [0, 64]")
+        self.kernel  # validates the kernel fields  # noqa: B018
+
+    @property
+    def kernel(self) -> KernelConfig:
+        """The :class:`KernelConfig` of a part's Eq. 1-3 kernel."""
+        return KernelConfig(n_r=self.n_r, t=self.t, w=self.w, la=self.la, lb=self.lb,
+                            lam=self.lam)
+
+    @property
+    def dim(self) -> int:
+        """Length of a part's feature vector, 2 * n_r."""
+        return 2 * self.n_r
+
+    @property
+    def fingerprint(self) -> str:
+        """Short hash of every field (names a part index built with this config)."""
+        text = json.dumps(asdict(self), sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:12]
 
 
 @dataclass(frozen=True)

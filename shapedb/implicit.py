@@ -199,6 +199,10 @@ class Implicit(Geometry):
         c = np.zeros(3) if center is None else _vector(center, "center")
         return Transformed(self, rotation=R, translation=c - R @ c)
 
+    def transformed(self, rotation: ArrayLike, translation: ArrayLike) -> Implicit:
+        """This solid mapped by ``x -> rotation @ x + translation`` (a rigid motion)."""
+        return self.rotate(rotation).translate(translation)
+
     def scale(self, factor: float, *, center: ArrayLike | None = None) -> Implicit:
         """This solid scaled uniformly by ``factor`` > 0 about ``center`` (3,), default origin."""
         s = float(factor)

@@ -277,6 +277,28 @@ class TriangleMesh(Geometry):
         cp = self._scene.compute_closest_points(q)["points"].numpy().astype(np.float64)
         return cp + self._centre
 
+    def closest_points(self, points: ArrayLike) -> NDArray[np.float64]:
+        """Exact closest surface points (n, 3) of points (n, 3), model units."""
+        p = as_points(points)
+        return self._closest(p) if len(p) else np.zeros((0, 3))
+
+    def transformed(self, rotation: ArrayLike, translation: ArrayLike) -> TriangleMesh:
+        """This mesh moved by ``x -> rotation @ x + translation`` (a rigid motion).
+
+        The cleaned arrays move along, so the copy does not clean the mesh again.
+        """
+        from shapedb.geometry import rigid
+
+        R, t = rigid(rotation, translation)
+        out = object.__new__(TriangleMesh)
+        out.name = self.name
+        out._vertices = np.ascontiguousarray(self._vertices @ R.T + t)
+        out._faces = self._faces
+        if "_clean" in self.__dict__:  # keep the cleaning work (merges, flips) if done
+            v, f = self._clean
+            out.__dict__["_clean"] = (np.ascontiguousarray(v @ R.T + t), f)
+        return out
+
     def unsigned_distance(self, points: ArrayLike) -> NDArray[np.float64]:
         """Exact distance (n,) of points (n, 3) to the surface, model units."""
         p = as_points(points)

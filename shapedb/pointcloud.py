@@ -264,6 +264,35 @@ class PointCloud(Geometry):
         """Point-membership classification (n,) bool: winding number above 0.5."""
         return self.winding_number(points) > 0.5
 
+    def closest_points(self, points: ArrayLike) -> NDArray[np.float64]:
+        """Nearest samples (n, 3) of points (n, 3), model units."""
+        p = as_points(points)
+        if len(p) == 0:
+            return np.zeros((0, 3))
+        _, i = self._tree.query(p)
+        return self._points[i]
+
+    def transformed(self, rotation: ArrayLike, translation: ArrayLike) -> PointCloud:
+        """This cloud moved by ``x -> rotation @ x + translation`` (a rigid motion).
+
+        Normals move along; when they were already estimated and oriented, the copy
+        reuses them instead of estimating them again.
+        """
+        from shapedb.geometry import rigid
+
+        R, t = rigid(rotation, translation)
+        out = object.__new__(PointCloud)
+        out.name, out.k, out.shell = self.name, self.k, self.shell
+        out.orient_resolution = self.orient_resolution
+        out._points = np.ascontiguousarray(self._points @ R.T + t)
+        given = self._given_normals
+        out._given_normals = None if given is None else np.ascontiguousarray(given @ R.T)
+        if "normals" in self.__dict__:
+            out.__dict__["normals"] = np.ascontiguousarray(self.normals @ R.T)
+        if "spacing" in self.__dict__:
+            out.__dict__["spacing"] = self.spacing
+        return out
+
     def unsigned_distance(self, points: ArrayLike) -> NDArray[np.float64]:
         """Distance (n,) of points (n, 3) to the nearest sample, model units."""
         p = as_points(points)

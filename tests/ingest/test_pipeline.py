@@ -136,6 +136,8 @@ def test_in_memory_shapes_and_names(tmp_db: database.Database) -> None:
     assert again.skipped == ("ball-again",)  # same content: already present
     named = tmp_db.ingest([Sphere([0, 0, 0], 2.0)], names=["big"], workers=1)
     assert tmp_db.get("big").id == named.ingested[0]
+    labelled = tmp_db.ingest([("cube", "boxes", Box([0, 0, 0], [1.0, 1.0, 1.0]))], workers=1)
+    assert tmp_db.get(labelled.ingested[0]).label == "boxes"
     with pytest.raises(ConfigError, match="names"):
         tmp_db.ingest([Sphere([0, 0, 0], 3.0)], names=["a", "b"])
 
@@ -187,7 +189,7 @@ def test_dask_local_cluster(tmp_db: database.Database, good_files) -> None:  # t
     distributed = pytest.importorskip("distributed")
     files = [good_files[n] for n in ("box.obj", "ico.off")]
     with distributed.LocalCluster(
-        n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None
+        n_workers=1, threads_per_worker=2, processes=False, dashboard_address=":0"
     ) as cluster:
         report = tmp_db.ingest(files, scheduler=cluster.scheduler_address)
     assert len(report.ingested) == 2 and report.failed == ()

@@ -97,3 +97,9 @@ def _forget(db: Any) -> None:
     cached = sql._CONNECTIONS.pop(key, None)
     if cached is not None:
         cached[1].close()
+
+
+@pytest.fixture()
+def tmp_store(tmp_db: Any) -> Any:
+    """The Store of :func:`tmp_db` (14 example shapes)."""
+    return tmp_db.store

@@ -13,12 +13,11 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
+from query.classify import GraphClassifier, train_classifier
+from query.gnn import edge_arrays, node_features, stratified_split
 from shapedb.config import Config, MDBDConfig
 from shapedb.errors import ConfigError, MissingDependencyError, NotFittedError
 from shapedb.mdbd import Decomposition
-
-from query.classify import GraphClassifier, train_classifier
-from query.gnn import edge_arrays, node_features, stratified_split
 
 
 @pytest.fixture(scope="module")
@@ -26,9 +25,10 @@ def pyg() -> None:
     from query.gnn import import_torch
 
     try:
-        import_torch()
+        torch, _ = import_torch()
     except MissingDependencyError:
         pytest.skip("needs the learn extra: pip install 'shapedb[learn]'")
+    torch.set_num_threads(1)  # tiny graphs: threads only add contention
 
 
 @dataclass(frozen=True)

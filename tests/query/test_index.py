@@ -52,8 +52,8 @@ def test_ties_broken_by_id():
 
 
 def test_hnsw_recall_on_synthetic_data():
-    x = synthetic_features(10_000, seed=4)
-    ids = np.arange(10_000)
+    x = synthetic_features(5_000, seed=4)
+    ids = np.arange(5_000)
     q = synthetic_features(100, seed=5)
     index = FeatureIndex(kind="hnsw", hnsw_m=16, ef_construction=40).fit(ids, x, W)
     assert index.kind_ == "hnsw"

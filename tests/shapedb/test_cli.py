@@ -149,3 +149,11 @@ def test_search_sql_eval(tmp_path: Path, models: Path, capsys: pytest.CaptureFix
     scores = _json(capsys)
     assert scores["queries"] == 6 and 0.0 <= scores["nn"] <= 1.0
     assert (tmp_path / "pr.png").stat().st_size > 0
+
+
+@pytest.mark.slow
+def test_demo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("faiss")
+    assert main(["demo", "--db", str(tmp_path / "demo"), "--workers", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "ingested 20" in out and "shapes most like" in out

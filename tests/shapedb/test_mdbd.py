@@ -78,7 +78,7 @@ def test_invariants_on_csg_shapes(csg_shapes: dict[str, Implicit], refine: bool)
         assert d.n_balls > 20, name
         assert_valid(d, g, tol=1e-6 if refine else 1e-5 * float(d.radii[0]))
         assert d.representation == "implicit"
-        assert set(d.timings) == {"sdf", "decompose", "graph"}
+        assert {"sdf", "decompose", "graph"} <= set(d.timings)
         assert d.graph.n_nodes == d.n_balls
 
 

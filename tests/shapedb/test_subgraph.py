@@ -1,0 +1,128 @@
+"""Neighbourhood subgraphs and their Eq. 1 features, vectorised against the reference."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from shapedb.complement import Complement
+from shapedb.config import PartConfig
+from shapedb.errors import ConfigError, InvalidShapeError
+from shapedb.graph import ContactGraph
+from shapedb.implicit import Box, Cylinder
+from shapedb.kernel import features
+from shapedb.mdbd import decompose
+from shapedb.subgraph import (
+    neighbourhood_features,
+    neighbourhood_features_many,
+    neighbourhood_features_naive,
+    neighbourhoods,
+    node_sets,
+    part_config,
+)
+
+
+def random_graph(n: int, seed: int, *, ties: bool = False) -> ContactGraph:
+    """Random geometric graph with decreasing radii (ties if asked) and isolated nodes."""
+    rng = np.random.default_rng(seed)
+    c = rng.random((n, 3))
+    r = -np.sort(-rng.uniform(0.01, 0.1, n))
+    if ties:
+        r = np.round(r, 2)
+    d = np.linalg.norm(c[:, None] - c[None], axis=2)
+    i, j = np.nonzero(np.triu(d < 0.22, 1))
+    return ContactGraph(c, r, np.stack([i, j], 1))
+
+
+@pytest.mark.parametrize("hops", [0, 1, 2, 3])
+@pytest.mark.parametrize("ties", [False, True])
+def test_vectorised_equals_reference(hops: int, ties: bool) -> None:
+    g = random_graph(120, hops, ties=ties)
+    cfg = PartConfig(hops=hops)
+    got = neighbourhood_features(g, cfg)
+    ref = neighbourhood_features_naive(g, cfg)
+    assert got.shape == (120, 20)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12)
+
+
+def test_real_decomposition_equals_reference(generic) -> None:
+    d = decompose(generic, resolution=40, n_balls=150)
+    np.testing.assert_allclose(
+        neighbourhood_features(d), neighbourhood_features_naive(d.graph), atol=1e-12
+    )
+
+
+def test_hand_made_star() -> None:
+    # star: centre 0 (r = 1) and leaves 1..3 (r = 0.5), plus a far node 4 on leaf 3
+    g = ContactGraph(np.zeros((5, 3)), [1.0, 0.5, 0.5, 0.5, 0.25], [[0, 1], [0, 2], [0, 3], [3, 4]])
+    f = neighbourhood_features(g, hops=1, n_r=3, t=1, w=1.0)
+    # N(0, 1) = {0, 1, 2, 3}: p0 = [1, .5, .5, .5]; one step: centre gets 3 * .5 / 1,
+    # each leaf gets 1 / 3 from the centre
+    np.testing.assert_allclose(f[0], [1, 0.5, 0.5, 1.5, 1 / 3, 1 / 3])
+    # N(4, 1) = {3, 4}: normalised by its own largest ball (0.5): p0 = [1, 0.5]
+    np.testing.assert_allclose(f[4], [1, 0.5, 0, 0.5, 1, 0])
+
+
+def test_membership_and_node_sets() -> None:
+    g = random_graph(60, 1)
+    m = neighbourhoods(g, 2)
+    sets = node_sets(g, range(60), 2)
+    for v in range(60):
+        want = g.neighbourhood(v, 2)
+        np.testing.assert_array_equal(m[v].indices, want)
+        np.testing.assert_array_equal(sets[v], want)
+
+
+def test_many_is_disjoint_union() -> None:
+    gs = [random_graph(n, s) for s, n in enumerate([5, 40, 1, 70])]
+    feats, offsets = neighbourhood_features_many(gs)
+    np.testing.assert_array_equal(offsets, [0, 5, 45, 46, 116])
+    for g, a, b in zip(gs, offsets[:-1], offsets[1:], strict=True):
+        np.testing.assert_allclose(feats[a:b], neighbourhood_features(g), atol=1e-12)
+
+
+def test_single_node_and_whole_graph() -> None:
+    g = ContactGraph(np.zeros((1, 3)), [2.0], np.zeros((0, 2)))
+    f = neighbourhood_features(g)
+    np.testing.assert_allclose(f[0], features(g, PartConfig().kernel))
+    h = random_graph(30, 4)
+    # with a range larger than the diameter every neighbourhood is its component
+    big = neighbourhood_features(h, hops=64)
+    np.testing.assert_allclose(big, neighbourhood_features_naive(h, PartConfig(hops=64)))
+
+
+def test_config_validation() -> None:
+    assert PartConfig().kernel.n_r == 10 and PartConfig().dim == 20
+    with pytest.raises(ConfigError):
+        PartConfig(hops=-1)
+    with pytest.raises(ConfigError):
+        PartConfig(n_r=0)
+    with pytest.raises(ConfigError, match="unknown part option"):
+        part_config(radius=2)
+    with pytest.raises(InvalidShapeError):
+        neighbourhood_features("not a graph")
+    assert PartConfig(hops=1).fingerprint != PartConfig().fingerprint
+
+
+def test_complement_sign_and_grid() -> None:
+    plate = Box([0, 0, 0.1], [2.0, 1.0, 0.2]) - Cylinder([0.5, 0, -1], [0.5, 0, 1], 0.15)
+    c = Complement(plate, padding=0.05)
+    assert np.all(c.bounds[0] < plate.bounds[0]) and np.all(c.bounds[1] > plate.bounds[1])
+    p = np.array([[0.5, 0, 0.1], [-0.5, 0, 0.1], [0.0, 0.0, 0.25], [5.0, 0, 0]])
+    s = c.signed_distance(p)
+    assert s[0] > 0  # in the hole
+    assert s[1] < 0  # in the plate
+    assert s[2] > 0  # above the plate, inside the box
+    assert s[3] < 0  # outside the box
+    from shapedb.geometry import Grid
+
+    grid = Grid.fit(c.bounds, resolution=20)
+    np.testing.assert_allclose(
+        c.grid_sdf(grid).ravel(), c.signed_distance(grid.points()), atol=1e-6
+    )
+    d = decompose(c, resolution=64, n_balls=200)
+    in_hole = np.linalg.norm(d.centers[:, :2] - [0.5, 0], axis=1) < 0.15
+    in_hole &= (d.centers[:, 2] > 0) & (d.centers[:, 2] < 0.2)
+    assert in_hole.sum() >= 1  # the hole is filled with balls of the complement
+    with pytest.raises(ConfigError):
+        Complement(plate, padding=-1)
