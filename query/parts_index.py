@@ -44,7 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from shapedb.config import PartConfig
 from shapedb.errors import NotFittedError, QueryError, StoreError, require
-from shapedb.subgraph import neighbourhood_features_many, node_sets
+from shapedb.subgraph import neighbourhood_features_many
 
 __all__ = ["PartIndex", "open_parts_index", "on_commit", "PARTS_DIR"]
 
@@ -263,7 +263,16 @@ class PartIndex:
     def node_set(self, shape_id: int, node: int) -> NDArray[np.int64]:
         """N(node, K) in a stored shape, sorted."""
         n, e = self.graph_of(shape_id)
-        return node_sets((np.ones(n), e), [node], self.config.hops)[0]
+        if not 0 <= node < n:
+            raise QueryError(f"node {node} is not in a graph of {n} nodes", source=shape_id)
+        seen = np.array([node], np.int64)
+        for _ in range(self.config.hops):  # BFS on the edge list: m is small
+            touch = np.isin(e, seen)
+            grown = np.union1d(seen, e[touch[:, ::-1]])
+            if len(grown) == len(seen):
+                break
+            seen = grown
+        return seen
 
     # ------------------------------------------------------------------ search
     def _group(

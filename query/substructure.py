@@ -445,19 +445,26 @@ def _corpus(
     return out
 
 
+_CATALOGS: dict[str, tuple[int, dict[int, tuple[str, str | None]]]] = {}
+
+
 def _names(db: Any, ids: NDArray[np.int64]) -> dict[int, tuple[str, str | None]]:
-    if not len(ids):
-        return {}
-    t = db.store.shapes(["id", "name", "label"], ids=ids.tolist())
-    return {
-        int(i): (n, lab)
-        for i, n, lab in zip(
-            t.column("id").to_pylist(),
-            t.column("name").to_pylist(),
-            t.column("label").to_pylist(),
-            strict=True,
-        )
-    }
+    """id -> (name, label), read once per store version."""
+    key, version = os.fspath(db.store.path), db.store.version
+    cached = _CATALOGS.get(key)
+    if cached is None or cached[0] != version:
+        t = db.store.shapes(["id", "name", "label"])
+        table = {
+            int(i): (n, lab)
+            for i, n, lab in zip(
+                t.column("id").to_pylist(),
+                t.column("name").to_pylist(),
+                t.column("label").to_pylist(),
+                strict=True,
+            )
+        }
+        cached = _CATALOGS[key] = (version, table)
+    return cached[1]
 
 
 def match_brute_force(

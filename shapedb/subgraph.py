@@ -171,11 +171,14 @@ def _features(
     r = radii[cols]
     r1 = np.maximum.reduceat(r, ptr[:-1])
     p0 = r / r1[rows]
+    # one walk step of every subgraph is one sparse mat-vec over the slots
+    step = sp.csr_matrix((inv[src], (dst, src)), shape=(nnz, nnz))
+    keep_mass = np.where(isolated, 1.0, 0.0)
     p = p0.copy()
     acc = np.zeros(nnz)
     wk = 1.0
     for _ in range(cfg.t):
-        p = np.bincount(dst, weights=(p * inv)[src], minlength=nnz) + np.where(isolated, p, 0.0)
+        p = step @ p + keep_mass * p
         wk *= cfg.w
         acc += wk * p
     order = np.lexsort((cols, -r, rows))  # per subgraph: decreasing radius, ties by node

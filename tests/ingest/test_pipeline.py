@@ -180,7 +180,8 @@ def test_process_pool_matches_serial(tmp_path: Path, good_files) -> None:  # typ
     pooled = database.connect(tmp_path / "b", **SMALL)
     serial.ingest(files, workers=1)
     report = pooled.ingest(files, workers=2, batch_size=1)
-    assert len(report.ingested) == 3 and pooled.store.version == 3
+    assert len(report.ingested) == 3, report.failed
+    assert pooled.store.version == 3
     for name in ("box", "ico", "capsule"):  # ids follow completion order: compare by name
         np.testing.assert_allclose(serial.get(name).feature, pooled.get(name).feature, rtol=1e-6)
 
