@@ -44,7 +44,7 @@ from shapedb.config import MDBDConfig, PartConfig
 from shapedb.implicit import Box, Cylinder
 from shapedb.kernel import weights
 from shapedb.mdbd import decompose
-from shapedb.subgraph import neighbourhood_features
+from shapedb.subgraph import neighbourhood_features, neighbourhoods
 
 logger = logging.getLogger(__name__)
 
@@ -70,6 +70,7 @@ class _Graph:
         self.labels = labels
         self.queries = queries
         self.features = neighbourhood_features((balls.radii, balls.edges), cfg)
+        self.members = neighbourhoods((balls.radii, balls.edges), cfg.hops)
 
 
 def accuracy(
@@ -200,6 +201,21 @@ def holes(n_plates: int, mdbd: MDBDConfig, cfg: PartConfig) -> dict[str, Any]:
                 u = int(np.argmin(np.abs(tb.features - qa.features[v]) @ w))
                 through.append(tb.labels[u] != "outside")
                 chance.append(np.mean(tb.labels != "outside"))
+    # set level: the matched neighbourhood N(u, K) contains a hole ball
+    covers, covers_chance = [], []
+    for a, qa in enumerate(graphs):
+        for b, tb in enumerate(graphs):
+            if a == b:
+                continue
+            has_hole = np.asarray(tb.members @ (tb.labels == "hole").astype(np.float32)).ravel() > 0
+            for v in qa.queries:
+                if qa.labels[v] != "hole":
+                    continue
+                u = int(np.argmin(np.abs(tb.features - qa.features[v]) @ w))
+                covers.append(bool(has_hole[u]))
+                covers_chance.append(float(np.mean(has_hole)))
+    res["hole->part_containing_hole"] = float(np.mean(covers)) if covers else None
+    res["hole->part_containing_hole_chance"] = float(np.mean(covers_chance)) if covers else None
     res["hole->through_feature"] = float(np.mean(through)) if through else None
     res["hole->through_feature_chance"] = float(np.mean(chance)) if chance else None
     res["plates"] = n_plates
@@ -245,6 +261,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         for lab in ("hole", "slot")
         if lab in hole["per_part"]
     ]
+    rows.append(
+        [
+            "hole->part with a hole",
+            hole["hole->part_containing_hole"],
+            hole["hole->part_containing_hole_chance"],
+        ]
+    )
     rows.append(
         ["hole->hole|slot", hole["hole->through_feature"], hole["hole->through_feature_chance"]]
     )

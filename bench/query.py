@@ -16,8 +16,8 @@ store (synthetic records committed through ``Store.commit``), i.e. including the
 version check, id lookup and Hit construction.
 
 Run ``python -m bench.query`` (all sizes) or ``--sizes 10000 100000`` for a quicker
-run (about 1.5 minutes). The full run took 13 minutes on 2 cores shared with other
-jobs (load average about 12), 10.5 of them building the HNSW graph of 1e6 vectors;
+run (about 1.5 minutes). The full run took 13 to 15 minutes on 2 cores shared with
+other jobs (load average 12 to 16), 11 of them building the HNSW graph of 1e6 vectors;
 expect it to be several times faster on an idle machine. Prints a table and writes
 ``bench/results/query.json`` (with the load average at the start and the end).
 """

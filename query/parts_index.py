@@ -113,6 +113,7 @@ class PartIndex:
         self.oversample = int(oversample)
         self.min_candidates = int(min_candidates)
         self.version_: int | None = None
+        self._order: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
 
     # ------------------------------------------------------------------ building
     @property
@@ -239,11 +240,11 @@ class PartIndex:
         return int(np.diff(self.node_ptr_)[self.alive_].sum())
 
     def _slot(self, shape_id: int) -> int:
-        if getattr(self, "_order", None) is None:
+        if self._order is None:
             live = np.flatnonzero(self.alive_)
             o = np.argsort(self.shapes_[live], kind="stable")
             self._order = (self.shapes_[live][o], live[o])
-        keys, pos = self._order  # type: ignore[misc]
+        keys, pos = self._order
         i = int(np.searchsorted(keys, shape_id))
         if i >= len(keys) or keys[i] != shape_id:
             raise QueryError("shape is not in the part index", source=shape_id)
@@ -443,8 +444,10 @@ class PartIndex:
             sub = root / meta["dir"]
             index = cls(PartConfig(**meta["config"]), **meta["params"])
             for a in cls._ARRAYS:
-                mmap = "r" if a == "features" else None
-                setattr(index, f"{a}_", np.load(sub / f"{a}.npy", mmap_mode=mmap))
+                f = sub / f"{a}.npy"
+                setattr(
+                    index, f"{a}_", np.load(f, mmap_mode="r") if a == "features" else np.load(f)
+                )
             index.alive_ = np.array(index.alive_)
             index.kind_ = meta["kind"]
             if index.kind_ == "ivf":
@@ -487,6 +490,8 @@ def _graphs_from_store(db: Any, ids: NDArray[np.int64]) -> list[tuple[Any, Any]]
     bs, r = balls.column("shape_id").to_numpy(), balls.column("r").to_numpy()
     es = edges.column("shape_id").to_numpy()
     e = np.stack([edges.column("i").to_numpy(), edges.column("j").to_numpy()], 1)
+    b_ptr: NDArray[np.int64]
+    e_ptr: NDArray[np.int64]
     b_ptr = np.searchsorted(bs, np.r_[ids, np.iinfo(np.int64).max])
     e_ptr = np.searchsorted(es, np.r_[ids, np.iinfo(np.int64).max])
     return [(r[b_ptr[g] : b_ptr[g + 1]], e[e_ptr[g] : e_ptr[g + 1]]) for g in range(len(ids))]

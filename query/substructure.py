@@ -303,7 +303,9 @@ def match_pairs(
     top = int(top)
     if top < 1:
         raise QueryError("top must be >= 1", source=f"top={top}")
-    best_v, best_u, best_d = [np.zeros(0, np.int64)] * 2 + [np.zeros(0)]
+    best_v: NDArray[np.int64] = np.zeros(0, np.int64)
+    best_u: NDArray[np.int64] = np.zeros(0, np.int64)
+    best_d: NDArray[np.float64] = np.zeros(0)
     step = max(1, _PAIR_BLOCK // max(len(f2) * f1.shape[1], 1))
     for s in range(0, len(rows), step):
         d = np.abs(f1w[s : s + step, None, :] - f2w[None, :, :]).sum(axis=2)

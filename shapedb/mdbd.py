@@ -242,6 +242,8 @@ def _carve(
 # Witness samples: the cell and its six neighbours at half a cell.
 _SAMPLES = np.concatenate([np.zeros((1, 3)), 0.5 * np.eye(3), -0.5 * np.eye(3)])
 _SURE = 1.5  # grid |D| (cells) beyond which the grid's sign is trusted
+_ROUNDS = 3  # surrogate searches per ball, each checked by one exact query
+_AGREE = 0.01  # cells: surrogate and exact values this close end the search
 
 
 @njit(cache=True)
@@ -312,31 +314,11 @@ def _search(
                     if v > ns:
                         ns = v
                         nb[:] = trial
-        if ns > bs:
+        if ns > bs + 1e-9 * h:  # a real gain, not rounding noise on a plateau
             best, bs = nb, ns
         else:
             step *= 0.5
     return best, bs
-
-
-@njit(cache=True)
-def _sequential_radii(
-    centers: np.ndarray, depth: np.ndarray
-) -> np.ndarray:  # pragma: no cover - compiled
-    """r_i = min(depth_i, min_{j<i, r_j > 0} |c_i - c_j| - r_j), balls in found order."""
-    n = centers.shape[0]
-    r = np.empty(n)
-    for i in range(n):
-        v = depth[i]
-        for j in range(i):
-            if r[j] <= 0.0:
-                continue
-            d0 = centers[i, 0] - centers[j, 0]
-            d1 = centers[i, 1] - centers[j, 1]
-            d2 = centers[i, 2] - centers[j, 2]
-            v = min(v, np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) - r[j])
-        r[i] = v
-    return r
 
 
 class _Refiner:
@@ -361,6 +343,18 @@ class _Refiner:
             self.queries += 1
         return inside
 
+    def _query(
+        self, pts: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """Witnesses (n, 3), unit inward normals (n, 3) and exact signed distances (n,)."""
+        q = np.asarray(self.geometry.closest_points(pts), dtype=np.float64)
+        self.queries += 1
+        sgn = np.where(self._inside(pts), 1.0, -1.0)
+        v = (pts - q) * sgn[:, None]
+        dist = np.linalg.norm(v, axis=1)
+        n = v / np.maximum(dist, 1e-300)[:, None]
+        return q, n, sgn * dist
+
     def ball(
         self,
         c0: NDArray[np.float64],
@@ -368,48 +362,38 @@ class _Refiner:
         centers: NDArray[np.float64],
         radii: NDArray[np.float64],
     ) -> tuple[NDArray[np.float64], float]:
-        """Refined centre near cell ``c0`` (grid value ``depth``) and its surrogate radius."""
+        """Refined centre near cell ``c0`` (grid value ``depth``) and its exact radius."""
         t0 = time.perf_counter()
         h = self.h
-        pts = c0 + h * _SAMPLES
-        q = np.asarray(self.geometry.closest_points(pts), dtype=np.float64)
-        self.queries += 1
-        sgn = np.where(self._inside(pts), 1.0, -1.0)
-        n = (pts - q) * sgn[:, None]  # inward normal at each witness
-        norm = np.linalg.norm(n, axis=1)
-        keep = norm > 1e-9 * h
-        n = n[keep] / norm[keep, None]
-        q = q[keep]
+        q, n, d = self._query(c0 + h * _SAMPLES)
         if len(radii):
             gap0 = np.sqrt(((centers - c0) ** 2).sum(axis=1)) - radii
             near = gap0 < max(depth, 0.0) + 4.0 * h
             cn, rn = np.ascontiguousarray(centers[near]), np.ascontiguousarray(radii[near])
         else:
             cn, rn = np.zeros((0, 3)), np.zeros(0)
-        c, g = _search(c0, h, np.ascontiguousarray(q), np.ascontiguousarray(n), cn, rn)
-        if len(radii):  # against every earlier ball, not only the near ones
-            far = np.sqrt(((centers - c) ** 2).sum(axis=1)) - radii
-            g = min(g, float(far.min()))
-        self.seconds += time.perf_counter() - t0
-        return c, float(g)
 
-    def final_radii(self, centers: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Exact radii (see the module docstring) of balls in found order; <= 0: drop."""
-        t0 = time.perf_counter()
-        g = self.geometry
-        depth = np.empty(len(centers))
-        if type(g).unsigned_distance is Geometry.unsigned_distance:
-            depth[:] = g.signed_distance(centers)
-        else:  # the sign is the costly part: take it from the grid where it is clear
-            fi = _trilinear(self.F0, self.origin, self.h, centers)
-            deep = fi > _SURE * self.h
-            if deep.any():
-                depth[deep] = g.unsigned_distance(centers[deep])
-            if (~deep).any():
-                depth[~deep] = g.signed_distance(centers[~deep])
-        r = _sequential_radii(centers, depth)
+        def exact(c: NDArray[np.float64], dc: float) -> float:
+            if len(radii):  # against every earlier ball, not only the near ones
+                dc = min(dc, float((np.sqrt(((centers - c) ** 2).sum(axis=1)) - radii).min()))
+            return dc
+
+        best, best_g = c0.copy(), exact(c0, float(d[0]))
+        keep = np.abs(d) > 1e-9 * h
+        Q, N = q[keep], n[keep]
+        for _ in range(_ROUNDS):
+            c, s = _search(c0, h, np.ascontiguousarray(Q), np.ascontiguousarray(N), cn, rn)
+            if np.array_equal(c, best):
+                break
+            qc, nc, dc = self._query(c[None])
+            g = exact(c, float(dc[0]))
+            if g > best_g:
+                best, best_g = c, g
+            if s - g <= _AGREE * h:  # the surrogate was right here: done
+                break
+            Q, N = np.concatenate([Q, qc]), np.concatenate([N, nc])  # learn the missed contact
         self.seconds += time.perf_counter() - t0
-        return r
+        return best, best_g
 
 
 # -- canonical frame ---------------------------------------------------------------------
@@ -597,10 +581,6 @@ def _loop(
         else:
             _carve(F, bmax, BLOCK, origin, h, c, r, reach)
     centers, radii = centers[:n], radii[:n]
-    if refiner is not None and n:
-        radii = refiner.final_radii(centers)
-        keep = radii > 0
-        centers, radii = centers[keep], radii[keep]
     if stats is not None:
         stats["refine"] = refiner.seconds if refiner is not None else 0.0
         stats["queries"] = float(refiner.queries if refiner is not None else 0)

@@ -60,10 +60,10 @@ def test_mismatched_lengths_and_bad_input_are_refused() -> None:
 
 
 def test_similarity_transforms_keep_the_kernel_high(generic: Implicit) -> None:
-    """Translation and uniform scale are exact; rotations move the grid under the solid.
+    """Translation and uniform scale are exact; the canonical frame turns with the solid.
 
-    A 90-degree turn maps the grid onto itself; a generic rotation resamples it and
-    is the hard case (see the measured values in bench/mdbd.py's report).
+    A generic rotation still changes the tail of the greedy packing (see
+    test_stability.py): measured 0.94 here (0.77-0.82 with the grid on the model's axes).
     """
     from conftest import rotation
 
@@ -73,7 +73,7 @@ def test_similarity_transforms_keep_the_kernel_high(generic: Implicit) -> None:
     for moved in (generic.translate([0.3, -1.1, 4.0]), generic.scale(3.0), generic.rotate(quarter)):
         assert kernel(f0, features(decompose(moved, **opts))) >= 0.99
     k = kernel(f0, features(decompose(generic.rotate(rotation((0.3, 0.7, -0.4))), **opts)))
-    assert k >= 0.75
+    assert k >= 0.9
 
 
 def test_sub_cell_grid_shift_keeps_the_kernel_high(generic: Implicit) -> None:
@@ -82,4 +82,4 @@ def test_sub_cell_grid_shift_keeps_the_kernel_high(generic: Implicit) -> None:
         generic.signed_distance, generic.bounds + [[-0.011, -0.007, 0.0], [0.0, 0.013, 0.004]]
     )
     k = kernel(features(decompose(generic, **opts)), features(decompose(shifted, **opts)))
-    assert k >= 0.75  # measured 0.82-0.90 over random shifts (0.75-0.80 without refinement)
+    assert k >= 0.9  # measured 0.96 (0.77 with the grid on the model's axes)

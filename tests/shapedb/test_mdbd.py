@@ -82,13 +82,14 @@ def test_invariants_on_csg_shapes(csg_shapes: dict[str, Implicit], refine: bool)
         assert d.graph.n_nodes == d.n_balls
 
 
-@pytest.mark.parametrize("refine", [False, True])
+@pytest.mark.parametrize(("refine", "frame"), [(False, False), (True, False), (True, True)])
 def test_block_max_loop_equals_naive_reference(
-    csg_shapes: dict[str, Implicit], refine: bool
+    csg_shapes: dict[str, Implicit], refine: bool, frame: bool
 ) -> None:
     for name, g in csg_shapes.items():
-        fast = decompose(g, resolution=40, n_balls=150, refine=refine)
-        ref = _decompose_naive(g, resolution=40, n_balls=150, refine=refine)
+        opts = {"resolution": 40, "n_balls": 150, "refine": refine, "canonical_frame": frame}
+        fast = decompose(g, **opts)
+        ref = _decompose_naive(g, **opts)
         assert fast.n_balls == ref.n_balls, name
         np.testing.assert_allclose(fast.radii, ref.radii, rtol=0, atol=1e-9)
         np.testing.assert_allclose(fast.centers, ref.centers, rtol=0, atol=1e-9)
@@ -97,9 +98,11 @@ def test_block_max_loop_equals_naive_reference(
 
 def test_ties_go_to_the_smallest_flat_index(box: Implicit) -> None:
     # The box's largest balls form a plateau: both loops must pick the same cells.
-    fast = decompose(box, resolution=32, n_balls=40, refine=False)
-    ref = _decompose_naive(box, resolution=32, n_balls=40, refine=False)
-    np.testing.assert_array_equal(fast.centers, ref.centers)
+    for tie in (0.0, 0.3):
+        opts = {"resolution": 32, "n_balls": 40, "refine": False, "tie_cells": tie}
+        fast = decompose(box, **opts)
+        ref = _decompose_naive(box, **opts)
+        np.testing.assert_array_equal(fast.centers, ref.centers)
 
 
 def test_stops_at_min_radius_and_n_balls(sphere: Sphere) -> None:
@@ -144,3 +147,35 @@ def test_translation_and_scale_give_congruent_decompositions(generic: Implicit) 
     np.testing.assert_allclose(b.centers, a.centers + t, atol=1e-6)
     np.testing.assert_allclose(c.radii, 2.5 * a.radii, rtol=1e-6)
     assert np.array_equal(a.edges, b.edges) and np.array_equal(a.edges, c.edges)
+
+
+def test_canonical_frame_is_recorded_and_degenerate_inertia_does_not_crash(
+    sphere: Sphere, box: Implicit
+) -> None:
+    d = decompose(sphere, resolution=32, n_balls=8)  # isotropic: model axes
+    np.testing.assert_allclose(d.frame[:3, :3], np.eye(3), atol=1e-12)
+    np.testing.assert_allclose(d.frame[:3, 3], sphere.center, atol=0.02 * d.spacing)
+    assert {"frame", "refine"} <= set(d.timings)
+    cube = Implicit(lambda p: 0.5 - np.abs(p).max(axis=1), [[-0.5] * 3, [0.5] * 3], name="cube")
+    assert decompose(cube, resolution=32, n_balls=8).radii[0] == pytest.approx(0.5, abs=1e-6)
+    b = decompose(box, resolution=32, n_balls=8)  # distinct moments: the box's own axes
+    np.testing.assert_allclose(np.abs(b.frame[:3, :3]), np.eye(3), atol=1e-9)
+    off = decompose(box, resolution=32, n_balls=8, canonical_frame=False)
+    np.testing.assert_array_equal(off.frame, np.eye(4))
+
+
+def test_other_representations_decompose_in_the_frame() -> None:
+    from shapedb.geometry import Transformed
+    from shapedb.voxels import VoxelGrid
+
+    occ = np.zeros((20, 14, 10), dtype=bool)
+    occ[2:18, 2:12, 2:8] = True
+    vox = VoxelGrid(occ, origin=(0.1, 0.2, 0.3), pitch=0.1)
+    d = decompose(vox, resolution=32, n_balls=16)
+    assert d.radii[0] == pytest.approx(0.3, abs=0.05)
+    assert d.representation == "voxels"
+    moved = Transformed(vox, np.eye(3)[[1, 2, 0]], [1.0, 2.0, 3.0])
+    assert np.allclose(
+        moved.signed_distance(d.centers[:3] @ np.eye(3)[[1, 2, 0]].T + [1, 2, 3]),
+        vox.signed_distance(d.centers[:3]),
+    )
