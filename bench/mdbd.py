@@ -1,9 +1,12 @@
 """Seconds per stage of the decomposition pipeline, against the naive reference loop.
 
-For each model and grid resolution: SDF on the grid, the block-max decomposition loop
-with and without off-grid refinement, the contact graph, the kernel features, and,
-as the baseline measured in the same run, the naive loop (full-grid argmax and
-full-grid update per ball, plain numpy) on the same field. Peak memory is the
+For each model and grid resolution: the canonical frame's coarse passes ("frame"),
+the SDF on the fine grid, the block-max decomposition loop without ("grid_loop") and
+with ("refined_loop") off-grid refinement, the refinement's own share of the latter
+("refine": precise queries + surrogate search) and its number of precise query
+calls, the contact graph, the kernel features, and, as the baseline measured in the
+same run, the naive loop (full-grid argmax and full-grid update per ball, plain numpy)
+on the same field. "refine_x" is refined_loop / grid_loop. Peak memory is the
 tracemalloc peak of one whole ``decompose`` call.
 
     python bench/mdbd.py            # 64, 96, 128, 192 cells; generated meshes + CAPOD
@@ -31,10 +34,10 @@ sys.path.insert(0, str(ROOT))
 
 from shapedb import examples  # noqa: E402
 from shapedb.config import MDBDConfig  # noqa: E402
-from shapedb.geometry import Geometry, Grid  # noqa: E402
+from shapedb.geometry import Geometry  # noqa: E402
 from shapedb.graph import contact_edges  # noqa: E402
 from shapedb.kernel import features  # noqa: E402
-from shapedb.mdbd import _loop, decompose  # noqa: E402
+from shapedb.mdbd import _loop, _prepare, decompose  # noqa: E402
 
 logger = logging.getLogger("bench.mdbd")
 CAPOD = Path("/work/shared/data/capod")
@@ -67,21 +70,26 @@ def models(quick: bool) -> list[tuple[str, Geometry, int]]:
 
 def run_one(name: str, g: Geometry, res: int, n_balls: int, naive_limit: int) -> dict[str, Any]:
     cfg = MDBDConfig(resolution=res, n_balls=n_balls)
-    grid = Grid.fit(g.bounds, resolution=res, padding=cfg.padding_cells)
+    prep = _prepare(g, cfg)
+    grid, F = prep.grid, prep.F
     row: dict[str, Any] = {"model": name, "resolution": res, "cells": grid.size}
-    t0 = time.perf_counter()
-    F = np.ascontiguousarray(g.grid_sdf(grid), dtype=np.float32)
-    row["sdf"] = time.perf_counter() - t0
+    row["frame"] = prep.timings.get("frame", 0.0)
+    row["sdf"] = prep.timings["sdf"]
     for label, refine in (("grid_loop", False), ("refined_loop", True)):
+        stats: dict[str, float] = {}
         t0 = time.perf_counter()
         c, r = _loop(
-            g,
+            prep.local,
             grid,
             F.copy(),
             MDBDConfig(resolution=res, n_balls=n_balls, refine=refine),
             naive=False,
+            stats=stats,
         )
         row[label] = time.perf_counter() - t0
+    row["refine"] = stats["refine"]
+    row["queries"] = int(stats["queries"])
+    row["refine_x"] = row["refined_loop"] / max(row["grid_loop"], 1e-9)
     row["n_balls"] = len(r)
     order = np.argsort(-r, kind="stable")
     t0 = time.perf_counter()
@@ -95,8 +103,12 @@ def run_one(name: str, g: Geometry, res: int, n_balls: int, naive_limit: int) ->
     row["features"] = time.perf_counter() - t0
     if res <= naive_limit:
         t0 = time.perf_counter()
-        cn, rn = _loop(
-            g, grid, F.copy(), MDBDConfig(resolution=res, n_balls=n_balls, refine=False), naive=True
+        _loop(
+            prep.local,
+            grid,
+            F.copy(),
+            MDBDConfig(resolution=res, n_balls=n_balls, refine=False),
+            naive=True,
         )
         row["naive_loop"] = time.perf_counter() - t0
     else:
@@ -140,9 +152,13 @@ def main(argv: list[str] | None = None) -> int:
         "faces",
         "resolution",
         "n_balls",
+        "frame",
         "sdf",
         "grid_loop",
         "refined_loop",
+        "refine",
+        "queries",
+        "refine_x",
         "graph",
         "features",
         "naive_loop",

@@ -490,10 +490,9 @@ def _graphs_from_store(db: Any, ids: NDArray[np.int64]) -> list[tuple[Any, Any]]
     bs, r = balls.column("shape_id").to_numpy(), balls.column("r").to_numpy()
     es = edges.column("shape_id").to_numpy()
     e = np.stack([edges.column("i").to_numpy(), edges.column("j").to_numpy()], 1)
-    b_ptr: NDArray[np.int64]
-    e_ptr: NDArray[np.int64]
-    b_ptr = np.searchsorted(bs, np.r_[ids, np.iinfo(np.int64).max])
-    e_ptr = np.searchsorted(es, np.r_[ids, np.iinfo(np.int64).max])
+    ends = np.r_[ids, np.iinfo(np.int64).max]
+    b_ptr = np.asarray(np.searchsorted(bs, ends), np.int64)
+    e_ptr = np.asarray(np.searchsorted(es, ends), np.int64)
     return [(r[b_ptr[g] : b_ptr[g + 1]], e[e_ptr[g] : e_ptr[g + 1]]) for g in range(len(ids))]
 
 

@@ -138,7 +138,9 @@ class Geometry(ABC):
 
         The default follows the distance gradient, ``p - D(p) grad D(p)``, with
         central differences of :meth:`signed_distance` (one batched call of 7n
-        points); exact for exact distances away from the medial axis.
+        points), one-sided ones on the medial axis where central ones cancel; so
+        ``|p - q| = |D(p)|`` always and q is a nearest boundary point for exact
+        distances.
         Representations that know their surface override it.
         """
         p = as_points(points)
@@ -149,6 +151,12 @@ class Geometry(ABC):
         d = self.signed_distance((p[:, None, :] + offsets[None]).reshape(-1, 3)).reshape(-1, 7)
         grad = (d[:, 1:4] - d[:, 4:7]) / (2 * eps)
         norm = np.linalg.norm(grad, axis=1, keepdims=True)
+        # On the medial axis central differences cancel (a ridge of D): a one-sided
+        # difference still points to one of the equally near boundary points.
+        ridge = norm[:, 0] < 0.5
+        if ridge.any():
+            grad[ridge] = (d[ridge, 1:4] - d[ridge, :1]) / eps
+            norm = np.linalg.norm(grad, axis=1, keepdims=True)
         grad = np.divide(grad, norm, out=np.zeros_like(grad), where=norm > 0)
         return p - d[:, :1] * grad
 

@@ -415,8 +415,10 @@ def _tie_axes(V: NDArray[np.float64], pair: tuple[int, int]) -> NDArray[np.float
 
 def _moments(
     geometry: Geometry, bounds: NDArray[np.float64], cfg: MDBDConfig
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
-           float] | None:
+) -> (
+    tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]
+    | None
+):
     """One coarse pass over ``bounds``: (axes, centroid, lo, hi, coarse cell) or None.
 
     ``axes`` has the principal axes as columns (largest moment first); ``lo``/``hi``
@@ -443,7 +445,7 @@ def _moments(
     elif lam[1] - lam[2] <= tol:
         V = _tie_axes(V, (1, 2))
     Y = X @ V
-    skew = (w @ Y**3) / mass / np.maximum(lam, 1e-300) ** 1.5
+    skew = (w @ Y**3) / mass / np.maximum(lam, 1e-12 * lam[0] + 1e-300) ** 1.5
     for k in range(3):
         s = skew[k] if abs(skew[k]) > _SKEW else V[int(np.argmax(np.abs(V[:, k]))), k]
         if s < 0:
@@ -461,8 +463,10 @@ def _moments(
 
 def _canonical_frame(
     geometry: Geometry, cfg: MDBDConfig
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
-           float] | None:
+) -> (
+    tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]
+    | None
+):
     """(rotation, centroid, local lo, local hi, coarse cell), or None if nothing is inside.
 
     Two coarse passes: the first on the model's axes, the second on a grid laid along

@@ -204,7 +204,8 @@ def test_sigkill_at_random_moments(tmp_path: Path, models: Path) -> None:
         assert n in (reported, min(reported + batch, N_FILES)), (n, reported, out)
         assert n % batch == 0 or n == N_FILES
         # ingest is in input order with one worker: the stored shapes are a prefix
-        assert _names(store) == [f"m{k:02d}" for k in range(n)]
+        failures = store.failures().to_pylist()
+        assert _names(store) == [f"m{k:02d}" for k in range(n)], (failures, out)
         outcomes.append((code, n))
         _complete(path, models, n)
     assert any(code == -signal.SIGKILL for code, _ in outcomes), outcomes
