@@ -290,7 +290,8 @@ def render_part_matches(
     """
     from query.substructure import Model, resolve
 
-    q = query if isinstance(query, Model) else resolve(db, query)
+    complement = bool(options.pop("complement", False))
+    q = query if isinstance(query, Model) else resolve(db, query, complement=complement)
     targets = options.pop("targets", None)
     if targets is None:
         targets = [db.get(m.id).decomposition for m in matches]
@@ -298,3 +299,35 @@ def render_part_matches(
         targets = list(targets) * len(matches)
     qg = options.pop("query_geometry", q.geometry)
     return render_matches(q.graph, matches, targets, out, query_geometry=qg, **options)
+
+
+def show(db: Any, model: Any, out: str | os.PathLike[str], **options: Any) -> Path:
+    """Draw ``model`` (a path, Geometry, or stored id/name) with its MDBD balls.
+
+    The ``shapedb.extensions`` entry point behind ``shapedb show``. A stored shape is
+    drawn with the surface of its source file when that file is still readable.
+
+    Parameters
+    ----------
+    db : shapedb.Database or None
+        Needed for stored ids and names; its configuration decomposes files.
+    model : path, Geometry, Decomposition, int or str
+    out : path
+        PNG to write.
+    **options
+        ``complement=True`` draws the decomposition of the model's complement;
+        the rest goes to :func:`render_model`.
+    """
+    from query.substructure import resolve
+
+    m = resolve(db, model, complement=bool(options.pop("complement", False)))
+    geometry = m.geometry
+    if geometry is None and m.id is not None and db is not None:
+        source = db.get(m.id).source
+        if source and Path(source).exists():
+            try:
+                geometry = db.load(source)
+            except Exception:  # noqa: BLE001 - a picture without its surface is still useful
+                log.debug("cannot reload %s for drawing", source, exc_info=True)
+    title = options.pop("title", None) or f"{m.name or model}: {len(m.graph.radii)} balls"
+    return render_model(m.decomposition or m.graph, out, geometry=geometry, title=title, **options)

@@ -9,6 +9,8 @@
     shapedb search QUERY --db DIR [-k 10] [--where SQL] [--json]
     shapedb sql "SELECT ..." --db DIR [--json | --csv]
     shapedb eval --db DIR [--label label] [--json] [--plot pr.png]
+    shapedb show MODEL --out PNG [--db DIR] [--complement]
+    shapedb match QUERY --db DIR [--node N | --point X Y Z] [--hops K] [-k 10] [--json] [--out PNG]
     shapedb demo [--db DIR]
 
 It only calls the :class:`~shapedb.database.Database` facade. Errors of shapedb are
@@ -86,6 +88,26 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--label", default="label", help="column or metadata key of the class")
     s.add_argument("--json", action="store_true")
     s.add_argument("--plot", metavar="PNG", help="save the precision-recall curve")
+
+    s = sub.add_parser("show", help="draw a model with its MDBD balls into a PNG")
+    s.add_argument("model", metavar="MODEL", help="a model file, or a stored id or name (--db)")
+    s.add_argument("--out", required=True, metavar="PNG", help="picture to write")
+    db_arg(s, required=False)
+    s.add_argument("--complement", action="store_true", help="decompose the complement instead")
+
+    s = sub.add_parser("match", help="stored parts most like a part of QUERY (Algorithm 1)")
+    s.add_argument("query", metavar="QUERY", help="a model file, or a stored shape's id or name")
+    db_arg(s)
+    where = s.add_mutually_exclusive_group()
+    where.add_argument("--node", type=int, metavar="N", help="ball number of the query part")
+    where.add_argument("--point", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                       help="a point on the model; its nearest ball is the part")
+    s.add_argument("--hops", type=int, default=2, metavar="K", help="neighbourhood range")
+    s.add_argument("-k", type=int, default=10, help="number of matches (default 10)")
+    s.add_argument("--where", metavar="SQL", help="restrict the shapes searched")
+    s.add_argument("--complement", action="store_true", help="match concave features")
+    s.add_argument("--json", action="store_true")
+    s.add_argument("--out", metavar="PNG", help="draw the query and its matches")
 
     s = sub.add_parser("demo", help="ingest the built-in example shapes and search them")
     db_arg(s, required=False)
@@ -292,6 +314,42 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _show(args: argparse.Namespace) -> int:
+    if args.db:
+        out = _existing(args.db).show(_query_arg(args.model), args.out, complement=args.complement)
+    else:
+        from shapedb.database import extension
+
+        out = extension("show")(None, args.model, args.out, complement=args.complement)
+    print(out)
+    return 0
+
+
+def _match(args: argparse.Namespace) -> int:
+    db = _existing(args.db)
+    query = _query_arg(args.query)
+    matches = db.match(
+        query, node=args.node, point=args.point, hops=args.hops, k=args.k,
+        where=args.where, complement=args.complement,
+    )
+    rows = [
+        {key: m.to_dict()[key] for key in ("id", "name", "label", "similarity", "nodes")}
+        for m in matches
+    ]
+    if args.out:
+        db.render_matches(query, matches, args.out, complement=args.complement)
+    if args.json:
+        _print_json(rows)
+        return 0
+    _print_rows(
+        [{**r, "nodes": len(r["nodes"])} for r in rows],
+        ["id", "name", "label", "similarity", "nodes"],
+    )
+    if args.out:
+        print(f"picture: {args.out}")
+    return 0
+
+
 _COMMANDS = {
     "ingest": _ingest,
     "info": _info,
@@ -299,6 +357,8 @@ _COMMANDS = {
     "search": _search,
     "sql": _sql,
     "eval": _eval,
+    "show": _show,
+    "match": _match,
     "demo": _demo,
 }
 

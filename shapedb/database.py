@@ -40,7 +40,16 @@ _PROVIDERS = {
     "match": "query",
     "evaluate": "query",
     "on_commit": "query",
+    "show": "query",
+    "render_matches": "query",
+    "train_classifier": "query",
+    "classify": "query",
 }
+
+
+def extension(name: str) -> Callable[..., Any]:
+    """The downstream function registered as ``shapedb.extensions`` entry point ``name``."""
+    return _extension(name)
 
 
 @cache
@@ -299,6 +308,16 @@ class Database:
     def evaluate(self, *, label: str = "label", **options: Any) -> Any:
         """Leave-one-out retrieval quality by ``label`` (``query.evaluate.evaluate``)."""
         return _extension("evaluate")(self, label=label, **options)
+
+    def show(self, model: Any, out: str | os.PathLike[str], **options: Any) -> Path:
+        """Draw ``model`` with its MDBD balls into the PNG ``out`` (``query.render.show``)."""
+        return _extension("show")(self, model, out, **options)  # type: ignore[no-any-return]
+
+    def render_matches(
+        self, query: Any, matches: Sequence[Any], out: str | os.PathLike[str], **options: Any
+    ) -> Path:
+        """Draw ``query`` and the parts ``matches`` found by :meth:`match` into ``out``."""
+        return _extension("render_matches")(self, query, matches, out, **options)  # type: ignore[no-any-return]
 
     def load(self, path: str | os.PathLike[str], *, as_: str | None = None) -> Any:
         """Read a file into a Geometry with the ``ingest`` loaders."""

@@ -157,3 +157,29 @@ def test_demo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["demo", "--db", str(tmp_path / "demo"), "--workers", "1"]) == 0
     out = capsys.readouterr().out
     assert "ingested 20" in out and "shapes most like" in out
+
+
+def test_show_and_match(tmp_path: Path, models: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("faiss")
+    db = tmp_path / "db"
+    _ingest(models, db)
+    capsys.readouterr()
+    png = tmp_path / "rod.png"
+    assert main(["show", "rods1", "--db", str(db), "--out", str(png)]) == 0
+    assert png.stat().st_size > 10_000  # a real picture, not an empty canvas
+    file_png = tmp_path / "file.png"
+    assert main(["show", str(models / "boxes" / "boxes0.obj"), "--out", str(file_png)]) == 0
+    assert file_png.stat().st_size > 10_000
+    assert capsys.readouterr().out.split() == [str(png), str(file_png)]
+
+    out = tmp_path / "match.png"
+    argv = ["match", "rods1", "--db", str(db), "--node", "0", "-k", "3", "--json"]
+    assert main([*argv, "--out", str(out)]) == 0
+    matches = _json(capsys)
+    assert 1 <= len(matches) <= 3
+    assert set(matches[0]) == {"id", "name", "label", "similarity", "nodes"}
+    assert matches[0]["name"] == "rods1" and matches[0]["similarity"] == pytest.approx(1.0)
+    assert all(isinstance(n, int) for n in matches[0]["nodes"])
+    assert out.stat().st_size > 10_000
+    assert main(["match", "no-such-shape", "--db", str(db), "--node", "0"]) == 1
+    assert capsys.readouterr().err.startswith("shapedb: error: ")
