@@ -1,72 +1,15 @@
-"""Fixtures of the query tests: synthetic feature matrices and a small real store."""
+"""Fixtures of the query tests: a small real store built from example shapes."""
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pytest
+from query_helpers import CONFIG, _shapes, make_record, synthetic_features  # noqa: F401
 
-from shapedb.config import Config
-from shapedb.implicit import Box, Capsule, Cylinder, Torus
-from shapedb.kernel import features
-from shapedb.mdbd import decompose
 from shapedb.schema import ShapeRecord
-
-CONFIG = Config().with_options(resolution=32, n_balls=64)
-
-
-def synthetic_features(n: int, n_r: int = 32, seed: int = 0) -> np.ndarray:
-    """Vectors shaped like Eq. 1 features: (n, 2 n_r) float32.
-
-    Sorted, decreasing radius ratios in (0, 1] (the first is 1), then walk averages
-    of about 0.6 times a neighbourhood mean of them.
-    """
-    rng = np.random.default_rng(seed)
-    i = np.arange(n_r)
-    alpha = rng.uniform(0.01, 0.3, (n, 1))
-    beta = rng.uniform(0.5, 1.5, (n, 1))
-    r = np.exp(-alpha * i**beta) * (1 + 0.05 * rng.standard_normal((n, n_r)))
-    r = -np.sort(-np.clip(r, 1e-3, None), axis=1)
-    r /= r[:, :1]
-    nb = rng.integers(0, n_r, (n, n_r, 3))
-    mean_nb = np.take_along_axis(np.repeat(r[:, :, None], 3, 2), nb, 1).mean(2)
-    walk = rng.uniform(0.5, 0.7, (n, 1)) * (0.5 * r + 0.5 * mean_nb)
-    return np.concatenate([r, walk], 1).astype(np.float32)
-
-
-def _shapes() -> list[tuple[str, str, Any]]:
-    out: list[tuple[str, str, Any]] = []
-    for k, (x, y, z) in enumerate([(2, 1, 1), (3, 1, 1), (2, 2, 1), (4, 1, 0.5)]):
-        out.append((f"box{k}", "box", Box([0, 0, 0], [x, y, z])))
-    for k, length in enumerate([1.5, 2.0, 3.0, 4.0]):
-        out.append((f"capsule{k}", "capsule", Capsule([0, 0, 0], [length, 0, 0], 0.4)))
-    for k, (h, r) in enumerate([(2.0, 0.5), (3.0, 0.5), (1.0, 0.8)]):
-        out.append((f"cylinder{k}", "cylinder", Cylinder([0, 0, 0], [0, 0, h], r)))
-    for k, (big, small) in enumerate([(1.0, 0.3), (1.2, 0.3), (1.0, 0.2)]):
-        out.append((f"torus{k}", "torus", Torus([0, 0, 0], big, small)))
-    return out
-
-
-def make_record(
-    name: str, label: str | None, geometry: Any, config: Config = CONFIG
-) -> ShapeRecord:
-    """A ShapeRecord of an implicit shape, as ingest would build it."""
-    dec = decompose(geometry, config=config.mdbd)
-    feat = features(dec, config.kernel).astype(np.float32)
-    return ShapeRecord(
-        name=name,
-        decomposition=dec,
-        feature=feat,
-        config=config,
-        content_hash=hashlib.sha256(name.encode() + feat.tobytes()).hexdigest(),
-        representation="implicit",
-        label=label,
-        metadata={"family": label or "none", "size": str(len(name))},
-    )
 
 
 @pytest.fixture(scope="session")

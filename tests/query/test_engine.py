@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import CONFIG, make_record
+from query_helpers import CONFIG, make_record
 
 from query.engine import Hit, query_features, search, search_batch
 from query.index import INDEX_DIR, open_index

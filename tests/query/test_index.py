@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import synthetic_features
+from query_helpers import synthetic_features
 
 from query.index import FeatureIndex
 from shapedb.config import KernelConfig

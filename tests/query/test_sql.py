@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import CONFIG
+from query_helpers import CONFIG
 
 from query.engine import search
 from query.sql import connect, sql

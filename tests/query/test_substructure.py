@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import make_record
+from query_helpers import make_record
 
 from query.parts_index import PARTS_DIR, PartIndex, open_parts_index
 from query.substructure import (

@@ -65,7 +65,7 @@ def test_similarity_transforms_keep_the_kernel_high(generic: Implicit) -> None:
     A generic rotation still changes the tail of the greedy packing (see
     test_stability.py): measured 0.94 here (0.77-0.82 with the grid on the model's axes).
     """
-    from conftest import rotation
+    from shape_helpers import rotation
 
     opts = {"resolution": 64, "n_balls": 128}
     f0 = features(decompose(generic, **opts))

@@ -27,7 +27,7 @@ OPTS = {"resolution": 64, "n_balls": 128}
 
 
 def _rotation() -> np.ndarray:
-    from conftest import rotation
+    from shape_helpers import rotation
 
     return rotation((1.1, -0.5, 2.0))
 
