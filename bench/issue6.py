@@ -161,7 +161,7 @@ STABILITY_VARIANTS = ("mesh_shift", "mesh_rotate", "mesh_decimate", "pointcloud"
 
 
 def run_stability(
-    ds: Dataset, mdbd: MDBDConfig, kcfg: KernelConfig, *, workers: int = 2, quick: bool = False
+    ds: Dataset, mdbd: MDBDConfig, kcfg: KernelConfig, *, workers: int = 2, probes: int = 30
 ) -> dict[str, Any]:
     """Does a transformed copy rank its original first among all test-split meshes?"""
     test = ds.split("test")
@@ -169,7 +169,7 @@ def run_stability(
     keep = [i for i, b in enumerate(mesh) if b is not None]
     test = Dataset(ds.name, tuple(test.models[i] for i in keep))
     mesh = [mesh[i] for i in keep]
-    step = max(1, len(test) // (12 if quick else 30))
+    step = max(1, len(test) // probes)
     probe = list(range(0, len(test), step))
     db = desc.describe(mesh)  # type: ignore[arg-type]
     scales = _scales(db)

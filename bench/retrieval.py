@@ -296,6 +296,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--subjects", type=int, default=15, help="articulated set: subjects")
     ap.add_argument("--poses", type=int, default=20, help="articulated set: poses per subject")
     ap.add_argument("--per-kind", type=int, default=12, help="parts set: models per kind")
+    ap.add_argument("--probes", type=int, default=30, help="stability: models copied")
+    ap.add_argument(
+        "--study-resolutions", type=int, nargs="*", default=None, help="grid sizes in the study"
+    )
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-grakel", action="store_true")
     ap.add_argument("--study", action="store_true", help="parameter study on the validation split")
@@ -323,6 +327,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         entry: dict[str, Any] = {}
         if args.study:
             res = [48, 64, 96] if args.quick else [64, 96, 128]
+            if args.study_resolutions is not None:
+                res = args.study_resolutions
             entry["study"] = run_study(ds, mdbd, kcfg, workers=args.workers, resolutions=res)
         if args.refine_shift:
             from bench.issue6 import run_refine_shift
@@ -335,7 +341,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 entry["descriptors"] = run_descriptors(ds, mdbd, workers=args.workers)
             if args.stability:
                 entry["stability"] = run_stability(
-                    ds, mdbd, kcfg, workers=args.workers, quick=args.quick
+                    ds, mdbd, kcfg, workers=args.workers, probes=12 if args.quick else args.probes
                 )
         if not (args.study or args.descriptors or args.stability or args.refine_shift):
             entry["tables"] = run_tables(
