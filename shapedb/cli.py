@@ -11,6 +11,8 @@
     shapedb eval --db DIR [--label label] [--json] [--plot pr.png]
     shapedb show MODEL --out PNG [--db DIR] [--complement]
     shapedb match QUERY --db DIR [--node N | --point X Y Z] [--hops K] [-k 10] [--json] [--out PNG]
+    shapedb train --db DIR [--label label] [--conv tag|arma|spline] [--epochs N] --out model.pt
+    shapedb classify MODEL --db DIR --model model.pt [--json]
     shapedb demo [--db DIR]
 
 It only calls the :class:`~shapedb.database.Database` facade. Errors of shapedb are
@@ -100,14 +102,34 @@ def build_parser() -> argparse.ArgumentParser:
     db_arg(s)
     where = s.add_mutually_exclusive_group()
     where.add_argument("--node", type=int, metavar="N", help="ball number of the query part")
-    where.add_argument("--point", type=float, nargs=3, metavar=("X", "Y", "Z"),
-                       help="a point on the model; its nearest ball is the part")
+    where.add_argument(
+        "--point",
+        type=float,
+        nargs=3,
+        metavar=("X", "Y", "Z"),
+        help="a point on the model; its nearest ball is the part",
+    )
     s.add_argument("--hops", type=int, default=2, metavar="K", help="neighbourhood range")
     s.add_argument("-k", type=int, default=10, help="number of matches (default 10)")
     s.add_argument("--where", metavar="SQL", help="restrict the shapes searched")
     s.add_argument("--complement", action="store_true", help="match concave features")
     s.add_argument("--json", action="store_true")
     s.add_argument("--out", metavar="PNG", help="draw the query and its matches")
+
+    s = sub.add_parser("train", help="train a graph-CNN classifier (needs shapedb[learn])")
+    db_arg(s)
+    s.add_argument("--label", default="label", help="column or metadata key of the class")
+    s.add_argument("--conv", choices=["tag", "arma", "spline"], default="tag")
+    s.add_argument("--epochs", type=int, metavar="N", help="training epochs")
+    s.add_argument("--no-rotate", action="store_true", help="no random-rotation augmentation")
+    s.add_argument("--out", required=True, metavar="PT", help="where to save the model")
+    s.add_argument("--json", action="store_true")
+
+    s = sub.add_parser("classify", help="label a model with a trained classifier")
+    s.add_argument("model", metavar="MODEL", help="a model file, or a stored id or name")
+    db_arg(s)
+    s.add_argument("--model", dest="classifier", required=True, metavar="PT", help="trained model")
+    s.add_argument("--json", action="store_true")
 
     s = sub.add_parser("demo", help="ingest the built-in example shapes and search them")
     db_arg(s, required=False)
@@ -329,8 +351,13 @@ def _match(args: argparse.Namespace) -> int:
     db = _existing(args.db)
     query = _query_arg(args.query)
     matches = db.match(
-        query, node=args.node, point=args.point, hops=args.hops, k=args.k,
-        where=args.where, complement=args.complement,
+        query,
+        node=args.node,
+        point=args.point,
+        hops=args.hops,
+        k=args.k,
+        where=args.where,
+        complement=args.complement,
     )
     rows = [
         {key: m.to_dict()[key] for key in ("id", "name", "label", "similarity", "nodes")}
@@ -350,6 +377,54 @@ def _match(args: argparse.Namespace) -> int:
     return 0
 
 
+def _train(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    options: dict[str, Any] = {"conv": args.conv, "out": args.out}
+    if args.epochs is not None:
+        options["epochs"] = args.epochs
+    if args.no_rotate:
+        options["rotate"] = False
+    bar = tqdm(desc="training", unit="epoch", disable=args.json or not sys.stderr.isatty())
+
+    def progress(epoch: int, total: int, metrics: dict[str, float]) -> None:
+        bar.total = total
+        bar.update(1)
+        bar.set_postfix(
+            loss=f"{metrics.get('loss', math.nan):.3f}",
+            acc=f"{metrics.get('accuracy', math.nan):.3f}",
+            val=f"{metrics.get('val_accuracy', math.nan):.3f}",
+        )
+
+    try:
+        model = _existing(args.db).train_classifier(label=args.label, callback=progress, **options)
+    finally:
+        bar.close()
+    result = {
+        "model": str(args.out),
+        "classes": list(getattr(model, "classes_", [])),
+        "test_accuracy": getattr(model, "test_accuracy_", None),
+    }
+    if args.json:
+        _print_json(result)
+    else:
+        print(
+            f"saved {args.out}: {len(result['classes'])} classes, "
+            f"test accuracy {result['test_accuracy']}"
+        )
+    return 0
+
+
+def _classify(args: argparse.Namespace) -> int:
+    result = _existing(args.db).classify(args.classifier, _query_arg(args.model))
+    out = result.to_dict() if hasattr(result, "to_dict") else {"label": str(result)}
+    if args.json:
+        _print_json(out)
+    else:
+        print(f"{out.get('label')}  (p = {out.get('probability', math.nan):.3f})")
+    return 0
+
+
 _COMMANDS = {
     "ingest": _ingest,
     "info": _info,
@@ -359,6 +434,8 @@ _COMMANDS = {
     "eval": _eval,
     "show": _show,
     "match": _match,
+    "train": _train,
+    "classify": _classify,
     "demo": _demo,
 }
 

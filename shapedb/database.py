@@ -319,6 +319,18 @@ class Database:
         """Draw ``query`` and the parts ``matches`` found by :meth:`match` into ``out``."""
         return _extension("render_matches")(self, query, matches, out, **options)  # type: ignore[no-any-return]
 
+    def train_classifier(self, *, label: str = "label", **options: Any) -> Any:
+        """Train a graph-CNN classifier on the stored contact graphs (``shapedb[learn]``).
+
+        Implemented by ``query.classify.train_classifier``; returns a fitted
+        ``GraphClassifier`` whose ``test_accuracy_`` was measured on a held-out split.
+        """
+        return _extension("train_classifier")(self, label=label, **options)
+
+    def classify(self, model: Any, shape: Any) -> Any:
+        """Label ``shape`` (a path, Geometry or stored id) with a trained ``model`` or its file."""
+        return _extension("classify")(self, model, shape)
+
     def load(self, path: str | os.PathLike[str], *, as_: str | None = None) -> Any:
         """Read a file into a Geometry with the ``ingest`` loaders."""
         return _extension("load")(path, as_=as_)

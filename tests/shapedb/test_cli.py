@@ -183,3 +183,29 @@ def test_show_and_match(tmp_path: Path, models: Path, capsys: pytest.CaptureFixt
     assert out.stat().st_size > 10_000
     assert main(["match", "no-such-shape", "--db", str(db), "--node", "0"]) == 1
     assert capsys.readouterr().err.startswith("shapedb: error: ")
+
+
+def test_train_and_classify(
+    tmp_path: Path, models: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from query.gnn import import_torch
+
+    try:
+        import_torch()
+    except ImportError:
+        pytest.skip("needs the learn extra: pip install 'shapedb[learn]'")
+    db = tmp_path / "db"
+    _ingest(models, db)
+    capsys.readouterr()
+    model = tmp_path / "m.pt"
+    argv = ["train", "--db", str(db), "--epochs", "2", "--out", str(model), "--json"]
+    assert main(argv) == 0
+    trained = _json(capsys)
+    assert trained["classes"] == ["boxes", "rods"] and model.exists()
+    query = str(models / "rods" / "rods0.obj")
+    assert main(["classify", query, "--db", str(db), "--model", str(model), "--json"]) == 0
+    result = _json(capsys)
+    assert result["label"] in {"boxes", "rods"}
+    assert sum(result["probabilities"].values()) == pytest.approx(1.0)
+    assert main(["classify", query, "--db", str(db), "--model", str(tmp_path / "none.pt")]) == 1
+    assert capsys.readouterr().err.startswith("shapedb: error: ")
