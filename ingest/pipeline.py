@@ -440,7 +440,9 @@ def ingest(
                         inflight[_submit(executor, it, config, is_dask)] = it
                     if not inflight:
                         break
-                    for fut in _wait_any(inflight, is_dask):
+                    finished = _wait_any(inflight, is_dask)
+                    # in input order: with one worker, batches are prefixes of the input
+                    for fut in sorted(finished, key=lambda f: inflight[f].index):
                         it = inflight.pop(fut)
                         result = _result(fut, it)
                         if isinstance(result, Failure):

@@ -68,18 +68,42 @@ class MDBDConfig:
     tie_cells: float = 0.0
 
     def __post_init__(self) -> None:
-        _check(isinstance(self.resolution, int) and 8 <= self.resolution <= 1024,
-               "resolution", self.resolution, "must be an integer in [8, 1024]")
-        _check(isinstance(self.n_balls, int) and 1 <= self.n_balls <= 100_000,
-               "n_balls", self.n_balls, "must be an integer in [1, 100000]")
-        _check(0.0 <= self.min_radius_cells <= 64, "min_radius_cells",
-               self.min_radius_cells, "must be in [0, 64]")
-        _check(isinstance(self.padding_cells, int) and 1 <= self.padding_cells <= 32,
-               "padding_cells", self.padding_cells, "must be an integer in [1, 32]")
-        _check(0.0 <= self.contact_tol_cells <= 8, "contact_tol_cells",
-               self.contact_tol_cells, "must be in [0, 8]")
-        _check(isinstance(self.frame_resolution, int) and 16 <= self.frame_resolution <= 256,
-               "frame_resolution", self.frame_resolution, "must be an integer in [16, 256]")
+        _check(
+            isinstance(self.resolution, int) and 8 <= self.resolution <= 1024,
+            "resolution",
+            self.resolution,
+            "must be an integer in [8, 1024]",
+        )
+        _check(
+            isinstance(self.n_balls, int) and 1 <= self.n_balls <= 100_000,
+            "n_balls",
+            self.n_balls,
+            "must be an integer in [1, 100000]",
+        )
+        _check(
+            0.0 <= self.min_radius_cells <= 64,
+            "min_radius_cells",
+            self.min_radius_cells,
+            "must be in [0, 64]",
+        )
+        _check(
+            isinstance(self.padding_cells, int) and 1 <= self.padding_cells <= 32,
+            "padding_cells",
+            self.padding_cells,
+            "must be an integer in [1, 32]",
+        )
+        _check(
+            0.0 <= self.contact_tol_cells <= 8,
+            "contact_tol_cells",
+            self.contact_tol_cells,
+            "must be in [0, 8]",
+        )
+        _check(
+            isinstance(self.frame_resolution, int) and 16 <= self.frame_resolution <= 256,
+            "frame_resolution",
+            self.frame_resolution,
+            "must be an integer in [16, 256]",
+        )
         _check(0.0 <= self.tie_cells <= 4, "tie_cells", self.tie_cells, "must be in [0, 4]")
 
 
@@ -109,10 +133,18 @@ class KernelConfig:
     lam: float = 1.0
 
     def __post_init__(self) -> None:
-        _check(isinstance(self.n_r, int) and 1 <= self.n_r <= 4096, "n_r", self.n_r,
-               "must be an integer in [1, 4096]")
-        _check(isinstance(self.t, int) and 1 <= self.t <= 1000, "t", self.t,
-               "must be an integer in [1, 1000]")
+        _check(
+            isinstance(self.n_r, int) and 1 <= self.n_r <= 4096,
+            "n_r",
+            self.n_r,
+            "must be an integer in [1, 4096]",
+        )
+        _check(
+            isinstance(self.t, int) and 1 <= self.t <= 1000,
+            "t",
+            self.t,
+            "must be an integer in [1, 1000]",
+        )
         _check(0.0 < self.w <= 1.0, "w", self.w, "must be in (0, 1]")
         _check(0.0 < self.la <= 1.0, "la", self.la, "must be in (0, 1]")
         _check(0.0 < self.lb <= 1.0, "lb", self.lb, "must be in (0, 1]")
@@ -151,15 +183,18 @@ class PartConfig:
     lam: float = 1.0
 
     def __post_init__(self) -> None:
-        _check(isinstance(self.hops, int) and 0 <= self.hops <= 64, "hops", self.hops,
-               "must be an integer in [0, 64]")
+        _check(
+            isinstance(self.hops, int) and 0 <= self.hops <= 64,
+            "hops",
+            self.hops,
+            "must be an integer in [0, 64]",
+        )
         self.kernel  # validates the kernel fields  # noqa: B018
 
     @property
     def kernel(self) -> KernelConfig:
         """The :class:`KernelConfig` of a part's Eq. 1-3 kernel."""
-        return KernelConfig(n_r=self.n_r, t=self.t, w=self.w, la=self.la, lb=self.lb,
-                            lam=self.lam)
+        return KernelConfig(n_r=self.n_r, t=self.t, w=self.w, la=self.la, lb=self.lb, lam=self.lam)
 
     @property
     def dim(self) -> int:
@@ -192,8 +227,10 @@ class Config:
     def from_dict(cls, data: dict[str, Any]) -> Config:
         """Inverse of :meth:`to_dict`; unknown keys are refused."""
         try:
-            return cls(mdbd=_build(MDBDConfig, data.get("mdbd", {})),
-                       kernel=_build(KernelConfig, data.get("kernel", {})))
+            return cls(
+                mdbd=_build(MDBDConfig, data.get("mdbd", {})),
+                kernel=_build(KernelConfig, data.get("kernel", {})),
+            )
         except TypeError as exc:
             raise ConfigError(f"cannot read configuration {data!r}: {exc}") from exc
 
