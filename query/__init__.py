@@ -16,10 +16,19 @@ from __future__ import annotations
 from query.engine import Hit, query_features, search, search_batch
 from query.evaluate import RetrievalScores, retrieval_scores
 from query.index import FeatureIndex, build_index, open_index
+from query.parts_index import PartIndex, open_parts_index
+from query.substructure import PartGeometry, PartMatch, match_pairs, part_geometry
 
 __all__ = [
     "FeatureIndex",
     "Hit",
+    "PartGeometry",
+    "PartIndex",
+    "PartMatch",
+    "match_pairs",
+    "on_commit",
+    "open_parts_index",
+    "part_geometry",
     "RetrievalScores",
     "build_index",
     "open_index",
@@ -28,3 +37,15 @@ __all__ = [
     "search",
     "search_batch",
 ]
+
+
+def on_commit(db: object, *args: object, **kwargs: object) -> None:
+    """Store commit hook (entry point ``on_commit``): bring every built index up to date.
+
+    Whole-shape and part indexes that were already built are updated; a store never
+    searched gets its indexes lazily on first use.
+    """
+    from query import index, parts_index
+
+    index.on_commit(db, *args, **kwargs)
+    parts_index.on_commit(db, *args, **kwargs)

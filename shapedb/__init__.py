@@ -15,7 +15,7 @@ import importlib
 from typing import Any
 
 from shapedb import kernel  # the module: shapedb.kernel.kernel is Eq. 3
-from shapedb.config import Config, KernelConfig, MDBDConfig
+from shapedb.config import Config, KernelConfig, MDBDConfig, PartConfig
 from shapedb.errors import (
     ConfigError,
     DegenerateGeometryError,
@@ -66,6 +66,7 @@ __all__ = [
     "Config",
     "MDBDConfig",
     "KernelConfig",
+    "PartConfig",
     "ShapeDBError",
     "InvalidShapeError",
     "EmptyGeometryError",
