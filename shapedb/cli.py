@@ -332,6 +332,14 @@ def _demo(args: argparse.Namespace) -> int:
     print(f"\nshapes most like {query['name']!r} (label {query['label']!r}):")
     hits = db.search(int(query["id"]), k=5)
     _print_rows([_hit(h) for h in hits], ["id", "name", "label", "similarity", "distance"])
+    scores = db.evaluate(label="label").to_dict()
+    print(
+        f"\nleave-one-out retrieval over {scores['queries']} shapes: "
+        f"NN {scores['nn']:.3f}  1-T {scores['first_tier']:.3f}  "
+        f"2-T {scores['second_tier']:.3f}  DCG {scores['dcg']:.3f}"
+    )
+    picture = db.show(int(query["id"]), Path(path) / "demo.png")
+    print(f"{query['name']} and its balls: {picture}")
     print(f'\ntry:  shapedb sql "SELECT label, count(*) FROM shapes GROUP BY label" --db {path}')
     return 0
 
