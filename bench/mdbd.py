@@ -11,8 +11,16 @@ tracemalloc peak of one whole ``decompose`` call.
 
     python bench/mdbd.py            # 64, 96, 128, 192 cells; generated meshes + CAPOD
     python bench/mdbd.py --quick    # 64 and 128 cells, smaller models
+    python bench/mdbd.py --profile 20   # CPU s per stage of the ingest job, 20 CAPOD models
 
-Writes ``bench/results/mdbd.json``.
+``--profile N`` measures, at the default configuration, the CPU seconds
+(``time.process_time``, robust to other load on the machine) of every stage of the
+per-model ingest job on N CAPOD models spread over the classes: load, canonical
+frame (cleaning, query structures and the two coarse passes), fine SDF, the grid
+loop, refinement (refined loop minus grid loop), contact graph, features; medians
+and means over the models. Its baseline is the previous run's JSON.
+
+Writes ``bench/results/mdbd.json`` (``mdbd_profile.json`` with ``--profile``).
 """
 
 from __future__ import annotations
@@ -120,13 +128,94 @@ def run_one(name: str, g: Geometry, res: int, n_balls: int, naive_limit: int) ->
     return row
 
 
+STAGES = ["load", "frame", "sdf", "grid_loop", "refine", "graph", "features", "total"]
+
+
+def profile_one(path: Path) -> dict[str, Any]:
+    """CPU seconds per stage of the per-model ingest job on one file (default config)."""
+    from ingest.loaders import load
+    from shapedb.frame import canonical_frame, frame_grid
+    from shapedb.graph import ContactGraph
+
+    cfg = MDBDConfig()
+    cpu = time.process_time
+    row: dict[str, Any] = {"model": f"{path.parent.name}/{path.name}"}
+    c0 = cpu()
+    g = load(path)
+    row["load"] = cpu() - c0
+    row["faces"] = int(len(getattr(g, "faces", ())))
+    c0 = cpu()
+    V, c, lo, hi, hc = canonical_frame(g, cfg)  # type: ignore[misc]
+    local = g.transformed(V.T, -V.T @ c)
+    grid = frame_grid(lo, hi, 0.5 * hc, cfg)
+    row["frame"] = cpu() - c0
+    c0 = cpu()
+    F = np.ascontiguousarray(local.grid_sdf(grid), dtype=np.float32)
+    row["sdf"] = cpu() - c0
+    c0 = cpu()
+    _loop(local, grid, F.copy(), MDBDConfig(refine=False), naive=False)
+    row["grid_loop"] = cpu() - c0
+    c0 = cpu()
+    centers, radii = _loop(local, grid, F, cfg, naive=False)
+    row["refine"] = max(cpu() - c0 - row["grid_loop"], 0.0)
+    order = np.argsort(-radii, kind="stable")
+    centers, radii = centers[order], radii[order]
+    c0 = cpu()
+    edges = contact_edges(centers, radii, cfg.contact_tol_cells * grid.spacing)
+    row["graph"] = cpu() - c0
+    c0 = cpu()
+    features(ContactGraph(centers, radii, edges))
+    row["features"] = cpu() - c0
+    row["total"] = sum(row[k] for k in STAGES[:-1])
+    return row
+
+
+def profile(n: int, out: Path) -> int:
+    """Print and save the CPU-seconds-per-stage table over n CAPOD models."""
+    files = sorted(CAPOD.rglob("*.obj"))
+    files = files[:: max(len(files) // n, 1)][:n]
+    if not files:
+        print(f"no CAPOD models under {CAPOD}", file=sys.stderr)
+        return 1
+    previous = json.loads(out.read_text()) if out.exists() else None
+    profile_one(files[0])  # warm-up: numba kernels, lazy imports
+    rows = []
+    for f in files:
+        rows.append(profile_one(f))
+        logger.info(
+            "%s", {k: round(v, 3) if isinstance(v, float) else v for k, v in rows[-1].items()}
+        )
+    median = {k: float(np.median([r[k] for r in rows])) for k in STAGES}
+    mean = {k: float(np.mean([r[k] for r in rows])) for k in STAGES}
+    print(f"CPU seconds per stage over {len(rows)} CAPOD models (default config)")
+    print(f"{'':8s}" + "".join(f"{k:>10s}" for k in STAGES))
+    print(f"{'median':8s}" + "".join(f"{median[k]:10.3f}" for k in STAGES))
+    print(f"{'mean':8s}" + "".join(f"{mean[k]:10.3f}" for k in STAGES))
+    if previous and previous.get("models") == [r["model"] for r in rows]:
+        base = previous["median"]
+        print(f"{'prev med':8s}" + "".join(f"{base[k]:10.3f}" for k in STAGES))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(
+        json.dumps(
+            {"models": [r["model"] for r in rows], "median": median, "mean": mean, "rows": rows},
+            indent=1,
+        )
+        + "\n"
+    )
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="fewer models and resolutions")
     ap.add_argument("--n-balls", type=int, default=512)
-    ap.add_argument("--out", type=Path, default=OUT)
+    ap.add_argument("--profile", type=int, default=0, metavar="N", help="CPU per stage, N models")
+    ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
+    if args.profile:
+        return profile(args.profile, args.out or OUT.with_name("mdbd_profile.json"))
+    args.out = args.out or OUT
     resolutions = (64, 128) if args.quick else (64, 96, 128, 192)
     naive_limit = 128 if args.quick else 192
     # compile (or load) the numba kernels outside the timings

@@ -14,6 +14,15 @@ WL-subtree and Pyramid Match kernels on the same MDBD graphs (labels r/r1 rounde
 1/25) and D2 on the meshes; the seconds each method took; and the mean kernel value
 between the mesh and the point cloud of the same model (paper: 0.996), beside the
 same-class and other-class means. Everything is written to bench/results/retrieval.json.
+
+``--study`` varies the kernel and decomposition parameters one at a time on the
+validation split; ``--descriptors``, ``--stability`` and ``--refine-shift`` run the issue 6
+measurements of :mod:`bench.issue6`; :mod:`bench.select_descriptors` chooses one
+descriptor combination for all sets on their validation splits.
+
+Decompositions are cached (bench/results/cache/, git-ignored) by source, representation
+variant and :class:`~shapedb.config.MDBDConfig`; ``--no-refine`` turns off off-grid
+refinement, which costs ~100 s per model on point clouds with the current PointCloud.
 """
 
 from __future__ import annotations

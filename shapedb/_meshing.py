@@ -30,6 +30,7 @@ import logging
 from collections.abc import Callable
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 from scipy import ndimage
 
@@ -41,6 +42,7 @@ __all__ = [
     "propagate_closest",
     "refine_closest",
     "coarse_to_fine_inside",
+    "orient_faces",
 ]
 
 logger = logging.getLogger(__name__)
@@ -302,16 +304,139 @@ def coarse_to_fine_inside(
     grid_nodes[np.ix_(*sub)] = True
     inside[grid_nodes] = sub_val > 0.5
     todo &= ~grid_nodes
+    n_finer = 0
+    s = stride // 2
+    while s >= 2 and todo.any():  # the same inheritance from finer, nearer nodes
+        n_finer += _inherit_finer(grid, dist, value, inside, todo, s, margin, ambiguity)
+        s //= 2
     idx = np.argwhere(todo)
     if len(idx):
         inside[todo] = value(grid.to_point(idx)) > 0.5
     logger.debug(
-        "coarse-to-fine sign: %d regions (%d undecided), %d sub-grid + %d direct evaluations "
-        "for %d cells",
+        "coarse-to-fine sign: %d regions (%d undecided), %d sub-grid + %d finer-node + %d "
+        "direct evaluations for %d cells",
         n_labels,
         int((region[1:] == 0).sum()),
         sub_ijk.shape[0],
+        n_finer,
         len(idx),
         grid.size,
     )
     return inside
+
+
+def _inherit_finer(
+    grid: Grid,
+    dist: NDArray[np.floating],
+    value: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    inside: NDArray[np.bool_],
+    todo: NDArray[np.bool_],
+    stride: int,
+    margin: float,
+    ambiguity: float,
+) -> int:
+    """Classify ``todo`` cells (in place) from their nearest stride-``stride`` node.
+
+    The rule of :func:`coarse_to_fine_inside` (the cell is farther from the surface
+    than from the node, plus ``margin``, and the node is unambiguous) on a finer
+    lattice, whose nodes are nearer; ``value`` is evaluated only at the nodes some
+    cell can inherit from. Returns the number of evaluations.
+    """
+    shape = np.asarray(grid.shape)
+    flat = np.flatnonzero(todo)
+    ijk = np.stack(np.unravel_index(flat, grid.shape), axis=1)
+    node = np.minimum(
+        np.rint(ijk / stride).astype(np.int64) * stride, (shape - 1) // stride * stride
+    )
+    offset = np.sqrt(((ijk - node) ** 2).sum(axis=1))
+    cand = dist.ravel()[flat] > offset + margin
+    if not cand.any():
+        return 0
+    node_flat = np.ravel_multi_index(tuple(node[cand].T), grid.shape)
+    uniq, inv = np.unique(node_flat, return_inverse=True)
+    val = value(grid.to_point(np.stack(np.unravel_index(uniq, grid.shape), axis=1)))
+    ok = np.abs(val - 0.5) >= ambiguity
+    cells = flat[cand]
+    take = ok[inv]
+    inside.ravel()[cells[take]] = val[inv][take] > 0.5
+    todo.ravel()[cells[take]] = False
+    known = todo.ravel()[uniq]  # evaluated nodes that were still to do
+    inside.ravel()[uniq[known]] = val[known] > 0.5
+    todo.ravel()[uniq[known]] = False
+    return len(uniq)
+
+
+def orient_faces(faces: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Consistent winding inside each edge-connected component, and the component labels.
+
+    Two faces are adjacent when they share an edge used by exactly these two faces
+    (non-manifold edges join nothing). A breadth-first traversal from the lowest
+    face of each component flips a face when it uses the shared edge in the same
+    direction as its already oriented neighbour: ``trimesh.repair.fix_winding``'s
+    rule, compiled (it is the same result on every orientable component, up to the
+    component's global orientation).
+
+    Parameters
+    ----------
+    faces : (m, 3) int
+        Triangles (no degenerate ones).
+
+    Returns
+    -------
+    faces : (m, 3) int64
+        A copy, some rows reversed.
+    labels : (m,) int64
+        Component of each face, numbered in order of their lowest face.
+    """
+    f = np.ascontiguousarray(faces, dtype=np.int64)
+    m = len(f)
+    directed = f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    lo, hi = directed.min(axis=1), directed.max(axis=1)
+    key = lo * (int(f.max()) + 1) + hi
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    start = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
+    count = np.diff(np.r_[start, len(ks)])
+    pairs = start[count == 2]
+    ea, eb = order[pairs], order[pairs + 1]  # directed-edge rows sharing an edge
+    fa, fb = ea // 3, eb // 3
+    keep = fa != fb
+    ea, eb, fa, fb = ea[keep], eb[keep], fa[keep], fb[keep]
+    same = directed[ea, 0] == directed[eb, 0]  # same direction: inconsistent pair
+    src = np.concatenate([fa, fb])
+    dst = np.concatenate([fb, fa])
+    rel = np.concatenate([same, same])
+    srt = np.argsort(src, kind="stable")
+    indptr = np.searchsorted(src[srt], np.arange(m + 1))
+    flip, labels = _orient_bfs(indptr, dst[srt].astype(np.int64), rel[srt], m)
+    out = f.copy()
+    out[flip] = out[flip][:, ::-1]
+    return out, labels
+
+
+@njit(cache=True)
+def _orient_bfs(
+    indptr: np.ndarray, nbr: np.ndarray, rel: np.ndarray, m: int
+) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    labels = np.full(m, -1, dtype=np.int64)
+    flip = np.zeros(m, dtype=np.bool_)
+    queue = np.empty(m, dtype=np.int64)
+    n_labels = 0
+    for root in range(m):
+        if labels[root] >= 0:
+            continue
+        labels[root] = n_labels
+        head, tail = 0, 1
+        queue[0] = root
+        while head < tail:
+            u = queue[head]
+            head += 1
+            for e in range(indptr[u], indptr[u + 1]):
+                v = nbr[e]
+                if labels[v] < 0:
+                    labels[v] = n_labels
+                    flip[v] = flip[u] ^ rel[e]
+                    queue[tail] = v
+                    tail += 1
+        n_labels += 1
+    return flip, labels

@@ -123,6 +123,12 @@ class KernelConfig:
         Geometric weights of Eq. 2 on the initial attributes and on the walk averages.
     lam : float
         Scale of Eq. 3, k = exp(-lam * d).
+    method : {"mdbd", "paper"}
+        The feature vector: "mdbd" (default) is shapedb's descriptor over the whole
+        decomposition (:mod:`shapedb.descriptor`, calibrated so that unrelated shapes
+        score about 0.1); "paper" is the paper's Eq. 1 vector with Eq. 2 weights,
+        parameterised by ``n_r, t, w, la, lb``. Both are compared with a weighted L1
+        distance and turned into a similarity by Eq. 3.
     """
 
     n_r: int = 32
@@ -131,8 +137,15 @@ class KernelConfig:
     la: float = 0.75
     lb: float = 0.75
     lam: float = 1.0
+    method: str = "mdbd"
 
     def __post_init__(self) -> None:
+        _check(
+            self.method in ("mdbd", "paper"),
+            "method",
+            self.method,
+            "must be 'mdbd' (shapedb's descriptor) or 'paper' (Eq. 1-3)",
+        )
         _check(
             isinstance(self.n_r, int) and 1 <= self.n_r <= 4096,
             "n_r",
@@ -152,7 +165,11 @@ class KernelConfig:
 
     @property
     def dim(self) -> int:
-        """Length of the Eq. 1 feature vector, 2 * n_r."""
+        """Length of the feature vector: 2 * n_r for "paper", the descriptor's for "mdbd"."""
+        if self.method == "mdbd":
+            from shapedb.descriptor import DIM
+
+            return DIM
         return 2 * self.n_r
 
 
@@ -194,7 +211,9 @@ class PartConfig:
     @property
     def kernel(self) -> KernelConfig:
         """The :class:`KernelConfig` of a part's Eq. 1-3 kernel."""
-        return KernelConfig(n_r=self.n_r, t=self.t, w=self.w, la=self.la, lb=self.lb, lam=self.lam)
+        return KernelConfig(
+            n_r=self.n_r, t=self.t, w=self.w, la=self.la, lb=self.lb, lam=self.lam, method="paper"
+        )
 
     @property
     def dim(self) -> int:

@@ -13,6 +13,11 @@ distance (Eq. 2) ``d = sum_i la^i |p0_i - p0'_i| + sum_i lb^i |P_i - P'_i|`` and
 have kernel (Eq. 3) ``k = exp(-lam d)`` in (0, 1]. Since Eq. 2 is a weighted L1
 distance, it is the plain L1 distance of ``f * weights(config)``, which is what
 a vector index stores.
+
+With ``KernelConfig(method="mdbd")`` (the default) :func:`features` returns
+shapedb's own descriptor (:mod:`shapedb.descriptor`) instead, already scaled so
+that its plain L1 distance is the distance (:func:`weights` are ones); Eq. 3 turns
+it into a similarity the same way.
 """
 
 from __future__ import annotations
@@ -53,7 +58,7 @@ def _graph(x: Any) -> ContactGraph:
 
 
 def features(x: Any, config: KernelConfig | None = None, **options: Any) -> NDArray[np.float64]:
-    """Eq. 1 feature vector of a graph.
+    """Feature vector of a graph: the paper's Eq. 1, or shapedb's descriptor.
 
     Parameters
     ----------
@@ -64,11 +69,16 @@ def features(x: Any, config: KernelConfig | None = None, **options: Any) -> NDAr
 
     Returns
     -------
-    (2 * n_r,) float64
-        ``[p0_1..p0_nr, P_1..P_nr]``, zeros for missing nodes.
+    (config.dim,) float64
+        method "paper": ``[p0_1..p0_nr, P_1..P_nr]`` (2 * n_r), zeros for missing
+        nodes; method "mdbd": :func:`shapedb.descriptor.describe`.
     """
     cfg = _config(config, options)
     g = _graph(x)
+    if cfg.method == "mdbd":
+        from shapedb.descriptor import describe
+
+        return describe(g)
     out = np.zeros(cfg.dim)
     n = g.n_nodes
     if n == 0:
@@ -101,8 +111,10 @@ def features_batch(
 
 
 def weights(config: KernelConfig | None = None, **options: Any) -> NDArray[np.float64]:
-    """Eq. 2 weights (2 * n_r,): ``[la^1..la^nr, lb^1..lb^nr]``."""
+    """Eq. 2 weights (2 * n_r,): ``[la^1..la^nr, lb^1..lb^nr]``; ones for "mdbd"."""
     cfg = _config(config, options)
+    if cfg.method == "mdbd":
+        return np.ones(cfg.dim)
     i = np.arange(1, cfg.n_r + 1, dtype=np.float64)
     return np.concatenate([cfg.la**i, cfg.lb**i])
 
@@ -112,7 +124,7 @@ def _check(f: ArrayLike, name: str, cfg: KernelConfig) -> NDArray[np.float64]:
     if a.ndim not in (1, 2) or a.shape[-1] != cfg.dim:
         raise ConfigError(
             f"{name} has shape {a.shape} but this kernel's features have length "
-            f"2 * n_r = {cfg.dim}; were they computed with another n_r?"
+            f"{cfg.dim} (method {cfg.method!r}); were they computed with another configuration?"
         )
     return a
 

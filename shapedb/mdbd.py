@@ -6,7 +6,7 @@ the solid once, on a grid; then repeatedly take the grid maximum ``c = argmax D`
 field is ``D(p) <- min(D(p), |p - c| - r)``. Stop after ``n_balls`` balls or when
 the largest remaining ball is smaller than ``min_radius_cells`` cells.
 
-Two things make this fast and accurate:
+Three things make it fast and accurate:
 
 * **Block maxima.** The field is split into 8^3-cell blocks whose maxima are kept
   up to date; the argmax scans the block maxima and one block, and a ball update
@@ -14,36 +14,20 @@ Two things make this fast and accurate:
   only the maxima of the blocks it touched. Both run compiled with numba. Ties are
   broken by the smallest flat (C-order) cell index, as ``numpy.argmax`` does, so
   the fast loop and the plain-numpy reference :func:`_decompose_naive` agree.
-* **Off-grid refinement** (``MDBDConfig.refine``). A grid snaps centres and radii
-  to cells, which is noise: a sub-cell shift of the grid changes the features of a
-  model as much as a change of pose. Each ball is therefore moved from its grid
-  cell to the point (within one cell) maximising
-  ``g(c) = min(D(c), min_j |c - c_j| - r_j)``. Precise distance queries are costly
-  (a numpy CSG tree costs ~0.1-0.3 ms a call, a mesh's closest-point query ~10-60 us
-  a point at medial points), so there is *one* query per ball: the closest boundary
-  points ("witnesses") of 7 points around the cell. Near the cell,
-  ``D(c) ~ min_k s_k(c)`` with ``s_k`` the signed distance to the tangent plane at
-  witness ``q_k`` (exact on flat faces, second order elsewhere); this surrogate is maximised by a compiled pattern
-  search down to 1/1024 cell. After the loop, one batched query gives the exact
-  distance at every centre and the final radii are
-  ``r_i = min(D(c_i), min_{j<i} |c_i - c_j| - r_j)`` in the order found, so the
-  balls are exactly inside the solid and pairwise disjoint according to the
-  representation's own distance. Signs come from the grid where it is unambiguous
-  (``|D| > 1.5`` cells), else from the representation's membership test.
-* **Canonical frame** (``MDBDConfig.canonical_frame``). A coarse pass (a
-  ``frame_resolution`` grid over the bounding box) gives the solid's volume moments
-  from smooth occupancy weights ``clip(D/h + 1/2, 0, 1)``: centroid, principal axes
-  (largest variance first), axis signs from the third moments, right-handed. The
-  fine grid is laid in that frame, anchored at the centroid, with ``resolution``
-  cells along the longest principal extent, and the geometry is queried through
-  :meth:`Geometry.transformed`. A rigid motion of the model therefore moves the
-  grid with it. Centres are returned in model coordinates and the frame in
-  :attr:`Decomposition.frame`. Where the frame is not determined by the moments
-  (isotropic inertia: spheres, cubes, regular solids; equal pairs of moments:
-  solids of revolution; symmetric axes without a third moment), the undetermined
-  axes fall back to the model's axes, so ties between equally good balls are still
-  broken by the grid there and a generic rotation of such a solid can change the
-  decomposition (not its leading radii).
+* **Off-grid refinement** (``MDBDConfig.refine``, :mod:`shapedb.refine`). Each
+  ball is moved off its grid cell, within one cell, to where it can grow largest
+  against the representation's own distance; its radius is exact, so balls are
+  inside the solid and pairwise disjoint according to that distance.
+* **Canonical frame** (``MDBDConfig.canonical_frame``, :mod:`shapedb.frame`). Two
+  coarse passes give the solid's centroid and principal axes; the fine grid is laid
+  in that frame, with ``resolution`` cells along the longest principal extent, and
+  the geometry is queried through :meth:`Geometry.transformed` (meshes share their
+  query structures with the moved copy). A rigid motion of the model therefore
+  moves the grid with it. Centres are returned in model coordinates and the frame
+  in :attr:`Decomposition.frame`. Where the moments do not determine the frame
+  (isotropic or rotationally symmetric solids), ties between equally good balls
+  are still broken by the grid, and a generic rotation of such a solid can change
+  the decomposition (not its leading radii).
 """
 
 from __future__ import annotations
@@ -60,7 +44,9 @@ from numpy.typing import NDArray
 
 from shapedb.config import MDBDConfig
 from shapedb.errors import ConfigError, DegenerateGeometryError, InvalidShapeError
+from shapedb.frame import canonical_frame, frame_grid
 from shapedb.geometry import Geometry, Grid
+from shapedb.refine import Refiner
 
 if TYPE_CHECKING:
     from shapedb.graph import ContactGraph
@@ -238,274 +224,6 @@ def _carve(
     _recompute_blocks(F, bmax, B, lo // B, hi // B)
 
 
-# -- refinement -------------------------------------------------------------------------
-# Witness samples: the cell and its six neighbours at half a cell.
-_SAMPLES = np.concatenate([np.zeros((1, 3)), 0.5 * np.eye(3), -0.5 * np.eye(3)])
-_SURE = 1.5  # grid |D| (cells) beyond which the grid's sign is trusted
-_ROUNDS = 3  # surrogate searches per ball, each checked by one exact query
-_AGREE = 0.01  # cells: surrogate and exact values this close end the search
-
-
-@njit(cache=True)
-def _trilinear(F: np.ndarray, origin: np.ndarray, h: float, pts: np.ndarray) -> np.ndarray:
-    """Trilinear interpolation (n,) of the field F at points (n, 3), clamped to the grid."""
-    # pragma: no cover - compiled
-    n = pts.shape[0]
-    out = np.empty(n)
-    shape = F.shape
-    for m in range(n):
-        idx = np.empty(3, dtype=np.int64)
-        fr = np.empty(3)
-        for a in range(3):
-            u = (pts[m, a] - origin[a]) / h
-            u = min(max(u, 0.0), shape[a] - 1.000001)
-            idx[a] = int(np.floor(u))
-            fr[a] = u - idx[a]
-        v = 0.0
-        for di in range(2):
-            wx = fr[0] if di else 1.0 - fr[0]
-            for dj in range(2):
-                wy = fr[1] if dj else 1.0 - fr[1]
-                for dk in range(2):
-                    wz = fr[2] if dk else 1.0 - fr[2]
-                    v += wx * wy * wz * F[idx[0] + di, idx[1] + dj, idx[2] + dk]
-        out[m] = v
-    return out
-
-
-@njit(cache=True)
-def _surrogate(
-    c: np.ndarray, Q: np.ndarray, N: np.ndarray, C: np.ndarray, R: np.ndarray
-) -> float:  # pragma: no cover - compiled
-    """min over witnesses of the distance to their tangent planes, and over balls of the gap."""
-    s = np.inf
-    for k in range(Q.shape[0]):
-        d0, d1, d2 = c[0] - Q[k, 0], c[1] - Q[k, 1], c[2] - Q[k, 2]
-        s = min(s, d0 * N[k, 0] + d1 * N[k, 1] + d2 * N[k, 2])
-    for j in range(C.shape[0]):
-        d0, d1, d2 = c[0] - C[j, 0], c[1] - C[j, 1], c[2] - C[j, 2]
-        s = min(s, np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) - R[j])
-    return s
-
-
-@njit(cache=True)
-def _search(
-    c0: np.ndarray, h: float, Q: np.ndarray, N: np.ndarray, C: np.ndarray, R: np.ndarray
-) -> tuple[np.ndarray, float]:  # pragma: no cover - compiled
-    """Pattern search (26 directions, halving steps) for the surrogate's maximum in c0 +- h."""
-    best = c0.copy()
-    bs = _surrogate(best, Q, N, C, R)
-    step = 0.5 * h
-    trial = np.empty(3)
-    for _ in range(400):
-        if step < h / 1024.0:
-            break
-        nb = best.copy()
-        ns = bs
-        for dx in range(-1, 2):
-            for dy in range(-1, 2):
-                for dz in range(-1, 2):
-                    if dx == 0 and dy == 0 and dz == 0:
-                        continue
-                    trial[0] = min(max(best[0] + step * dx, c0[0] - h), c0[0] + h)
-                    trial[1] = min(max(best[1] + step * dy, c0[1] - h), c0[1] + h)
-                    trial[2] = min(max(best[2] + step * dz, c0[2] - h), c0[2] + h)
-                    v = _surrogate(trial, Q, N, C, R)
-                    if v > ns:
-                        ns = v
-                        nb[:] = trial
-        if ns > bs + 1e-9 * h:  # a real gain, not rounding noise on a plateau
-            best, bs = nb, ns
-        else:
-            step *= 0.5
-    return best, bs
-
-
-class _Refiner:
-    """Off-grid refinement of balls against ``geometry`` (see the module docstring).
-
-    ``F0`` is the grid field before any ball was carved, used for signs only.
-    """
-
-    def __init__(self, geometry: Geometry, grid: Grid, F0: NDArray[np.float32]) -> None:
-        self.geometry, self.F0 = geometry, F0
-        self.origin = np.asarray(grid.origin, dtype=np.float64)
-        self.h = float(grid.spacing)
-        self.seconds = 0.0
-        self.queries = 0
-
-    def _inside(self, pts: NDArray[np.float64]) -> NDArray[np.bool_]:
-        fi = _trilinear(self.F0, self.origin, self.h, pts)
-        inside = fi > 0
-        unsure = np.abs(fi) < _SURE * self.h
-        if unsure.any():
-            inside[unsure] = self.geometry.contains(pts[unsure])
-            self.queries += 1
-        return inside
-
-    def _query(
-        self, pts: NDArray[np.float64]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """Witnesses (n, 3), unit inward normals (n, 3) and exact signed distances (n,)."""
-        q = np.asarray(self.geometry.closest_points(pts), dtype=np.float64)
-        self.queries += 1
-        sgn = np.where(self._inside(pts), 1.0, -1.0)
-        v = (pts - q) * sgn[:, None]
-        dist = np.linalg.norm(v, axis=1)
-        n = v / np.maximum(dist, 1e-300)[:, None]
-        return q, n, sgn * dist
-
-    def ball(
-        self,
-        c0: NDArray[np.float64],
-        depth: float,
-        centers: NDArray[np.float64],
-        radii: NDArray[np.float64],
-    ) -> tuple[NDArray[np.float64], float]:
-        """Refined centre near cell ``c0`` (grid value ``depth``) and its exact radius."""
-        t0 = time.perf_counter()
-        h = self.h
-        q, n, d = self._query(c0 + h * _SAMPLES)
-        if len(radii):
-            gap0 = np.sqrt(((centers - c0) ** 2).sum(axis=1)) - radii
-            near = gap0 < max(depth, 0.0) + 4.0 * h
-            cn, rn = np.ascontiguousarray(centers[near]), np.ascontiguousarray(radii[near])
-        else:
-            cn, rn = np.zeros((0, 3)), np.zeros(0)
-
-        def exact(c: NDArray[np.float64], dc: float) -> float:
-            if len(radii):  # against every earlier ball, not only the near ones
-                dc = min(dc, float((np.sqrt(((centers - c) ** 2).sum(axis=1)) - radii).min()))
-            return dc
-
-        best, best_g = c0.copy(), exact(c0, float(d[0]))
-        keep = np.abs(d) > 1e-9 * h
-        Q, N = q[keep], n[keep]
-        for _ in range(_ROUNDS):
-            c, s = _search(c0, h, np.ascontiguousarray(Q), np.ascontiguousarray(N), cn, rn)
-            if np.array_equal(c, best):
-                break
-            qc, nc, dc = self._query(c[None])
-            g = exact(c, float(dc[0]))
-            if g > best_g:
-                best, best_g = c, g
-            if s - g <= _AGREE * h:  # the surrogate was right here: done
-                break
-            Q, N = np.concatenate([Q, qc]), np.concatenate([N, nc])  # learn the missed contact
-        self.seconds += time.perf_counter() - t0
-        return best, best_g
-
-
-# -- canonical frame ---------------------------------------------------------------------
-_DEGENERATE = 1e-2  # relative gap of principal moments below which their axes are a tie
-_SKEW = 0.02  # |normalised third moment| below which an axis has no preferred sign
-
-
-def _tie_axes(V: NDArray[np.float64], pair: tuple[int, int]) -> NDArray[np.float64]:
-    """Replace the tied axes ``pair`` by model axes projected onto their plane."""
-    other = ({0, 1, 2} - set(pair)).pop()
-    a = V[:, other]
-    e = np.eye(3)[int(np.argmin(np.abs(a)))]
-    u = e - (e @ a) * a
-    u /= np.linalg.norm(u)
-    out = V.copy()
-    out[:, pair[0]], out[:, pair[1]] = u, np.cross(a, u)
-    return out
-
-
-def _moments(
-    geometry: Geometry, bounds: NDArray[np.float64], cfg: MDBDConfig
-) -> (
-    tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]
-    | None
-):
-    """One coarse pass over ``bounds``: (axes, centroid, lo, hi, coarse cell) or None.
-
-    ``axes`` has the principal axes as columns (largest moment first); ``lo``/``hi``
-    bound the solid along them, relative to the centroid.
-    """
-    grid = Grid.fit(bounds, resolution=cfg.frame_resolution, padding=2)
-    F = np.asarray(geometry.grid_sdf(grid), dtype=np.float64).ravel()
-    hc = grid.spacing
-    w = np.clip(F / hc + 0.5, 0.0, 1.0)
-    mass = float(w.sum())
-    if not mass > 0:
-        return None
-    P = grid.points()
-    c = w @ P / mass
-    X = P - c
-    C = (X * w[:, None]).T @ X / mass
-    lam, V = np.linalg.eigh(C)
-    lam, V = lam[::-1].clip(min=0.0), V[:, ::-1]
-    tol = _DEGENERATE * lam[0]
-    if lam[0] - lam[2] <= tol:  # isotropic: no preferred axes at all
-        V = np.eye(3)
-    elif lam[0] - lam[1] <= tol:
-        V = _tie_axes(V, (0, 1))
-    elif lam[1] - lam[2] <= tol:
-        V = _tie_axes(V, (1, 2))
-    Y = X @ V
-    skew = (w @ Y**3) / mass / np.maximum(lam, 1e-12 * lam[0] + 1e-300) ** 1.5
-    for k in range(3):
-        s = skew[k] if abs(skew[k]) > _SKEW else V[int(np.argmax(np.abs(V[:, k]))), k]
-        if s < 0:
-            V[:, k] = -V[:, k]
-            skew[k] = -skew[k]
-    if np.linalg.det(V) < 0:  # right-handed: flip the axis whose sign is least certain
-        V[:, int(np.argmin(np.abs(skew)))] *= -1.0
-    # Support of the solid along each axis: every cell bounds it by its projection
-    # plus (upper side) or minus (lower side) its distance; cells near or inside only.
-    near = F > -hc
-    Yn, Fn = (P[near] - c) @ V, F[near][:, None]
-    lo, hi = (Yn - Fn).min(axis=0), (Yn + Fn).max(axis=0)
-    return V, c, lo, hi, hc
-
-
-def _canonical_frame(
-    geometry: Geometry, cfg: MDBDConfig
-) -> (
-    tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]
-    | None
-):
-    """(rotation, centroid, local lo, local hi, coarse cell), or None if nothing is inside.
-
-    Two coarse passes: the first on the model's axes, the second on a grid laid along
-    the first estimate. The sampling error of the moments depends on how the grid
-    lies on the solid; in the second pass it lies (almost) the same way whatever the
-    model's orientation, so the frame's dependence on the orientation drops from
-    ~0.1-0.5 degree and ~0.05 cell to second order.
-    """
-    first = _moments(geometry, geometry.bounds, cfg)
-    if first is None:
-        return None
-    V1, c1, lo1, hi1, hc = first
-    local = geometry.transformed(V1.T, -V1.T @ c1)
-    second = _moments(local, np.stack([lo1 - hc, hi1 + hc]), cfg)
-    if second is None:
-        return first
-    V2, c2, lo, hi, hc = second
-    return V1 @ V2, c1 + V1 @ c2, lo, hi, hc
-
-
-def _frame_grid(
-    lo: NDArray[np.float64], hi: NDArray[np.float64], margin: float, cfg: MDBDConfig
-) -> Grid:
-    """Grid of the local frame: ``resolution`` cells along the longest extent, a lattice
-    through the origin (the centroid), covering ``lo - margin .. hi + margin`` plus padding."""
-    extent = float((hi - lo).max())
-    if not extent > 0:
-        raise DegenerateGeometryError(f"solid has zero extent along its principal axes: {extent}")
-    h = extent / max(cfg.resolution - 2 * cfg.padding_cells, 1)
-    i0 = np.floor((lo - margin) / h).astype(np.int64) - cfg.padding_cells
-    i1 = np.ceil((hi + margin) / h).astype(np.int64) + cfg.padding_cells
-    shape = i1 - i0 + 1
-    return Grid(
-        origin=h * i0.astype(np.float64),
-        spacing=float(h),
-        shape=(int(shape[0]), int(shape[1]), int(shape[2])),
-    )
-
-
 # -- the loop --------------------------------------------------------------------------
 def _resolve_config(config: MDBDConfig | None, options: dict[str, Any]) -> MDBDConfig:
     cfg = config if config is not None else MDBDConfig()
@@ -540,7 +258,7 @@ def _loop(
     centers = np.empty((cfg.n_balls, 3))
     radii = np.empty(cfg.n_balls)
     n = 0
-    refiner = _Refiner(geometry, grid, F.copy()) if cfg.refine else None
+    refiner = Refiner(geometry, grid, F.copy()) if cfg.refine else None
     if naive:
         x, y, z = grid.axes()
     else:
@@ -611,11 +329,11 @@ def _prepare(geometry: Geometry, cfg: MDBDConfig) -> _Prepared:
     found = None
     if cfg.canonical_frame:
         t0 = time.perf_counter()
-        found = _canonical_frame(geometry, cfg)
+        found = canonical_frame(geometry, cfg)
         timings["frame"] = time.perf_counter() - t0
     if found is not None:
         V, c, lo, hi, hc = found
-        grid = _frame_grid(lo, hi, 0.5 * hc, cfg)
+        grid = frame_grid(lo, hi, 0.5 * hc, cfg)
         frame[:3, :3], frame[:3, 3] = V, c
         t0 = time.perf_counter()
         local = geometry.transformed(V.T, -V.T @ c)

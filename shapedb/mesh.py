@@ -9,10 +9,19 @@ after cleaning:
 1. merge duplicate vertices, drop degenerate faces and duplicated faces (also
    duplicates with opposite orientation, which would cancel each other);
 2. make the winding consistent inside each connected component
-   (``trimesh.repair.fix_winding``) and flip components whose signed volume is
-   negative, so that nested or overlapping components add up rather than cancel;
+   (``_meshing.orient_faces``: ``trimesh.repair.fix_winding``'s rule, compiled) and
+   flip components whose signed volume is negative, so that nested or overlapping
+   components add up rather than cancel;
 3. classify a point as inside when ``|w| > 0.5`` (a component that is still
-   inverted contributes -1 and counts as inside too).
+   inverted contributes -1 and counts as inside too). On a *closed* cleaned mesh
+   (every edge used twice, in opposite directions) ``w`` is an integer off the
+   surface, the signed number of crossings along any ray: it is counted with
+   open3d's ray caster (two rays, a third where they disagree), 2-5 times cheaper
+   than a winding number near the surface and the same classification.
+
+The cleaning and the query structures (open3d scene, winding-number BVH) are built
+once per loaded mesh; :meth:`TriangleMesh.transformed` copies (the decomposition's
+canonical frame) share them and map their query points back.
 
 Distances are exact point-to-triangle distances from open3d's C++
 ``RaycastingScene`` (float32, evaluated in coordinates centred on the mesh).
@@ -30,7 +39,8 @@ Whole-grid evaluation (:meth:`TriangleMesh.grid_sdf`) never queries every cell:
   surface crosses and takes the classification of the region's sub-grid nodes
   when they agree, else (open meshes: holes join inside and outside, the winding
   number varies smoothly) that of its nearest unambiguous node when provably on
-  the same side, else its own (``_meshing.coarse_to_fine_inside``).
+  the same side (trying stride-2 nodes for the cells a stride-4 node cannot
+  serve), else its own (``_meshing.coarse_to_fine_inside``).
 
 Measured on a quiet 2-core machine at 128 cells along the longest side: 0.18-0.3 s
 for typical 4-5k-face CAPOD models, 0.4 s for a 50k-face torus, 1.2 s for an
@@ -51,6 +61,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from shapedb._meshing import (
     coarse_to_fine_inside,
+    orient_faces,
     propagate_closest,
     refine_closest,
     triangle_band,
@@ -72,6 +83,9 @@ logger = logging.getLogger(__name__)
 
 #: Relative size below which an extent (or a singular value) counts as zero.
 _FLAT = 1e-9
+#: Generic unit directions of the rays that count crossings on closed meshes.
+_RAYS = np.array([[0.5773, 0.5774, 0.5775], [-0.6, 0.48, 0.64], [0.28, -0.96, 0.0]])
+_RAYS /= np.linalg.norm(_RAYS, axis=1, keepdims=True)
 
 
 class TriangleMesh(Geometry):
@@ -141,6 +155,8 @@ class TriangleMesh(Geometry):
             )
         self._vertices = v
         self._faces = f
+        self._base: TriangleMesh | None = None  # set on rigidly moved copies
+        self._motion = (np.eye(3), np.zeros(3))  # base -> this: x -> R @ x + t
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -208,11 +224,8 @@ class TriangleMesh(Geometry):
         if len(f) == 0:
             raise DegenerateGeometryError("every face is degenerate (zero area)", source=self.name)
         dropped = len(self._faces) - len(f)
-        tm = trimesh.Trimesh(v, f, process=False)
-        trimesh.repair.fix_winding(tm)
-        f = np.array(tm.faces, dtype=np.int64)
+        f, labels = orient_faces(f)  # consistent winding per edge-connected component
         # flip components whose signed volume is negative (open ones included)
-        labels = trimesh.graph.connected_component_labels(tm.face_adjacency, node_count=len(f))
         tri = v[f]
         centre = v[np.unique(f)].mean(0)
         det = np.einsum(
@@ -230,6 +243,8 @@ class TriangleMesh(Geometry):
         )
         return np.ascontiguousarray(v, dtype=np.float64), np.ascontiguousarray(f)
 
+    # Query structures (open3d scene, winding-number BVH) are built once, on the
+    # mesh as loaded; rigidly moved copies map their query points back to it.
     @cached_property
     def _centre(self) -> NDArray[np.float64]:
         return 0.5 * (self.bounds[0] + self.bounds[1])
@@ -255,21 +270,85 @@ class TriangleMesh(Geometry):
         bvh.init(v - self._centre, f)
         return bvh
 
+    def _to_base(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Points (n, 3) of this copy's frame in the frame of the mesh it was moved from."""
+        R, t = self._motion
+        return points if self._base is None else (points - t) @ R
+
     # ------------------------------------------------------------------ queries
     def winding_number(self, points: ArrayLike) -> NDArray[np.float64]:
         """Generalised winding number (n,) of points (n, 3) w.r.t. the cleaned mesh."""
         p = as_points(points)
         if len(p) == 0:
             return np.zeros(0)
+        if self._base is not None:
+            return self._base.winding_number(self._to_base(p))
         q = np.ascontiguousarray(p - self._centre)
         return np.asarray(self._winding.winding_number(q), dtype=np.float64)
 
+    @cached_property
+    def _closed_normals(self) -> NDArray[np.float64] | None:
+        """Face normals (m, 3) if the cleaned mesh is closed, else None.
+
+        Closed: every edge is used by exactly two faces, in opposite directions, so
+        the winding number off the surface is an integer, the signed number of
+        surface crossings along any ray to infinity.
+        """
+        v, f = self._clean
+        directed = f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+        n = len(v)
+        key = np.unique(directed[:, 0] * n + directed[:, 1])
+        if len(key) != len(directed) or not np.isin(directed[:, 1] * n + directed[:, 0], key).all():
+            return None
+        tri = v[f]
+        return np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+
+    def _crossings(self, points: NDArray[np.float64], direction: NDArray[np.float64]) -> Any:
+        """Signed number (n,) of surface crossings along rays from points (n, 3)."""
+        import open3d as o3d
+
+        rays = np.empty((len(points), 6), dtype=np.float32)
+        rays[:, :3] = points - self._centre
+        rays[:, 3:] = direction
+        hits = self._scene.list_intersections(o3d.core.Tensor.from_numpy(rays))
+        prim = hits["primitive_ids"].numpy()
+        ray = np.repeat(np.arange(len(points)), np.diff(hits["ray_splits"].numpy()))
+        entering = -np.sign(self._closed_normals[prim] @ direction)  # type: ignore[index]
+        return np.bincount(ray, weights=entering, minlength=len(points))
+
+    def _inside(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Inside indicator (n,): ``|winding number|``, exactly or by counting crossings.
+
+        On a closed mesh the winding number is the signed count of crossings along a
+        ray (open3d, Embree), 2-5 times cheaper than a winding number near the
+        surface; two rays in generic directions are cast, and a third decides where
+        they disagree (a ray through an edge can miscount).
+        """
+        if self._base is not None:
+            return self._base._inside(self._to_base(points))
+        if self._closed_normals is None or len(points) == 0:
+            return np.abs(self.winding_number(points))
+        w = self._crossings(points, _RAYS[0])
+        other = self._crossings(points, _RAYS[1])
+        differ = np.flatnonzero(w != other)
+        if len(differ):
+            third = self._crossings(points[differ], _RAYS[2])
+            w[differ] = np.where(third == other[differ], third, w[differ])
+        return np.abs(w)
+
     def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
-        """Point-membership classification (n,) bool: ``|winding number| > 0.5``."""
-        return np.abs(self.winding_number(points)) > 0.5
+        """Point-membership classification (n,) bool: ``|winding number| > 0.5``.
+
+        On closed meshes the winding number is counted along rays (see ``_inside``).
+        """
+        p = as_points(points)
+        return self._inside(p) > 0.5 if len(p) else np.zeros(0, dtype=bool)
 
     def _closest(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
         """Exact closest surface points (n, 3), model units."""
+        if self._base is not None:
+            R, t = self._motion
+            return self._base._closest(self._to_base(points)) @ R.T + t
         import open3d as o3d
 
         local = np.ascontiguousarray(points - self._centre, dtype=np.float32)  # kept alive
@@ -285,18 +364,23 @@ class TriangleMesh(Geometry):
     def transformed(self, rotation: ArrayLike, translation: ArrayLike) -> TriangleMesh:
         """This mesh moved by ``x -> rotation @ x + translation`` (a rigid motion).
 
-        The cleaned arrays move along, so the copy does not clean the mesh again.
+        The copy shares the original's cleaning and query structures (open3d scene,
+        winding-number BVH): its queries are mapped back to the original, so moving
+        a mesh costs one matrix product and nothing is rebuilt.
         """
         from shapedb.geometry import rigid
 
         R, t = rigid(rotation, translation)
+        base = self if self._base is None else self._base
+        R0, t0 = self._motion
+        R, t = R @ R0, R @ t0 + t  # base -> copy
+        v, f = base._clean  # clean once, on the original
         out = object.__new__(TriangleMesh)
         out.name = self.name
-        out._vertices = np.ascontiguousarray(self._vertices @ R.T + t)
-        out._faces = self._faces
-        if "_clean" in self.__dict__:  # keep the cleaning work (merges, flips) if done
-            v, f = self._clean
-            out.__dict__["_clean"] = (np.ascontiguousarray(v @ R.T + t), f)
+        out._vertices = np.ascontiguousarray(base._vertices @ R.T + t)
+        out._faces = base._faces
+        out._base, out._motion = base, (R, t)
+        out.__dict__["_clean"] = (np.ascontiguousarray(v @ R.T + t), f)
         return out
 
     def unsigned_distance(self, points: ArrayLike) -> NDArray[np.float64]:
@@ -332,7 +416,7 @@ class TriangleMesh(Geometry):
         band_pts = grid.to_point(np.argwhere(band))
         closest = (self._closest(band_pts) - grid.origin) / h
         dist, owner = propagate_closest(band, closest)
-        inside = coarse_to_fine_inside(grid, dist, lambda p: np.abs(self.winding_number(p)))
+        inside = coarse_to_fine_inside(grid, dist, self._inside)
         refine_closest(dist, owner, closest, inside & ~band)
         out = np.where(inside, dist, -dist) * np.float32(h)
         logger.debug("grid_sdf %s: %d band cells of %d", grid.shape, len(band_pts), grid.size)

@@ -77,6 +77,8 @@ def shapes_schema(dim: int) -> pa.Schema:
         pa.field("n_edges", pa.int32(), nullable=False),
         pa.field("spacing", pa.float64(), nullable=False),
         pa.field("bounds", pa.list_(pa.float64(), 6), nullable=False),
+        # (4, 4) grid frame -> model, row-major; null in rows written before it existed
+        pa.field("frame", pa.list_(pa.float64(), 16)),
         pa.field("timings", pa.map_(pa.string(), pa.float64())),
         pa.field("build_seconds", pa.float64(), nullable=False),
         pa.field("created_at", _TS, nullable=False),
@@ -245,6 +247,9 @@ def shapes_table(records: Sequence[ShapeRecord], dim: int) -> pa.Table:
     bounds = np.array(
         [np.asarray(r.decomposition.bounds, dtype=np.float64).reshape(6) for r in records]
     ).reshape(-1)
+    frames = np.array(
+        [np.asarray(r.decomposition.frame, dtype=np.float64).reshape(16) for r in records]
+    ).reshape(-1)
     cols: dict[str, Any] = {
         "id": ids,
         "name": [r.name for r in records],
@@ -259,6 +264,7 @@ def shapes_table(records: Sequence[ShapeRecord], dim: int) -> pa.Table:
         "n_edges": [r.n_edges for r in records],
         "spacing": [float(r.decomposition.spacing) for r in records],
         "bounds": pa.FixedSizeListArray.from_arrays(pa.array(bounds, pa.float64()), 6),
+        "frame": pa.FixedSizeListArray.from_arrays(pa.array(frames, pa.float64()), 16),
         "timings": [
             sorted((str(k), float(v)) for k, v in r.decomposition.timings.items()) for r in records
         ],
@@ -341,6 +347,13 @@ def _pairs(value: Any) -> dict[str, Any]:
     return dict(value)
 
 
+def _frame(value: Any) -> NDArray[np.float64]:
+    """(4, 4) frame from a ``frame`` cell; identity when absent (rows older than it)."""
+    if value is None:
+        return np.eye(4)
+    return np.asarray(value, dtype=np.float64).reshape(4, 4)
+
+
 def record_from_rows(row: Mapping[str, Any], balls: pa.Table, edges: pa.Table) -> ShapeRecord:
     """Rebuild a :class:`ShapeRecord` from its ``shapes`` row and its balls and edges.
 
@@ -371,6 +384,7 @@ def record_from_rows(row: Mapping[str, Any], balls: pa.Table, edges: pa.Table) -
         config=config.mdbd,
         representation=row["representation"],
         timings={k: float(v) for k, v in _pairs(row.get("timings")).items()},
+        frame=_frame(row.get("frame")),
     )
     return ShapeRecord(
         name=row["name"],

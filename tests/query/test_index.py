@@ -11,14 +11,15 @@ from shapedb.config import KernelConfig
 from shapedb.errors import ConfigError, NotFittedError, QueryError, StoreError
 from shapedb.kernel import distance, weights
 
-W = weights(KernelConfig())
+PAPER = KernelConfig(method="paper")  # synthetic vectors are shaped like Eq. 1
+W = weights(PAPER)
 
 
 def brute_force(x: np.ndarray, ids: np.ndarray, q: np.ndarray, k: int):
     """Exact Eq. 2 ranking with shapedb.kernel.distance, ties by ascending id."""
     out_i, out_d = [], []
     for row in np.atleast_2d(q):
-        d = distance(row, x.astype(np.float64), KernelConfig())
+        d = distance(row, x.astype(np.float64), PAPER)
         order = np.lexsort((ids, d))[:k]
         out_i.append(ids[order])
         out_d.append(d[order])
