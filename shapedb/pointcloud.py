@@ -1,8 +1,16 @@
 """Point clouds: a solid known only through (possibly sparse, uneven) surface samples.
 
-Distance is the distance to the nearest sample (``scipy.spatial.cKDTree``): exact for
-the cloud, and an overestimate of the distance to the underlying surface by at most
-half the local sample gap, which matters little for the large balls of an MDBD.
+Distance starts from the distance ``d`` to the nearest sample (``scipy.spatial.cKDTree``),
+which overestimates the distance to the underlying surface: the nearest sample is
+typically offset sideways from the true closest point by ``r ~ 0.3 rho_k`` (the mean
+nearest-sample offset of uniform samples, ``0.5 rho_k sqrt(pi / k)``, with ``rho_k``
+the distance to the k-th neighbour). Left alone this inflates MDBD ball volumes by
+10-25 % against the mesh the cloud was sampled from (bench/agreement.py: median cloud
+/ mesh SDF ratio 1.17 on 30 CAPOD models, 1.10 on the watertight ones). The distance
+is therefore corrected to ``sqrt(d^2 - r^2)`` with ``r = SPACING_CORRECTION * rho_i``
+of the nearest sample ``i``, and never below ``d / 2`` (it stays positive off the
+samples, so signs are unchanged); the ratio becomes 1.00. :meth:`closest_points`
+returns the matching surface estimates on the segment to the nearest sample.
 
 The sign is the hard part. Poisson reconstruction and fixed-width shells leak on
 sparse clouds (the paper queries a random 20 % of a mesh's vertices), and point
@@ -52,6 +60,15 @@ logger = logging.getLogger(__name__)
 
 #: Fewest distinct points accepted.
 MIN_POINTS = 10
+#: Sideways offset of the nearest sample from the closest surface point, in units of
+#: its spacing (distance to the k-th neighbour); see the module docstring.
+SPACING_CORRECTION = 0.3
+
+
+def _corrected(d: NDArray[np.floating], rho: NDArray[np.floating]) -> NDArray[np.floating]:
+    """Surface distance estimated from nearest-sample distance ``d`` and spacing ``rho``."""
+    r = SPACING_CORRECTION * rho
+    return np.maximum(np.sqrt(np.maximum(d * d - r * r, 0.0)), 0.5 * d)
 
 
 class PointCloud(Geometry):
@@ -265,12 +282,18 @@ class PointCloud(Geometry):
         return self.winding_number(points) > 0.5
 
     def closest_points(self, points: ArrayLike) -> NDArray[np.float64]:
-        """Nearest samples (n, 3) of points (n, 3), model units."""
+        """Estimated closest surface points (n, 3) of points (n, 3), model units.
+
+        On the segment from each point to its nearest sample, at the corrected
+        distance of :meth:`unsigned_distance` (the sample itself for points on it).
+        """
         p = as_points(points)
         if len(p) == 0:
             return np.zeros((0, 3))
-        _, i = self._tree.query(p)
-        return self._points[i]
+        d, i = self._tree.query(p)
+        s = self._points[i]
+        scale = _corrected(d, self.spacing[i]) / np.maximum(d, 1e-300)
+        return p + (s - p) * scale[:, None]
 
     def transformed(self, rotation: ArrayLike, translation: ArrayLike) -> PointCloud:
         """This cloud moved by ``x -> rotation @ x + translation`` (a rigid motion).
@@ -294,12 +317,16 @@ class PointCloud(Geometry):
         return out
 
     def unsigned_distance(self, points: ArrayLike) -> NDArray[np.float64]:
-        """Distance (n,) of points (n, 3) to the nearest sample, model units."""
+        """Estimated distance (n,) of points (n, 3) to the surface, model units.
+
+        The distance to the nearest sample, corrected for the sideways offset of
+        that sample from the closest surface point (see the module docstring).
+        """
         p = as_points(points)
         if len(p) == 0:
             return np.zeros(0)
-        d, _ = self._tree.query(p)
-        return np.asarray(d, dtype=np.float64)
+        d, i = self._tree.query(p)
+        return np.asarray(_corrected(d, self.spacing[i]), dtype=np.float64)
 
     def signed_distance(self, points: ArrayLike) -> NDArray[np.float64]:
         """Signed distance (n,) of points (n, 3), model units, positive inside."""
@@ -321,4 +348,6 @@ class PointCloud(Geometry):
         margin = 0.5 + 0.5 * float(np.median(self.spacing)) / h
         inside = coarse_to_fine_inside(grid, dist, self.winding_number, near=1.0, margin=margin)
         refine_closest(dist, owner, closest, inside & ~band)
+        rho = (self.spacing / h).astype(np.float32)[nearest[owner]]
+        dist = _corrected(dist, rho)
         return (np.where(inside, dist, -dist) * np.float32(h)).astype(np.float32, copy=False)

@@ -353,3 +353,17 @@ def test_capod_sparse_cloud_occupancy(name: str) -> None:
     a = mesh.grid_sdf(g) > 0
     b = PointCloud(pts, name=name).grid_sdf(g) > 0
     assert (a & b).sum() / (a | b).sum() > 0.75
+
+
+def test_cloud_distance_is_not_biased_by_sparse_sampling() -> None:
+    """Inside a sparse sphere cloud, distances match the sphere's (no 10 % overestimate)."""
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=(1500, 3))
+    pc = PointCloud(v / np.linalg.norm(v, axis=1, keepdims=True))
+    p = sample(3000, -1.0, 1.0, seed=4)
+    truth = sphere_sdf(p)
+    ins = truth > 0.1
+    ratio = pc.signed_distance(p)[ins] / truth[ins]
+    assert abs(np.median(ratio) - 1.0) < 0.03
+    q = pc.closest_points(p[ins])
+    assert np.allclose(np.linalg.norm(p[ins] - q, axis=1), pc.unsigned_distance(p[ins]))
