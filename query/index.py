@@ -26,19 +26,16 @@ faiss is imported only when an index is built or loaded.
 
 from __future__ import annotations
 
-import json
 import logging
 import os
-import shutil
 import threading
-import time
-import uuid
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from query._versioned import POINTER, current, save_version
 from shapedb.errors import ConfigError, NotFittedError, QueryError, StoreError, require
 
 if TYPE_CHECKING:
@@ -49,7 +46,6 @@ __all__ = ["FeatureIndex", "open_index", "build_index", "on_commit", "INDEX_DIR"
 log = logging.getLogger(__name__)
 
 INDEX_DIR = "index"
-_POINTER = "current.json"
 _FORMAT = 1
 _KINDS = ("auto", "flat", "hnsw")
 _PARAMS = tuple(
@@ -397,19 +393,15 @@ class FeatureIndex:
         """
         self._check_fitted()
         faiss = _faiss()
-        root = Path(directory)
-        root.mkdir(parents=True, exist_ok=True)
-        name = f"v{version if version is not None else 'x'}-{uuid.uuid4().hex[:12]}"
-        tmp = root / f".tmp-{name}"
-        tmp.mkdir()
-        faiss.write_index(self.faiss_index_, str(tmp / "faiss.index"))
-        np.save(tmp / "ids.npy", self.ids_)
-        np.save(tmp / "features.npy", np.asarray(self.features_))
-        np.save(tmp / "alive.npy", self.alive_)
-        os.replace(tmp, root / name)
+
+        def write(sub: Path) -> None:
+            faiss.write_index(self.faiss_index_, str(sub / "faiss.index"))
+            np.save(sub / "ids.npy", self.ids_)
+            np.save(sub / "features.npy", np.asarray(self.features_))
+            np.save(sub / "alive.npy", self.alive_)
+
         meta = {
             "format": _FORMAT,
-            "dir": name,
             "version": version,
             "kind": self.kind_,
             "n": int(len(self.ids_)),
@@ -418,16 +410,10 @@ class FeatureIndex:
             "weights": self.weights_.tolist(),
             "params": self.params,
         }
-        ptmp = root / f".{_POINTER}.{uuid.uuid4().hex[:8]}"
-        ptmp.write_text(json.dumps(meta, indent=1))
-        os.replace(ptmp, root / _POINTER)
+        path = save_version(directory, write, meta, version=version)
         self.version_ = version
-        for old in root.iterdir():  # superseded versions, and temp dirs of dead writers
-            stale = old.name.startswith(".tmp-") and time.time() - old.stat().st_mtime > 3600
-            if old.is_dir() and old.name != name and (old.name.startswith("v") or stale):
-                shutil.rmtree(old, ignore_errors=True)
-        log.debug("saved %s index (version %s) to %s", self.kind_, version, root / name)
-        return root / name
+        log.debug("saved %s index (version %s) to %s", self.kind_, version, path)
+        return path
 
     @classmethod
     def load(cls, directory: str | os.PathLike[str]) -> FeatureIndex:
@@ -441,10 +427,9 @@ class FeatureIndex:
         faiss = _faiss()
         root = Path(directory)
         try:
-            meta = json.loads((root / _POINTER).read_text())
+            meta, sub = current(root)
             if meta.get("format") != _FORMAT:
                 raise StoreError(f"unknown index format {meta.get('format')!r}", source=root)
-            sub = root / meta["dir"]
             index = cls(**meta["params"])
             index.faiss_index_ = faiss.read_index(str(sub / "faiss.index"))
             index.ids_ = np.load(sub / "ids.npy")
@@ -571,7 +556,7 @@ def open_index(
 
 
 def _load(root: Path) -> FeatureIndex | None:
-    if not (root / _POINTER).exists():
+    if not (root / POINTER).exists():
         return None
     try:
         return FeatureIndex.load(root)
@@ -591,7 +576,7 @@ def on_commit(db: Any, *args: Any, **kwargs: Any) -> None:
     Only an index that was already built is updated (incrementally when possible);
     a store that was never searched gets its index lazily on the first search.
     """
-    if _store_key(db) in _CACHE or (Path(_store_key(db)) / INDEX_DIR / _POINTER).exists():
+    if _store_key(db) in _CACHE or (Path(_store_key(db)) / INDEX_DIR / POINTER).exists():
         open_index(db)
 
 

@@ -32,16 +32,14 @@ from __future__ import annotations
 import json
 import logging
 import os
-import shutil
 import threading
-import time
-import uuid
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from query._versioned import POINTER, current, save_version
 from shapedb.config import PartConfig
 from shapedb.errors import NotFittedError, QueryError, StoreError, require
 from shapedb.subgraph import neighbourhood_features_many
@@ -51,7 +49,6 @@ __all__ = ["PartIndex", "open_parts_index", "on_commit", "PARTS_DIR"]
 log = logging.getLogger(__name__)
 
 PARTS_DIR = "parts"
-_POINTER = "current.json"
 _FORMAT = 1
 _DEAD_FRACTION = 0.2
 _SCAN_BLOCK = 262_144
@@ -404,44 +401,33 @@ class PartIndex:
     def save(self, directory: str | os.PathLike[str], *, version: int | None = None) -> Path:
         """Write the index atomically under ``directory`` (pointer file + fresh sub-dir)."""
         self._check_fitted()
-        root = Path(directory)
-        root.mkdir(parents=True, exist_ok=True)
-        name = f"v{version if version is not None else 'x'}-{uuid.uuid4().hex[:12]}"
-        tmp = root / f".tmp-{name}"
-        tmp.mkdir()
-        for a in self._ARRAYS:
-            np.save(tmp / f"{a}.npy", np.asarray(getattr(self, f"{a}_")))
-        if self.kind_ == "ivf":
-            _faiss().write_index(self.faiss_, str(tmp / "faiss.index"))
-        os.replace(tmp, root / name)
+
+        def write(sub: Path) -> None:
+            for a in self._ARRAYS:
+                np.save(sub / f"{a}.npy", np.asarray(getattr(self, f"{a}_")))
+            if self.kind_ == "ivf":
+                _faiss().write_index(self.faiss_, str(sub / "faiss.index"))
+
         meta = {
             "format": _FORMAT,
-            "dir": name,
             "version": version,
             "kind": self.kind_,
             "config": {k: getattr(self.config, k) for k in self.config.__dataclass_fields__},
             "params": self.params,
             "n": int(len(self.features_)),
         }
-        ptmp = root / f".{_POINTER}.{uuid.uuid4().hex[:8]}"
-        ptmp.write_text(json.dumps(meta, indent=1))
-        os.replace(ptmp, root / _POINTER)
+        path = save_version(directory, write, meta, version=version)
         self.version_ = version
-        for old in root.iterdir():
-            stale = old.name.startswith(".tmp-") and time.time() - old.stat().st_mtime > 3600
-            if old.is_dir() and old.name != name and (old.name.startswith("v") or stale):
-                shutil.rmtree(old, ignore_errors=True)
-        return root / name
+        return path
 
     @classmethod
     def load(cls, directory: str | os.PathLike[str]) -> PartIndex:
         """Read the index ``<directory>/current.json`` points to (:class:`StoreError` if bad)."""
         root = Path(directory)
         try:
-            meta = json.loads((root / _POINTER).read_text())
+            meta, sub = current(root)
             if meta.get("format") != _FORMAT:
                 raise StoreError(f"unknown part index format {meta.get('format')!r}", source=root)
-            sub = root / meta["dir"]
             index = cls(PartConfig(**meta["config"]), **meta["params"])
             for a in cls._ARRAYS:
                 f = sub / f"{a}.npy"
@@ -526,7 +512,7 @@ def open_parts_index(
         index = None if rebuild else _CACHE.get(key)
         if index is not None and index.version_ == version:
             return index
-        if index is None and not rebuild and (root / _POINTER).exists():
+        if index is None and not rebuild and (root / POINTER).exists():
             try:
                 index = PartIndex.load(root)
             except StoreError as exc:
@@ -559,9 +545,9 @@ def on_commit(db: Any, *args: Any, **kwargs: Any) -> None:
     if not base.is_dir():
         return
     for sub in base.iterdir():
-        if (sub / _POINTER).exists():
+        if (sub / POINTER).exists():
             try:
-                cfg = PartConfig(**json.loads((sub / _POINTER).read_text())["config"])
+                cfg = PartConfig(**json.loads((sub / POINTER).read_text())["config"])
             except (OSError, ValueError, KeyError, TypeError) as exc:
                 log.warning("skipping part index %s: %s", sub, exc)
                 continue

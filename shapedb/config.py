@@ -10,11 +10,13 @@ from __future__ import annotations
 import hashlib
 import json
 from dataclasses import asdict, dataclass, field, fields, replace
-from typing import Any
+from typing import Any, TypeVar
 
 from shapedb.errors import ConfigError
 
-__all__ = ["MDBDConfig", "KernelConfig", "PartConfig", "Config"]
+__all__ = ["MDBDConfig", "KernelConfig", "PartConfig", "Config", "with_options"]
+
+_C = TypeVar("_C")
 
 
 def _check(cond: bool, name: str, value: Any, why: str) -> None:
@@ -286,3 +288,25 @@ def _build(cls: type, data: dict[str, Any]) -> Any:
     if unknown:
         raise ConfigError(f"unknown {cls.__name__} option(s): {sorted(unknown)}")
     return cls(**data)
+
+
+def with_options(
+    cls: type[_C], config: _C | None, options: dict[str, Any], *, what: str | None = None
+) -> _C:
+    """``config`` (or the default ``cls()``) with some fields overridden by ``options``.
+
+    Raises
+    ------
+    ConfigError
+        When ``config`` is not a ``cls``, an option is not a field of ``cls``, or a value
+        is out of range.
+    """
+    cfg = config if config is not None else cls()
+    if not isinstance(cfg, cls):
+        raise ConfigError(f"config must be a {cls.__name__}, got {type(cfg).__name__}")
+    if not options:
+        return cfg
+    unknown = set(options) - {f.name for f in fields(cls)}  # type: ignore[arg-type]
+    if unknown:
+        raise ConfigError(f"unknown {what or cls.__name__} option(s): {sorted(unknown)}")
+    return replace(cfg, **options)  # type: ignore[type-var]

@@ -23,13 +23,12 @@ it into a similarity the same way.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import fields, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from shapedb.config import KernelConfig
+from shapedb.config import KernelConfig, with_options
 from shapedb.errors import ConfigError, InvalidShapeError
 from shapedb.graph import ContactGraph
 
@@ -37,15 +36,7 @@ __all__ = ["features", "features_batch", "weights", "distance", "kernel"]
 
 
 def _config(config: KernelConfig | None, options: dict[str, Any]) -> KernelConfig:
-    cfg = config if config is not None else KernelConfig()
-    if not isinstance(cfg, KernelConfig):
-        raise ConfigError(f"config must be a KernelConfig, got {type(cfg).__name__}")
-    if options:
-        unknown = set(options) - {f.name for f in fields(KernelConfig)}
-        if unknown:
-            raise ConfigError(f"unknown kernel option(s): {sorted(unknown)}")
-        cfg = replace(cfg, **options)
-    return cfg
+    return with_options(KernelConfig, config, options, what="kernel")
 
 
 def _graph(x: Any) -> ContactGraph:

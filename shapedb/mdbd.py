@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
@@ -42,8 +42,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from shapedb.config import MDBDConfig
-from shapedb.errors import ConfigError, DegenerateGeometryError, InvalidShapeError
+from shapedb.config import MDBDConfig, with_options
+from shapedb.errors import DegenerateGeometryError, InvalidShapeError
 from shapedb.frame import canonical_frame, frame_grid
 from shapedb.geometry import Geometry, Grid
 from shapedb.refine import Refiner
@@ -226,15 +226,7 @@ def _carve(
 
 # -- the loop --------------------------------------------------------------------------
 def _resolve_config(config: MDBDConfig | None, options: dict[str, Any]) -> MDBDConfig:
-    cfg = config if config is not None else MDBDConfig()
-    if not isinstance(cfg, MDBDConfig):
-        raise ConfigError(f"config must be an MDBDConfig, got {type(cfg).__name__}")
-    if options:
-        unknown = set(options) - {f.name for f in fields(MDBDConfig)}
-        if unknown:
-            raise ConfigError(f"unknown MDBD option(s): {sorted(unknown)}")
-        cfg = replace(cfg, **options)
-    return cfg
+    return with_options(MDBDConfig, config, options, what="MDBD")
 
 
 def _loop(

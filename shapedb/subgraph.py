@@ -25,14 +25,13 @@ reference (:func:`neighbourhood_features_naive`) to rounding.
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from dataclasses import fields, replace
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
-from shapedb.config import PartConfig
+from shapedb.config import PartConfig, with_options
 from shapedb.errors import ConfigError, InvalidShapeError
 from shapedb.graph import ContactGraph
 
@@ -55,16 +54,8 @@ def part_config(config: PartConfig | None = None, **options: Any) -> PartConfig:
     ConfigError
         For an unknown option name or an out-of-range value.
     """
-    cfg = config if config is not None else PartConfig()
-    if not isinstance(cfg, PartConfig):
-        raise ConfigError(f"config must be a PartConfig, got {type(cfg).__name__}")
     options = {k: v for k, v in options.items() if v is not None}
-    if options:
-        unknown = set(options) - {f.name for f in fields(PartConfig)}
-        if unknown:
-            raise ConfigError(f"unknown part option(s): {sorted(unknown)}")
-        cfg = replace(cfg, **options)
-    return cfg
+    return with_options(PartConfig, config, options, what="part")
 
 
 def _arrays(x: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
