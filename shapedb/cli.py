@@ -408,18 +408,16 @@ def _train(args: argparse.Namespace) -> int:
         model = _existing(args.db).train_classifier(label=args.label, callback=progress, **options)
     finally:
         bar.close()
+    classes = [str(c) for c in getattr(model, "classes_", [])]
     result = {
         "model": str(args.out),
-        "classes": list(getattr(model, "classes_", [])),
+        "classes": classes,
         "test_accuracy": getattr(model, "test_accuracy_", None),
     }
     if args.json:
         _print_json(result)
     else:
-        print(
-            f"saved {args.out}: {len(result['classes'])} classes, "
-            f"test accuracy {result['test_accuracy']}"
-        )
+        print(f"saved {args.out}: {len(classes)} classes, test accuracy {result['test_accuracy']}")
     return 0
 
 

@@ -227,6 +227,10 @@ class Transformed(Geometry):
         Offset, model units.
     """
 
+    child: Geometry
+    rotation: NDArray[np.float64]
+    translation: NDArray[np.float64]
+
     def __init__(self, child: Geometry, rotation: ArrayLike, translation: ArrayLike) -> None:
         R, t = rigid(rotation, translation)
         if isinstance(child, Transformed):  # compose instead of nesting

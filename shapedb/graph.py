@@ -76,12 +76,12 @@ def contact_edges(centers: ArrayLike, radii: ArrayLike, tol: float) -> NDArray[n
     else:
         tree = cKDTree(c)
         rmax = float(r.max())
-        for i, nbrs in enumerate(tree.query_ball_point(c, r + rmax + tol)):
-            j = np.asarray(nbrs, dtype=np.int64)
-            j = j[j > i]
-            gap = np.sqrt(((c[j] - c[i]) ** 2).sum(axis=1)) - r[i] - r[j]
-            j = j[gap <= tol]
-            parts.append(np.stack([np.full(len(j), i), j], axis=1))
+        for a, nbrs in enumerate(tree.query_ball_point(c, r + rmax + tol)):
+            b = np.asarray(nbrs, dtype=np.int64)
+            b = b[b > a]
+            gap = np.sqrt(((c[b] - c[a]) ** 2).sum(axis=1)) - r[a] - r[b]
+            b = b[gap <= tol]
+            parts.append(np.stack([np.full(len(b), a), b], axis=1))
     e = np.concatenate(parts) if parts else np.zeros((0, 2), dtype=np.int64)
     e = e[np.lexsort((e[:, 1], e[:, 0]))]
     return e.astype(np.int32)
@@ -242,11 +242,11 @@ class ContactGraph:
                 id=int(self.ids[i]),
             )
         if self.n_edges:
-            i, j = self.edges[:, 0], self.edges[:, 1]
-            dist = np.linalg.norm(self.centers[i] - self.centers[j], axis=1)
-            gap = dist - self.radii[i] - self.radii[j]
+            u, v = self.edges[:, 0], self.edges[:, 1]
+            dist = np.linalg.norm(self.centers[u] - self.centers[v], axis=1)
+            gap = dist - self.radii[u] - self.radii[v]
             g.add_edges_from(
                 (int(a), int(b), {"weight": float(w), "gap": float(q)})
-                for a, b, w, q in zip(i, j, dist, gap, strict=True)
+                for a, b, w, q in zip(u.tolist(), v.tolist(), dist, gap, strict=True)
             )
         return g

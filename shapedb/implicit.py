@@ -366,7 +366,8 @@ def _operands(children: tuple[Implicit, ...], name: str, minimum: int) -> tuple[
         if not isinstance(c, Implicit):
             raise InvalidShapeError(f"{name} operands must be Implicit, got {type(c).__name__}")
         # Flatten nested operations of the same kind: (a | b) | c -> Union(a, b, c).
-        flat.extend(c.children if type(c).__name__ == name and name != "Difference" else (c,))
+        same = type(c).__name__ == name and name != "Difference"
+        flat.extend(getattr(c, "children", (c,)) if same else (c,))
     if len(flat) < minimum:
         raise InvalidShapeError(f"{name} needs at least {minimum} operand(s), got {len(flat)}")
     return tuple(flat)
@@ -464,6 +465,10 @@ class Transformed(Implicit):
     """``child`` mapped by x -> scale * rotation @ x + translation (distances stay exact)."""
 
     _trusted = True
+    child: Implicit
+    rotation: NDArray[np.float64]
+    translation: NDArray[np.float64]
+    factor: float
 
     def __init__(
         self,
