@@ -246,11 +246,18 @@ class Config:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Config:
-        """Inverse of :meth:`to_dict`; unknown keys are refused."""
+        """Inverse of :meth:`to_dict`; unknown keys are refused.
+
+        A stored kernel configuration without ``method`` predates the default
+        descriptor and is read as ``method="paper"``, which is what built it.
+        """
+        kernel = dict(data.get("kernel", {}))
+        if kernel:
+            kernel.setdefault("method", "paper")
         try:
             return cls(
                 mdbd=_build(MDBDConfig, data.get("mdbd", {})),
-                kernel=_build(KernelConfig, data.get("kernel", {})),
+                kernel=_build(KernelConfig, kernel),
             )
         except TypeError as exc:
             raise ConfigError(f"cannot read configuration {data!r}: {exc}") from exc

@@ -1,0 +1,46 @@
+"""The typed configuration: validation, JSON round trip, overrides, older stores."""
+
+from __future__ import annotations
+
+import pytest
+
+from shapedb.config import Config, KernelConfig, MDBDConfig, with_options
+from shapedb.errors import ConfigError
+
+
+def test_json_round_trip_and_fingerprint() -> None:
+    cfg = Config().with_options(resolution=64, n_r=10, method="paper")
+    again = Config.from_json(cfg.to_json())
+    assert again == cfg and again.fingerprint == cfg.fingerprint
+    assert Config().with_options(n_r=10).fingerprint == Config().fingerprint  # kernel only
+    assert Config().with_options(resolution=64).fingerprint != Config().fingerprint
+
+
+def test_a_stored_kernel_without_method_is_the_papers() -> None:
+    old = {
+        "mdbd": {"resolution": 64},
+        "kernel": {"n_r": 32, "t": 10, "w": 0.9, "la": 0.75, "lb": 0.75, "lam": 1.0},
+    }
+    assert Config.from_dict(old).kernel.method == "paper"
+    assert Config.from_dict({}).kernel.method == "mdbd"
+
+
+@pytest.mark.parametrize(
+    ("cls", "options", "match"),
+    [
+        (MDBDConfig, {"resolution": 4}, "resolution"),
+        (KernelConfig, {"method": "other"}, "method"),
+        (KernelConfig, {"w": 0.0}, "w="),
+        (MDBDConfig, {"colour": 1}, "unknown MDBDConfig option"),
+    ],
+)
+def test_bad_values_are_refused(cls: type, options: dict, match: str) -> None:
+    with pytest.raises(ConfigError, match=match):
+        with_options(cls, None, options)
+
+
+def test_dimension_follows_the_method() -> None:
+    from shapedb.descriptor import DIM
+
+    assert KernelConfig().dim == DIM
+    assert KernelConfig(method="paper", n_r=10).dim == 20
