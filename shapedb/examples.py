@@ -3,9 +3,10 @@
 Everything is deterministic: a figure is fixed by ``(subject, pose)`` and a part by
 ``(kind, seed)``. Figures mimic an articulated-retrieval benchmark (SHREC'14 style):
 each subject has its own limb proportions and can take any pose; the same pose
-index gives the same joint angles for every subject. Parts are plates (holes,
-slots, bosses, ribs), L-brackets (holes, gusset) and flanges (hub, bore, bolt
-circle).
+index gives the same joint angles for every subject. Parts come in the twelve
+families of :data:`PART_KINDS` (plates, brackets, flanges, shafts, pipe tees,
+I-beams, gear discs, hex nuts, hinges, ribbed plates, boss plates, handles; built in
+:mod:`shapedb._parts`), each with seeded proportions and feature counts.
 
 >>> from shapedb import examples
 >>> g = examples.figure(subject=1, pose=3)
@@ -20,9 +21,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from shapedb._parts import BUILDERS
+from shapedb._parts import rotation as _rotation
 from shapedb.errors import ConfigError, require
 from shapedb.geometry import Geometry, Grid
-from shapedb.implicit import Box, Capsule, Cylinder, Implicit, Sphere, Union
+from shapedb.implicit import Capsule, Implicit, Sphere, Union
 
 if TYPE_CHECKING:
     import trimesh
@@ -31,14 +34,11 @@ __all__ = ["figure", "part", "catalogue", "to_mesh", "PART_KINDS"]
 
 logger = logging.getLogger(__name__)
 
-PART_KINDS = ("plate", "bracket", "flange")
-
-
-def _rot(axis: NDArray[np.float64], angle: float) -> NDArray[np.float64]:
-    """Rotation matrix (3, 3) about the unit ``axis`` by ``angle`` radians (Rodrigues)."""
-    a = axis / np.linalg.norm(axis)
-    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+#: Every machined-part kind :func:`part` builds; new kinds are appended so that the
+#: seeds (and shapes) of the earlier kinds stay the same.
+PART_KINDS: tuple[str, ...] = tuple(BUILDERS)
+#: The kinds in :func:`catalogue` (the demo set keeps its 20 solids in 5 classes).
+_CATALOGUE_KINDS = ("plate", "bracket", "flange")
 
 
 # -- figures ---------------------------------------------------------------------------
@@ -135,11 +135,11 @@ def _limb(
 ) -> list[Implicit]:
     """Two capsules (upper and lower segment) hanging from ``root``."""
     down = np.array([0.0, 0.0, -1.0])
-    R = _rot(np.array([1.0, 0, 0]), flex) @ _rot(np.array([0, 1.0, 0]), -side * abduct)
+    R = _rotation(np.array([1.0, 0, 0]), flex) @ _rotation(np.array([0, 1.0, 0]), -side * abduct)
     d1 = R @ down
     joint = root + l1 * d1
     side_axis = R @ np.array([1.0, 0, 0])
-    d2 = _rot(side_axis, bend_sign * bend) @ d1
+    d2 = _rotation(side_axis, bend_sign * bend) @ d1
     return [Capsule(root, joint, radius), Capsule(joint, joint + l2 * d2, 0.9 * radius)]
 
 
@@ -163,7 +163,7 @@ def figure(subject: int = 0, pose: int = 0) -> Implicit:
         raise ConfigError(f"subject and pose must be >= 0, got subject={subject}, pose={pose}")
     p, a = _proportions(subject), _angles(pose)
     top = np.array([0.0, 0.0, p["torso"]])
-    neck_dir = _rot(np.array([1.0, 0, 0]), a["neck"]) @ np.array([0.0, 0, 1])
+    neck_dir = _rotation(np.array([1.0, 0, 0]), a["neck"]) @ np.array([0.0, 0, 1])
     parts: list[Implicit] = [
         Capsule([0.0, 0.0, 0.0], top, p["torso_r"]),
         Sphere(top + (p["neck"] + p["head_r"] + 0.5 * p["torso_r"]) * neck_dir, p["head_r"]),
@@ -204,91 +204,30 @@ def figure(subject: int = 0, pose: int = 0) -> Implicit:
 
 
 # -- machined parts --------------------------------------------------------------------
-def _through_holes(
-    centres: list[tuple[float, float]], radius: float, z0: float, z1: float
-) -> list[Implicit]:
-    return [Cylinder([x, y, z0 - 1.0], [x, y, z1 + 1.0], radius) for x, y in centres]
-
-
-def _plate(rng: np.random.Generator) -> Implicit:
-    L, W, T = rng.uniform(2.0, 3.0), rng.uniform(1.0, 1.6), rng.uniform(0.15, 0.3)
-    body: Implicit = Box([0, 0, T / 2], [L, W, T])
-    adds: list[Implicit] = []
-    for _ in range(int(rng.integers(1, 3))):  # bosses on top
-        x, y = rng.uniform(-0.3 * L, 0.3 * L), rng.uniform(-0.25 * W, 0.25 * W)
-        adds.append(
-            Cylinder([x, y, T - 0.01], [x, y, T + rng.uniform(0.15, 0.4)], rng.uniform(0.12, 0.22))
-        )
-    for k in range(int(rng.integers(0, 3))):  # ribs along x
-        y = (k - 0.5) * 0.4 * W
-        adds.append(Box([0, y, T + 0.1], [0.8 * L, 0.06, 0.2]))
-    body = Union(body, *adds)
-    r = rng.uniform(0.06, 0.12)
-    corners = [(sx * (L / 2 - 0.2), sy * (W / 2 - 0.2)) for sx in (-1, 1) for sy in (-1, 1)]
-    tools = _through_holes(corners[: int(rng.integers(2, 5))], r, 0.0, T)
-    if rng.random() < 0.7:  # a through slot: a capsule swept through the plate
-        y, half = rng.uniform(-0.2, 0.2) * W, rng.uniform(0.2, 0.4)
-        tools.append(
-            Union(
-                Box([0, y, T / 2], [2 * half, 2 * r, T + 2.0]),
-                *_through_holes([(-half, y), (half, y)], r, 0.0, T),
-            )
-        )
-    return body - Union(*tools)
-
-
-def _bracket(rng: np.random.Generator) -> Implicit:
-    L, W, T = rng.uniform(1.2, 2.0), rng.uniform(0.8, 1.4), rng.uniform(0.12, 0.25)
-    H = rng.uniform(0.8, 1.5)
-    base = Box([L / 2, 0, T / 2], [L, W, T])
-    wall = Box([T / 2, 0, H / 2], [T, W, H])
-    parts: list[Implicit] = [base, wall]
-    if rng.random() < 0.8:  # a triangular gusset: a rotated slab cut to the corner
-        g = rng.uniform(0.3, 0.6) * min(L, H)
-        slab = Box([0, 0, 0], [2 * g, 0.08, 2 * g]).rotate(_rot(np.array([0, 1.0, 0]), np.pi / 4))
-        parts.append(slab.translate([T, 0, T]) & Box([T + g / 2, 0, T + g / 2], [g, 0.08, g]))
-    r = rng.uniform(0.05, 0.1)
-    holes = _through_holes([(0.65 * L, -W / 4), (0.65 * L, W / 4)], r, 0.0, T)
-    rot = _rot(np.array([0, 1.0, 0]), np.pi / 2)  # wall holes along x
-    holes += [
-        h.rotate(rot, center=[0, 0, 0]).translate([0, 0, 0.65 * H])
-        for h in _through_holes([(0.0, -W / 4), (0.0, W / 4)], r, -T, T)
-    ]
-    return Union(*parts) - Union(*holes)
-
-
-def _flange(rng: np.random.Generator) -> Implicit:
-    R, T = rng.uniform(0.8, 1.2), rng.uniform(0.12, 0.25)
-    hub_r, hub_h = rng.uniform(0.3, 0.5) * R, rng.uniform(0.3, 0.7)
-    body = Union(
-        Cylinder([0, 0, 0], [0, 0, T], R), Cylinder([0, 0, T - 0.01], [0, 0, T + hub_h], hub_r)
-    )
-    bore = Cylinder([0, 0, -1.0], [0, 0, T + hub_h + 1.0], rng.uniform(0.4, 0.7) * hub_r)
-    n = int(rng.integers(3, 9))
-    pcd = 0.5 * (hub_r + R)
-    phase = rng.uniform(0, 2 * np.pi / n)
-    centres = [
-        (pcd * np.cos(phase + 2 * np.pi * k / n), pcd * np.sin(phase + 2 * np.pi * k / n))
-        for k in range(n)
-    ]
-    holes = _through_holes(centres, rng.uniform(0.05, 0.35) * (R - hub_r), 0.0, T)
-    return body - Union(bore, *holes)
-
-
 def part(kind: str, seed: int = 0) -> Implicit:
     """A machined part.
 
     Parameters
     ----------
-    kind : {"plate", "bracket", "flange"}
-        Class of part.
+    kind : str
+        Class of part, one of :data:`PART_KINDS`: ``plate`` (holes, slot, bosses,
+        ribs), ``bracket`` (L-bracket with gusset), ``flange`` (hub, bore, bolt
+        circle), ``shaft`` (stepped, keyway), ``pipe_tee`` (hollow tee),
+        ``i_beam`` (segment, web holes), ``gear_disc`` (teeth, bore, keyway),
+        ``hex_nut`` (hex prism, bore), ``hinge`` (two leaves on a knuckle),
+        ``rib_plate`` (parallel ribs), ``boss_plate`` (drilled bosses) and
+        ``handle`` (U of capsules on feet).
     seed : int
         Varies dimensions and feature counts deterministically.
+
+    Raises
+    ------
+    ConfigError
+        (a ``ValueError``) for an unknown ``kind``; the message lists the valid ones.
     """
-    builders = {"plate": _plate, "bracket": _bracket, "flange": _flange}
-    if kind not in builders:
-        raise ConfigError(f"unknown part kind {kind!r}; choose one of {list(builders)}")
-    g = builders[kind](np.random.default_rng([23, PART_KINDS.index(kind), seed]))
+    if kind not in BUILDERS:
+        raise ConfigError(f"unknown part kind {kind!r}; choose one of {list(PART_KINDS)}")
+    g = BUILDERS[kind](np.random.default_rng([23, PART_KINDS.index(kind), seed]))
     g.name = f"{kind}-{seed}"
     return g
 
@@ -305,7 +244,7 @@ def catalogue() -> list[tuple[str, str, Geometry]]:
     out: list[tuple[str, str, Geometry]] = []
     for s in (0, 1):
         out += [(f"figure-s{s}-p{p}", f"figure-s{s}", figure(s, p)) for p in range(4)]
-    for kind in PART_KINDS:
+    for kind in _CATALOGUE_KINDS:
         out += [(f"{kind}-{k}", kind, part(kind, k)) for k in range(4)]
     return out
 

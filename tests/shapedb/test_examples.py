@@ -81,3 +81,41 @@ def test_public_api_is_pinned_and_resolves() -> None:
     for name in shapedb.__all__:
         assert getattr(shapedb, name) is not None, name
     assert callable(shapedb.kernel.kernel)  # shapedb.kernel is the module (Eq. 1-3)
+
+
+@pytest.mark.parametrize("kind", examples.PART_KINDS)
+def test_every_part_kind_is_valid_and_decomposes(kind: str) -> None:
+    assert len(examples.PART_KINDS) >= 10
+    for seed in (0, 1):
+        g = examples.part(kind, seed)
+        name = f"{kind}-{seed}"
+        assert isinstance(g, Implicit) and g.name == name
+        extent = g.bounds[1] - g.bounds[0]
+        assert 0.2 < extent.min() and extent.max() < 4.0, name  # about unit scale
+        grid = Grid.fit(g.bounds, resolution=32, padding=1)
+        F = g.grid_sdf(grid)
+        assert np.all(np.isfinite(F)) and F.max() > 0, f"{name} has no inside"
+        for face in (F[0], F[-1], F[:, 0], F[:, -1], F[:, :, 0], F[:, :, -1]):
+            assert face.max() < 0, f"{name} pokes out of its bounds"
+        d = decompose(g, resolution=32, n_balls=32)
+        assert d.n_balls >= 8, name
+        assert np.all(g.signed_distance(d.centers) >= d.radii - 1e-9), name
+
+
+@pytest.mark.parametrize("kind", examples.PART_KINDS)
+def test_part_seeds_vary_the_shape_deterministically(kind: str) -> None:
+    a, b = examples.part(kind, 0), examples.part(kind, 1)
+    lo = np.minimum(a.bounds[0], b.bounds[0])
+    hi = np.maximum(a.bounds[1], b.bounds[1])
+    pts = np.random.default_rng(1).uniform(lo, hi, (2000, 3))
+    da = a.signed_distance(pts)
+    np.testing.assert_array_equal(da, examples.part(kind, 0).signed_distance(pts))
+    assert not np.allclose(da, b.signed_distance(pts))
+
+
+def test_unknown_part_kind_lists_the_valid_ones() -> None:
+    with pytest.raises(ValueError, match="unknown part kind 'widget'") as info:
+        examples.part("widget", 0)
+    assert isinstance(info.value, ConfigError)
+    for kind in examples.PART_KINDS:
+        assert repr(kind) in str(info.value)
