@@ -8,6 +8,7 @@ what changed. They are computed by a pool of worker processes (2 by default).
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import logging
@@ -221,9 +222,34 @@ def _source_key(model: Model) -> str:
     return model.source
 
 
+#: Core modules whose source decides what a decomposition is: the cache key includes
+#: their content, so an engine change never reuses stale decompositions.
+_ENGINE_MODULES = (
+    "geometry", "mesh", "pointcloud", "voxels", "implicit", "complement", "_meshing",
+    "frame", "refine", "mdbd", "graph",
+)  # fmt: skip
+
+
+@functools.lru_cache(maxsize=1)
+def engine_version() -> str:
+    """A digest (16 hex) of the decomposition engine's source code."""
+    import shapedb
+
+    root = Path(shapedb.__file__).parent
+    digest = hashlib.sha256()
+    for name in _ENGINE_MODULES:
+        digest.update((root / f"{name}.py").read_bytes())
+    return digest.hexdigest()[:16]
+
+
 def cache_path(model: Model, variant: str, config: MDBDConfig) -> Path:
-    """Where the decomposition of ``model`` in ``variant`` with ``config`` is cached."""
-    text = json.dumps([_source_key(model), variant, asdict(config)], sort_keys=True)
+    """Where the decomposition of ``model`` in ``variant`` with ``config`` is cached.
+
+    The key holds the model's source, the variant, the config and
+    :func:`engine_version`.
+    """
+    key = [_source_key(model), variant, asdict(config), engine_version()]
+    text = json.dumps(key, sort_keys=True)
     digest = hashlib.sha256(text.encode()).hexdigest()[:20]
     return CACHE_DIR / "dec" / f"{digest}.npz"
 

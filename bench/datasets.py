@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import csv
 import inspect
+import os
 import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -51,8 +52,8 @@ __all__ = [
 REPO = Path(__file__).resolve().parents[1]
 #: The real data set (outside the repository; never copied into it).
 CAPOD_ROOT = REPO.parent / "shared" / "data" / "capod"
-#: Decompositions and generated meshes (git-ignored).
-CACHE_DIR = REPO / "bench" / "results" / "cache"
+#: Decompositions and generated meshes (git-ignored); ``SHAPEDB_BENCH_CACHE`` overrides it.
+CACHE_DIR = Path(os.environ.get("SHAPEDB_BENCH_CACHE", REPO / "bench" / "results" / "cache"))
 
 #: Marching-cubes resolution of the generated sets' meshes.
 GENERATED_MESH_RESOLUTION = 96
