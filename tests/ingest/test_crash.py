@@ -90,9 +90,15 @@ def _run(
     *,
     batch: int,
     kill_at: str = "none",
-    kill_after: float | None = None,
+    kill_after: tuple[int, float] | None = None,
     workers: int = 1,
-) -> tuple[str, int]:
+) -> tuple[str, int, list[float]]:
+    """Run the ingest script; returns its stdout, exit code and the arrival time of each line.
+
+    ``kill_after=(k, delay)`` SIGKILLs the process group ``delay`` seconds after the
+    k-th COMMIT line (k = 0: after START), so the kill lands inside the ingest however
+    fast or slow this machine is today.
+    """
     script = tmp_path / "ingest_script.py"
     script.write_text(SCRIPT)
     env = {**os.environ, "WORKERS": str(workers)}
@@ -104,24 +110,34 @@ def _run(
         env=env,
         start_new_session=True,
     )
+    lines: list[str] = []
+    times: list[float] = []
     try:
-        if kill_after is not None:
-            time.sleep(kill_after)
-            if proc.poll() is None:
-                os.killpg(proc.pid, signal.SIGKILL)
+        assert proc.stdout is not None
+        commits = 0
+        for line in proc.stdout:
+            lines.append(line)
+            times.append(time.monotonic())
+            commits += line.startswith("COMMIT")
+            if kill_after is not None and line.startswith(("START", "COMMIT")):
+                if commits == kill_after[0]:
+                    time.sleep(kill_after[1])
+                    os.killpg(proc.pid, signal.SIGKILL)
+                    break
         proc.wait(timeout=300)
         # worker processes and the fork server must go away with their parent
         deadline = time.monotonic() + 20
         while _group_alive(proc.pid) and time.monotonic() < deadline:
             time.sleep(0.1)
         stragglers = _group_alive(proc.pid)
-        out, _ = proc.communicate(timeout=30) if not stragglers else ("", None)
+        rest, _ = proc.communicate(timeout=30) if not stragglers else ("", None)
+        lines.append(rest)
     finally:
         if proc.poll() is None or _group_alive(proc.pid):  # only on a hung child
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
     assert not stragglers, "processes of the killed ingest outlived it"
-    return out, proc.returncode
+    return "".join(lines), proc.returncode, times
 
 
 def _group_alive(pgid: int) -> bool:
@@ -184,18 +200,19 @@ def _complete(path: Path, folder: Path, already: int) -> None:
 def test_sigkill_at_random_moments(tmp_path: Path, models: Path) -> None:
     rng = random.Random(1234)
     batch = 2
-    # how long a whole run takes here, to aim the kills inside it
-    t0 = time.monotonic()
-    out, code = _run(tmp_path, tmp_path / "full", models, batch=batch)
-    duration = time.monotonic() - t0
+    n_batches = N_FILES // batch
+    # a whole run first, to learn how long one batch takes here
+    out, code, times = _run(tmp_path, tmp_path / "full", models, batch=batch)
     assert code == 0 and "DONE" in out, out
     assert len(check_consistent(tmp_path / "full")) == N_FILES
+    per_batch = (times[-1] - times[0]) / n_batches  # START .. DONE
     outcomes = []
     for trial in range(5):
         path = tmp_path / f"db{trial}"
         database.connect(path, **OPTIONS)  # the store exists before the child starts
-        kill_after = rng.uniform(0.3 * duration, 0.95 * duration)
-        out, code = _run(tmp_path, path, models, batch=batch, kill_after=kill_after)
+        # after a random number of commits, at a random moment of the next batch
+        kill_after = (rng.randrange(n_batches - 1), rng.uniform(0.05, 0.95) * per_batch)
+        out, code, _ = _run(tmp_path, path, models, batch=batch, kill_after=kill_after)
         store = check_consistent(path)
         n = len(store)
         reported = _committed(out)
@@ -226,7 +243,7 @@ def test_sigkill_at_each_commit_step(
     path = tmp_path / "db"
     database.connect(path, **OPTIONS)
     batch = 3
-    out, code = _run(tmp_path, path, models, batch=batch, kill_at=kill_at)
+    out, code, _ = _run(tmp_path, path, models, batch=batch, kill_at=kill_at)
     assert code == -signal.SIGKILL, out
     store = check_consistent(path)
     # the first batch is committed; the second is entirely absent or entirely present
@@ -237,7 +254,7 @@ def test_sigkill_at_each_commit_step(
 def test_sigkill_with_worker_processes(tmp_path: Path, models: Path) -> None:
     path = tmp_path / "db"
     database.connect(path, **OPTIONS)
-    out, code = _run(tmp_path, path, models, batch=2, kill_at="replace:3", workers=2)
+    out, code, _ = _run(tmp_path, path, models, batch=2, kill_at="replace:3", workers=2)
     assert code == -signal.SIGKILL, out
     store = check_consistent(path)
     assert len(store) == 4
