@@ -2,25 +2,34 @@
 
 Usage (from the repository root)::
 
-    python -m bench.classify --quick      # small graphs, few epochs: well under 30 min
-    python -m bench.classify              # the full run (hours on 2 CPU cores)
+    python -m bench.classify --quick      # small sets, few epochs: well under 30 min
+    python -m bench.classify              # the full run (about an hour on 2 shared cores)
 
-For each data set, k-fold cross-validation stratified by class; inside every fold 15 %
-of the training models are held out to choose the epoch (never the test fold). For
-each convolution (TAGConv, ARMAConv, SplineConv), with and without random rotations,
-the table gives the test accuracy (mean and standard deviation over the folds) on the
-meshes' graphs and, for the same mesh-trained models, on the graphs of point clouds
-of the same shapes (20 % of the vertices); the parameter count; the seconds per epoch;
-and the peak memory of training (growth of the resident set, each setting in a fresh
-process; on a GPU, torch's peak allocation). The baseline, in the same run and on the
-same folds, is a 1-nearest-neighbour classifier on the Eq. 3 kernel.
+Evaluation. ``capod`` (15 classes x 12 meshes) uses k-fold cross-validation
+stratified by class; inside every fold 15 % of the training models are held out to
+choose the epoch (never the test fold). The ``generated`` set (12 classes x 100) uses
+one fixed stratified split, 60 % train / 15 % validation / 25 % test, the epoch chosen
+on validation; ``--seeds`` repeats the training with other seeds on the same split.
+The spread column is the standard deviation over folds (capod) or seeds (generated);
+with one seed it is the binomial standard error of the test accuracy.
 
-Data sets: ``capod`` (../shared/data/capod, 15 classes x 12 meshes) and ``generated``
-(families of machined parts and jointed figures from :mod:`shapedb.examples`, each
-class a family with varied proportions). Decompositions come from the shared cache of
-:mod:`bench.common` (``bench/results/cache``, git-ignored). Results go to
-``bench/results/classify.json`` and a training curve per convolution to
-``bench/results/classify_<set>_<conv>.png``.
+For each convolution (TAGConv, ARMAConv, SplineConv), with and without random
+rotations, the table gives the test accuracy on the meshes' graphs and, for the same
+mesh-trained models, on the graphs of point clouds of the same shapes (20 % of the
+vertices); the parameter count; the median over folds of the seconds per epoch
+(training plus validation pass, single torch thread, on a shared machine: the load
+average is recorded); and the peak memory of training (growth of the resident set,
+each setting in a fresh process; on a GPU, torch's peak allocation). The baseline, in
+the same run and on the same splits, is a 1-nearest-neighbour classifier on the
+Eq. 3 kernel, its gallery every non-test model.
+
+Data sets: ``capod`` (../shared/data/capod) and ``generated`` (the machined-part
+families of :mod:`shapedb.examples`, one class per kind, seeds varying proportions and
+features; ``--classes`` above 12 adds jointed-figure subjects). Decompositions come
+from the shared cache of :mod:`bench.common` (``bench/results/cache``, git-ignored).
+Results go to ``bench/results/classify.json`` (capod) and
+``bench/results/classify_<set>.json`` (other sets), training curves (last fold or
+seed) to ``bench/results/classify_<set>_<conv>[_rot].png``.
 """
 
 from __future__ import annotations
@@ -54,7 +63,12 @@ COLUMNS = (
     "params (M)",
     "s/epoch",
     "peak MB",
+    "best ep",
 )
+#: Fractions of the fixed split (train, validation, test).
+FIXED_SPLIT = (0.6, 0.15, 0.25)
+Split = dict[str, Any]
+"""``{"train": idx, "val": idx or None, "test": idx, "seed": int}`` (int64 index arrays)."""
 
 
 # --------------------------------------------------------------------------------------
@@ -62,11 +76,11 @@ COLUMNS = (
 # --------------------------------------------------------------------------------------
 
 
-def generated(per_class: int, classes: int = 10) -> Dataset:
+def generated(per_class: int, classes: int = 12) -> Dataset:
     """``classes`` procedural families from shapedb.examples, ``per_class`` shapes each.
 
     Every machined-part kind of ``shapedb.examples.PART_KINDS`` is a class (seeds vary
-    its dimensions and features); the remaining classes are jointed-figure subjects
+    its dimensions and features); classes beyond those are jointed-figure subjects
     (each with its own limb proportions) in ``per_class`` poses.
     """
     from shapedb import examples
@@ -80,28 +94,51 @@ def generated(per_class: int, classes: int = 10) -> Dataset:
 
 
 def graphs_of(
-    ds: Dataset, config: MDBDConfig, n_balls: int, workers: int, points: bool = True
+    ds: Dataset,
+    config: MDBDConfig,
+    n_balls: int,
+    workers: int,
+    points: bool | Sequence[int] | NDArray[np.int64] = True,
 ) -> dict[str, Any]:
-    """Mesh and point-cloud graphs of every model decomposed in both (failures dropped).
+    """Mesh and point-cloud graphs of the models (failures dropped).
 
-    Without ``points`` the point-cloud entries are the mesh graphs (not evaluated).
+    Parameters
+    ----------
+    points : bool or sequence of int
+        Decompose the point clouds of every model (True), of none (False), or of
+        these model indices only (e.g. a test split); the others' entries are None.
+
+    Returns
+    -------
+    dict
+        ``names``, ``labels``, ``mesh`` (Balls), ``pointcloud`` (Balls or None),
+        ``points`` (whether any point cloud is there) and ``kept`` (indices into
+        ``ds.models`` of the entries).
     """
+    n = len(ds.models)
+    if isinstance(points, bool):
+        want = np.arange(n) if points else np.zeros(0, dtype=np.int64)
+    else:
+        want = np.asarray(points, dtype=np.int64)
     mesh = decompose_all(ds.models, "mesh", config, workers=workers)
-    pc = decompose_all(ds.models, "pointcloud", config, workers=workers) if points else mesh
-    keep = [
-        i
-        for i, (a, b) in enumerate(zip(mesh, pc, strict=True))
-        if a is not None and b is not None and len(a.radii) > 1 and len(b.radii) > 1
-    ]
-    if len(keep) < len(ds.models):
-        print(f"  {len(ds.models) - len(keep)} model(s) without both decompositions are left out")
-    trunc = lambda b: b.truncate(n_balls)  # noqa: E731 - the greedy MDBD prefix
+    pc: list[Any] = [None] * n
+    if len(want):
+        got = decompose_all([ds.models[i] for i in want], "pointcloud", config, workers=workers)
+        for i, b in zip(want.tolist(), got, strict=True):
+            pc[i] = b
+    need = set(want.tolist())
+    ok = lambda b: b is not None and len(b.radii) > 1  # noqa: E731
+    keep = [i for i in range(n) if ok(mesh[i]) and (i not in need or ok(pc[i]))]
+    if len(keep) < n:
+        print(f"  {n - len(keep)} model(s) without their decompositions are left out")
+    trunc = lambda b: None if b is None else b.truncate(n_balls)  # noqa: E731 - MDBD prefix
     return {
-        "points": points,
+        "points": bool(len(want)),
         "names": [ds.models[i].name for i in keep],
         "labels": [ds.models[i].label for i in keep],
         "mesh": [trunc(mesh[i]) for i in keep],
         "pointcloud": [trunc(pc[i]) for i in keep],
+        "kept": keep,
     }
 
 
@@ -112,31 +149,83 @@ def folds_of(labels: Sequence[str], k: int, seed: int = 0) -> list[NDArray[np.in
     return stratified_split(labels, [1.0 / k] * k, seed=seed)
 
 
+def kfold_splits(labels: Sequence[str], k: int, seed: int = 0) -> list[Split]:
+    """k-fold splits; validation is drawn from each training part by the classifier."""
+    n = len(labels)
+    return [
+        {"train": np.setdiff1d(np.arange(n), t), "val": None, "test": t, "seed": f}
+        for f, t in enumerate(folds_of(labels, k, seed))
+    ]
+
+
+def fixed_splits(labels: Sequence[str], seeds: int, seed: int = 0) -> list[Split]:
+    """One stratified train / validation / test split, trained with ``seeds`` seeds."""
+    from query.gnn import stratified_split
+
+    tr, va, te = stratified_split(labels, FIXED_SPLIT, seed=seed)
+    return [{"train": tr, "val": va, "test": te, "seed": s} for s in range(seeds)]
+
+
+def _remap(splits: list[Split], kept: Sequence[int]) -> list[Split]:
+    """Splits over ``ds.models`` indices re-expressed over the kept entries."""
+    new = {old: k for k, old in enumerate(kept)}
+    out = []
+    for s in splits:
+        m = {
+            key: (
+                None
+                if s[key] is None
+                else np.asarray([new[i] for i in s[key] if i in new], dtype=np.int64)
+            )
+            for key in ("train", "val", "test")
+        }
+        out.append({**m, "seed": s["seed"]})
+    return out
+
+
 # --------------------------------------------------------------------------------------
 # Baseline: 1-NN on the Eq. 3 kernel
 # --------------------------------------------------------------------------------------
 
 
-def knn_baseline(data: dict[str, Any], folds: list[NDArray[np.int64]]) -> dict[str, Any]:
-    """Accuracy of 1-nearest-neighbour on k = exp(-lam d) (Eq. 3), mesh and point cloud."""
+def knn_baseline(data: dict[str, Any], splits: list[Split]) -> dict[str, Any]:
+    """Accuracy of 1-nearest-neighbour on k = exp(-lam d) (Eq. 3), mesh and point cloud.
+
+    The gallery is every non-test model (train and validation: the kernel has nothing
+    to select); point-cloud queries are matched against the mesh gallery.
+    """
     from shapedb.kernel import features, kernel
 
     cfg = KernelConfig()
     t0 = time.perf_counter()
+    feat = lambda b: None if b is None else features(b.decomposition(), cfg)  # noqa: E731
     fm = np.stack([features(b.decomposition(), cfg) for b in data["mesh"]])
-    fp = np.stack([features(b.decomposition(), cfg) for b in data["pointcloud"]])
+    fp = [feat(b) for b in data["pointcloud"]]
     y = np.asarray(data["labels"])
     acc: dict[str, list[float]] = {"mesh": [], "pointcloud": []}
-    for test in folds:
+    seen: set[bytes] = set()
+    for s in splits:
+        test = s["test"]
+        if test.tobytes() in seen:  # the same split trained with another seed
+            continue
+        seen.add(test.tobytes())
         train = np.setdiff1d(np.arange(len(y)), test)
-        for name, f in (("mesh", fm), ("pointcloud", fp)) if data["points"] else (("mesh", fm),):
-            sims = np.stack([kernel(f[i], fm[train], cfg) for i in test])
+        has = np.asarray([i for i in test if fp[i] is not None], dtype=np.int64)
+        queries = [("mesh", test, [fm[i] for i in test])]
+        if data["points"] and len(has):
+            queries.append(("pointcloud", has, [fp[i] for i in has]))
+            if len(has) < len(test):  # point clouds of a subset: the meshes of it too
+                queries.append(("mesh_pc_subset", has, [fm[i] for i in has]))
+        for name, idx, fq in queries:
+            sims = np.stack([kernel(f, fm[train], cfg) for f in fq])
             pred = y[train][sims.argmax(axis=1)]
-            acc[name].append(float(np.mean(pred == y[test])))
+            acc.setdefault(name, []).append(float(np.mean(pred == y[idx])))
     return {
         "network": "1-NN, Eq. 3 kernel",
         "rotations": "-",
         "accuracy": acc,
+        "n_test": [len(s["test"]) for s in splits],
+        "n_points_test": [sum(fp[i] is not None for i in s["test"]) for s in splits],
         "parameters": 0,
         "seconds_per_epoch": None,
         "peak_mb": None,
@@ -159,13 +248,13 @@ def _rss_mb() -> float:
 
 def run_setting(
     data: dict[str, Any],
-    folds: list[NDArray[np.int64]],
+    splits: list[Split],
     conv: str,
     rotate: bool,
     options: dict[str, Any],
     curve: str | None,
 ) -> dict[str, Any]:
-    """Train and test one convolution on every fold (runs in a worker process)."""
+    """Train and test one convolution on every split (runs in a worker process)."""
     import torch
 
     from query.classify import GraphClassifier
@@ -175,109 +264,180 @@ def run_setting(
     torch.set_num_threads(int(options.pop("threads", 0)) or torch.get_num_threads())
     y = list(data["labels"])
     acc: dict[str, list[float]] = {"mesh": [], "pointcloud": []}
-    secs, best = [], []
+    secs, best, summary = [], [], []
     base = _rss_mb()
     cuda = torch.cuda.is_available() and options.get("device") in (None, "cuda")
     t0 = time.perf_counter()
+    load = [os.getloadavg()[0]]
     model = None
-    for f, test in enumerate(folds):
-        train = np.setdiff1d(np.arange(len(y)), test)
-        model = GraphClassifier(conv, rotate=rotate, seed=f, **options)
-        model.fit([data["mesh"][i] for i in train], [y[i] for i in train])
-        for name in ("mesh", "pointcloud") if data["points"] else ("mesh",):
-            acc[name].append(model.score([data[name][i] for i in test], [y[i] for i in test]))
-        secs.append(float(np.mean(model.history_["seconds"])))
+    pick = lambda idx, xs: [xs[i] for i in idx]  # noqa: E731
+    for f, s in enumerate(splits):
+        model = GraphClassifier(conv, rotate=rotate, seed=int(s["seed"]), **options)
+        val = None if s["val"] is None else (pick(s["val"], data["mesh"]), pick(s["val"], y))
+        model.fit(pick(s["train"], data["mesh"]), pick(s["train"], y), validation_data=val)
+        test = s["test"]
+        acc["mesh"].append(model.score(pick(test, data["mesh"]), pick(test, y)))
+        has = [i for i in test if data["pointcloud"][i] is not None]
+        if data["points"] and has:
+            acc["pointcloud"].append(model.score(pick(has, data["pointcloud"]), pick(has, y)))
+            if len(has) < len(test):  # point clouds of a subset: the meshes of it too
+                score = model.score(pick(has, data["mesh"]), pick(has, y))
+                acc.setdefault("mesh_pc_subset", []).append(score)
+        h = model.history_
+        secs.append(float(np.median(h["seconds"])))
         best.append(model.best_epoch_ + 1)
+        summary.append(
+            {
+                "best_epoch": model.best_epoch_ + 1,
+                "val_accuracy_best": h["val_accuracy"][model.best_epoch_],
+                "train_accuracy_last": h["accuracy"][-1],
+                "train_loss_last": h["loss"][-1],
+                "val_accuracy_last": h["val_accuracy"][-1],
+            }
+        )
         print(
-            f"    {conv:6s} rotate={rotate!s:5s} fold {f + 1}/{len(folds)}: "
+            f"    {conv:6s} rotate={rotate!s:5s} split {f + 1}/{len(splits)}: "
             f"mesh {acc['mesh'][-1]:.3f}  points {(acc['pointcloud'] or [np.nan])[-1]:.3f}  "
-            f"({secs[-1]:.2f} s/epoch)",
+            f"best epoch {best[-1]}  ({secs[-1]:.2f} s/epoch)",
             flush=True,
         )
+    load.append(os.getloadavg()[0])
     peak = (
         torch.cuda.max_memory_allocated() / 2**20
         if cuda
         else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 - base
     )
     if curve and model is not None:
-        plot_history(model.history_, curve, title=f"{conv}, rotate={rotate}, last fold")
+        plot_history(model.history_, curve, title=f"{conv}, rotate={rotate}, last split")
     return {
         "network": conv,
         "rotations": "yes" if rotate else "no",
         "accuracy": acc,
+        "n_test": [len(s["test"]) for s in splits],
+        "n_points_test": [
+            sum(data["pointcloud"][i] is not None for i in s["test"]) for s in splits
+        ],
         "parameters": int(model.n_parameters_) if model else 0,
-        "seconds_per_epoch": float(np.mean(secs)),
+        "seconds_per_epoch": float(np.median(secs)),
+        "seconds_per_epoch_per_split": secs,
         "peak_mb": float(peak),
         "best_epochs": best,
+        "splits": summary,
+        "history_last_split": model.history_ if model else {},
+        "load_average": load,
         "seconds": time.perf_counter() - t0,
     }
 
 
-def run_set(name: str, data: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
-    """Every setting on one data set; prints and returns its table."""
-    folds = folds_of(data["labels"], args.folds)
-    print(
-        f"  {len(data['labels'])} models, {len(set(data['labels']))} classes, "
-        f"{args.folds} folds, up to {args.balls} balls per graph",
-        flush=True,
-    )
-    rows = [knn_baseline(data, folds)]
-    options = {"epochs": args.epochs, "batch_size": args.batch_size, "threads": args.threads}
-    for conv in args.convs:
-        for rotate in (True, False):
-            curve = str(RESULTS / f"classify_{name}_{conv}.png") if rotate else None
-            ctx = get_context("spawn")
-            with ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
-                rows.append(
-                    pool.submit(
-                        run_setting, data, folds, conv, rotate, dict(options), curve
-                    ).result()
-                )
+def _spread(acc: NDArray[np.float64], n_test: Sequence[int]) -> float:
+    """Std over folds / seeds; for a single result the binomial standard error."""
+    if len(acc) > 1:
+        return float(acc.std())
+    if len(acc) == 1 and n_test:
+        return float(np.sqrt(acc[0] * (1 - acc[0]) / n_test[0]))
+    return float("nan")
+
+
+def table_rows(rows: Sequence[dict[str, Any]]) -> list[list[Any]]:
+    """The printed table's rows (accuracies in %)."""
     table = []
     for r in rows:
         m, p = np.asarray(r["accuracy"]["mesh"]), np.asarray(r["accuracy"]["pointcloud"])
+        n = r.get("n_test", [])
         table.append(
             [
                 r["network"],
                 r["rotations"],
                 100 * m.mean(),
-                100 * m.std(),
+                100 * _spread(m, n),
                 100 * p.mean() if len(p) else None,
-                100 * p.std() if len(p) else None,
+                100 * _spread(p, r.get("n_points_test", n)) if len(p) else None,
                 r["parameters"] / 1e6,
                 r["seconds_per_epoch"],
                 r["peak_mb"],
+                float(np.median(r["best_epochs"])) if r.get("best_epochs") else None,
             ]
         )
+    return table
+
+
+def run_set(
+    name: str, data: dict[str, Any], splits: list[Split], args: argparse.Namespace
+) -> dict[str, Any]:
+    """Every setting on one data set; prints and returns its table."""
+    how = (
+        f"{args.folds} folds"
+        if splits[0]["val"] is None
+        else f"fixed split {len(splits[0]['train'])}/{len(splits[0]['val'])}/"
+        f"{len(splits[0]['test'])}, {len(splits)} seed(s)"
+    )
+    print(
+        f"  {len(data['labels'])} models, {len(set(data['labels']))} classes, {how}, "
+        f"up to {args.balls} balls per graph, {args.epochs} epochs",
+        flush=True,
+    )
+    rows = [knn_baseline(data, splits)]
+    options = {"epochs": args.epochs, "batch_size": args.batch_size, "threads": args.threads}
+    jobs = []
+    ctx = get_context("spawn")
+    # max_tasks_per_child=1: every setting in a fresh process, for a clean memory peak.
+    with ProcessPoolExecutor(max_workers=args.jobs, mp_context=ctx, max_tasks_per_child=1) as pool:
+        for conv in args.convs:
+            for rotate in (False, True):
+                curve = str(RESULTS / f"classify_{name}_{conv}{'_rot' if rotate else ''}.png")
+                jobs.append(
+                    pool.submit(run_setting, data, splits, conv, rotate, dict(options), curve)
+                )
+        rows += [j.result() for j in jobs]
     print(
         format_table(
-            f"Table 1 on {name}: accuracy % over {args.folds} folds (models trained on meshes)",
+            f"Table 1 on {name}: test accuracy % ({how}; models trained on meshes)",
             COLUMNS,
-            table,
+            table_rows(rows),
         ),
         flush=True,
     )
     return {
         "models": len(data["labels"]),
         "classes": len(set(data["labels"])),
-        "folds": args.folds,
+        "evaluation": how,
+        "folds": args.folds if splits[0]["val"] is None else None,
         "rows": rows,
     }
 
 
+def out_path(name: str, directory: Path = RESULTS) -> Path:
+    """``classify.json`` for capod, ``classify_<name>.json`` for the others."""
+    return directory / ("classify.json" if name == "capod" else f"classify_{name}.json")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--quick", action="store_true", help="small graphs and few epochs")
+    p.add_argument("--quick", action="store_true", help="small sets and few epochs")
     p.add_argument("--sets", nargs="+", default=["capod", "generated"])
     p.add_argument("--convs", nargs="+", default=["tag", "arma", "spline"])
-    p.add_argument("--folds", type=int, default=None)
-    p.add_argument("--epochs", type=int, default=None)
-    p.add_argument("--balls", type=int, default=None, help="graph size n (largest balls)")
+    p.add_argument("--folds", type=int, default=None, help="capod folds (3 quick, 5 full)")
+    p.add_argument("--epochs", type=int, default=None, help="25 quick, 60 full")
+    p.add_argument("--balls", type=int, default=128, help="graph size n (largest balls)")
     p.add_argument(
         "--per-class",
         type=int,
         default=None,
         help="shapes per class (generated: 40 quick, 100 full; capod: all 12)",
+    )
+    p.add_argument("--classes", type=int, default=12, help="generated classes")
+    p.add_argument(
+        "--generated-eval",
+        choices=("fixed", "kfold"),
+        default="fixed",
+        help="generated set: fixed 60/15/25 split or k-fold",
+    )
+    p.add_argument("--seeds", type=int, default=1, help="trainings on the fixed split")
+    p.add_argument(
+        "--points-per-class",
+        type=int,
+        default=None,
+        help="generated, fixed split: point clouds of this many test shapes per class only",
     )
     p.add_argument("--batch-size", type=int, default=16)
     p.add_argument(
@@ -293,42 +453,60 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="also test the generated set on point clouds (default: not with --quick)",
     )
     p.add_argument("--workers", type=int, default=2, help="decomposition processes")
-    p.add_argument("--out", type=Path, default=RESULTS / "classify.json")
+    p.add_argument("--jobs", type=int, default=1, help="settings trained in parallel")
+    p.add_argument("--out-dir", type=Path, default=RESULTS)
     args = p.parse_args(argv)
     q = args.quick
-    args.folds = args.folds or (3 if q else 4)
-    args.epochs = args.epochs or (25 if q else 100)
-    args.balls = args.balls or (128 if q else 512)
+    args.folds = args.folds or (3 if q else 5)
+    args.epochs = args.epochs or (25 if q else 60)
     per_class = args.per_class or (40 if q else 100)
     # capod as bench.retrieval decomposes it (shared cache), without off-grid refinement;
-    # the generated set at a coarser grid so that 1000+ shapes decompose in minutes.
+    # the generated set at a coarser grid, only the balls the graphs use, so that its
+    # 1000+ shapes decompose in minutes.
     configs = {
         "capod": MDBDConfig(refine=False),
-        "generated": MDBDConfig(resolution=64, n_balls=256, refine=False),
+        "generated": MDBDConfig(resolution=64, n_balls=128, refine=False),
     }
     if args.generated_points is None:
         args.generated_points = not q
-    out: dict[str, Any] = {
-        "settings": {k: v for k, v in vars(args).items() if k != "out"},
-        "sets": {},
-    }
-    out["settings"]["cpu_count"] = os.cpu_count()
     for name in args.sets:
         t0 = time.perf_counter()
+        out: dict[str, Any] = {
+            "settings": {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()},
+            "sets": {},
+        }
+        out["settings"]["cpu_count"] = os.cpu_count()
+        out["settings"]["load_average_start"] = os.getloadavg()
         print(f"== {name}", flush=True)
         if name == "capod":
             ds = capod().head(per_class=args.per_class) if args.per_class else capod()
         else:
-            ds = generated(per_class)
-        points = name == "capod" or args.generated_points
+            ds = generated(per_class, args.classes)
+        labels = [m.label for m in ds.models]
+        if name == "capod" or args.generated_eval == "kfold":
+            splits = kfold_splits(labels, args.folds)
+        else:
+            splits = fixed_splits(labels, args.seeds)
+        points: bool | NDArray[np.int64] = True
+        if name != "capod":
+            # point clouds of the test models only (all of them under k-fold)
+            points = np.unique(np.concatenate([s["test"] for s in splits]))
+            if args.points_per_class and args.generated_eval == "fixed":
+                lab = np.asarray(labels)
+                points = np.concatenate(
+                    [points[lab[points] == c][: args.points_per_class] for c in sorted(set(labels))]
+                )
+            points = points if args.generated_points else False
         data = graphs_of(ds, configs[name], args.balls, args.workers, points)
-        res = run_set(name, data, args)
-        res["point_clouds_tested"] = points
+        res = run_set(name, data, _remap(splits, data["kept"]), args)
+        res["point_clouds_tested"] = data["points"]
         res["config"] = configs[name].__dict__
         res["seconds"] = time.perf_counter() - t0
+        out["settings"]["load_average_end"] = os.getloadavg()
         out["sets"][name] = res
-        write_json(args.out, out)
-    print(f"wrote {args.out}")
+        path = out_path(name, args.out_dir)
+        write_json(path, out)
+        print(f"wrote {path} ({res['seconds']:.0f} s)", flush=True)
     return 0
 
 

@@ -18,6 +18,11 @@ neighbours), so 512 neighbourhood subgraphs per shape. Then:
 * recall@10: a returned shape counts when its distance is within the exact 10th
   (ties tolerated, as in faiss contrib).
 
+Each store is searched with the default part vector (``PartConfig()``: Eq. 1 plus
+the size and centre blocks, 32 values) and, in the same run on the same store and queries, with
+the paper's vector alone (``size=0``, 20 values, as measured before the size block),
+so the cost of the extra block is a ratio measured under the same load.
+
 Run ``python -m bench.substructure`` (about 10 minutes on 2 cores, most of it
 building the 1e4 store). Prints a table and writes ``bench/results/substructure.json``.
 """
@@ -98,21 +103,33 @@ def build_store(path: Path, n_shapes: int, n_balls: int) -> Any:
     return db
 
 
-def run(n_shapes: int, n_queries: int, n_balls: int, root: Path) -> dict[str, Any]:
-    from query.parts_index import open_parts_index
-    from query.substructure import match, part_feature
+#: Part settings measured: the default, and the paper's vector alone (the baseline).
+PARTS = {"default": PartConfig(), "paper": PartConfig(size=0.0, centre=0.0)}
 
-    cfg = PartConfig()
+
+def run(
+    n_shapes: int, n_queries: int, n_balls: int, root: Path, parts: Sequence[str] = ("default",)
+) -> list[dict[str, Any]]:
     t0 = time.perf_counter()
     db = build_store(root / f"store{n_shapes}", n_shapes, n_balls)
     t_store = time.perf_counter() - t0
+    return [run_config(db, n_shapes, n_queries, n_balls, t_store, p) for p in parts]
+
+
+def run_config(
+    db: Any, n_shapes: int, n_queries: int, n_balls: int, t_store: float, part: str
+) -> dict[str, Any]:
+    from query.parts_index import open_parts_index
+    from query.substructure import match, part_feature
+
+    cfg = PARTS[part]
     t0 = time.perf_counter()
     index = open_parts_index(db, cfg)
     t_index = time.perf_counter() - t0
     logger.info("%d shapes: store %.1f s, part index %.1f s: %r", n_shapes, t_store, t_index, index)
     rng = np.random.default_rng(1)
     lat, base, recall = [], [], []
-    match(db, ContactGraph(*ball_graph(0, n_balls)), node=0, k=10)  # warm up
+    match(db, ContactGraph(*ball_graph(0, n_balls)), node=0, k=10, config=cfg)  # warm up
     for _ in range(n_queries):
         sid = int(rng.integers(n_shapes))
         c, r, e = ball_graph(sid, n_balls)
@@ -120,7 +137,7 @@ def run(n_shapes: int, n_queries: int, n_balls: int, root: Path) -> dict[str, An
         g = ContactGraph(c, r, e)
         v = int(rng.integers(n_balls))
         t = time.perf_counter()
-        hits = match(db, g, node=v, k=10)
+        hits = match(db, g, node=v, k=10, config=cfg)
         lat.append(time.perf_counter() - t)
         feat, _ = part_feature(g, v, cfg)
         t = time.perf_counter()
@@ -131,6 +148,8 @@ def run(n_shapes: int, n_queries: int, n_balls: int, root: Path) -> dict[str, An
     ms = 1e3 * np.asarray(lat)
     bms = 1e3 * np.asarray(base)
     return {
+        "part": part,
+        "dim": int(index.features_.shape[1]),
         "shapes": n_shapes,
         "vectors": index.n_vectors,
         "index_kind": index.kind_,
@@ -150,34 +169,39 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--sizes", type=int, nargs="+", default=[1000, 10000])
     ap.add_argument("--queries", type=int, default=100)
     ap.add_argument("--n-balls", type=int, default=512)
+    ap.add_argument("--parts", nargs="+", default=["default", "paper"], choices=sorted(PARTS))
     ap.add_argument("--out", type=Path, default=RESULTS / "substructure.json")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     rows, out = [], []
     with tempfile.TemporaryDirectory(prefix="shapedb-bench-") as tmp:
         for n in args.sizes:
-            r = run(n, args.queries, args.n_balls, Path(tmp))
-            out.append(r)
-            rows.append(
-                [
-                    n,
-                    r["vectors"],
-                    r["index_kind"],
-                    r["index_build_s"],
-                    r["p50_ms"],
-                    r["p99_ms"],
-                    r["brute_p50_ms"],
-                    r["brute_p99_ms"],
-                    r["recall_at_10"],
-                ]
-            )
+            for r in run(n, args.queries, args.n_balls, Path(tmp), args.parts):
+                out.append(r)
+                rows.append(
+                    [
+                        n,
+                        r["part"],
+                        r["dim"],
+                        r["vectors"],
+                        r["index_kind"],
+                        r["index_build_s"],
+                        r["p50_ms"],
+                        r["p99_ms"],
+                        r["brute_p50_ms"],
+                        r["brute_p99_ms"],
+                        r["recall_at_10"],
+                    ]
+                )
     logger.info(
         "\n%s",
         format_table(
             f"Corpus part search, k=10, {args.n_balls}-ball graphs, K=2, n_r=10 "
-            f"({os.cpu_count()} cores)",
+            f"({os.cpu_count()} cores, load {os.getloadavg()[0]:.1f})",
             [
                 "shapes",
+                "part",
+                "dim",
                 "vectors",
                 "index",
                 "build s",
@@ -190,7 +214,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             rows,
         ),
     )
-    write_json(args.out, {"machine": platform.platform(), "cores": os.cpu_count(), "runs": out})
+    write_json(
+        args.out,
+        {
+            "machine": platform.platform(),
+            "cores": os.cpu_count(),
+            "load_avg": os.getloadavg(),
+            "runs": out,
+        },
+    )
     return 0
 
 

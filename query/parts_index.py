@@ -2,9 +2,11 @@
 
 Corpus part search asks: which neighbourhood subgraph ``G[N(u, K)]`` of which stored
 shape is most like the query part? Each stored shape of n balls contributes n vectors
-(:func:`shapedb.subgraph.neighbourhood_features`, d = 2 n_r = 20 by default), so a
-store of 1e4 shapes of 512 balls holds five million. As in :mod:`query.index`, Eq. 2
-is a weighted L1 distance, so faiss holds ``f * weights`` under ``METRIC_L1``:
+(:func:`shapedb.subgraph.neighbourhood_features`: Eq. 1 plus the size and centre
+blocks, d = 3 n_r + 2 = 32 by default, :func:`shapedb.subgraph.part_dim`), so a
+store of 1e4 shapes of 512 balls holds five million. As in :mod:`query.index`, the
+part distance (Eq. 2 extended) is a weighted L1 distance, so faiss holds
+``f * weights`` under ``METRIC_L1``:
 
 * below ``ivf_threshold`` vectors, ``IndexFlat(d, METRIC_L1)`` (exact);
 * above, ``IndexIVFFlat`` with an L2 coarse quantizer (k-means, BLAS-fast to train
@@ -12,7 +14,9 @@ is a weighted L1 distance, so faiss holds ``f * weights`` under ``METRIC_L1``:
 
 faiss only proposes candidates; they are re-ranked exactly in float64 on the raw
 features and grouped by shape (at most ``per_shape`` results per shape, default 1:
-neighbouring nodes of one shape have nearly identical neighbourhoods). When the
+neighbouring nodes of one shape have nearly identical neighbourhoods; with
+``per_shape > 1`` the matches kept within a shape are chosen greedily so that their
+node sets overlap by at most ``overlap``, Jaccard, default 0.0: disjoint). When the
 candidates hold fewer than k distinct shapes the search widens (more candidates,
 more lists) and finally falls back to the exact scan.
 
@@ -24,7 +28,9 @@ On disk, beside the store: ``<store>/parts/<PartConfig fingerprint>/current.json
 ``shapes.npy``, ``node_ptr.npy``, ``edge_ptr.npy``, ``edges.npy``, ``alive.npy`` and,
 for IVF, ``faiss.index``. When the store version has moved, new shapes are
 featurised from the store's balls and edges and added, deleted ones tombstoned (the
-index is compacted once a fifth of it is dead).
+index is compacted once a fifth of it is dead). An index written before
+:class:`PartConfig` had ``size``/``centre`` holds the paper's vectors alone and is
+read with ``size = centre = 0`` (:func:`read_part_config`).
 """
 
 from __future__ import annotations
@@ -42,9 +48,9 @@ from numpy.typing import ArrayLike, NDArray
 from query._versioned import POINTER, current, save_version
 from shapedb.config import PartConfig
 from shapedb.errors import NotFittedError, QueryError, StoreError, require
-from shapedb.subgraph import neighbourhood_features_many
+from shapedb.subgraph import neighbourhood_features_many, part_dim, part_weights
 
-__all__ = ["PartIndex", "open_parts_index", "on_commit", "PARTS_DIR"]
+__all__ = ["PartIndex", "open_parts_index", "on_commit", "read_part_config", "PARTS_DIR"]
 
 log = logging.getLogger(__name__)
 
@@ -52,6 +58,16 @@ PARTS_DIR = "parts"
 _FORMAT = 1
 _DEAD_FRACTION = 0.2
 _SCAN_BLOCK = 262_144
+
+
+#: PartConfig fields added after part indexes were first written, and the values that
+#: reproduce what those indexes hold (the paper's Eq. 1 vector alone).
+_LEGACY = {"size": 0.0, "centre": 0.0}
+
+
+def read_part_config(data: dict[str, Any]) -> PartConfig:
+    """The :class:`PartConfig` of a stored part index; fields it predates take legacy values."""
+    return PartConfig(**{**_LEGACY, **data})
 
 
 def _faiss() -> Any:
@@ -125,10 +141,8 @@ class PartIndex:
 
     @property
     def weights(self) -> NDArray[np.float64]:
-        """(d,) Eq. 2 weights of the part kernel."""
-        from shapedb.kernel import weights
-
-        return np.asarray(weights(self.config.kernel), np.float64)
+        """(d,) weights of the part distance (:func:`shapedb.subgraph.part_weights`)."""
+        return part_weights(self.config)
 
     def fit(self, ids: ArrayLike, graphs: list[Any]) -> PartIndex:
         """Index the neighbourhoods of every node of ``graphs``.
@@ -150,7 +164,7 @@ class PartIndex:
         self.edge_ptr_ = np.zeros(1, np.int64)
         self.edges_ = np.zeros((0, 2), np.int32)
         self.alive_ = np.zeros(0, bool)
-        self.features_: NDArray[np.float32] = np.zeros((0, self.config.dim), np.float32)
+        self.features_: NDArray[np.float32] = np.zeros((0, part_dim(self.config)), np.float32)
         self._append(ids, graphs)
         self._build_faiss()
         return self
@@ -274,15 +288,28 @@ class PartIndex:
 
     # ------------------------------------------------------------------ search
     def _group(
-        self, pos: NDArray[np.int64], d: NDArray[np.float64], k: int, per_shape: int
+        self,
+        pos: NDArray[np.int64],
+        d: NDArray[np.float64],
+        k: int,
+        per_shape: int,
+        overlap: float | None = 0.0,
     ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
-        """Best ``per_shape`` rows per shape, top k overall: (shape ids, nodes, distances)."""
+        """Best ``per_shape`` rows per shape, top k overall: (shape ids, nodes, distances).
+
+        With ``overlap`` (not None) and ``per_shape > 1``, the rows kept within a shape
+        are taken greedily in distance order, skipping a row whose N(u, K) overlaps
+        (Jaccard) a kept one of the same shape by more than ``overlap``.
+        """
         slot = np.searchsorted(self.node_ptr_, pos, side="right") - 1
         ok = self.alive_[slot] & np.isfinite(d)
         pos, d, slot = pos[ok], d[ok], slot[ok]
         sid = self.shapes_[slot]
         node = pos - self.node_ptr_[slot]
         order = np.lexsort((node, sid, d))
+        if overlap is not None and per_shape > 1:
+            sel = self._suppress(sid, node, order, k, per_shape, overlap)
+            return sid[sel], node[sel], d[sel]
         sid_o = sid[order]
         # rank of each row within its shape, in distance order
         srt = np.argsort(sid_o, kind="stable")
@@ -293,6 +320,32 @@ class PartIndex:
         sel = order[first][:k]
         return sid[sel], node[sel], d[sel]
 
+    def _suppress(
+        self,
+        sid: NDArray[np.int64],
+        node: NDArray[np.int64],
+        order: NDArray[np.int64],
+        k: int,
+        per_shape: int,
+        overlap: float,
+    ) -> NDArray[np.int64]:
+        """Greedy per-shape NMS over rows in ``order``: positions kept (<= k)."""
+        kept: dict[int, list[NDArray[np.int64]]] = {}
+        out: list[int] = []
+        for i in order.tolist():
+            s = int(sid[i])
+            have = kept.setdefault(s, [])
+            if len(have) >= per_shape:
+                continue
+            ns = self.node_set(s, int(node[i]))
+            if any(_jaccard(ns, h) > overlap for h in have):
+                continue
+            have.append(ns)
+            out.append(i)
+            if len(out) == k:
+                break
+        return np.asarray(out, np.int64)
+
     def search(
         self,
         query: ArrayLike,
@@ -300,8 +353,9 @@ class PartIndex:
         *,
         per_shape: int = 1,
         allowed: ArrayLike | None = None,
+        overlap: float | None = 0.0,
     ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
-        """The k stored neighbourhoods nearest to one query feature, exact Eq. 2 order.
+        """The k stored neighbourhoods nearest to one query feature, exact distance order.
 
         Parameters
         ----------
@@ -313,6 +367,9 @@ class PartIndex:
             At most this many results per shape.
         allowed : (m,) int, optional
             Only these shape ids (exact scan over their nodes).
+        overlap : float or None
+            Within a shape, skip matches whose node sets overlap a better one's by
+            more than this (Jaccard; only matters for ``per_shape > 1``); None: off.
 
         Returns
         -------
@@ -331,7 +388,7 @@ class PartIndex:
             slots = np.flatnonzero(
                 np.isin(self.shapes_, np.asarray(allowed, np.int64)) & self.alive_
             )
-            return self._scan(q, _concat_ranges(self.node_ptr_, slots), k, per_shape)
+            return self._scan(q, _concat_ranges(self.node_ptr_, slots), k, per_shape, overlap)
         total = len(self.features_)
         n_cand = max(self.oversample * k * per_shape, self.min_candidates)
         nprobe = self.nprobe
@@ -349,31 +406,36 @@ class PartIndex:
             cand = cand[cand >= 0]
             x = np.asarray(self.features_[np.sort(cand)], np.float64)
             d = np.abs(x - q) @ self.weights
-            out = self._group(np.sort(cand), d, k, per_shape)
+            out = self._group(np.sort(cand), d, k, per_shape, overlap)
             if len(out[0]) >= k:
                 return out
             n_cand, nprobe = 4 * n_cand, 4 * nprobe
-        return self._scan(q, np.arange(total, dtype=np.int64), k, per_shape)
+        return self._scan(q, np.arange(total, dtype=np.int64), k, per_shape, overlap)
 
     def exact_search(
-        self, query: ArrayLike, k: int = 10, *, per_shape: int = 1
+        self, query: ArrayLike, k: int = 10, *, per_shape: int = 1, overlap: float | None = 0.0
     ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
         """Brute force over every live vector (the reference for recall)."""
         self._check_fitted()
-        return self._scan(self._query(query), np.arange(len(self.features_)), int(k), per_shape)
+        pos = np.arange(len(self.features_))
+        return self._scan(self._query(query), pos, int(k), per_shape, overlap)
 
     def _query(self, query: ArrayLike) -> NDArray[np.float64]:
         q = np.asarray(query, np.float64).ravel()
-        if q.shape != (self.config.dim,) or not np.all(np.isfinite(q)):
-            raise QueryError(
-                f"part feature must be {self.config.dim} finite values", source=f"shape {q.shape}"
-            )
+        dim = part_dim(self.config)
+        if q.shape != (dim,) or not np.all(np.isfinite(q)):
+            raise QueryError(f"part feature must be {dim} finite values", source=f"shape {q.shape}")
         # the stored features are float32: quantise the query the same way, so that an
         # identical stored subgraph is at distance exactly 0 (similarity 1.0)
         return q.astype(np.float32).astype(np.float64)
 
     def _scan(
-        self, q: NDArray[np.float64], pos: NDArray[np.int64], k: int, per_shape: int
+        self,
+        q: NDArray[np.float64],
+        pos: NDArray[np.int64],
+        k: int,
+        per_shape: int,
+        overlap: float | None = 0.0,
     ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
         w = self.weights
         best: list[tuple[NDArray[np.int64], NDArray[np.float64]]] = []
@@ -389,10 +451,10 @@ class PartIndex:
             return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
         p = np.concatenate([b[0] for b in best])
         d = np.concatenate([b[1] for b in best])
-        out = self._group(p, d, k, per_shape)
+        out = self._group(p, d, k, per_shape, overlap)
         if len(out[0]) < k and len(p) < len(pos):  # prefix too short to hold k shapes
             d = np.abs(np.asarray(self.features_[pos], np.float64) - q) @ w
-            out = self._group(pos, d, k, per_shape)
+            out = self._group(pos, d, k, per_shape, overlap)
         return out
 
     # ------------------------------------------------------------------ persistence
@@ -428,7 +490,7 @@ class PartIndex:
             meta, sub = current(root)
             if meta.get("format") != _FORMAT:
                 raise StoreError(f"unknown part index format {meta.get('format')!r}", source=root)
-            index = cls(PartConfig(**meta["config"]), **meta["params"])
+            index = cls(read_part_config(meta["config"]), **meta["params"])
             for a in cls._ARRAYS:
                 f = sub / f"{a}.npy"
                 setattr(
@@ -454,6 +516,12 @@ class PartIndex:
             f"PartIndex(kind={self.kind_!r}, shapes={int(self.alive_.sum())}, "
             f"vectors={self.n_vectors}, hops={self.config.hops}, version={self.version_})"
         )
+
+
+def _jaccard(a: NDArray[np.int64], b: NDArray[np.int64]) -> float:
+    """|a & b| / |a | b| of two sorted node sets."""
+    inter = len(np.intersect1d(a, b, assume_unique=True))
+    return inter / max(len(a) + len(b) - inter, 1)
 
 
 def _concat_ranges(ptr: NDArray[np.int64], slots: NDArray[np.int64]) -> NDArray[np.int64]:
@@ -547,7 +615,7 @@ def on_commit(db: Any, *args: Any, **kwargs: Any) -> None:
     for sub in base.iterdir():
         if (sub / POINTER).exists():
             try:
-                cfg = PartConfig(**json.loads((sub / POINTER).read_text())["config"])
+                cfg = read_part_config(json.loads((sub / POINTER).read_text())["config"])
             except (OSError, ValueError, KeyError, TypeError) as exc:
                 log.warning("skipping part index %s: %s", sub, exc)
                 continue

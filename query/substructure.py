@@ -14,6 +14,19 @@ compared with the Eq. 1-3 kernel computed on the subgraph alone
   query. ``complement=True`` decomposes the query's complement in its bounding box
   (:class:`shapedb.complement.Complement`), for holes and slots; restrict the corpus
   to stored complements with ``where``.
+* **Non-maximum suppression** (``overlap``, default 0.0, on): neighbouring centres
+  have nearly the same neighbourhood, so the best pairs of Algorithm 1 are often one
+  region shifted by a node. Pairs are taken greedily in distance order, and a pair is
+  dropped when, against a pair already taken, its node sets overlap by more than
+  ``overlap`` (Jaccard |A & B| / |A | B|) on *both* sides (query and target); with
+  ``node=``/``point=`` the query side is fixed, so the target sets must differ. The
+  default 0.0 asks for disjoint node sets; ``overlap=None`` turns suppression off
+  (the paper's plain top-m). Corpus search applies the same rule among the matches
+  of one shape when ``per_shape > 1``.
+* **Part vector**: Eq. 1 of the subgraph plus the size block (balls relative to the
+  whole shape's largest, ``PartConfig.size``) and the centre block (the centre ball,
+  ``PartConfig.centre``), so that lone balls of different sizes no longer score 1.0
+  against each other (:mod:`shapedb.subgraph`).
 * **Back to geometry**: :func:`part_geometry` maps a match's nodes to their balls and
   to the mesh faces or points that lie in them.
 
@@ -35,7 +48,14 @@ from numpy.typing import ArrayLike, NDArray
 from shapedb.config import PartConfig
 from shapedb.errors import ConfigError, InvalidShapeError, NotFoundError, QueryError
 from shapedb.graph import ContactGraph
-from shapedb.subgraph import neighbourhood_features, node_sets, part_config
+from shapedb.subgraph import (
+    neighbourhood_features,
+    neighbourhoods,
+    node_sets,
+    part_config,
+    part_vector,
+    part_weights,
+)
 
 __all__ = [
     "PartMatch",
@@ -53,6 +73,7 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 _PAIR_BLOCK = 1 << 22  # entries of the (n1, n2) distance matrix computed at once
+_NMS_POOL = 32  # candidate pairs per wanted pair before suppression (widened x4 when short)
 
 
 @dataclass(frozen=True)
@@ -68,7 +89,7 @@ class PartMatch:
     label : str or None
         Its class label.
     similarity : float
-        Eq. 3 kernel of the two neighbourhood subgraphs, in (0, 1].
+        Eq. 3, ``exp(-lam * distance)`` of the two part vectors, in (0, 1].
     nodes : tuple of int
         N(u, K) in the matched shape.
     query_nodes : tuple of int
@@ -78,7 +99,7 @@ class PartMatch:
     query_node : int
         Centre v of the query neighbourhood (-1 for a whole-model query).
     distance : float
-        Eq. 2 distance.
+        Part distance: Eq. 2 plus the size/centre blocks (weighted L1).
     """
 
     id: int | None
@@ -239,7 +260,7 @@ def _query_node(model: Model, node: int | None, point: ArrayLike | None) -> int 
 def part_feature(
     x: Any, node: int | None = None, config: PartConfig | None = None
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """The Eq. 1 feature of a part and its node set.
+    """The part vector (Eq. 1 plus size/centre blocks) of a part and its node set.
 
     Parameters
     ----------
@@ -250,20 +271,84 @@ def part_feature(
 
     Returns
     -------
-    feature : (2 * n_r,) float64
+    feature : (part_dim,) float64
     nodes : (m,) int64
     """
-    from shapedb.kernel import features
-
     cfg = part_config(config)
     g = x if isinstance(x, ContactGraph) else x.graph
     if node is None:
-        return features(g, cfg.kernel), np.arange(g.n_nodes, dtype=np.int64)
+        nodes = np.arange(g.n_nodes, dtype=np.int64)
+        return part_vector(g, nodes, None, cfg), nodes
     nodes = g.neighbourhood(int(node), cfg.hops)
-    return features(g.subgraph(nodes), cfg.kernel), nodes
+    return part_vector(g, nodes, int(node), cfg), nodes
 
 
 # ------------------------------------------------------------------ Algorithm 1
+def _check_overlap(overlap: float | None) -> float | None:
+    if overlap is None:
+        return None
+    if isinstance(overlap, bool) or not 0.0 <= float(overlap) < 1.0:
+        raise QueryError("overlap must be in [0, 1) or None", source=f"overlap={overlap!r}")
+    return float(overlap)
+
+
+def _best_pairs(
+    f1w: NDArray[np.float64], f2w: NDArray[np.float64], rows: NDArray[np.int64], count: int
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+    """The ``count`` smallest L1 distances between rows of f1w and f2w (ties by v, u)."""
+    best_v: NDArray[np.int64] = np.zeros(0, np.int64)
+    best_u: NDArray[np.int64] = np.zeros(0, np.int64)
+    best_d: NDArray[np.float64] = np.zeros(0)
+    step = max(1, _PAIR_BLOCK // max(len(f2w) * f1w.shape[1], 1))
+    for s in range(0, len(rows), step):
+        d = np.abs(f1w[s : s + step, None, :] - f2w[None, :, :]).sum(axis=2)
+        i, j = np.unravel_index(np.arange(d.size), d.shape)
+        dd = d.ravel()
+        if dd.size > count:
+            thr = np.partition(dd, count - 1)[count - 1]
+            keep = dd <= thr
+            i, j, dd = i[keep], j[keep], dd[keep]
+        best_v = np.concatenate([best_v, rows[s + i]])
+        best_u = np.concatenate([best_u, j.astype(np.int64)])
+        best_d = np.concatenate([best_d, dd])
+        order = np.lexsort((best_u, best_v, best_d))[:count]
+        best_v, best_u, best_d = best_v[order], best_u[order], best_d[order]
+    return best_v, best_u, best_d
+
+
+def _jaccard(members: Any, a: NDArray[np.int64], b: NDArray[np.int64]) -> NDArray[np.float64]:
+    """(len(a), len(b)) Jaccard overlaps of the node sets N(a_i, K) and N(b_j, K)."""
+    ma, mb = members[a], members[b]
+    inter = np.asarray((ma @ mb.T).todense(), np.float64)
+    sa = np.asarray(ma.sum(axis=1), np.float64).reshape(-1, 1)
+    sb = np.asarray(mb.sum(axis=1), np.float64).reshape(1, -1)
+    return inter / np.maximum(sa + sb - inter, 1.0)
+
+
+def _suppress(
+    v: NDArray[np.int64],
+    u: NDArray[np.int64],
+    members1: Any,
+    members2: Any,
+    overlap: float,
+    top: int,
+) -> NDArray[np.int64]:
+    """Greedy NMS over pairs sorted best first: positions of the pairs kept (<= top)."""
+    uv, iv = np.unique(v, return_inverse=True)
+    uu, iu = np.unique(u, return_inverse=True)
+    j1, j2 = _jaccard(members1, uv, uv), _jaccard(members2, uu, uu)
+    kept: list[int] = []
+    for p in range(len(v)):
+        if kept:
+            k = np.asarray(kept)
+            if np.any((j1[iv[p], iv[k]] > overlap) & (j2[iu[p], iu[k]] > overlap)):
+                continue
+        kept.append(p)
+        if len(kept) == top:
+            break
+    return np.asarray(kept, np.int64)
+
+
 def match_pairs(
     g1: Any,
     g2: Any,
@@ -271,6 +356,7 @@ def match_pairs(
     config: PartConfig | None = None,
     top: int = 5,
     nodes1: ArrayLike | None = None,
+    overlap: float | None = 0.0,
 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
     """Algorithm 1: the ``top`` most similar neighbourhood-subgraph pairs of two graphs.
 
@@ -282,6 +368,10 @@ def match_pairs(
         Pairs wanted.
     nodes1 : (q,) int, optional
         Only these nodes of ``g1`` (default: all).
+    overlap : float in [0, 1) or None
+        Non-maximum suppression: a pair is dropped when its node sets overlap
+        (Jaccard) a better pair's by more than this on both sides. 0.0 (default):
+        every two pairs kept are disjoint on at least one side. None: plain top-m.
 
     Returns
     -------
@@ -290,37 +380,30 @@ def match_pairs(
     u : (<= top,) int64
         Nodes of ``g2``.
     distances : (<= top,) float64
-        Eq. 2 distances, ascending; ties by v then u.
+        Part distances (Eq. 2 extended, :func:`shapedb.subgraph.part_weights`),
+        ascending; ties by v then u.
     """
-    from shapedb.kernel import weights
-
     cfg = part_config(config)
-    f1 = neighbourhood_features(g1, cfg)
-    f2 = neighbourhood_features(g2, cfg)
-    rows = np.arange(len(f1)) if nodes1 is None else np.asarray(nodes1, np.int64).ravel()
-    w = weights(cfg.kernel)
-    f1w, f2w = f1[rows] * w, f2 * w
+    overlap = _check_overlap(overlap)
     top = int(top)
     if top < 1:
         raise QueryError("top must be >= 1", source=f"top={top}")
-    best_v: NDArray[np.int64] = np.zeros(0, np.int64)
-    best_u: NDArray[np.int64] = np.zeros(0, np.int64)
-    best_d: NDArray[np.float64] = np.zeros(0)
-    step = max(1, _PAIR_BLOCK // max(len(f2) * f1.shape[1], 1))
-    for s in range(0, len(rows), step):
-        d = np.abs(f1w[s : s + step, None, :] - f2w[None, :, :]).sum(axis=2)
-        i, j = np.unravel_index(np.arange(d.size), d.shape)
-        dd = d.ravel()
-        if dd.size > top:
-            thr = np.partition(dd, top - 1)[top - 1]
-            keep = dd <= thr
-            i, j, dd = i[keep], j[keep], dd[keep]
-        best_v = np.concatenate([best_v, rows[s + i]])
-        best_u = np.concatenate([best_u, j.astype(np.int64)])
-        best_d = np.concatenate([best_d, dd])
-        order = np.lexsort((best_u, best_v, best_d))[:top]
-        best_v, best_u, best_d = best_v[order], best_u[order], best_d[order]
-    return best_v, best_u, best_d
+    f1 = neighbourhood_features(g1, cfg)
+    f2 = neighbourhood_features(g2, cfg)
+    rows = np.arange(len(f1)) if nodes1 is None else np.asarray(nodes1, np.int64).ravel()
+    w = part_weights(cfg)
+    f1w, f2w = f1[rows] * w, f2 * w
+    if overlap is None:
+        return _best_pairs(f1w, f2w, rows, top)
+    members1, members2 = neighbourhoods(g1, cfg.hops), neighbourhoods(g2, cfg.hops)
+    total = len(rows) * len(f2)
+    count = min(total, _NMS_POOL * top)
+    while True:
+        v, u, d = _best_pairs(f1w, f2w, rows, count)
+        kept = _suppress(v, u, members1, members2, overlap, top)
+        if len(kept) == top or count >= total:
+            return v[kept], u[kept], d[kept]
+        count = min(total, 4 * count)
 
 
 def match(
@@ -337,6 +420,7 @@ def match(
     where: str | None = None,
     per_shape: int = 1,
     complement: bool = False,
+    overlap: float | None = 0.0,
 ) -> list[PartMatch]:
     """Substructure matching: Algorithm 1 between ``a`` and ``b``, or part search.
 
@@ -366,6 +450,11 @@ def match(
         Corpus search: at most this many matches per shape.
     complement : bool
         Decompose the complement of ``a`` (a Geometry or path) in its bounding box.
+    overlap : float in [0, 1) or None
+        Non-maximum suppression by node-set overlap (Jaccard) among the pairwise
+        results, and among the matches of one shape in corpus search
+        (``per_shape > 1``); 0.0 (default) keeps only disjoint node sets, None
+        turns suppression off.
 
     Returns
     -------
@@ -377,10 +466,14 @@ def match(
     v = _query_node(qa, node, point)
     if b is not None:
         qb = resolve(db, b)
-        if v is None:
-            vs, us, ds = match_pairs(qa.graph, qb.graph, config=cfg, top=top)
-        else:
-            vs, us, ds = match_pairs(qa.graph, qb.graph, config=cfg, top=top, nodes1=[v])
+        vs, us, ds = match_pairs(
+            qa.graph,
+            qb.graph,
+            config=cfg,
+            top=top,
+            nodes1=None if v is None else [v],
+            overlap=overlap,
+        )
         sets_a = node_sets(qa.graph, vs, cfg.hops)
         sets_b = node_sets(qb.graph, us, cfg.hops)
         return [
@@ -401,7 +494,15 @@ def match(
         raise QueryError("corpus part search needs a database", source="b=None")
     feat, qnodes = part_feature(qa.graph, v, cfg)
     return _corpus(
-        db, feat, qnodes, -1 if v is None else v, cfg, k=k, where=where, per_shape=per_shape
+        db,
+        feat,
+        qnodes,
+        -1 if v is None else v,
+        cfg,
+        k=k,
+        where=where,
+        per_shape=per_shape,
+        overlap=_check_overlap(overlap),
     )
 
 
@@ -415,6 +516,7 @@ def _corpus(
     k: int,
     where: str | None,
     per_shape: int,
+    overlap: float | None,
 ) -> list[PartMatch]:
     from query.parts_index import open_parts_index
 
@@ -426,7 +528,9 @@ def _corpus(
         from query.sql import allowed_ids
 
         allowed = allowed_ids(db, where)
-    sids, nodes, dists = index.search(feat, int(k), per_shape=per_shape, allowed=allowed)
+    sids, nodes, dists = index.search(
+        feat, int(k), per_shape=per_shape, allowed=allowed, overlap=overlap
+    )
     names = _names(db, sids)
     out = []
     for sid, u, d in zip(sids.tolist(), nodes.tolist(), dists.tolist(), strict=True):
@@ -486,14 +590,13 @@ def match_brute_force(
     (:func:`shapedb.subgraph.neighbourhood_features_naive`), and the best node of each
     shape is kept. Slow; for tests and benchmarks.
     """
-    from shapedb.kernel import weights
     from shapedb.subgraph import neighbourhood_features_naive
 
     cfg = part_config(config, hops=hops)
     qa = resolve(db, a)
     v = _query_node(qa, node, point)
     feat, qnodes = part_feature(qa.graph, v, cfg)
-    w = weights(cfg.kernel)
+    w = part_weights(cfg)
     rows = []
     for sid in db.store.ids().tolist():
         rec = db.get(int(sid))

@@ -4,8 +4,8 @@ Three building blocks, each a plain function on index arrays so that a whole
 128^3 grid stays well under a second:
 
 * :func:`triangle_band` -- the narrow band of cells whose centres lie within about
-  one cell of a triangle soup, found by sampling every triangle on a barycentric
-  lattice finer than half a cell and dilating the hit cells by one.
+  one cell of a triangle soup, found by sampling every triangle finer than half a
+  cell (compiled, in rows along its longest edge) and dilating the hit cells by two.
 * :func:`propagate_closest` -- closest-point propagation: given exact closest
   surface points for the band cells, every other cell takes the closest point of
   its nearest band cell (``scipy.ndimage.distance_transform_edt`` with
@@ -47,17 +47,68 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-#: Largest number of lattice samples generated at once (memory guard).
-_CHUNK = 1 << 21
+
+#: Row spacing / ``step`` in :func:`_seed_triangles`: every point of a triangle is then
+#: within ``step * sqrt(2/3) / sqrt(2) = step / sqrt(3)`` of a sample.
+_ROW_STEP = float(np.sqrt(2.0 / 3.0))
 
 
-def _lattice(k: int) -> NDArray[np.float64]:
-    """Barycentric weights (p, 3) of the lattice with ``k`` steps per edge."""
-    i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
-    keep = (i + j) <= k
-    a = i[keep] / k
-    b = j[keep] / k
-    return np.stack([1.0 - a - b, a, b], axis=1)
+@njit(cache=True)
+def _mark(seeds: np.ndarray, p: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Set the cell of point p (3,) (rounded; clamped if one cell outside, else dropped)."""
+    i0, i1, i2 = int(np.rint(p[0])), int(np.rint(p[1])), int(np.rint(p[2]))
+    n0, n1, n2 = seeds.shape
+    if i0 < -1 or i0 > n0 or i1 < -1 or i1 > n1 or i2 < -1 or i2 > n2:
+        return
+    seeds[min(max(i0, 0), n0 - 1), min(max(i1, 0), n1 - 1), min(max(i2, 0), n2 - 1)] = True
+
+
+@njit(cache=True)
+def _seed_triangles(
+    tri: np.ndarray, seeds: np.ndarray, d: float
+) -> None:  # pragma: no cover - compiled
+    """Mark the cells of samples of triangles (m, 3, 3), cell units, in ``seeds``.
+
+    Samples lie on rows parallel to the longest edge AB, from AB to the opposite
+    corner C, rows and samples along a row at most ``d`` apart, and on the edges AC
+    and BC at most ``d`` apart: every point of the triangle is within ``d / sqrt(2)``
+    of a sample (AB is the longest edge, so the rows shrink onto C without
+    overhang; near the slanted edges the edge samples are the nearest).
+    """
+    p = np.empty(3)
+    for m in range(tri.shape[0]):
+        best, ia = -1.0, 0
+        for e in range(3):
+            s2 = 0.0
+            for a in range(3):
+                t = tri[m, (e + 1) % 3, a] - tri[m, e, a]
+                s2 += t * t
+            if s2 > best:
+                best, ia = s2, e
+        ib, ic = (ia + 1) % 3, (ia + 2) % 3
+        A, B, C = tri[m, ia], tri[m, ib], tri[m, ic]
+        length = np.sqrt(best)
+        proj = 0.0
+        if best > 0:
+            proj = ((B - A) * (C - A)).sum() / best
+        height = np.sqrt((((C - A) - proj * (B - A)) ** 2).sum())
+        rows = int(np.ceil(height / d)) + 1
+        for r in range(rows):
+            y = r / (rows - 1) if rows > 1 else 0.0
+            cols = int(np.ceil((1.0 - y) * length / d)) + 1
+            for c in range(cols):
+                x = c / (cols - 1) if cols > 1 else 0.0
+                for a in range(3):
+                    s0 = A[a] + y * (C[a] - A[a])
+                    p[a] = s0 + x * (B[a] + y * (C[a] - B[a]) - s0)
+                _mark(seeds, p)
+        for P, Q in ((A, C), (B, C)):
+            n = int(np.ceil(np.sqrt(((Q - P) ** 2).sum()) / d)) + 1
+            for c in range(n):
+                x = c / (n - 1) if n > 1 else 0.0
+                for a in range(3):
+                    p[a] = P[a] + x * (Q[a] - P[a])
+                _mark(seeds, p)
 
 
 def triangle_band(
@@ -87,30 +138,17 @@ def triangle_band(
         Every point of a triangle is within ``step / sqrt(3)`` of a sample, so the
         band provably contains every cell whose centre is within
         ``dilate - 0.5 - step / sqrt(3)`` cells of the surface (1.21 by default).
+
+    Notes
+    -----
+    Each triangle is sampled in rows parallel to its longest edge (compiled,
+    :func:`_seed_triangles`), about ``area / spacing^2`` samples, so slivers cost
+    their length, not its square.
     """
     seeds = np.zeros(shape, dtype=bool)
-    hi = np.asarray(shape) - 1
-    edges = np.stack(
-        [
-            triangles[:, 1] - triangles[:, 0],
-            triangles[:, 2] - triangles[:, 1],
-            triangles[:, 0] - triangles[:, 2],
-        ],
-        axis=1,
-    )
-    longest = np.sqrt((edges**2).sum(-1)).max(1)
-    ks = np.maximum(np.ceil(longest / step).astype(np.int64), 1)
-    for k in np.unique(ks):
-        idx = np.flatnonzero(ks == k)
-        w = _lattice(int(k))
-        per = max(1, _CHUNK // len(w))
-        for s in range(0, len(idx), per):
-            tri = triangles[idx[s : s + per]]
-            pts = np.einsum("pk,mkd->mpd", w, tri).reshape(-1, 3)
-            ijk = np.rint(pts).astype(np.int64)
-            ok = np.all((ijk >= -1) & (ijk <= hi + 1), axis=1)
-            ijk = np.clip(ijk[ok], 0, hi)
-            seeds[ijk[:, 0], ijk[:, 1], ijk[:, 2]] = True
+    tri = np.ascontiguousarray(triangles, dtype=np.float64)
+    if len(tri):
+        _seed_triangles(tri, seeds, float(step) * _ROW_STEP)
     return _dilate(seeds, dilate)
 
 

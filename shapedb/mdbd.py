@@ -18,16 +18,19 @@ Three things make it fast and accurate:
   ball is moved off its grid cell, within one cell, to where it can grow largest
   against the representation's own distance; its radius is exact, so balls are
   inside the solid and pairwise disjoint according to that distance.
-* **Canonical frame** (``MDBDConfig.canonical_frame``, :mod:`shapedb.frame`). Two
-  coarse passes give the solid's centroid and principal axes; the fine grid is laid
-  in that frame, with ``resolution`` cells along the longest principal extent, and
-  the geometry is queried through :meth:`Geometry.transformed` (meshes share their
-  query structures with the moved copy). A rigid motion of the model therefore
-  moves the grid with it. Centres are returned in model coordinates and the frame
-  in :attr:`Decomposition.frame`. Where the moments do not determine the frame
-  (isotropic or rotationally symmetric solids), ties between equally good balls
-  are still broken by the grid, and a generic rotation of such a solid can change
-  the decomposition (not its leading radii).
+* **Canonical frame** (``MDBDConfig.canonical_frame``, :mod:`shapedb.frame`). The
+  solid's centroid and principal axes: exact moments of a mesh's triangles or a
+  cloud's points, the child's frame for a moved copy, else two coarse passes. The
+  fine grid is laid in that frame, with ``resolution`` cells along the longest
+  principal extent, and the geometry is queried in it (meshes are rebuilt on
+  their local vertices in units of that extent, see :func:`_local_copy`). A
+  similarity transform of a mesh or a cloud therefore gives the same
+  decomposition up to rounding (the greedy packing is chaotic: a frame off by
+  0.001 degree already changes its tail). Centres are returned in model
+  coordinates and the frame in :attr:`Decomposition.frame`. Where the moments do
+  not determine the frame (isotropic or rotationally symmetric solids), ties
+  between equally good balls are still broken by the grid, and a generic rotation
+  of such a solid can change the decomposition (not its leading radii).
 """
 
 from __future__ import annotations
@@ -303,11 +306,35 @@ def _loop(
 
 @dataclass(frozen=True)
 class _Prepared:
-    local: Geometry  # the geometry in the grid's frame
+    local: Geometry  # the geometry in the grid's frame, in units of ``scale``
     grid: Grid
     F: NDArray[np.float32]
-    frame: NDArray[np.float64]  # (4, 4) local -> model
+    frame: NDArray[np.float64]  # (4, 4) local -> model (rotation and centroid)
     timings: dict[str, float]
+    scale: float = 1.0  # model units per local unit
+
+
+def _local_copy(
+    geometry: Geometry, V: NDArray[np.float64], c: NDArray[np.float64], extent: float
+) -> tuple[Geometry, float]:
+    """The geometry in the frame (rotation ``V`` (3, 3), centroid ``c`` (3,)), and its unit.
+
+    A mesh is rebuilt on its vertices in the local frame, divided by its principal
+    ``extent`` (model units), rather than moved: its query structures (open3d's
+    scene) work in float32, so a moved copy would query the model's own float32
+    coordinates, whose rounding depends on the model's pose and size and is enough
+    (~1e-7 relative) to flip ties of the greedy packing. Rebuilt, a model and its
+    rotated, moved or scaled copy query the same local coordinates (to float64
+    rounding). It costs nothing extra when the model itself is never queried.
+    Other representations are moved (:meth:`Geometry.transformed`), unit 1.
+    """
+    from shapedb.mesh import TriangleMesh
+
+    if isinstance(geometry, TriangleMesh) and extent > 0:
+        v = np.asarray(geometry.vertices, dtype=np.float64)
+        local = TriangleMesh((v - c) @ V / extent, np.asarray(geometry.faces), name=geometry.name)
+        return local, extent
+    return geometry.transformed(V.T, -V.T @ c), 1.0
 
 
 def _prepare(geometry: Geometry, cfg: MDBDConfig) -> _Prepared:
@@ -318,6 +345,7 @@ def _prepare(geometry: Geometry, cfg: MDBDConfig) -> _Prepared:
     timings: dict[str, float] = {}
     frame = np.eye(4)
     local = geometry
+    scale = 1.0
     found = None
     if cfg.canonical_frame:
         t0 = time.perf_counter()
@@ -325,10 +353,10 @@ def _prepare(geometry: Geometry, cfg: MDBDConfig) -> _Prepared:
         timings["frame"] = time.perf_counter() - t0
     if found is not None:
         V, c, lo, hi, hc = found
-        grid = frame_grid(lo, hi, 0.5 * hc, cfg)
         frame[:3, :3], frame[:3, 3] = V, c
         t0 = time.perf_counter()
-        local = geometry.transformed(V.T, -V.T @ c)
+        local, scale = _local_copy(geometry, V, c, float((hi - lo).max()))
+        grid = frame_grid(lo / scale, hi / scale, 0.5 * hc / scale, cfg)
         timings["frame"] += time.perf_counter() - t0
     else:
         grid = Grid.fit(geometry.bounds, resolution=cfg.resolution, padding=cfg.padding_cells)
@@ -339,7 +367,7 @@ def _prepare(geometry: Geometry, cfg: MDBDConfig) -> _Prepared:
             f"grid_sdf returned shape {F.shape}, expected {grid.shape}", source=repr(geometry)
         )
     timings["sdf"] = time.perf_counter() - t0
-    return _Prepared(local, grid, F, frame, timings)
+    return _Prepared(local, grid, F, frame, timings, scale)
 
 
 def _finish(
@@ -356,21 +384,22 @@ def _finish(
     if len(radii) == 0:
         raise DegenerateGeometryError(
             f"no ball of radius >= {cfg.min_radius_cells} cell(s) fits inside the solid at "
-            f"resolution {cfg.resolution} (cell {grid.spacing:.4g}); the solid is thinner "
+            f"resolution {cfg.resolution} (cell {prep.scale * grid.spacing:.4g}); the solid is thinner "
             "than the grid: increase resolution",
             source=repr(geometry),
         )
     order = np.argsort(-radii, kind="stable")
-    centers, radii = centers[order], radii[order]
+    centers, radii = prep.scale * centers[order], prep.scale * radii[order]
+    spacing = prep.scale * grid.spacing
     centers = centers @ prep.frame[:3, :3].T + prep.frame[:3, 3]  # back to model coordinates
     t0 = time.perf_counter()
-    edges = contact_edges(centers, radii, cfg.contact_tol_cells * grid.spacing)
+    edges = contact_edges(centers, radii, cfg.contact_tol_cells * spacing)
     timings["graph"] = time.perf_counter() - t0
     return Decomposition(
         centers=centers,
         radii=radii,
         edges=edges,
-        spacing=float(grid.spacing),
+        spacing=float(spacing),
         bounds=np.asarray(geometry.bounds, dtype=np.float64).copy(),
         config=cfg,
         representation=str(getattr(geometry, "representation", "unknown")),

@@ -17,6 +17,31 @@ the n nodes costs n Python-level subgraph builds. Here all n walks run at once:
 * one walk step is then a ``bincount`` over those slot edges, for every subgraph
   at once, and the ``n_r`` largest balls of every subgraph come from one lexsort.
 
+**Blocks beyond Eq. 1** (:class:`PartConfig` ``size``, ``centre``). Eq. 1 on a
+subgraph alone is blind to scale: a one-node neighbourhood (a lone ball, e.g. a
+single ball filling a hole of a complement) always has ``p0 = [1]`` and a constant
+walk, so every lone ball would score 1.0 against every other. The part vector is
+therefore ``[Eq. 1 (2 n_r) | size block (n_r) | centre block (2)]``:
+
+* size block (``size > 0``, default 4): ``r_i / R`` of the part's n_r largest balls,
+  R the largest ball of the *whole shape*, i.e. the paper's node attribute r/r1
+  with the shape's r1; weights ``size * la^i``. Two lone balls now differ by
+  ``size * la * |r / R - r' / R'|`` (plus the centre block);
+* centre block (``centre > 0``, default 8): ``[r_v / r1, r_v / R]`` of the centre
+  node v (r1 the part's largest ball), weight ``centre``: Eq. 1 is permutation
+  invariant, so without it N(v, K) does not say which of its balls it is centred
+  on. A whole-model part has no centre and uses its largest ball.
+
+The weights were chosen on a validation subset of ``bench.parts`` (see
+:class:`PartConfig`). Most of the gain there comes from the centre ball's size
+relative to the shape (the bench reports that ball-size-only reference too).
+
+A part identical to another *relative to its shape* (same balls over the same R)
+still has the same vector and scores 1.0; a copy of a subgraph embedded in a shape
+with a larger largest ball does not (its balls are smaller relative to that shape).
+``size = centre = 0`` is the paper's vector alone (part indexes built before these
+fields are read so). :func:`part_dim` and :func:`part_weights` give the layout.
+
 Many graphs are handled as their disjoint union (:func:`neighbourhood_features_many`),
 whose neighbourhoods are exactly those of each graph. Results equal the per-node
 reference (:func:`neighbourhood_features_naive`) to rounding.
@@ -36,6 +61,9 @@ from shapedb.errors import ConfigError, InvalidShapeError
 from shapedb.graph import ContactGraph
 
 __all__ = [
+    "part_dim",
+    "part_weights",
+    "part_vector",
     "neighbourhoods",
     "neighbourhood_features",
     "neighbourhood_features_many",
@@ -56,6 +84,73 @@ def part_config(config: PartConfig | None = None, **options: Any) -> PartConfig:
     """
     options = {k: v for k, v in options.items() if v is not None}
     return with_options(PartConfig, config, options, what="part")
+
+
+def part_dim(cfg: PartConfig) -> int:
+    """Length of a part vector: 2 n_r, plus n_r with the size block, plus 2 with the centre."""
+    return 2 * cfg.n_r + (cfg.n_r if cfg.size > 0 else 0) + (2 if cfg.centre > 0 else 0)
+
+
+def part_weights(cfg: PartConfig) -> NDArray[np.float64]:
+    """(part_dim,) weights of the part distance (Eq. 2 extended): weighted L1 is the distance.
+
+    ``[la^1..la^nr, lb^1..lb^nr]`` (Eq. 2), then ``size * la^1..la^nr`` and
+    ``[centre, centre]`` when those blocks are on.
+    """
+    i = np.arange(1, cfg.n_r + 1, dtype=np.float64)
+    blocks = [cfg.la**i, cfg.lb**i]
+    if cfg.size > 0:
+        blocks.append(cfg.size * cfg.la**i)
+    if cfg.centre > 0:
+        blocks.append(np.full(2, float(cfg.centre)))
+    return np.concatenate(blocks)
+
+
+def part_vector(
+    graph: ContactGraph,
+    nodes: ArrayLike | None = None,
+    centre: int | None = None,
+    config: PartConfig | None = None,
+) -> NDArray[np.float64]:
+    """Reference part vector of ``graph.subgraph(nodes)`` (Eq. 1 plus the extra blocks).
+
+    Parameters
+    ----------
+    graph : ContactGraph
+        The whole shape (its largest ball is R).
+    nodes : (m,) int, optional
+        The part's nodes (default: all, the whole model as the part).
+    centre : int, optional
+        Centre node v (default: the part's largest ball).
+    config : PartConfig, optional
+
+    Returns
+    -------
+    (part_dim,) float64
+    """
+    from shapedb.kernel import features
+
+    cfg = part_config(config)
+    idx = (
+        np.arange(graph.n_nodes, dtype=np.int64)
+        if nodes is None
+        else np.asarray(nodes, np.int64).ravel()
+    )
+    if not len(idx):
+        raise InvalidShapeError("a part needs at least one node")
+    sub = graph.subgraph(idx)
+    blocks = [features(sub, cfg.kernel)]
+    big = float(np.max(graph.radii))
+    r = np.asarray(graph.radii, np.float64)[idx]
+    if cfg.size > 0:
+        top = np.zeros(cfg.n_r)
+        srt = np.sort(r)[::-1][: cfg.n_r]
+        top[: len(srt)] = srt / big
+        blocks.append(top)
+    if cfg.centre > 0:
+        rv = float(r.max() if centre is None else graph.radii[int(centre)])
+        blocks.append(np.array([rv / r.max(), rv / big]))
+    return np.concatenate(blocks)
 
 
 def _arrays(x: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -132,14 +227,20 @@ def _ranges(starts: NDArray[np.int64], lengths: NDArray[np.int64]) -> NDArray[np
 
 
 def _features(
-    radii: NDArray[np.float64], edges: NDArray[np.int64], cfg: PartConfig
+    radii: NDArray[np.float64],
+    edges: NDArray[np.int64],
+    cfg: PartConfig,
+    big: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
+    """Part vectors of every node; ``big`` (n,) is R of each node's shape (default max r)."""
     n = len(radii)
-    out = np.zeros((n, cfg.dim))
+    out = np.zeros((n, part_dim(cfg)))
     if n == 0:
         return out
     if not np.all(np.isfinite(radii)) or radii.min() <= 0:
         raise InvalidShapeError("radii must be finite and > 0")
+    if big is None:
+        big = np.full(n, radii.max())
     a = _adjacency(n, edges)
     m = _membership(a, cfg.hops)
     ptr, cols = m.indptr.astype(np.int64), m.indices.astype(np.int64)
@@ -178,6 +279,13 @@ def _features(
     o, k = order[keep], rank[keep]
     out[rows[o], k] = p0[o]
     out[rows[o], cfg.n_r + k] = acc[o] / cfg.t
+    col = 2 * cfg.n_r
+    if cfg.size > 0:  # the part's largest balls relative to the whole shape
+        out[rows[o], col + k] = r[o] / big[rows[o]]
+        col += cfg.n_r
+    if cfg.centre > 0:
+        out[:, col] = radii / r1
+        out[:, col + 1] = radii / big
     return out
 
 
@@ -195,9 +303,9 @@ def neighbourhood_features(
 
     Returns
     -------
-    (n, 2 * n_r) float64
-        Row v equals ``kernel.features(graph.subgraph(graph.neighbourhood(v, K)),
-        config.kernel)``.
+    (n, part_dim) float64
+        Row v equals ``part_vector(graph, graph.neighbourhood(v, K), v, config)``:
+        ``kernel.features`` of the subgraph, then the size and centre blocks.
     """
     cfg = part_config(config, **options)
     r, e = _arrays(x)
@@ -217,7 +325,7 @@ def neighbourhood_features_many(
 
     Returns
     -------
-    features : (N, 2 * n_r) float64
+    features : (N, part_dim) float64
         Rows of graph g are ``features[offsets[g]:offsets[g + 1]]``.
     offsets : (G + 1,) int64
         Node offsets of the graphs.
@@ -226,7 +334,7 @@ def neighbourhood_features_many(
     arrays = [_arrays(g) for g in graphs]
     sizes = np.array([len(r) for r, _ in arrays], dtype=np.int64)
     offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-    out = np.zeros((int(offsets[-1]), cfg.dim))
+    out = np.zeros((int(offsets[-1]), part_dim(cfg)))
     start = 0
     while start < len(arrays):
         stop = start + 1
@@ -237,7 +345,11 @@ def neighbourhood_features_many(
         e = np.concatenate(
             [arrays[g][1] + (offsets[g] - base) for g in range(start, stop)]
         ).reshape(-1, 2)
-        out[base : offsets[stop]] = _features(r, e, cfg)
+        big = np.repeat(
+            [arrays[g][0].max() if len(arrays[g][0]) else 1.0 for g in range(start, stop)],
+            sizes[start:stop],
+        )
+        out[base : offsets[stop]] = _features(r, e, cfg, big)
         start = stop
     return out, offsets
 
@@ -245,7 +357,7 @@ def neighbourhood_features_many(
 def neighbourhood_features_naive(
     graph: ContactGraph, config: PartConfig | None = None, *, nodes: Sequence[int] | None = None
 ) -> NDArray[np.float64]:
-    """Reference: ``kernel.features`` of ``graph.subgraph(graph.neighbourhood(v, K))``.
+    """Reference: :func:`part_vector` of ``graph.neighbourhood(v, K)``, node by node.
 
     Parameters
     ----------
@@ -256,14 +368,12 @@ def neighbourhood_features_naive(
 
     Returns
     -------
-    (len(nodes), 2 * n_r) float64
+    (len(nodes), part_dim) float64
     """
-    from shapedb.kernel import features
-
     cfg = part_config(config)
     vs = range(graph.n_nodes) if nodes is None else nodes
-    rows = [features(graph.subgraph(graph.neighbourhood(int(v), cfg.hops)), cfg.kernel) for v in vs]
-    return np.stack(rows) if rows else np.zeros((0, cfg.dim))
+    rows = [part_vector(graph, graph.neighbourhood(int(v), cfg.hops), int(v), cfg) for v in vs]
+    return np.stack(rows) if rows else np.zeros((0, part_dim(cfg)))
 
 
 def node_sets(x: Any, nodes: ArrayLike, hops: int = 2) -> list[NDArray[np.int64]]:

@@ -84,10 +84,16 @@ def test_import_stays_light() -> None:
     assert out.stdout.strip() == "False"
 
 
-def test_missing_extra_gives_the_install_hint(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setitem(sys.modules, "torch_geometric", None)  # import fails as if absent
-    with pytest.raises(MissingDependencyError, match=r"pip install 'shapedb\[learn\]'"):
+@pytest.mark.parametrize("module", ["torch", "torch_geometric"])
+def test_missing_extra_gives_the_install_hint(
+    monkeypatch: pytest.MonkeyPatch, module: str, tmp_path
+) -> None:
+    monkeypatch.setitem(sys.modules, module, None)  # import fails as if absent
+    hint = rf"needs the optional dependency '{module}'.*pip install 'shapedb\[learn\]'"
+    with pytest.raises(MissingDependencyError, match=hint):
         GraphClassifier("tag").fit([], [])
+    with pytest.raises(MissingDependencyError, match=hint):
+        GraphClassifier.load(tmp_path / "model.pt")
 
 
 def test_node_features_are_normalised() -> None:
@@ -138,6 +144,19 @@ def test_few_steps_reduce_the_loss(pyg: None, tiny: tuple[list, list], conv: str
     proba = model.predict_proba(graphs[:5])
     assert proba.shape == (5, 3)
     np.testing.assert_allclose(proba.sum(1), 1.0, rtol=1e-6)
+
+
+def test_model_selection_uses_the_validation_split_only(pyg: None, tiny: tuple[list, list]) -> None:
+    graphs, labels = tiny
+    val = ([graphs[k] for k in range(0, 24, 4)], [labels[k] for k in range(0, 24, 4)])
+    model = GraphClassifier("tag", epochs=5, batch_size=8, hidden=16).fit(
+        graphs[1:], labels[1:], validation_data=val
+    )
+    h = model.history_
+    assert len(h["val_accuracy"]) == 5 and not np.isnan(h["val_accuracy"]).any()
+    kept = (h["val_accuracy"][model.best_epoch_], -h["val_loss"][model.best_epoch_])
+    assert kept == max(zip(h["val_accuracy"], [-v for v in h["val_loss"]], strict=True))
+    assert model.score(*val) == pytest.approx(h["val_accuracy"][model.best_epoch_], abs=1e-9)
 
 
 def test_accepts_contact_graphs_and_keeps_label_names(pyg: None, fitted: GraphClassifier) -> None:

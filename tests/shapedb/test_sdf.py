@@ -367,3 +367,45 @@ def test_cloud_distance_is_not_biased_by_sparse_sampling() -> None:
     assert abs(np.median(ratio) - 1.0) < 0.03
     q = pc.closest_points(p[ins])
     assert np.allclose(np.linalg.norm(p[ins] - q, axis=1), pc.unsigned_distance(p[ins]))
+
+
+# ---------------------------------------------------------------------- mesh internals
+def _point_triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Exact distance (n,) of points (n, 3) to one triangle (3, 3)."""
+    cp = trimesh.triangles.closest_point(np.repeat(tri[None], len(p), axis=0), p)
+    return np.linalg.norm(p - cp, axis=1)
+
+
+@pytest.mark.parametrize(("step", "dilate"), [(0.5, 2), (0.5, 1), (0.3, 1)])
+def test_triangle_band_covers_slivers(step: float, dilate: int) -> None:
+    """The band holds every cell within ``dilate - 0.5 - step / sqrt(3)`` cells of the
+    triangles (slivers, large and tiny ones)."""
+    from shapedb._meshing import triangle_band
+
+    rng = np.random.default_rng(3)
+    shape = (24, 20, 22)
+    tris = [
+        np.array([[1.2, 2.3, 3.1], [21.7, 17.2, 19.4], [21.9, 17.6, 19.0]]),  # sliver
+        np.array([[3.0, 3.0, 3.0], [20.0, 3.4, 3.2], [11.0, 16.0, 18.0]]),  # large
+        np.array([[10.1, 10.2, 10.3], [10.15, 10.2, 10.3], [10.1, 10.25, 10.3]]),  # tiny
+    ]
+    tris += [rng.uniform(0, 19, (1, 3)) + rng.uniform(-4, 4, (3, 3)) for _ in range(3)]
+    cells = np.argwhere(np.ones(shape, dtype=bool)).astype(float)
+    for tri in tris:
+        tri = tri.reshape(3, 3)
+        band = triangle_band(tri[None], shape, step=step, dilate=dilate)
+        near = _point_triangle_distance(cells, tri) <= dilate - 0.5 - step / np.sqrt(3)
+        assert band[tuple(cells[near].astype(int).T)].all()
+        assert band.sum() < 0.5 * band.size or near.sum() > 0.25 * band.size
+
+
+def test_fast_winding_classification_matches_exact_pass() -> None:
+    """The fast Barnes-Hut pass (with its recheck near 0.5) classifies like winding_number."""
+    box = trimesh.creation.box(extents=(2.0, 1.0, 1.5))
+    keep = np.abs(box.triangles_center[:, 2] - 0.75) > 1e-9  # remove the top: an open box
+    mesh = TriangleMesh(box.vertices, box.faces[keep])
+    assert mesh._closed_normals is None
+    p = np.random.default_rng(0).uniform(-1.3, 1.3, (20000, 3))
+    exact = np.abs(mesh.winding_number(p)) > 0.5
+    assert np.array_equal(mesh.contains(p), exact)
+    assert 0.1 < exact.mean() < 0.9

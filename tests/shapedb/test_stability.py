@@ -1,17 +1,20 @@
 """Stability of the decomposition and the kernel under similarity transforms and grid shifts.
 
 The issue's target is a kernel similarity >= 0.99 for a rotated, translated and
-uniformly scaled copy. What the engine reaches (measured, 64 cells, 128 balls, the
-default KernelConfig) and what these tests pin:
+uniformly scaled copy. The greedy packing is chaotic (a frame off by 0.001 degree
+already gives 0.8-0.97 on CAPOD meshes), so the frame has to follow the model to
+rounding. What the engine reaches (measured, 64 cells, 128 balls, the default
+KernelConfig) and what these tests pin:
 
-* translation + uniform scale, and a sub-cell translation of the model: the
-  canonical frame follows the solid exactly, so the decomposition is the same up to
-  rounding (kernel 1.0 on solids without exact ties);
-* a generic rotation: the frame follows the solid to ~0.1 degree, the leading radii
-  agree to a fraction of a cell, but the greedy packing of the tail is chaotic and
-  the Eq. 1 walk averages count the small balls touching the largest ones: 0.94 on
-  a tie-free solid (0.96-0.97 at 128 cells / 512 balls), still 0.5-0.9 on solids
-  with plateaus of equally good balls (plates, capsules, tori).
+* meshes and point clouds: the frame comes from their own data (exact moments),
+  and a mesh is queried through a copy rebuilt in that frame, so a rotated,
+  moved and scaled copy gives the same decomposition up to rounding: kernel 1.0;
+* moved copies of any geometry (``rotate``/``translate``/``scale`` of implicit
+  solids, :meth:`Geometry.transformed`): the child's frame moved along, kernel 1.0;
+* an implicit solid that is *not* a moved copy (its own distance function, here
+  rotated by hand): the frame comes from sampled moments and follows a rotation
+  to ~0.01-0.1 degree only, and the chaotic tail gives a kernel of ~0.85-0.95;
+  likewise a grid shifted under a fixed solid (0.96).
 """
 
 from __future__ import annotations
@@ -30,6 +33,12 @@ def _rotation() -> np.ndarray:
     from shape_helpers import rotation
 
     return rotation((1.1, -0.5, 2.0))
+
+
+def _angle(a: np.ndarray) -> float:
+    """Rotation angle (degrees) of the 3x3 rotation ``a`` (accurate near 0)."""
+    chord = np.linalg.norm(a - np.eye(3)) / (2.0 * np.sqrt(2.0))
+    return float(np.degrees(2.0 * np.arcsin(min(chord, 1.0))))
 
 
 @pytest.fixture(scope="module")
@@ -54,25 +63,38 @@ def test_sub_cell_translation_keeps_the_kernel_at_one(base: tuple) -> None:
     np.testing.assert_allclose(d1.centers, d0.centers + t, atol=1e-6)
 
 
-def test_frame_follows_a_generic_rotation(base: tuple) -> None:
+def test_rotated_copy_keeps_the_decomposition(base: tuple) -> None:
     g, d0 = base
     R = _rotation()
-    d1 = decompose(g.rotate(R), **OPTS)
-    err = d1.frame[:3, :3].T @ R @ d0.frame[:3, :3]
-    angle = np.degrees(np.arccos(np.clip((np.trace(err) - 1.0) / 2.0, -1.0, 1.0)))
-    assert angle < 0.5
+    d1 = decompose(g.rotate(R).scale(0.6).translate([1.0, 2.0, -0.5]), **OPTS)
+    assert _angle(d1.frame[:3, :3].T @ R @ d0.frame[:3, :3]) < 1e-6
+    assert kernel(features(d0), features(d1)) >= 0.99  # measured 1.0
+    np.testing.assert_allclose(d1.radii, 0.6 * d0.radii, rtol=1e-6)
+    moved = 0.6 * d0.centers @ R.T + [1.0, 2.0, -0.5]
+    np.testing.assert_allclose(d1.centers, moved, atol=1e-6 * d0.spacing)
+
+
+def test_sampled_frame_follows_a_rotation_of_an_unmoved_solid(base: tuple) -> None:
+    """A solid given by its own rotated distance function: the coarse-pass frame."""
+    g, d0 = base
+    R = _rotation()
+    lo, hi = g.bounds
+    corners = np.array(
+        [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+    )
+    turned = corners @ R.T
+    by_hand = Implicit(
+        lambda p: g.signed_distance(np.asarray(p) @ R), [turned.min(axis=0), turned.max(axis=0)]
+    )
+    d1 = decompose(by_hand, **OPTS)
+    assert _angle(d1.frame[:3, :3].T @ R @ d0.frame[:3, :3]) < 0.5  # measured ~0.1
     assert np.linalg.norm(d1.frame[:3, 3] - R @ d0.frame[:3, 3]) < 0.2 * d0.spacing
     assert d1.spacing == pytest.approx(d0.spacing, rel=0.01)
-
-
-def test_generic_rotation_keeps_leading_radii_and_kernel(base: tuple) -> None:
-    g, d0 = base
-    d1 = decompose(g.rotate(_rotation()), **OPTS)
     k = min(50, d0.n_balls, d1.n_balls)
     a, b = d0.radii[:k] / d0.radii[0], d1.radii[:k] / d1.radii[0]
-    assert np.abs(a[:10] - b[:10]).max() < 0.03  # measured 0.015 (0.2 cell)
+    assert np.abs(a[:10] - b[:10]).max() < 0.03
     assert np.abs(a - b).max() < 0.05
-    assert kernel(features(d0), features(d1)) >= 0.9  # measured 0.94; target 0.99
+    assert kernel(features(d0), features(d1)) >= 0.85  # the chaotic tail: see the docstring
 
 
 def test_grid_shift_under_a_fixed_solid_keeps_the_kernel_high(base: tuple) -> None:
@@ -84,18 +106,52 @@ def test_grid_shift_under_a_fixed_solid_keeps_the_kernel_high(base: tuple) -> No
     assert kernel(features(d0), features(d1)) >= 0.9  # measured 0.96 (0.77 on model axes)
 
 
-def test_mesh_moves_with_its_frame() -> None:
+@pytest.fixture(scope="module")
+def figure_mesh() -> tuple[np.ndarray, np.ndarray]:
     from shapedb import examples
-    from shapedb.mesh import TriangleMesh
 
     m = examples.to_mesh(examples.figure(1, 1), resolution=48)
-    mesh = TriangleMesh(m.vertices, m.faces)
+    return np.asarray(m.vertices, dtype=np.float64), np.asarray(m.faces)
+
+
+def test_mesh_rotated_moved_and_scaled_keeps_the_kernel_at_one(figure_mesh: tuple) -> None:
+    """Issue 2 on a mesh: a new mesh on transformed vertices, not a moved copy."""
+    from shapedb.mesh import TriangleMesh
+
+    v, f = figure_mesh
     opts = {"resolution": 48, "n_balls": 64}
-    d0 = decompose(mesh, **opts)
-    moved = TriangleMesh(2.0 * m.vertices + [0.4, -0.2, 1.0], m.faces)
-    d1 = decompose(moved, **opts)
-    assert kernel(features(d0), features(d1)) >= 0.99
+    d0 = decompose(TriangleMesh(v, f), **opts)
+    f0 = features(d0)
     R = _rotation()
-    d2 = decompose(mesh.transformed(R, np.zeros(3)), **opts)
-    a, b = d0.radii[:10] / d0.radii[0], d2.radii[:10] / d2.radii[0]
-    assert np.abs(a - b).max() < 0.06
+    for s, t in ((1.0, np.zeros(3)), (2.0, np.array([0.4, -0.2, 1.0]))):
+        d1 = decompose(TriangleMesh(s * v @ R.T + t, f), **opts)
+        assert _angle(d1.frame[:3, :3].T @ R @ d0.frame[:3, :3]) < 1e-6
+        assert kernel(f0, features(d1)) >= 0.99  # measured 1.0
+        np.testing.assert_allclose(d1.radii[:10], s * d0.radii[:10], rtol=1e-5)
+    d2 = decompose(TriangleMesh(v, f).transformed(R, np.zeros(3)), **opts)
+    assert kernel(f0, features(d2)) >= 0.99
+
+
+def test_point_cloud_rotated_keeps_the_kernel_at_one(figure_mesh: tuple) -> None:
+    from shapedb.pointcloud import PointCloud
+
+    v, _ = figure_mesh
+    opts = {"resolution": 40, "n_balls": 48, "refine": False}
+    d0 = decompose(PointCloud(v), **opts)
+    R = _rotation()
+    d1 = decompose(PointCloud(1.5 * v @ R.T + [0.2, 0.1, -0.3]), **opts)
+    assert _angle(d1.frame[:3, :3].T @ R @ d0.frame[:3, :3]) < 1e-6
+    assert kernel(features(d0), features(d1)) >= 0.99  # measured 1.0
+
+
+def test_frame_without_exact_moments_is_not_claimed_exact() -> None:
+    """The data frame only serves meshes, clouds and moved copies; a solid of its own
+    goes through the coarse passes (whose frame is measured above)."""
+    from shapedb.config import MDBDConfig
+    from shapedb.frame import _data_frame, _moved_frame
+    from shapedb.implicit import Sphere
+
+    s = Sphere([0.1, 0.2, 0.3], 1.0)
+    assert _data_frame(s, MDBDConfig()) is None
+    assert _moved_frame(s, MDBDConfig()) is None
+    assert _moved_frame(s.translate([1.0, 0.0, 0.0]), MDBDConfig()) is not None

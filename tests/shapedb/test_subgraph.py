@@ -19,7 +19,13 @@ from shapedb.subgraph import (
     neighbourhoods,
     node_sets,
     part_config,
+    part_dim,
+    part_vector,
+    part_weights,
 )
+
+#: The paper's part vector alone (Eq. 1 of the subgraph), as before the size block.
+PAPER = PartConfig(size=0.0, centre=0.0)
 
 
 def random_graph(n: int, seed: int, *, ties: bool = False) -> ContactGraph:
@@ -36,12 +42,17 @@ def random_graph(n: int, seed: int, *, ties: bool = False) -> ContactGraph:
 
 @pytest.mark.parametrize("hops", [0, 1, 2, 3])
 @pytest.mark.parametrize("ties", [False, True])
-def test_vectorised_equals_reference(hops: int, ties: bool) -> None:
+@pytest.mark.parametrize(
+    ("size", "centre", "dim"), [(1.0, 0.0, 30), (0.0, 0.0, 20), (2.0, 1.0, 32)]
+)
+def test_vectorised_equals_reference(
+    hops: int, ties: bool, size: float, centre: float, dim: int
+) -> None:
     g = random_graph(120, hops, ties=ties)
-    cfg = PartConfig(hops=hops)
+    cfg = PartConfig(hops=hops, size=size, centre=centre)
     got = neighbourhood_features(g, cfg)
     ref = neighbourhood_features_naive(g, cfg)
-    assert got.shape == (120, 20)
+    assert got.shape == (120, dim) == (120, part_dim(cfg))
     np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12)
 
 
@@ -55,12 +66,50 @@ def test_real_decomposition_equals_reference(generic) -> None:
 def test_hand_made_star() -> None:
     # star: centre 0 (r = 1) and leaves 1..3 (r = 0.5), plus a far node 4 on leaf 3
     g = ContactGraph(np.zeros((5, 3)), [1.0, 0.5, 0.5, 0.5, 0.25], [[0, 1], [0, 2], [0, 3], [3, 4]])
-    f = neighbourhood_features(g, hops=1, n_r=3, t=1, w=1.0)
+    f = neighbourhood_features(g, PAPER, hops=1, n_r=3, t=1, w=1.0)
     # N(0, 1) = {0, 1, 2, 3}: p0 = [1, .5, .5, .5]; one step: centre gets 3 * .5 / 1,
     # each leaf gets 1 / 3 from the centre
     np.testing.assert_allclose(f[0], [1, 0.5, 0.5, 1.5, 1 / 3, 1 / 3])
     # N(4, 1) = {3, 4}: normalised by its own largest ball (0.5): p0 = [1, 0.5]
     np.testing.assert_allclose(f[4], [1, 0.5, 0, 0.5, 1, 0])
+    # the size block: the part's 3 largest balls over the shape's largest (R = 1), then
+    # the centre block [r_v / r1, r_v / R]
+    f = neighbourhood_features(g, hops=1, n_r=3, t=1, w=1.0, size=1.0, centre=1.0)
+    np.testing.assert_allclose(f[4], [1, 0.5, 0, 0.5, 1, 0, 0.5, 0.25, 0, 0.5, 0.25])
+    # N(3, 1) = {0, 3, 4}: radii 1, .5, .25 over R = 1; centre 3: r_v / r1 = .5 / 1
+    np.testing.assert_allclose(f[3, -5:], [1, 0.5, 0.25, 0.5, 0.5])
+    np.testing.assert_allclose(
+        part_weights(PartConfig(n_r=3, size=2.0, centre=1.0)),
+        [0.75, 0.75**2, 0.75**3] * 2 + [1.5, 2 * 0.75**2, 2 * 0.75**3, 1, 1],
+    )
+
+
+def test_lone_balls_of_different_sizes_differ() -> None:
+    # two isolated balls and a contact pair: each lone ball is a one-node neighbourhood
+    g = ContactGraph(np.zeros((4, 3)), [1.0, 0.5, 0.3, 0.2], [[0, 1]])
+    paper = neighbourhood_features(g, PAPER)
+    np.testing.assert_array_equal(paper[2], paper[3])  # Eq. 1 alone: identical, k = 1.0
+    f = neighbourhood_features(g)
+    w = part_weights(PartConfig())
+    d = float(np.abs(f[2] - f[3]) @ w)
+    cfg = PartConfig()
+    # size block: size * la * |r / R - r' / R|; centre block: centre * |r / R - r' / R|
+    # (r_v / r1 = 1 for both)
+    assert d == pytest.approx((cfg.size * cfg.la + cfg.centre) * (0.3 - 0.2))
+    assert np.exp(-d) < 1.0
+    # lone balls of the same size relative to their shapes still match exactly
+    h = ContactGraph(np.zeros((2, 3)), [2.0, 0.6], np.zeros((0, 2)))
+    np.testing.assert_allclose(neighbourhood_features(h)[1], f[2], atol=1e-15)
+
+
+def test_paper_vector_is_eq1_of_the_subgraph() -> None:
+    g = random_graph(50, 7)
+    f = neighbourhood_features(g, PAPER)
+    for v in (0, 13, 49):
+        sub = g.subgraph(g.neighbourhood(v, 2))
+        np.testing.assert_allclose(f[v], features(sub, PAPER.kernel), atol=1e-12)
+        # the default vector starts with the same Eq. 1 block
+        np.testing.assert_allclose(neighbourhood_features(g)[v, :20], f[v], atol=1e-12)
 
 
 def test_membership_and_node_sets() -> None:
@@ -84,7 +133,9 @@ def test_many_is_disjoint_union() -> None:
 def test_single_node_and_whole_graph() -> None:
     g = ContactGraph(np.zeros((1, 3)), [2.0], np.zeros((0, 2)))
     f = neighbourhood_features(g)
-    np.testing.assert_allclose(f[0], features(g, PartConfig().kernel))
+    np.testing.assert_allclose(f[0, :20], features(g, PartConfig().kernel))
+    np.testing.assert_allclose(f[0], part_vector(g))
+    np.testing.assert_allclose(f[0, 20:], [1] + [0] * 9 + [1, 1])  # r / R = 1: the only ball
     h = random_graph(30, 4)
     # with a range larger than the diameter every neighbourhood is its component
     big = neighbourhood_features(h, hops=64)
@@ -92,7 +143,12 @@ def test_single_node_and_whole_graph() -> None:
 
 
 def test_config_validation() -> None:
-    assert PartConfig().kernel.n_r == 10 and PartConfig().dim == 20
+    assert PartConfig().kernel.n_r == 10 and part_dim(PartConfig()) == 32
+    assert part_dim(PAPER) == 20
+    with pytest.raises(ConfigError):
+        PartConfig(size=-1.0)
+    with pytest.raises(ConfigError):
+        PartConfig(centre=-0.5)
     with pytest.raises(ConfigError):
         PartConfig(hops=-1)
     with pytest.raises(ConfigError):
