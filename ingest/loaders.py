@@ -14,7 +14,8 @@ extension                 read as                             with
 .npy                      (n, 3) -> PointCloud,               numpy
                           3-D bool/uint8 -> VoxelGrid
 .npz                      VoxelGrid (occupancy, origin,       numpy
-                          pitch), or points / vertices+faces
+                          pitch [, surface]), or points /
+                          vertices+faces
 .step .stp .iges .igs     B-rep solid, tessellated finely     gmsh (extra "cad")
 .brep .brp
 ========================  ==================================  ==================
@@ -190,10 +191,10 @@ def _cloud(points: Any, normals: Any, src: str) -> Geometry:
     return _construct(PointCloud, np.asarray(points, dtype=np.float64), normals=normals, name=src)
 
 
-def _voxels(occupancy: Any, origin: Any, pitch: Any, src: str) -> Geometry:
+def _voxels(occupancy: Any, origin: Any, pitch: Any, src: str, surface: str = "cubes") -> Geometry:
     from shapedb.voxels import VoxelGrid
 
-    return _construct(VoxelGrid, occupancy, origin=origin, pitch=pitch, name=src)
+    return _construct(VoxelGrid, occupancy, origin=origin, pitch=pitch, surface=surface, name=src)
 
 
 def _construct(cls: type, *args: Any, name: str, **kwargs: Any) -> Geometry:
@@ -367,6 +368,7 @@ def _load_npz(p: Path, head: bytes, size: int) -> Geometry:
             data.get("origin", np.zeros(3)),
             float(np.asarray(data.get("pitch", 1.0))),
             src,
+            str(np.asarray(data.get("surface", "cubes"))),
         )
     if "vertices" in data and "faces" in data:
         return _mesh(data["vertices"], data["faces"], src)
@@ -375,7 +377,7 @@ def _load_npz(p: Path, head: bytes, size: int) -> Geometry:
     if len(data) == 1:
         return _from_array(next(iter(data.values())), src)
     raise LoadError(
-        f"NPZ has keys {sorted(data)}; expected 'occupancy' [+ 'origin', 'pitch'], "
+        f"NPZ has keys {sorted(data)}; expected 'occupancy' [+ 'origin', 'pitch', 'surface'], "
         "'points' [+ 'normals'] or 'vertices' + 'faces'",
         source=src,
     )

@@ -64,6 +64,19 @@ def test_voxel_npz_keeps_origin_and_pitch(good_files: dict[str, Path]) -> None:
     b = np.asarray(g.bounds)
     assert b[0, 0] >= 1.0 - 0.5 and b[1, 0] <= 1.0 + 12 * 0.5
     assert b[1, 2] - b[0, 2] == pytest.approx(4 * 0.5, abs=0.5)
+    assert g.surface == "cubes"  # type: ignore[attr-defined]
+
+
+def test_voxel_npz_surface(tmp_path: Path) -> None:
+    occ = np.zeros((8, 8, 8), dtype=bool)
+    occ[2:6, 2:6, 2:6] = True
+    np.savez(tmp_path / "v.npz", occupancy=occ, surface="smooth")
+    g = load(tmp_path / "v.npz")
+    assert g.surface == "smooth"  # type: ignore[attr-defined]
+    assert g.signed_distance([[3.5, 3.5, 3.5]])[0] == pytest.approx(2.0)
+    np.savez(tmp_path / "bad.npz", occupancy=occ, surface="blobby")
+    with pytest.raises(E.ShapeDBError, match="surface"):
+        load(tmp_path / "bad.npz")
 
 
 def test_content_wins_over_extension(tmp_path: Path, good_files: dict[str, Path]) -> None:

@@ -306,7 +306,27 @@ class TestVoxels:
         assert np.mean(np.abs(s - t)[t > 0]) < 0.25 * vox.pitch
         assert vox.signed_distance([[100.0, 0, 0]])[0] < -90
 
+    def test_smooth_surface(self) -> None:
+        occ = np.zeros((10, 10, 10), dtype=bool)
+        occ[2:8, 2:8, 2:8] = True  # faces at 1.5 and 7.5
+        cube = VoxelGrid(occ, surface="smooth")
+        # exact at the centre (the cell-centre EDT of "cubes" is half a cell short there)
+        assert cube.signed_distance([[4.5, 4.5, 4.5]])[0] == pytest.approx(3.0)
+        assert cube.signed_distance([[4.5, 4.5, 0.5]])[0] == pytest.approx(-1.0)
+        vox, radius = self.ball()
+        smooth = VoxelGrid(vox.occupancy, origin=vox.origin, pitch=vox.pitch, surface="smooth")
+        g = Grid.fit(vox.bounds, resolution=33)
+        s = smooth.grid_sdf(g).ravel()
+        t = sphere_sdf(g.points(), radius)
+        c = vox.grid_sdf(g).ravel()
+        # the chamfered surface lies nearer the sampled sphere than the stairs do
+        # (measured: mean error inside 0.16 vs 0.23 cells, largest 0.44 vs 1.2 cells)
+        assert np.mean(np.abs(s - t)[t > 0]) < 0.8 * np.mean(np.abs(c - t)[t > 0])
+        assert np.max(np.abs(s - t)) < 0.5 * vox.pitch < 0.5 * np.max(np.abs(c - t))
+
     def test_bad_input(self) -> None:
+        with pytest.raises(InvalidShapeError, match="surface"):
+            VoxelGrid(np.ones((2, 2, 2)), surface="blobby")  # type: ignore[arg-type]
         with pytest.raises(EmptyGeometryError):
             VoxelGrid(np.zeros((4, 4, 4), dtype=bool))
         with pytest.raises(InvalidShapeError, match="3-D"):
