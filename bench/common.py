@@ -33,6 +33,7 @@ __all__ = [
     "Balls",
     "VARIANTS",
     "decompose_all",
+    "mdbd_config",
 ]
 
 logger = logging.getLogger(__name__)
@@ -240,6 +241,24 @@ def engine_version() -> str:
     for name in _ENGINE_MODULES:
         digest.update((root / f"{name}.py").read_bytes())
     return digest.hexdigest()[:16]
+
+
+def mdbd_config(
+    base: MDBDConfig | None = None,
+    *,
+    resolution: int | None = None,
+    n_balls: int | None = None,
+    no_refine: bool = False,
+) -> MDBDConfig:
+    """``base`` (default ``MDBDConfig()``) with the bench scripts' command-line overrides."""
+    from dataclasses import replace
+
+    cfg = base or MDBDConfig()
+    if resolution:
+        cfg = replace(cfg, resolution=resolution)
+    if n_balls:
+        cfg = replace(cfg, n_balls=n_balls)
+    return replace(cfg, refine=False) if no_refine else cfg
 
 
 def cache_path(model: Model, variant: str, config: MDBDConfig) -> Path:

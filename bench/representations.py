@@ -31,9 +31,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.common import Balls, decompose_all, format_table, write_json
+from bench.common import Balls, decompose_all, format_table, mdbd_config, write_json
 from bench.datasets import capod
-from shapedb.config import KernelConfig, MDBDConfig
+from shapedb.config import KernelConfig
 
 OUT = Path(__file__).resolve().parent / "results" / "representations_h5_capod.json"
 
@@ -76,13 +76,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args(argv)
-    cfg = MDBDConfig()
-    if args.resolution:
-        cfg = dataclasses.replace(cfg, resolution=args.resolution)
-    if args.n_balls:
-        cfg = dataclasses.replace(cfg, n_balls=args.n_balls)
-    if args.no_refine:
-        cfg = dataclasses.replace(cfg, refine=False)
+    cfg = mdbd_config(resolution=args.resolution, n_balls=args.n_balls, no_refine=args.no_refine)
     kcfg = KernelConfig()
     ds = capod().split(args.split)
     mesh = decompose_all(ds.models, "mesh", cfg, workers=args.workers)

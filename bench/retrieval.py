@@ -45,6 +45,7 @@ from bench.common import (
     Balls,
     decompose_all,
     format_table,
+    mdbd_config,
     retrieval_scores,
     write_json,
 )
@@ -325,15 +326,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=RESULTS / "retrieval.json")
     args = ap.parse_args(argv)
 
-    mdbd = MDBDConfig()
-    if args.quick:
-        mdbd = dataclasses.replace(mdbd, resolution=64, n_balls=256)
-    if args.resolution:
-        mdbd = dataclasses.replace(mdbd, resolution=args.resolution)
-    if args.n_balls:
-        mdbd = dataclasses.replace(mdbd, n_balls=args.n_balls)
-    if args.no_refine:
-        mdbd = dataclasses.replace(mdbd, refine=False)
+    base = MDBDConfig(resolution=64, n_balls=256) if args.quick else MDBDConfig()
+    mdbd = mdbd_config(
+        base, resolution=args.resolution, n_balls=args.n_balls, no_refine=args.no_refine
+    )
     kcfg = KernelConfig() if args.n_r is None else KernelConfig(n_r=args.n_r)
     d2 = D2Config(n_pairs=2**18 if args.quick else 1024**2)
     report: dict[str, Any] = {"quick": args.quick, "split": args.split, "datasets": {}}
