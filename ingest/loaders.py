@@ -79,7 +79,9 @@ SUPPORTED = {**MESH_FORMATS, **CLOUD_FORMATS, **VOXEL_FORMATS, **CAD_FORMATS}
 """Extension -> format name of every file type :func:`load` reads."""
 
 _TEXT_FORMATS = {"obj", "off", "xyz", "pts", "gltf", "step", "iges"}
-_AS = (None, "mesh", "pointcloud")
+#: Representations a file can be forced into (``load(path, as_=...)``).
+AS_OPTIONS = (None, "mesh", "pointcloud", "smooth_voxels")
+_AS = AS_OPTIONS
 
 
 def detect_format(path: str | os.PathLike[str], head: bytes | None = None) -> str:
@@ -127,9 +129,12 @@ def load(path: str | os.PathLike[str], *, as_: str | None = None) -> Geometry:
     ----------
     path : str or Path
         The file.
-    as_ : {None, "mesh", "pointcloud"}
+    as_ : {None, "mesh", "pointcloud", "smooth_voxels"}
         Force the representation: ``"pointcloud"`` takes a mesh file's vertices as a
-        point cloud (the paper's Table 3 setting); ``"mesh"`` refuses point clouds.
+        point cloud (the paper's Table 3 setting); ``"mesh"`` refuses point clouds;
+        ``"smooth_voxels"`` reads an occupancy grid with ``surface="smooth"`` (its
+        marching-cubes boundary, for grids that sample a smooth solid; see
+        :mod:`shapedb.voxels`) and refuses other files.
 
     Returns
     -------
@@ -213,6 +218,9 @@ def _construct(cls: type, *args: Any, name: str, **kwargs: Any) -> Geometry:
 def _convert(geometry: Geometry, as_: str | None, src: str) -> Geometry:
     if as_ is None or geometry.representation == as_:
         return geometry
+    if as_ == "smooth_voxels" and geometry.representation == "voxels":
+        g: Any = geometry
+        return _voxels(g.occupancy, g.origin, g.pitch, src, surface="smooth")
     if as_ == "pointcloud" and geometry.representation in ("mesh", "brep"):
         return _cloud(np.asarray(geometry.vertices), None, src)  # type: ignore[attr-defined]
     raise InvalidShapeError(f"cannot read a {geometry.representation} file as a {as_}", source=src)

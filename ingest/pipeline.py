@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from ingest.labels import LabelEntry, LabelTable, folder_label, read_labels
-from ingest.loaders import SUPPORTED, load
+from ingest.loaders import AS_OPTIONS, SUPPORTED, load
 from shapedb.config import Config
 from shapedb.errors import ConfigError, LoadError, MissingDependencyError, ShapeDBError
 from shapedb.geometry import Geometry
@@ -329,7 +329,7 @@ def ingest(
         ``{path: label}``.
     label_from_folder : bool
         Label each file by its parent folder's name (when the CSV gives none).
-    as_ : {None, "mesh", "pointcloud"}
+    as_ : {None, "mesh", "pointcloud", "smooth_voxels"}
         Force the representation of files (see :func:`ingest.loaders.load`).
     names : sequence of str, optional
         Names of the inputs, one per input (not for folders); default: the file stem.
@@ -351,8 +351,8 @@ def ingest(
     IngestReport
     """
     t_start = time.perf_counter()
-    if as_ not in (None, "mesh", "pointcloud"):
-        raise ConfigError(f"as_={as_!r} is invalid: must be None, 'mesh' or 'pointcloud'")
+    if as_ not in AS_OPTIONS:
+        raise ConfigError(f"as_={as_!r} is invalid: must be one of {list(AS_OPTIONS)}")
     if batch_size < 1:
         raise ConfigError(f"batch_size={batch_size!r} is invalid: must be >= 1")
     config: Config = db.config

@@ -2,7 +2,7 @@
 
 ::
 
-    shapedb ingest PATH... --db DIR [--labels CSV] [--label-from-folder] [--as pointcloud]
+    shapedb ingest PATH... --db DIR [--labels CSV] [--label-from-folder] [--as pointcloud|smooth_voxels]
                    [--resolution N] [--balls N] [--workers N] [--scheduler ADDR] [--force] [--json]
     shapedb info --db DIR [--json]
     shapedb delete ID_OR_NAME... --db DIR
@@ -54,7 +54,12 @@ def build_parser() -> argparse.ArgumentParser:
     db_arg(s)
     s.add_argument("--labels", metavar="CSV", help="CSV with path,label[,extra columns]")
     s.add_argument("--label-from-folder", action="store_true", help="label = parent folder")
-    s.add_argument("--as", dest="as_", choices=["mesh", "pointcloud"], help="force representation")
+    s.add_argument(
+        "--as",
+        dest="as_",
+        choices=["mesh", "pointcloud", "smooth_voxels"],
+        help="force representation (smooth_voxels: occupancy grids as smooth solids)",
+    )
     s.add_argument("--resolution", type=int, metavar="N", help="grid cells (new store)")
     s.add_argument("--balls", type=int, metavar="N", help="max balls per shape (new store)")
     s.add_argument("--workers", type=int, metavar="N", help="worker processes (default: all cores)")

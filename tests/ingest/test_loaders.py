@@ -59,6 +59,15 @@ def test_forced_pointcloud_takes_mesh_vertices(good_files: dict[str, Path]) -> N
         load(good_files["ico.off"], as_="banana")
 
 
+def test_forced_smooth_voxels(good_files: dict[str, Path]) -> None:
+    cubes = load(good_files["slab.npz"])
+    smooth = load(good_files["slab.npz"], as_="smooth_voxels")
+    assert smooth.representation == "voxels" and smooth.surface == "smooth"  # type: ignore[attr-defined]
+    np.testing.assert_array_equal(smooth.occupancy, cubes.occupancy)  # type: ignore[attr-defined]
+    with pytest.raises(E.InvalidShapeError, match="ico.off"):
+        load(good_files["ico.off"], as_="smooth_voxels")
+
+
 def test_voxel_npz_keeps_origin_and_pitch(good_files: dict[str, Path]) -> None:
     g = load(good_files["slab.npz"])
     b = np.asarray(g.bounds)

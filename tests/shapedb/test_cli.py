@@ -209,3 +209,21 @@ def test_train_and_classify(
     assert sum(result["probabilities"].values()) == pytest.approx(1.0)
     assert main(["classify", query, "--db", str(db), "--model", str(tmp_path / "none.pt")]) == 1
     assert capsys.readouterr().err.startswith("shapedb: error: ")
+
+
+def test_ingest_voxels_as_smooth_solids(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import numpy as np
+
+    folder = tmp_path / "vox"
+    folder.mkdir()
+    occ = np.zeros((16, 16, 16), dtype=bool)
+    occ[3:13, 3:13, 4:10] = True
+    np.save(folder / "slab.npy", occ)
+    db = tmp_path / "db"
+    assert main(["ingest", str(folder), "--db", str(db), "--resolution", "24", "--balls", "16",
+                 "--workers", "1", "--json"]) == 0  # fmt: skip
+    assert _json(capsys)["ingested"] == 1
+    # the same file read as a smooth solid is another shape (another solid)
+    assert main(["ingest", str(folder), "--db", str(db), "--as", "smooth_voxels",
+                 "--workers", "1", "--json"]) == 0  # fmt: skip
+    assert _json(capsys) == {"ingested": 1, "skipped": 0, "failed": []}
