@@ -165,7 +165,7 @@ class PartGeometry:
 
 
 # ------------------------------------------------------------------ resolving inputs
-def resolve(db: Any, x: Any, *, complement: bool = False, padding: float = 0.05) -> Model:
+def resolve(db: Any, x: Any, *, complement: bool = False, padding: float = 0.0) -> Model:
     """A :class:`Model` from a stored id/name, path, Geometry, Decomposition,
     ShapeRecord or ContactGraph; decomposed with the store's configuration (or the
     default one when ``db`` is None)."""
