@@ -182,3 +182,29 @@ def test_complement_sign_and_grid() -> None:
     assert in_hole.sum() >= 1  # the hole is filled with balls of the complement
     with pytest.raises(ConfigError):
         Complement(plate, padding=-1)
+
+
+def test_complement_in_the_exact_box_isolates_through_holes() -> None:
+    """The default complement is the stock minus the part: each through hole is a component
+    of the contact graph of its own (no slabs of air around the plate to join them)."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    plate = (
+        Box([0, 0, 0.1], [2.0, 1.0, 0.2])
+        - Cylinder([0.5, 0, -1], [0.5, 0, 1], 0.15)
+        - Cylinder([-0.5, 0, -1], [-0.5, 0, 1], 0.1)
+    )
+    c = Complement(plate)
+    np.testing.assert_allclose(c.bounds, plate.bounds)
+    d = decompose(c, resolution=64, n_balls=200)
+    n = len(d.radii)
+    graph = sp.coo_matrix((np.ones(len(d.edges)), tuple(d.edges.T)), shape=(n, n))
+    _, comp = connected_components(graph, directed=False)
+    holes = [
+        np.linalg.norm(d.centers[:, :2] - [x, 0], axis=1) < r for x, r in ((0.5, 0.15), (-0.5, 0.1))
+    ]
+    assert np.all(holes[0] | holes[1])  # nothing but the holes
+    for hole in holes:
+        assert hole.sum() >= 1
+        np.testing.assert_array_equal(np.isin(comp, comp[hole]), hole)
