@@ -231,15 +231,21 @@ _ENGINE_MODULES = (
 )  # fmt: skip
 
 
-@functools.lru_cache(maxsize=1)
-def engine_version() -> str:
-    """A digest (16 hex) of the decomposition engine's source code."""
+@functools.lru_cache(maxsize=4)
+def engine_version(variant: str | None = None) -> str:
+    """A digest (16 hex) of the decomposition engine's source code.
+
+    Mesh variants leave ``pointcloud.py`` out of it, so that work on the point-cloud
+    distance does not recompute every mesh decomposition.
+    """
     import shapedb
 
     root = Path(shapedb.__file__).parent
     digest = hashlib.sha256()
+    skip = () if variant is None or variant.startswith("pointcloud") else ("pointcloud",)
     for name in _ENGINE_MODULES:
-        digest.update((root / f"{name}.py").read_bytes())
+        if name not in skip:
+            digest.update((root / f"{name}.py").read_bytes())
     return digest.hexdigest()[:16]
 
 
@@ -265,9 +271,9 @@ def cache_path(model: Model, variant: str, config: MDBDConfig) -> Path:
     """Where the decomposition of ``model`` in ``variant`` with ``config`` is cached.
 
     The key holds the model's source, the variant, the config and
-    :func:`engine_version`.
+    :func:`engine_version` of the variant.
     """
-    key = [_source_key(model), variant, asdict(config), engine_version()]
+    key = [_source_key(model), variant, asdict(config), engine_version(variant)]
     text = json.dumps(key, sort_keys=True)
     digest = hashlib.sha256(text.encode()).hexdigest()[:20]
     return CACHE_DIR / "dec" / f"{digest}.npz"

@@ -1,16 +1,20 @@
 """Point clouds: a solid known only through (possibly sparse, uneven) surface samples.
 
-Distance starts from the distance ``d`` to the nearest sample (``scipy.spatial.cKDTree``),
-which overestimates the distance to the underlying surface: the nearest sample is
-typically offset sideways from the true closest point by ``r ~ 0.3 rho_k`` (the mean
-nearest-sample offset of uniform samples, ``0.5 rho_k sqrt(pi / k)``, with ``rho_k``
-the distance to the k-th neighbour). Left alone this inflates MDBD ball volumes by
-10-25 % against the mesh the cloud was sampled from (bench/agreement.py: median cloud
-/ mesh SDF ratio 1.17 on 30 CAPOD models, 1.10 on the watertight ones). The distance
-is therefore corrected to ``sqrt(d^2 - r^2)`` with ``r = SPACING_CORRECTION * rho_i``
-of the nearest sample ``i``, and never below ``d / 2`` (it stays positive off the
-samples, so signs are unchanged); the ratio becomes 1.00. :meth:`closest_points`
-returns the matching surface estimates on the segment to the nearest sample.
+Distance is the distance to the *splats* of the samples: each sample stands for a
+disc in its tangent plane (normal: the oriented normal below) whose area is the
+sample's area ``a_i`` (the same areas the winding number uses), radius
+``sqrt(a_i / pi)``; the distance of a point is its smallest distance to the discs of
+its ``SPLAT_NEIGHBOURS`` nearest samples, and :meth:`closest_points` returns the
+closest point on that disc. The distance to the nearest sample alone overestimates
+the distance to the underlying surface (the nearest sample is offset sideways from
+the true closest point), by 5 % at the median and 10-30 % at the 90th percentile at
+MDBD ball centres; a fixed correction for the mean offset (``sqrt(d^2 - r^2)``,
+``r = SPACING_CORRECTION * rho_k``, still used outside the solid where only the sign
+matters) centres the median but leaves the scatter. Against the exact distance to the
+mesh a cloud was sampled from, at the centres of the cloud's own MDBD balls (20 % of
+the vertices or 2,000 samples; ratio q10 / median / q90): jointed figures 0.80 / 0.98
+/ 1.11 corrected, 0.92 / 1.00 / 1.04 splats; machined parts 0.89 / 1.04 / 1.31 and
+0.92 / 1.00 / 1.09; CAPOD 0.78 / 0.96 / 1.17 and 0.87 / 0.98 / 1.07.
 
 The sign is the hard part. Poisson reconstruction and fixed-width shells leak on
 sparse clouds (the paper queries a random 20 % of a mesh's vertices), and point
@@ -62,6 +66,9 @@ logger = logging.getLogger(__name__)
 
 #: Fewest distinct points accepted.
 MIN_POINTS = 10
+#: Nearest samples whose splats (discs of their area in their tangent plane) are
+#: searched for the distance to the surface; 4-16 measure the same.
+SPLAT_NEIGHBOURS = 8
 #: Sideways offset of the nearest sample from the closest surface point, in units of
 #: its spacing (distance to the k-th neighbour); see the module docstring.
 SPACING_CORRECTION = 0.3
@@ -429,19 +436,40 @@ class PointCloud(Geometry):
         """
         return self.winding_number(points) > 0.5
 
+    def _splat(self, p: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Closest points (n, 3) on the nearest splats of points p (n, 3), and distances (n,)."""
+        k = int(min(SPLAT_NEIGHBOURS, len(self._points)))
+        _, idx = self._tree.query(p, k=k)
+        idx = np.asarray(idx).reshape(len(p), k)
+        s = self._points[idx]  # (n, k, 3)
+        n = self.normals[idx]
+        v = p[:, None, :] - s
+        along = np.einsum("nkj,nkj->nk", v, n)
+        lateral = v - along[..., None] * n
+        size = np.linalg.norm(lateral, axis=2)
+        disc = self._splat_radius[idx]
+        over = np.maximum(size - disc, 0.0)
+        d = np.sqrt(along * along + over * over)
+        best = np.argmin(d, axis=1)
+        rows = np.arange(len(p))
+        keep = (disc[rows, best] / np.maximum(size[rows, best], 1e-300)).clip(max=1.0)
+        q = s[rows, best] + lateral[rows, best] * keep[:, None]
+        return q, d[rows, best]
+
+    @cached_property
+    def _splat_radius(self) -> NDArray[np.float64]:
+        """(n,) float64: radius of each sample's splat, the disc of its area."""
+        return np.sqrt(self.areas / np.pi)
+
     def closest_points(self, points: ArrayLike) -> NDArray[np.float64]:
         """Estimated closest surface points (n, 3) of points (n, 3), model units.
 
-        On the segment from each point to its nearest sample, at the corrected
-        distance of :meth:`unsigned_distance` (the sample itself for points on it).
+        The closest point on the nearest splat (see the module docstring).
         """
         p = as_points(points)
         if len(p) == 0:
             return np.zeros((0, 3))
-        d, i = self._tree.query(p)
-        s = self._points[i]
-        scale = _corrected(d, self.spacing[i]) / np.maximum(d, 1e-300)
-        return p + (s - p) * scale[:, None]
+        return self._splat(p)[0]
 
     def transformed(self, rotation: ArrayLike, translation: ArrayLike) -> PointCloud:
         """This cloud moved by ``x -> rotation @ x + translation`` (a rigid motion).
@@ -467,14 +495,12 @@ class PointCloud(Geometry):
     def unsigned_distance(self, points: ArrayLike) -> NDArray[np.float64]:
         """Estimated distance (n,) of points (n, 3) to the surface, model units.
 
-        The distance to the nearest sample, corrected for the sideways offset of
-        that sample from the closest surface point (see the module docstring).
+        The distance to the nearest splat (see the module docstring).
         """
         p = as_points(points)
         if len(p) == 0:
             return np.zeros(0)
-        d, i = self._tree.query(p)
-        return np.asarray(_corrected(d, self.spacing[i]), dtype=np.float64)
+        return self._splat(p)[1]
 
     def signed_distance(self, points: ArrayLike) -> NDArray[np.float64]:
         """Signed distance (n,) of points (n, 3), model units, positive inside."""
@@ -497,5 +523,8 @@ class PointCloud(Geometry):
         inside = coarse_to_fine_inside(grid, dist, self.winding_number, near=1.0, margin=margin)
         refine_closest(dist, owner, closest, inside & ~band)
         rho = (self.spacing / h).astype(np.float32)[nearest[owner]]
-        dist = _corrected(dist, rho)
-        return (np.where(inside, dist, -dist) * np.float32(h)).astype(np.float32, copy=False)
+        dist = _corrected(dist, rho) * np.float32(h)
+        # inside, where MDBD puts its balls, the distance to the splats
+        cells = np.argwhere(inside)
+        dist[inside] = self._splat(grid.to_point(cells))[1]
+        return np.where(inside, dist, -dist).astype(np.float32, copy=False)
