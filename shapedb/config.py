@@ -53,10 +53,17 @@ class MDBDConfig:
     frame_resolution : int
         Cells along the longest side of the coarse grid that estimates the frame.
     tie_cells : float
-        Grid values within this many cells of the maximum count as tied; the tie
-        goes to the smallest flat (C-order) cell index, i.e. lexicographically along
-        the frame's axes. Makes the choice among (near-)equal balls depend on where
-        they lie on the solid rather than on sampling noise of the field.
+        Grid values within this many cells of the maximum, and connected to it
+        (6-neighbours), count as tied: a ridge or plateau of the distance field; the
+        tie goes to its smallest flat (C-order) cell index, i.e. lexicographically
+        along the frame's axes. Separate local maxima are never tied. Makes the choice among (near-)equal balls depend on where
+        they lie on the solid rather than on sampling noise of the field: along the
+        ridge of a cylindrical torso, limb or shaft every cell is within a hair of the
+        maximum, and without a tolerance a mesh, its point cloud or its decimated copy
+        start their packings at different places. Ties never reach below
+        ``min_radius_cells``. Default 0.75, chosen on the validation splits
+        (``python -m bench.ties``; 0 was the paper's plain argmax): jointed figures
+        NN 0.56 -> 0.79, CAPOD and machined parts unchanged (0.95 -> 0.97, 0.94).
     """
 
     resolution: int = 128
@@ -67,7 +74,7 @@ class MDBDConfig:
     refine: bool = True
     canonical_frame: bool = True
     frame_resolution: int = 48
-    tie_cells: float = 0.0
+    tie_cells: float = 0.75
 
     def __post_init__(self) -> None:
         _check(

@@ -149,16 +149,11 @@ def _recompute_blocks(
 
 
 @njit(cache=True)
-def _argmax(
-    F: np.ndarray, bmax: np.ndarray, B: int, tol: float
-) -> tuple[int, float]:  # pragma: no cover - compiled
-    """Smallest flat index whose value is within ``tol`` of the maximum of F, and its value."""
+def _first_at_least(
+    F: np.ndarray, bmax: np.ndarray, B: int, thr: np.float32
+) -> int:  # pragma: no cover - compiled
+    """Smallest flat (C-order) index of a cell with F >= thr (found through block maxima)."""
     nx, ny, nz = F.shape
-    m = np.float32(-np.inf)
-    for v in bmax.ravel():
-        if v > m:
-            m = v
-    thr = np.float32(np.float64(m) - tol)
     best = nx * ny * nz
     sx, sy, sz = bmax.shape
     for bi in range(sx):
@@ -182,6 +177,74 @@ def _argmax(
                             break
                     if found:
                         break
+    return best
+
+
+@njit(cache=True)
+def _ridge_first(
+    F: np.ndarray, start: int, thr: np.float32, top: np.float32
+) -> int:  # pragma: no cover - compiled
+    """Smallest flat index with F >= top in the 6-connected component of {F >= thr}
+    holding ``start``."""
+    nx, ny, nz = F.shape
+    best = start
+    seen = {start}
+    stack = [start]
+    while len(stack) > 0:
+        flat = stack.pop()
+        i = flat // (ny * nz)
+        j = (flat // nz) % ny
+        k = flat % nz
+        for a in range(6):
+            ii, jj, kk = i, j, k
+            if a == 0:
+                ii -= 1
+            elif a == 1:
+                ii += 1
+            elif a == 2:
+                jj -= 1
+            elif a == 3:
+                jj += 1
+            elif a == 4:
+                kk -= 1
+            else:
+                kk += 1
+            if ii < 0 or jj < 0 or kk < 0 or ii >= nx or jj >= ny or kk >= nz:
+                continue
+            if F[ii, jj, kk] < thr:
+                continue
+            nb = (ii * ny + jj) * nz + kk
+            if nb in seen:
+                continue
+            seen.add(nb)
+            stack.append(nb)
+            if nb < best and F[ii, jj, kk] >= top:
+                best = nb
+    return best
+
+
+@njit(cache=True)
+def _argmax(
+    F: np.ndarray, bmax: np.ndarray, B: int, tol: float, floor: float
+) -> tuple[int, float]:  # pragma: no cover - compiled
+    """The cell the greedy packing takes next: its flat index and its value.
+
+    The maximum's first cell, then the first cell within ``tol / 4`` of the maximum
+    on its *ridge*: the 6-connected cells within ``tol`` of the maximum (never below
+    ``floor``) around it. Separate local maxima are not tied: the best one wins, as
+    without a tolerance; and the cell taken is at most ``tol / 4`` below the maximum.
+    """
+    nx, ny, nz = F.shape
+    m = np.float32(-np.inf)
+    for v in bmax.ravel():
+        if v > m:
+            m = v
+    start = _first_at_least(F, bmax, B, m)
+    best = start
+    thr = np.float32(min(max(np.float64(m) - tol, floor), np.float64(m)))
+    if thr < m:
+        top = np.float32(max(np.float64(m) - 0.25 * (np.float64(m) - thr), np.float64(thr)))
+        best = _ridge_first(F, start, thr, top)
     i = best // (ny * nz)
     j = (best // nz) % ny
     return best, F[i, j, best % nz]
@@ -232,6 +295,22 @@ def _resolve_config(config: MDBDConfig | None, options: dict[str, Any]) -> MDBDC
     return with_options(MDBDConfig, config, options, what="MDBD")
 
 
+def _naive_argmax(F: NDArray[np.float32], tol: float, floor: float) -> tuple[int, float]:
+    """:func:`_argmax` without block maxima (the reference): scipy labels the ridge."""
+    from scipy import ndimage
+
+    m = float(F.max())
+    start = int(np.argmax(F.ravel() >= np.float32(m)))
+    thr = np.float32(min(max(m - tol, floor), m))
+    flat = start
+    if thr < m:
+        top = np.float32(max(m - 0.25 * (m - float(thr)), float(thr)))
+        labels, _ = ndimage.label(F >= thr)  # 6-connected
+        ridge = (labels.ravel() == labels.ravel()[start]) & (F.ravel() >= top)
+        flat = int(np.flatnonzero(ridge)[0])
+    return flat, float(F.ravel()[flat])
+
+
 def _loop(
     geometry: Geometry,
     grid: Grid,
@@ -262,11 +341,9 @@ def _loop(
         if n == cfg.n_balls:
             break
         if naive:
-            thr = np.float32(float(F.max()) - tie)
-            flat = int(np.argmax(F.ravel() >= thr))
-            top = float(F.ravel()[flat])
+            flat, top = _naive_argmax(F, tie, min_r)
         else:
-            flat, top = _argmax(F, bmax, BLOCK, tie)
+            flat, top = _argmax(F, bmax, BLOCK, tie, min_r)
             flat, top = int(flat), float(top)
         if top <= 0 or top < min_r:
             break

@@ -105,6 +105,33 @@ def test_ties_go_to_the_smallest_flat_index(box: Implicit) -> None:
         np.testing.assert_array_equal(fast.centers, ref.centers)
 
 
+def test_ties_make_the_choice_along_a_ridge_robust_to_noise() -> None:
+    """A cylinder's axis is a ridge of equal values: noise far below a cell decides it.
+
+    Without a tie tolerance the first ball of a slightly bumpy copy sits at the bumps'
+    crest, far from the clean cylinder's; with ``tie_cells`` above the noise both start
+    at the same end of the ridge.
+    """
+    from shapedb.implicit import Cylinder
+
+    cyl = Cylinder([-1.0, 0, 0], [1.0, 0, 0], 0.3)
+    bumpy = Implicit(
+        lambda p: cyl.signed_distance(p) + 0.004 * np.sin(7.0 * p[:, 0] + 1.0), cyl.bounds
+    )
+    opts = {"resolution": 64, "n_balls": 4, "refine": False, "canonical_frame": False}
+    a, b = decompose(cyl, tie_cells=0.0, **opts), decompose(bumpy, tie_cells=0.0, **opts)
+    assert np.linalg.norm(a.centers[0] - b.centers[0]) > 5 * a.spacing
+    a, b = decompose(cyl, tie_cells=0.5, **opts), decompose(bumpy, tie_cells=0.5, **opts)
+    assert np.linalg.norm(a.centers[0] - b.centers[0]) <= 1.01 * a.spacing
+
+
+def test_a_tie_wider_than_the_solid_still_finds_its_balls() -> None:
+    slab = Implicit(lambda p: 0.06 - np.abs(p[:, 2]), [[-1, -1, -0.06], [1, 1, 0.06]])
+    d = decompose(slab, resolution=48, n_balls=20, tie_cells=2.0)
+    assert d.n_balls == 20 and d.radii[-1] >= 0.5 * d.spacing
+    assert_valid(d, slab)
+
+
 def test_stops_at_min_radius_and_n_balls(sphere: Sphere) -> None:
     g = Sphere([0, 0, 0], 1.0) | Sphere([1.2, 0, 0], 0.5)
     d = decompose(g, resolution=32, n_balls=10_000, min_radius_cells=1.0)
