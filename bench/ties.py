@@ -4,9 +4,10 @@ Where the distance field has a ridge (the axis of a cylindrical torso, limb or s
 many cells within a hair of the maximum), the greedy argmax takes whichever ridge cell
 noise puts on top. A mesh and a point cloud of the same solid, or a mesh and its
 decimated copy, then start their packings at different ends of the ridge, and the
-difference cascades through every later ball. ``MDBDConfig.tie_cells`` counts values
-within that many cells of the maximum as tied and gives the tie to the first cell along
-the canonical frame's axes, so the choice follows the solid instead of the noise.
+difference cascades through every later ball. ``MDBDConfig.tie_cells`` counts the cells
+within that many cells of the maximum and connected to it (its ridge) as tied and takes
+the first of them along the canonical frame's axes that is within a quarter of the
+tolerance of the maximum, so the choice follows the solid instead of the noise.
 
 For each tolerance this bench decomposes the validation splits of the three labelled
 sets as meshes and as point clouds (:func:`bench.datasets.point_cloud`) and prints, with
@@ -76,7 +77,7 @@ def measure(mesh: list[Balls], pc: list[Balls], labels: np.ndarray, names: list[
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--ties", type=float, nargs="+", default=[0.0, 0.5, 1.0, 2.0])
+    ap.add_argument("--ties", type=float, nargs="+", default=[0.0, 0.75, 1.5])
     ap.add_argument("--split", default="validation", choices=("validation", "test", "all"))
     ap.add_argument("--datasets", nargs="+", default=["capod", "articulated", "parts"])
     ap.add_argument("--workers", type=int, default=2)

@@ -59,6 +59,9 @@ __all__ = ["Decomposition", "decompose"]
 logger = logging.getLogger(__name__)
 
 BLOCK = 8  # edge of a block of cells in the block-max structure
+#: Ties never span more than this fraction of the current maximum: on a limb a couple of
+#: cells thick, ``tie_cells`` would otherwise join neighbouring parts into one "ridge".
+TIE_FRACTION = 0.25
 
 
 @dataclass(frozen=True, eq=False)
@@ -230,8 +233,8 @@ def _argmax(
     """The cell the greedy packing takes next: its flat index and its value.
 
     The maximum's first cell, then the first cell within ``tol / 4`` of the maximum
-    on its *ridge*: the 6-connected cells within ``tol`` of the maximum (never below
-    ``floor``) around it. Separate local maxima are not tied: the best one wins, as
+    on its *ridge*: the 6-connected cells within ``tol`` (at most ``TIE_FRACTION`` of
+    the maximum) of the maximum (never below ``floor``) around it. Separate local maxima are not tied: the best one wins, as
     without a tolerance; and the cell taken is at most ``tol / 4`` below the maximum.
     """
     nx, ny, nz = F.shape
@@ -241,6 +244,7 @@ def _argmax(
             m = v
     start = _first_at_least(F, bmax, B, m)
     best = start
+    tol = min(tol, TIE_FRACTION * np.float64(m))
     thr = np.float32(min(max(np.float64(m) - tol, floor), np.float64(m)))
     if thr < m:
         top = np.float32(max(np.float64(m) - 0.25 * (np.float64(m) - thr), np.float64(thr)))
@@ -301,6 +305,7 @@ def _naive_argmax(F: NDArray[np.float32], tol: float, floor: float) -> tuple[int
 
     m = float(F.max())
     start = int(np.argmax(F.ravel() >= np.float32(m)))
+    tol = min(tol, TIE_FRACTION * m)
     thr = np.float32(min(max(m - tol, floor), m))
     flat = start
     if thr < m:

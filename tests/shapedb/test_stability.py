@@ -98,12 +98,22 @@ def test_sampled_frame_follows_a_rotation_of_an_unmoved_solid(base: tuple) -> No
 
 
 def test_grid_shift_under_a_fixed_solid_keeps_the_kernel_high(base: tuple) -> None:
+    """Six sub-cell shifts of the grid under a solid known only by its distance function.
+
+    Measured kernels (median, min): 0.92, 0.90 with the default plain argmax
+    (``tie_cells=0``); 0.95, 0.90 at 0.75; 0.90, 0.85 at 1.5, which gains 0.14 NN on
+    jointed figures (``bench/ties.py``); 0.77 for one shift with the grid on the
+    model's axes.
+    """
     g, d0 = base
     h = d0.spacing
-    direction = np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0)
-    shifted = Implicit(g.signed_distance, g.bounds - np.stack([0.3 * h * direction, 0 * direction]))
-    d1 = decompose(shifted, **OPTS)
-    assert kernel(features(d0), features(d1)) >= 0.9  # measured 0.96 (0.77 on model axes)
+    ks = []
+    for frac in (0.1, 0.3, 0.5):
+        for direction in (np.array([1.0, 2.0, 3.0]), np.array([-2.0, 1.0, 0.5])):
+            step = frac * h * direction / np.linalg.norm(direction)
+            shifted = Implicit(g.signed_distance, g.bounds - np.stack([step, 0 * step]))
+            ks.append(kernel(features(d0), features(decompose(shifted, **OPTS))))
+    assert np.median(ks) >= 0.88 and min(ks) >= 0.8, ks
 
 
 @pytest.fixture(scope="module")
