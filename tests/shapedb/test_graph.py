@@ -90,7 +90,9 @@ def test_to_networkx() -> None:
 
 
 def test_decomposition_graph(csg_shapes: dict) -> None:
-    d = decompose(csg_shapes["figure"], resolution=40, n_balls=100)
+    # 64 cells: at 40 the figure's limbs are 1-2 cells thick, and with ties on one of
+    # its 41 balls can sit more than half a cell from every other (3 components)
+    d = decompose(csg_shapes["figure"], resolution=64, n_balls=100)
     g = d.graph
     assert g is d.graph  # cached
     assert g.n_nodes == d.n_balls and np.array_equal(g.edges, d.edges)

@@ -77,9 +77,19 @@ def test_similarity_transforms_keep_the_kernel_high(generic: Implicit) -> None:
 
 
 def test_sub_cell_grid_shift_keeps_the_kernel_high(generic: Implicit) -> None:
-    opts = {"resolution": 64, "n_balls": 128}
+    """A solid known only by its distance function (no exact frame), its grid moved.
+
+    Measured at 48 / 64 / 80 cells: 0.93 / 0.94 / 0.88 with the paper's plain argmax,
+    0.92 / 0.86 / 0.88 with the default ridge ties (``MDBDConfig.tie_cells``), which
+    trade a little of this for 0.18 NN on jointed figures; 0.77 with the grid on the
+    model's axes.
+    """
     shifted = Implicit(
         generic.signed_distance, generic.bounds + [[-0.011, -0.007, 0.0], [0.0, 0.013, 0.004]]
     )
-    k = kernel(features(decompose(generic, **opts)), features(decompose(shifted, **opts)))
-    assert k >= 0.9  # measured 0.96 (0.77 with the grid on the model's axes)
+    ks = []
+    for resolution in (48, 64, 80):
+        opts = {"resolution": resolution, "n_balls": 128}
+        f0, f1 = features(decompose(generic, **opts)), features(decompose(shifted, **opts))
+        ks.append(kernel(f0, f1))
+    assert np.median(ks) >= 0.85 and min(ks) >= 0.8, ks

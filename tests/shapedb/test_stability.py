@@ -100,10 +100,10 @@ def test_sampled_frame_follows_a_rotation_of_an_unmoved_solid(base: tuple) -> No
 def test_grid_shift_under_a_fixed_solid_keeps_the_kernel_high(base: tuple) -> None:
     """Six sub-cell shifts of the grid under a solid known only by its distance function.
 
-    Measured kernels (median, min): 0.92, 0.90 with the default plain argmax
-    (``tie_cells=0``); 0.95, 0.90 at 0.75; 0.90, 0.85 at 1.5, which gains 0.14 NN on
-    jointed figures (``bench/ties.py``); 0.77 for one shift with the grid on the
-    model's axes.
+    Measured kernels (median, min): 0.92, 0.90 with the paper's plain argmax
+    (``tie_cells=0``); 0.95, 0.90 at 0.75; 0.90, 0.85 at the default 1.5, which gains
+    0.18 NN on jointed figures (``bench/ties.py``); 0.77 for one shift with the grid on
+    the model's axes.
     """
     g, d0 = base
     h = d0.spacing
