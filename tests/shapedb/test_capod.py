@@ -93,7 +93,7 @@ def test_similarity_transform_keeps_the_kernel() -> None:
     strict=True,
     reason="open CAPOD meshes and their 20 % point clouds do not always bound the same "
     "solid, and most classes are one mesh in many poses: over all 180 models a cloud "
-    "finds its own mesh first for 28 % (bench/representations.py; issue 2/6)",
+    "finds its own mesh first for 36 % (bench/representations.py; issue 2/6)",
 )
 def test_point_cloud_finds_its_own_mesh_first() -> None:
     from shapedb.kernel import distance, features
