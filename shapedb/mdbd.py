@@ -62,6 +62,8 @@ BLOCK = 8  # edge of a block of cells in the block-max structure
 #: Ties never span more than this fraction of the current maximum: on a limb a couple of
 #: cells thick, ``tie_cells`` would otherwise join neighbouring parts into one "ridge".
 TIE_FRACTION = 0.25
+#: The cell taken from a ridge is within this fraction of the tie of the maximum.
+TIE_TAKE = 0.25
 
 
 @dataclass(frozen=True, eq=False)
@@ -232,10 +234,10 @@ def _argmax(
 ) -> tuple[int, float]:  # pragma: no cover - compiled
     """The cell the greedy packing takes next: its flat index and its value.
 
-    The maximum's first cell, then the first cell within ``tol / 4`` of the maximum
-    on its *ridge*: the 6-connected cells within ``tol`` (at most ``TIE_FRACTION`` of
-    the maximum) of the maximum (never below ``floor``) around it. Separate local maxima are not tied: the best one wins, as
-    without a tolerance; and the cell taken is at most ``tol / 4`` below the maximum.
+    The maximum's first cell, then the first cell within ``TIE_TAKE * tol`` of the
+    maximum on its *ridge*: the 6-connected cells around it within ``tol`` (at most
+    ``TIE_FRACTION`` of the maximum, never below ``floor``) of the maximum. Separate
+    local maxima are not tied: the best one wins, as without a tolerance.
     """
     nx, ny, nz = F.shape
     m = np.float32(-np.inf)
@@ -247,7 +249,7 @@ def _argmax(
     tol = min(tol, TIE_FRACTION * np.float64(m))
     thr = np.float32(min(max(np.float64(m) - tol, floor), np.float64(m)))
     if thr < m:
-        top = np.float32(max(np.float64(m) - 0.25 * (np.float64(m) - thr), np.float64(thr)))
+        top = np.float32(max(np.float64(m) - TIE_TAKE * (np.float64(m) - thr), np.float64(thr)))
         best = _ridge_first(F, start, thr, top)
     i = best // (ny * nz)
     j = (best // nz) % ny
@@ -309,7 +311,7 @@ def _naive_argmax(F: NDArray[np.float32], tol: float, floor: float) -> tuple[int
     thr = np.float32(min(max(m - tol, floor), m))
     flat = start
     if thr < m:
-        top = np.float32(max(m - 0.25 * (m - float(thr)), float(thr)))
+        top = np.float32(max(m - TIE_TAKE * (m - float(thr)), float(thr)))
         labels, _ = ndimage.label(F >= thr)  # 6-connected
         ridge = (labels.ravel() == labels.ravel()[start]) & (F.ravel() >= top)
         flat = int(np.flatnonzero(ridge)[0])
