@@ -166,7 +166,18 @@ def retrieval_scores(similarity: ArrayLike, labels: ArrayLike) -> dict[str, floa
 # --------------------------------------------------------------------------------------
 
 #: Representation variants a model can be decomposed in.
-VARIANTS = ("mesh", "pointcloud", "mesh_shift", "mesh_rotate", "mesh_decimate", "pointcloud_b")
+VARIANTS = (
+    "mesh",
+    "pointcloud",
+    "mesh_shift",
+    "mesh_rotate",
+    "mesh_decimate",
+    "pointcloud_b",
+    "pointcloud_dense",
+)
+
+#: Surface samples of the ``pointcloud_dense`` variant.
+DENSE_SAMPLES = 20_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -289,7 +300,8 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
     """The geometry of ``model`` in a representation variant.
 
     ``mesh`` the mesh; ``pointcloud`` the paper's point cloud (seeded by the name);
-    ``pointcloud_b`` another draw of it; ``mesh_shift`` the mesh translated by
+    ``pointcloud_b`` another draw of it; ``pointcloud_dense`` DENSE_SAMPLES points
+    sampled uniformly by area on the surface (no normals); ``mesh_shift`` the mesh translated by
     (0.37, 0.21, 0.43) grid cells; ``mesh_rotate`` randomly rotated (seeded);
     ``mesh_decimate`` decimated to 25 % of its faces (fast-simplification).
     """
@@ -301,6 +313,12 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
 
         seed = stable_seed(model.name, variant)
         return PointCloud(point_cloud(v, f, seed=seed))
+    if variant == "pointcloud_dense":
+        from bench.baselines import sample_surface
+        from shapedb.pointcloud import PointCloud
+
+        rng = np.random.default_rng(stable_seed(model.name, variant))
+        return PointCloud(sample_surface(v, f, DENSE_SAMPLES, rng=rng))
     if variant == "mesh_shift":
         extent = float((v.max(axis=0) - v.min(axis=0)).max())
         cell = extent / max(config.resolution - 2 * config.padding_cells, 1)
