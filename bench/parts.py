@@ -361,6 +361,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     ap.add_argument("--resolution", type=int, default=80)
     ap.add_argument("--n-balls", type=int, default=256)
+    ap.add_argument(
+        "--tie-cells", type=float, default=None, help="MDBDConfig.tie_cells (default: its default)"
+    )
     ap.add_argument("--hops", type=int, default=None, help="K of 'after' (default PartConfig)")
     ap.add_argument("--no-sweep", action="store_true", help="skip the validation sweep")
     ap.add_argument("--workers", type=int, default=2)
@@ -368,6 +371,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     mdbd = MDBDConfig(resolution=args.resolution, n_balls=args.n_balls)
+    if args.tie_cells is not None:
+        mdbd = replace(mdbd, tie_cells=args.tie_cells)
     after = PartConfig() if args.hops is None else PartConfig(hops=args.hops)
     before = replace(BEFORE, hops=after.hops)
     selection = None
