@@ -175,6 +175,9 @@ def run_stability(
     probe = list(range(0, len(test), step))
     db = desc.describe(mesh)  # type: ignore[arg-type]
     scales = _scales(db)
+    from bench.retrieval import kernel_features
+
+    shapedb_db = kernel_features(mesh, kcfg)  # type: ignore[arg-type]
     methods = {
         "paper kernel": ("paper",),
         **{k: CANDIDATES[k] for k in ("geom", "chosen", "all")},
@@ -193,16 +196,19 @@ def run_stability(
             d = desc.combined_distance(q, db, dict.fromkeys(names, 1.0), scales)
             first = float(np.mean(np.argmin(d, axis=1) == target))
             res[name] = first
+        fq = kernel_features([copies[k] for k in ok], kcfg)  # type: ignore[misc]
+        d = np.abs(fq[:, None, :] - shapedb_db[None, :, :]).sum(-1)
+        res["shapedb"] = float(np.mean(np.argmin(d, axis=1) == target))
         if variant != "pointcloud":
             v_arr = [mesh_arrays(test.models[probe[k]]) for k in ok]
             res["D2"] = _d2_first(test, v_arr, target, variant, mdbd)
         out[variant] = {"copies": len(ok), **res}
-        rows.append([variant, len(ok), *(res.get(m) for m in [*methods, "D2"])])
+        rows.append([variant, len(ok), *(res.get(m) for m in ["shapedb", *methods, "D2"])])
     print()
     print(
         format_table(
             f"stability, {ds.name}: copy ranks its original first (among {len(test)} meshes)",
-            ("variant", "copies", *methods, "D2"),
+            ("variant", "copies", "shapedb", *methods, "D2"),
             rows,
         )
     )

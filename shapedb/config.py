@@ -149,6 +149,10 @@ class KernelConfig:
         score about 0.1); "paper" is the paper's Eq. 1 vector with Eq. 2 weights,
         parameterised by ``n_r, t, w, la, lb``. Both are compared with a weighted L1
         distance and turned into a similarity by Eq. 3.
+    descriptor : int
+        Version of the "mdbd" descriptor's blocks and weights (see
+        :mod:`shapedb.descriptor`; 2 is the default, 1 the first selection). Stored
+        with every record, so that a store never mixes versions; ignored by "paper".
     """
 
     n_r: int = 32
@@ -158,6 +162,7 @@ class KernelConfig:
     lb: float = 0.75
     lam: float = 1.0
     method: str = "mdbd"
+    descriptor: int = 2
 
     def __post_init__(self) -> None:
         _check(
@@ -182,14 +187,20 @@ class KernelConfig:
         _check(0.0 < self.la <= 1.0, "la", self.la, "must be in (0, 1]")
         _check(0.0 < self.lb <= 1.0, "lb", self.lb, "must be in (0, 1]")
         _check(self.lam > 0.0, "lam", self.lam, "must be > 0")
+        _check(
+            self.descriptor in (1, 2),
+            "descriptor",
+            self.descriptor,
+            "must be 1 or 2 (see shapedb.descriptor)",
+        )
 
     @property
     def dim(self) -> int:
         """Length of the feature vector: 2 * n_r for "paper", the descriptor's for "mdbd"."""
         if self.method == "mdbd":
-            from shapedb.descriptor import DIM
+            from shapedb.descriptor import dim
 
-            return DIM
+            return dim(self.descriptor)
         return 2 * self.n_r
 
 
@@ -289,11 +300,13 @@ class Config:
         """Inverse of :meth:`to_dict`; unknown keys are refused.
 
         A stored kernel configuration without ``method`` predates the default
-        descriptor and is read as ``method="paper"``, which is what built it.
+        descriptor and is read as ``method="paper"``, which is what built it; one
+        without ``descriptor`` predates descriptor versions and is read as version 1.
         """
         kernel = dict(data.get("kernel", {}))
         if kernel:
             kernel.setdefault("method", "paper")
+            kernel.setdefault("descriptor", 1)
         try:
             return cls(
                 mdbd=_build(MDBDConfig, data.get("mdbd", {})),

@@ -62,14 +62,15 @@ def features(x: Any, config: KernelConfig | None = None, **options: Any) -> NDAr
     -------
     (config.dim,) float64
         method "paper": ``[p0_1..p0_nr, P_1..P_nr]`` (2 * n_r), zeros for missing
-        nodes; method "mdbd": :func:`shapedb.descriptor.describe`.
+        nodes; method "mdbd": :func:`shapedb.descriptor.describe` of version
+        ``config.descriptor``.
     """
     cfg = _config(config, options)
     g = _graph(x)
     if cfg.method == "mdbd":
         from shapedb.descriptor import describe
 
-        return describe(g)
+        return describe(g, cfg.descriptor)
     out = np.zeros(cfg.dim)
     n = g.n_nodes
     if n == 0:

@@ -1,0 +1,73 @@
+"""shapedb's default descriptor: versions, invariances, and what a store records."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import shapedb
+from shapedb.config import KernelConfig
+from shapedb.descriptor import LAYOUTS, VERSION, describe, dim
+from shapedb.graph import ContactGraph, contact_edges
+
+
+def _chain(n: int, bend: float, seed: int = 0) -> ContactGraph:
+    """Touching balls along a bent line, radii decreasing: a limb-like packing."""
+    rng = np.random.default_rng(seed)
+    r = np.sort(rng.uniform(0.2, 1.0, n))[::-1]
+    c = np.zeros((n, 3))
+    direction = np.array([1.0, 0.0, 0.0])
+    for i in range(1, n):
+        turn = bend * (i / n)
+        d = np.array([np.cos(turn), np.sin(turn), 0.0])
+        direction = d / np.linalg.norm(d)
+        c[i] = c[i - 1] + direction * (r[i - 1] + r[i])
+    return ContactGraph(c, r, contact_edges(c, r, 1e-6))
+
+
+@pytest.mark.parametrize("version", sorted(LAYOUTS))
+def test_every_version_has_its_length_and_ignores_similarity_transforms(version: int) -> None:
+    g = _chain(40, 1.0)
+    f = describe(g, version)
+    assert f.shape == (dim(version),) and np.isfinite(f).all() and np.abs(f).sum() > 0
+    q, _ = np.linalg.qr(np.random.default_rng(1).normal(size=(3, 3)))
+    moved = ContactGraph(3.5 * g.centers @ q.T + [4.0, -2.0, 7.0], 3.5 * g.radii, g.edges)
+    np.testing.assert_allclose(describe(moved, version), f, atol=1e-9)
+
+
+def test_versions_differ_and_the_default_is_the_latest() -> None:
+    assert VERSION == max(LAYOUTS) == KernelConfig().descriptor
+    g = _chain(40, 1.0)
+    assert dim(1) != dim(2)
+    f1 = shapedb.features(g, KernelConfig(descriptor=1))
+    f2 = shapedb.features(g, KernelConfig())
+    np.testing.assert_array_equal(f1, describe(g, 1))
+    np.testing.assert_array_equal(f2, describe(g, 2))
+
+
+@pytest.mark.parametrize("version", sorted(LAYOUTS))
+def test_a_different_shape_is_farther_than_a_slightly_perturbed_copy(version: int) -> None:
+    straight, bent = _chain(60, 0.2), _chain(60, 3.0)
+    jitter = np.random.default_rng(2).normal(scale=1e-3, size=straight.centers.shape)
+    copy = ContactGraph(straight.centers + jitter, straight.radii, straight.edges)
+    f = describe(straight, version)
+    near = np.abs(describe(copy, version) - f).sum()
+    far = np.abs(describe(bent, version) - f).sum()
+    assert near < 0.05 * far
+
+
+def test_a_store_keeps_the_descriptor_version_it_was_built_with(tmp_path: Path) -> None:
+    from shapedb import examples
+
+    path = tmp_path / "v1.db"
+    db = shapedb.connect(path, resolution=32, n_balls=64, descriptor=1)
+    db.ingest([examples.figure(0, 0), examples.part("plate", 0)], names=["figure", "plate"])
+    again = shapedb.connect(path)  # no options: the store's own configuration
+    assert again.config.kernel.descriptor == 1
+    assert again.get("figure").feature.shape == (dim(1),)
+    hits = again.search(examples.figure(0, 0), k=2)
+    assert hits[0].name == "figure" and hits[0].similarity > 0.99
+    with pytest.raises(shapedb.errors.ConfigError, match="descriptor"):
+        shapedb.connect(path, descriptor=2)
