@@ -35,15 +35,16 @@ Versions (``KernelConfig.descriptor``; a store records the version its features 
 computed with, and refuses to mix them):
 
 * **2** (default): radius 4, d2c 1, d2c_mean 2, inertia 2, walk 2, paper 8 (no d1c).
-  Chosen on the validation splits with the engine's splat distance and ridge ties,
-  by the objective of ``bench/select_descriptors.py`` ((NN + 1-T + DCG) / 3 + 0.25 NN
-  of point-cloud queries, mean over the sets) over 700 random weightings of the
-  blocks. Test splits against version 1 (bench descriptors, NN / 1-T / DCG, cloud
-  queries NN): jointed figures 0.774 / 0.507 / 0.784, 0.687 -> 0.923 / 0.651 /
-  0.881, 0.856; CAPOD 0.967 / 0.868 / 0.945, 0.900 -> 0.967 / 0.867 / 0.946, 0.900;
-  machined parts 0.896 / 0.646 / 0.840, 0.854 -> 0.865 / 0.616 / 0.826, 0.823.
-  The walk-based blocks carry the figures (they follow the contact graph, so they
-  do not change with the pose); the geometric ones CAPOD and the parts.
+  Chosen on the validation splits with the engine's splat distance and ridge ties, by
+  the objective of ``bench/select_descriptors.py`` ((NN + 1-T + DCG) / 3 + 0.25 NN of
+  point-cloud queries, mean over the sets; blocks scaled by each set's median
+  distance, as that bench does) over 700 random weightings of the blocks. Test
+  splits, ``python -m bench.retrieval``, meshes NN / 1-T / DCG and NN of cloud
+  queries, version 1 -> 2: jointed figures 0.759 / 0.477 / 0.767, 0.677 -> 0.887 /
+  0.616 / 0.858, 0.805; CAPOD 0.967 / 0.855 / 0.946, 0.900 -> 0.967 / 0.865 /
+  0.946, 0.900; machined parts 0.896 / 0.635 / 0.843, 0.854 -> 0.885 / 0.606 /
+  0.820, 0.833. The graph blocks (walk, Eq. 1), which do not change with a pose,
+  carry the figures; the geometric ones CAPOD and the parts.
 * **1**: radius, d2c_mean, d1c, walk 1 each; inertia, paper 2 (the first selection,
   on the engine before the splat distance and ridge ties).
 """
