@@ -96,7 +96,7 @@ def features(x: Any, config: KernelConfig | None = None, **options: Any) -> NDAr
 def features_batch(
     xs: Iterable[Any], config: KernelConfig | None = None, **options: Any
 ) -> NDArray[np.float64]:
-    """Stacked :func:`features` of several graphs: (N, 2 * n_r) float64."""
+    """Stacked :func:`features` of several graphs: (N, config.dim) float64."""
     cfg = _config(config, options)
     rows = [features(x, cfg) for x in xs]
     return np.stack(rows) if rows else np.zeros((0, cfg.dim))
@@ -129,7 +129,7 @@ def distance(
     Parameters
     ----------
     fa : (d,) float
-        Features of one graph, d = 2 * n_r.
+        Features of one graph, d = config.dim.
     fb : (d,) or (m, d) float
         Features of one graph or of m graphs.
 

@@ -56,7 +56,7 @@ _TS = pa.timestamp("us", tz="UTC")
 
 
 def shapes_schema(dim: int) -> pa.Schema:
-    """Schema of the ``shapes`` table for features of length ``dim`` (= 2 * n_r).
+    """Schema of the ``shapes`` table for features of length ``dim`` (``KernelConfig.dim``).
 
     Parameters
     ----------
@@ -141,7 +141,7 @@ class ShapeRecord:
         User-facing name (by default the file stem).
     decomposition : Decomposition
         The balls and contact graph.
-    feature : (2 * n_r,) float32
+    feature : (config.kernel.dim,) float32
         The Eq. 1 vector.
     config : Config
         Configuration the record was built with.

@@ -206,7 +206,7 @@ class Store:
 
     @property
     def dim(self) -> int:
-        """Length of the stored feature vectors (2 * n_r)."""
+        """Length of the stored feature vectors (``config.kernel.dim``)."""
         return self._dim
 
     @property
