@@ -3,7 +3,8 @@
 ::
 
     shapedb ingest PATH... --db DIR [--labels CSV] [--label-from-folder] [--as pointcloud|smooth_voxels]
-                   [--resolution N] [--balls N] [--workers N] [--scheduler ADDR] [--force] [--json]
+                   [--resolution N] [--balls N] [--set KEY=VALUE]... [--workers N]
+                   [--scheduler ADDR] [--force] [--json]
     shapedb info --db DIR [--json]
     shapedb delete ID_OR_NAME... --db DIR
     shapedb search QUERY --db DIR [-k 10] [--where SQL] [--json]
@@ -62,6 +63,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     s.add_argument("--resolution", type=int, metavar="N", help="grid cells (new store)")
     s.add_argument("--balls", type=int, metavar="N", help="max balls per shape (new store)")
+    s.add_argument(
+        "--set",
+        dest="settings",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="any configuration option of a new store, e.g. --set tie_cells=0 (repeatable)",
+    )
     s.add_argument("--workers", type=int, metavar="N", help="worker processes (default: all cores)")
     s.add_argument("--scheduler", metavar="ADDR", help="Dask scheduler address, e.g. tcp://h:8786")
     s.add_argument("--batch-size", type=int, default=32, metavar="N", help="shapes per commit")
@@ -174,7 +183,9 @@ def _existing(path: str) -> Any:
 
 # ---------------------------------------------------------------- commands
 def _ingest(args: argparse.Namespace) -> int:
-    options = {}
+    from shapedb.config import parse_options
+
+    options = parse_options(args.settings)
     if args.resolution is not None:
         options["resolution"] = args.resolution
     if args.balls is not None:

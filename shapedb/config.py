@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any, TypeVar
 
 from shapedb.errors import ConfigError
 
-__all__ = ["MDBDConfig", "KernelConfig", "PartConfig", "Config", "with_options"]
+__all__ = ["MDBDConfig", "KernelConfig", "PartConfig", "Config", "with_options", "parse_options"]
 
 _C = TypeVar("_C")
 
@@ -340,6 +341,38 @@ class Config:
         mdbd = replace(self.mdbd, **{k: v for k, v in options.items() if k in mdbd_names})
         kernel = replace(self.kernel, **{k: v for k, v in options.items() if k in kernel_names})
         return Config(mdbd=mdbd, kernel=kernel)
+
+
+def parse_options(pairs: Sequence[str]) -> dict[str, Any]:
+    """Options from ``KEY=VALUE`` strings (the command line's ``--set``), typed by field.
+
+    Each key must be a field of :class:`MDBDConfig` or :class:`KernelConfig`; its value
+    is read as that field's type (``true``/``false`` for booleans).
+
+    >>> parse_options(["tie_cells=0", "descriptor=1"])
+    {'tie_cells': 0.0, 'descriptor': 1}
+    """
+    kinds = {"int": int, "float": float, "bool": bool, "str": str}
+    types = {f.name: kinds[str(f.type)] for cls in (MDBDConfig, KernelConfig) for f in fields(cls)}
+    out: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        key, text = key.strip(), text.strip()
+        if not sep or not key:
+            raise ConfigError(f"option {pair!r} is not KEY=VALUE")
+        if key not in types:
+            raise ConfigError(f"unknown configuration option {key!r}; known: {sorted(types)}")
+        kind = types[key]
+        try:
+            if kind is bool:
+                if text.lower() not in ("true", "false", "1", "0", "yes", "no"):
+                    raise ValueError(text)
+                out[key] = text.lower() in ("true", "1", "yes")
+            else:
+                out[key] = kind(text)
+        except ValueError:
+            raise ConfigError(f"option {key}={text!r}: expected {kind.__name__}") from None
+    return out
 
 
 def _build(cls: type, data: dict[str, Any]) -> Any:

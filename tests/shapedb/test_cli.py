@@ -77,6 +77,20 @@ def test_ingest_info_delete(
     assert "shapes:   4" in text and "rods" in text
 
 
+def test_ingest_sets_any_option_of_a_new_store(
+    tmp_path: Path, models: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    db = tmp_path / "db"
+    (models / "broken.stl").unlink()
+    assert _ingest(models, db, "--set", "tie_cells=0", "--set", "descriptor=1", "--json") == 0
+    capsys.readouterr()
+    assert main(["info", "--db", str(db), "--json"]) == 0
+    config = _json(capsys)["config"]
+    assert config["mdbd"]["tie_cells"] == 0.0 and config["kernel"]["descriptor"] == 1
+    assert main(["ingest", str(models), "--db", str(db), "--set", "colour=red"]) == 1
+    assert "unknown configuration option 'colour'" in capsys.readouterr().err
+
+
 def test_plain_output(tmp_path: Path, models: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert _ingest(models, tmp_path / "db") == 1
     out = capsys.readouterr().out

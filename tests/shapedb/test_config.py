@@ -54,3 +54,19 @@ def test_dimension_follows_the_method() -> None:
     assert KernelConfig().dim == DIM == dim(2)
     assert KernelConfig(descriptor=1).dim == dim(1) == 247 and dim(2) == 257
     assert KernelConfig(method="paper", n_r=10).dim == 20
+
+
+def test_options_parse_from_text_by_field_type() -> None:
+    from shapedb.config import parse_options
+
+    got = parse_options(["tie_cells=0", "descriptor=1", "refine=false", "method=paper"])
+    assert got == {"tie_cells": 0.0, "descriptor": 1, "refine": False, "method": "paper"}
+    assert isinstance(got["tie_cells"], float) and isinstance(got["descriptor"], int)
+    for bad, match in [
+        ("colour=red", "unknown configuration option 'colour'"),
+        ("tie_cells", "KEY=VALUE"),
+        ("n_balls=1.5", "expected int"),
+        ("refine=maybe", "expected bool"),
+    ]:
+        with pytest.raises(ConfigError, match=match):
+            parse_options([bad])
