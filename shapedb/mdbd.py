@@ -187,14 +187,16 @@ def _first_at_least(
 
 @njit(cache=True)
 def _ridge_first(
-    F: np.ndarray, start: int, thr: np.float32, top: np.float32
+    F: np.ndarray, start: int, thr: np.float32, top: np.float32, middle: bool
 ) -> int:  # pragma: no cover - compiled
-    """Smallest flat index with F >= top in the 6-connected component of {F >= thr}
-    holding ``start``."""
+    """The cell taken on the ridge: the 6-connected component of {F >= thr} holding
+    ``start``. Among its cells with F >= top: the smallest flat index, or (``middle``)
+    the one nearest the ridge's centroid (ties: the smallest flat index)."""
     nx, ny, nz = F.shape
     best = start
     seen = {start}
     stack = [start]
+    cand = [start]
     while len(stack) > 0:
         flat = stack.pop()
         i = flat // (ny * nz)
@@ -223,21 +225,43 @@ def _ridge_first(
                 continue
             seen.add(nb)
             stack.append(nb)
-            if nb < best and F[ii, jj, kk] >= top:
-                best = nb
+            if F[ii, jj, kk] >= top:
+                cand.append(nb)
+                if nb < best:
+                    best = nb
+    if not middle:
+        return best
+    ci = 0.0
+    cj = 0.0
+    ck = 0.0
+    for f in seen:
+        ci += f // (ny * nz)
+        cj += (f // nz) % ny
+        ck += f % nz
+    n = len(seen)
+    ci /= n
+    cj /= n
+    ck /= n
+    bd = np.inf
+    for f in cand:
+        d = (f // (ny * nz) - ci) ** 2 + ((f // nz) % ny - cj) ** 2 + (f % nz - ck) ** 2
+        if d < bd - 1e-9 or (abs(d - bd) <= 1e-9 and f < best):
+            bd = d
+            best = f
     return best
 
 
 @njit(cache=True)
 def _argmax(
-    F: np.ndarray, bmax: np.ndarray, B: int, tol: float, floor: float
+    F: np.ndarray, bmax: np.ndarray, B: int, tol: float, floor: float, middle: bool
 ) -> tuple[int, float]:  # pragma: no cover - compiled
     """The cell the greedy packing takes next: its flat index and its value.
 
-    The maximum's first cell, then the first cell within ``TIE_TAKE * tol`` of the
-    maximum on its *ridge*: the 6-connected cells around it within ``tol`` (at most
-    ``TIE_FRACTION`` of the maximum, never below ``floor``) of the maximum. Separate
-    local maxima are not tied: the best one wins, as without a tolerance.
+    The maximum's first cell, then the first cell (``middle``: the cell nearest the
+    ridge's centroid) within ``TIE_TAKE * tol`` of the maximum on its *ridge*: the
+    6-connected cells around it within ``tol`` (at most ``TIE_FRACTION`` of the
+    maximum, never below ``floor``) of the maximum. Separate local maxima are not
+    tied: the best one wins, as without a tolerance.
     """
     nx, ny, nz = F.shape
     m = np.float32(-np.inf)
@@ -250,7 +274,7 @@ def _argmax(
     thr = np.float32(min(max(np.float64(m) - tol, floor), np.float64(m)))
     if thr < m:
         top = np.float32(max(np.float64(m) - TIE_TAKE * (np.float64(m) - thr), np.float64(thr)))
-        best = _ridge_first(F, start, thr, top)
+        best = _ridge_first(F, start, thr, top, middle)
     i = best // (ny * nz)
     j = (best // nz) % ny
     return best, F[i, j, best % nz]
@@ -301,7 +325,9 @@ def _resolve_config(config: MDBDConfig | None, options: dict[str, Any]) -> MDBDC
     return with_options(MDBDConfig, config, options, what="MDBD")
 
 
-def _naive_argmax(F: NDArray[np.float32], tol: float, floor: float) -> tuple[int, float]:
+def _naive_argmax(
+    F: NDArray[np.float32], tol: float, floor: float, middle: bool
+) -> tuple[int, float]:
     """:func:`_argmax` without block maxima (the reference): scipy labels the ridge."""
     from scipy import ndimage
 
@@ -313,8 +339,14 @@ def _naive_argmax(F: NDArray[np.float32], tol: float, floor: float) -> tuple[int
     if thr < m:
         top = np.float32(max(m - TIE_TAKE * (m - float(thr)), float(thr)))
         labels, _ = ndimage.label(F >= thr)  # 6-connected
-        ridge = (labels.ravel() == labels.ravel()[start]) & (F.ravel() >= top)
-        flat = int(np.flatnonzero(ridge)[0])
+        comp = labels.ravel() == labels.ravel()[start]
+        ridge = np.flatnonzero(comp & (F.ravel() >= top))
+        flat = int(ridge[0])
+        if middle:
+            centre = np.argwhere(comp.reshape(F.shape)).mean(axis=0)
+            ijk = np.stack(np.unravel_index(ridge, F.shape), axis=1).astype(np.float64)
+            d = ((ijk - centre) ** 2).sum(axis=1)
+            flat = int(ridge[np.flatnonzero(d <= d.min() + 1e-9)[0]])
     return flat, float(F.ravel()[flat])
 
 
@@ -335,6 +367,7 @@ def _loop(
     h = grid.spacing
     min_r = cfg.min_radius_cells * h
     tie = cfg.tie_cells * h
+    middle = cfg.tie_rule == "middle"
     origin = np.asarray(grid.origin, dtype=np.float64)
     centers = np.empty((cfg.n_balls, 3))
     radii = np.empty(cfg.n_balls)
@@ -348,9 +381,9 @@ def _loop(
         if n == cfg.n_balls:
             break
         if naive:
-            flat, top = _naive_argmax(F, tie, min_r)
+            flat, top = _naive_argmax(F, tie, min_r, middle)
         else:
-            flat, top = _argmax(F, bmax, BLOCK, tie, min_r)
+            flat, top = _argmax(F, bmax, BLOCK, tie, min_r, middle)
             flat, top = int(flat), float(top)
         if top <= 0 or top < min_r:
             break

@@ -33,6 +33,12 @@ def test_a_stored_kernel_without_descriptor_version_is_version_1() -> None:
     assert Config.from_json(Config().to_json()).kernel.descriptor == 2
 
 
+def test_a_stored_mdbd_config_without_tie_rule_took_the_first_cell() -> None:
+    assert Config.from_dict({"mdbd": {"resolution": 64}}).mdbd.tie_rule == "first"
+    assert Config.from_dict({}).mdbd.tie_rule == "middle"
+    assert Config.from_json(Config().to_json()).mdbd.tie_rule == "middle"
+
+
 @pytest.mark.parametrize(
     ("cls", "options", "match"),
     [
@@ -40,6 +46,7 @@ def test_a_stored_kernel_without_descriptor_version_is_version_1() -> None:
         (KernelConfig, {"method": "other"}, "method"),
         (KernelConfig, {"w": 0.0}, "w="),
         (KernelConfig, {"descriptor": 3}, "descriptor"),
+        (MDBDConfig, {"tie_rule": "last"}, "tie_rule"),
         (MDBDConfig, {"colour": 1}, "unknown MDBDConfig option"),
     ],
 )

@@ -125,6 +125,34 @@ def test_ties_make_the_choice_along_a_ridge_robust_to_noise() -> None:
     assert np.linalg.norm(a.centers[0] - b.centers[0]) <= 1.01 * a.spacing
 
 
+def test_the_middle_tie_rule_starts_a_ridge_at_its_middle_whatever_the_frame() -> None:
+    """tie_rule="middle": a cylinder's first ball sits at the middle of its axis, for a
+    clean and a bumpy copy, and for the copy turned end over end (axis sign flipped)."""
+    from shapedb.implicit import Cylinder
+
+    cyl = Cylinder([-1.0, 0, 0], [1.0, 0, 0], 0.3)
+    bumpy = Implicit(
+        lambda p: cyl.signed_distance(p) + 0.004 * np.sin(7.0 * p[:, 0] + 1.0), cyl.bounds
+    )
+    flipped = Implicit(lambda p: bumpy.signed_distance(p * [-1.0, 1.0, 1.0]), cyl.bounds)
+    opts = {"resolution": 64, "n_balls": 4, "refine": False, "canonical_frame": False}
+    for g in (cyl, bumpy, flipped):
+        d = decompose(g, tie_cells=0.5, tie_rule="middle", **opts)
+        assert abs(d.centers[0, 0]) <= 1.01 * d.spacing, d.centers[0]
+        first = decompose(g, tie_cells=0.5, **opts)
+        assert abs(first.centers[0, 0]) > 5 * first.spacing  # "first": towards one end
+
+
+@pytest.mark.parametrize("rule", ["first", "middle"])
+def test_both_tie_rules_agree_with_the_naive_reference(
+    csg_shapes: dict[str, Implicit], rule: str
+) -> None:
+    for name, g in csg_shapes.items():
+        opts = {"resolution": 40, "n_balls": 120, "refine": False, "tie_rule": rule}
+        fast, ref = decompose(g, **opts), _decompose_naive(g, **opts)
+        np.testing.assert_allclose(fast.centers, ref.centers, rtol=0, atol=1e-9, err_msg=name)
+
+
 def test_a_tie_wider_than_the_solid_still_finds_its_balls() -> None:
     slab = Implicit(lambda p: 0.06 - np.abs(p[:, 2]), [[-1, -1, -0.06], [1, 1, 0.06]])
     d = decompose(slab, resolution=48, n_balls=20, tie_cells=2.0)
