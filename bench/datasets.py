@@ -46,6 +46,7 @@ __all__ = [
     "parts",
     "load_dataset",
     "mesh_arrays",
+    "families",
     "point_cloud",
 ]
 
@@ -272,6 +273,28 @@ def mesh_arrays(
         np.savez_compressed(tmp, vertices=v, faces=f)
         tmp.replace(path)
     return v, f
+
+
+def families(models: Sequence[Model]) -> NDArray[np.str_]:
+    """A key per model, equal for re-posed copies of one shape: (n,) str.
+
+    CAPOD meshes with the same triangles (connectivity) but other vertex positions
+    (most CAPOD classes are one mesh in 9-12 poses; a few models are exact
+    duplicates), and the poses of one subject of the jointed figures; every other
+    model is its own family.
+    """
+    import hashlib
+
+    keys = []
+    for m in models:
+        if m.source.startswith("figure:"):
+            keys.append(m.source.rsplit(":", 1)[0])
+        elif m.source.startswith(("part:",)):
+            keys.append(m.source)
+        else:
+            faces = np.ascontiguousarray(mesh_arrays(m)[1], dtype=np.int64)
+            keys.append(m.label + ":" + hashlib.sha1(faces.tobytes()).hexdigest()[:12])
+    return np.asarray(keys)
 
 
 def point_cloud(

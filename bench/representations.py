@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common import Balls, decompose_all, format_table, mdbd_config, write_json
-from bench.datasets import capod
+from bench.datasets import capod, families
 from shapedb.config import KernelConfig
 
 OUT = Path(__file__).resolve().parent / "results" / "representations_h5_capod.json"
@@ -89,19 +89,6 @@ def measure(
     }
 
 
-def _families(models: list[Any]) -> NDArray[np.str_]:
-    """A key per model, equal for meshes with the same triangles (re-posed copies)."""
-    import hashlib
-
-    from bench.datasets import mesh_arrays
-
-    keys = []
-    for m in models:
-        faces = np.ascontiguousarray(mesh_arrays(m)[1], dtype=np.int64)
-        keys.append(m.label + ":" + hashlib.sha1(faces.tobytes()).hexdigest()[:12])
-    return np.asarray(keys)
-
-
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--split", default="all", choices=("all", "test", "validation"))
@@ -126,7 +113,7 @@ def main(argv: list[str] | None = None) -> None:
     labels = np.asarray([m.label for m in models])
     fm = _features([mesh[i] for i in keep], kcfg)  # type: ignore[misc]
     fp = _features([pc[i] for i in keep], kcfg)  # type: ignore[misc]
-    per = measure(fm, fp, labels, kcfg.lam, _families(models))
+    per = measure(fm, fp, labels, kcfg.lam, families(models))
     names = list(per)
     rows = []
     for label in sorted(set(labels)):

@@ -77,7 +77,10 @@ def test_unseen_query_file(tmp_db, tmp_path):
         pytest.skip("ingest.load not available yet")
     trimesh = pytest.importorskip("trimesh")
     path = tmp_path / "query_box.stl"
-    trimesh.creation.box(extents=[2.2, 1.0, 1.0]).export(path)
+    # box0 (2 x 1 x 1, implicit) as a mesh file, 10 % larger: another representation
+    # and scale. (A 2.2 x 1 x 1 box sits between box0 and cylinder0, a 2 x 1 x 1
+    # cylinder, at this test store's 32 cells.)
+    trimesh.creation.box(extents=[2.2, 1.1, 1.1]).export(path)
     hits = search(tmp_db, str(path), k=3)
     assert len(hits) == 3 and hits[0].label == "box"
     assert search(tmp_db, Path(path), k=3) == hits

@@ -35,7 +35,7 @@ def test_a_stored_kernel_without_descriptor_version_is_version_1() -> None:
 
 def test_a_stored_mdbd_config_without_tie_rule_took_the_first_cell() -> None:
     assert Config.from_dict({"mdbd": {"resolution": 64}}).mdbd.tie_rule == "first"
-    assert Config.from_dict({}).mdbd.tie_rule == "first"
+    assert Config.from_dict({}).mdbd.tie_rule == "middle"  # nothing stored: the defaults
     middle = Config().with_options(tie_rule="middle")
     assert Config.from_json(middle.to_json()).mdbd.tie_rule == "middle"
 

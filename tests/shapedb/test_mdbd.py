@@ -126,7 +126,7 @@ def test_ties_make_the_choice_along_a_ridge_robust_to_noise() -> None:
 
 
 def test_the_middle_tie_rule_starts_a_ridge_at_its_middle_whatever_the_frame() -> None:
-    """tie_rule="middle": a cylinder's first ball sits at the middle of its axis, for a
+    """tie_rule="middle" (the default): a cylinder's first ball sits at the middle of its axis, for a
     clean and a bumpy copy, and for the copy turned end over end (axis sign flipped)."""
     from shapedb.implicit import Cylinder
 
@@ -137,9 +137,10 @@ def test_the_middle_tie_rule_starts_a_ridge_at_its_middle_whatever_the_frame() -
     flipped = Implicit(lambda p: bumpy.signed_distance(p * [-1.0, 1.0, 1.0]), cyl.bounds)
     opts = {"resolution": 64, "n_balls": 4, "refine": False, "canonical_frame": False}
     for g in (cyl, bumpy, flipped):
-        d = decompose(g, tie_cells=0.5, tie_rule="middle", **opts)
+        d = decompose(g, tie_cells=0.5, **opts)  # the default rule
+        assert d.config.tie_rule == "middle"
         assert abs(d.centers[0, 0]) <= 1.01 * d.spacing, d.centers[0]
-        first = decompose(g, tie_cells=0.5, **opts)
+        first = decompose(g, tie_cells=0.5, tie_rule="first", **opts)
         assert abs(first.centers[0, 0]) > 5 * first.spacing  # "first": towards one end
 
 
