@@ -208,9 +208,7 @@ def run_stability(
             v_arr = [mesh_arrays(test.models[probe[k]]) for k in ok]
             res["D2"] = _d2_first(test, v_arr, target, variant, mdbd)
         out[variant] = {"copies": len(ok), **res}
-        rows.append(
-            [variant, len(ok), *(res.get(m) for m in [*_SHAPEDB_COLUMNS, *methods, "D2"])]
-        )
+        rows.append([variant, len(ok), *(res.get(m) for m in [*_SHAPEDB_COLUMNS, *methods, "D2"])])
     print()
     print(
         format_table(
