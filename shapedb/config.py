@@ -89,10 +89,15 @@ class MDBDConfig:
         matching (``python -m bench.parts``, 80 cells), same-part matches of figures
         (implicit / mesh / cloud / mesh -> cloud) 0.83 / 0.85 / 0.86 / 0.78 -> 0.88 /
         0.89 / 0.84 / 0.85, holes through the complement 0.21 / 0.27 -> 0.36 / 0.32.
-        A ridge whose centroid falls between two cells (a symmetric box) is decided
-        by rounding; starting the off-grid refinement at the centroid itself instead
-        measured the same on validation (objective of ``bench/select_descriptors.py``
-        1.066 either way) and did not bring a box's mesh and implicit versions closer.
+        Decimated copies rank their original first more often (``--stability``:
+        figures 0.697 -> 0.879, CAPOD 0.586 -> 0.621, parts 1.0). A ridge whose
+        centroid falls between two cells (a symmetric box) is decided by rounding:
+        at coarse grids a box's mesh and implicit versions differ more (descriptor
+        distance of a 2.2 x 1.1 x 1.1 box, first -> middle: 0.09 -> 0.55 at 32
+        cells, 0.09 -> 0.36 at 64, 0.12 -> 0.12 at 128). Starting the off-grid
+        refinement at the centroid itself measured the same on validation
+        (objective of ``bench/select_descriptors.py`` 1.066 either way) and did not
+        bring them closer.
     """
 
     resolution: int = 128
