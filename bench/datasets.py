@@ -289,7 +289,7 @@ def families(models: Sequence[Model]) -> NDArray[np.str_]:
     for m in models:
         if m.source.startswith("figure:"):
             keys.append(m.source.rsplit(":", 1)[0])
-        elif m.source.startswith(("part:",)):
+        elif m.source.startswith("part:"):
             keys.append(m.source)
         else:
             faces = np.ascontiguousarray(mesh_arrays(m)[1], dtype=np.int64)
