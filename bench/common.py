@@ -174,7 +174,14 @@ VARIANTS = (
     "mesh_decimate",
     "pointcloud_b",
     "pointcloud_dense",
+    "mesh_subdivide",
+    "mesh_turn_0.01",
+    "mesh_turn_0.5",
+    "mesh_turn_2",
 )
+
+#: Axis (unit) of the ``mesh_turn_*`` variants' rotations about the vertex centroid.
+TURN_AXIS = np.array([0.6, 0.64, 0.48])
 
 #: Surface samples of the ``pointcloud_dense`` variant.
 DENSE_SAMPLES = 20_000
@@ -303,7 +310,11 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
     ``pointcloud_b`` another draw of it; ``pointcloud_dense`` DENSE_SAMPLES points
     sampled uniformly by area on the surface (no normals); ``mesh_shift`` the mesh translated by
     (0.37, 0.21, 0.43) grid cells; ``mesh_rotate`` randomly rotated (seeded);
-    ``mesh_decimate`` decimated to 25 % of its faces (fast-simplification).
+    ``mesh_decimate`` decimated to 25 % of its faces (fast-simplification);
+    ``mesh_subdivide`` every triangle split in four at its edge midpoints (the same
+    solid, other triangles); ``mesh_turn_<deg>`` rotated by ``<deg>`` degrees about
+    :data:`TURN_AXIS` through the vertex centroid (decomposed without the canonical
+    frame, this turns the grid against the solid by that angle).
     """
     from shapedb.mesh import TriangleMesh
 
@@ -331,6 +342,16 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
         v, f = fast_simplification.simplify(
             v.astype(np.float32), f.astype(np.int32), target_reduction=0.75
         )
+    elif variant == "mesh_subdivide":
+        import trimesh
+
+        v, f = trimesh.remesh.subdivide(v, f)
+    elif variant.startswith("mesh_turn_") and variant in VARIANTS:
+        from scipy.spatial.transform import Rotation
+
+        angle = np.deg2rad(float(variant.removeprefix("mesh_turn_")))
+        c = v.mean(axis=0)
+        v = (v - c) @ Rotation.from_rotvec(angle * TURN_AXIS).as_matrix().T + c
     elif variant != "mesh":
         raise ValueError(f"unknown variant {variant!r}; known: {VARIANTS}")
     return TriangleMesh(v, f, name=model.name)
