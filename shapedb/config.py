@@ -181,7 +181,8 @@ class KernelConfig:
         distance and turned into a similarity by Eq. 3.
     descriptor : int
         Version of the "mdbd" descriptor's blocks and weights (see
-        :mod:`shapedb.descriptor`; 2 is the default, 1 the first selection). Stored
+        :mod:`shapedb.descriptor`; 3 is the default, 2 the one before it, 1 the first
+        selection). Stored
         with every record, so that a store never mixes versions; ignored by "paper".
     """
 
@@ -192,7 +193,7 @@ class KernelConfig:
     lb: float = 0.75
     lam: float = 1.0
     method: str = "mdbd"
-    descriptor: int = 2
+    descriptor: int = 3
 
     def __post_init__(self) -> None:
         _check(
@@ -218,10 +219,10 @@ class KernelConfig:
         _check(0.0 < self.lb <= 1.0, "lb", self.lb, "must be in (0, 1]")
         _check(self.lam > 0.0, "lam", self.lam, "must be > 0")
         _check(
-            self.descriptor in (1, 2),
+            self.descriptor in (1, 2, 3),
             "descriptor",
             self.descriptor,
-            "must be 1 or 2 (see shapedb.descriptor)",
+            "must be 1, 2 or 3 (see shapedb.descriptor)",
         )
 
     @property

@@ -29,8 +29,9 @@ def test_a_stored_kernel_without_descriptor_version_is_version_1() -> None:
     old = {"kernel": {"n_r": 32, "t": 10, "w": 0.9, "la": 0.75, "lb": 0.75, "lam": 1.0}}
     old["kernel"]["method"] = "mdbd"
     assert Config.from_dict(old).kernel.descriptor == 1
-    assert Config.from_dict({}).kernel.descriptor == 2
-    assert Config.from_json(Config().to_json()).kernel.descriptor == 2
+    assert Config.from_dict({}).kernel.descriptor == 3
+    assert Config.from_json(Config().to_json()).kernel.descriptor == 3
+    assert Config.from_dict({"kernel": {"method": "mdbd", "descriptor": 2}}).kernel.descriptor == 2
 
 
 def test_a_stored_mdbd_config_without_tie_rule_took_the_first_cell() -> None:
@@ -46,7 +47,7 @@ def test_a_stored_mdbd_config_without_tie_rule_took_the_first_cell() -> None:
         (MDBDConfig, {"resolution": 4}, "resolution"),
         (KernelConfig, {"method": "other"}, "method"),
         (KernelConfig, {"w": 0.0}, "w="),
-        (KernelConfig, {"descriptor": 3}, "descriptor"),
+        (KernelConfig, {"descriptor": 4}, "descriptor"),
         (MDBDConfig, {"tie_rule": "last"}, "tie_rule"),
         (MDBDConfig, {"colour": 1}, "unknown MDBDConfig option"),
     ],
@@ -59,8 +60,8 @@ def test_bad_values_are_refused(cls: type, options: dict, match: str) -> None:
 def test_dimension_follows_the_method() -> None:
     from shapedb.descriptor import DIM, dim
 
-    assert KernelConfig().dim == DIM == dim(2)
-    assert KernelConfig(descriptor=1).dim == dim(1) == 247 and dim(2) == 257
+    assert KernelConfig().dim == DIM == dim(3)
+    assert KernelConfig(descriptor=1).dim == dim(1) == 247 and dim(2) == 257 and dim(3) == 335
     assert KernelConfig(method="paper", n_r=10).dim == 20
 
 

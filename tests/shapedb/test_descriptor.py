@@ -40,11 +40,49 @@ def test_every_version_has_its_length_and_ignores_similarity_transforms(version:
 def test_versions_differ_and_the_default_is_the_latest() -> None:
     assert VERSION == max(LAYOUTS) == KernelConfig().descriptor
     g = _chain(40, 1.0)
-    assert dim(1) != dim(2)
+    assert len({dim(v) for v in LAYOUTS}) == len(LAYOUTS)
     f1 = shapedb.features(g, KernelConfig(descriptor=1))
-    f2 = shapedb.features(g, KernelConfig())
+    f = shapedb.features(g, KernelConfig())
     np.testing.assert_array_equal(f1, describe(g, 1))
-    np.testing.assert_array_equal(f2, describe(g, 2))
+    np.testing.assert_array_equal(f, describe(g, VERSION))
+
+
+def _block(f: np.ndarray, name: str, version: int = 3) -> np.ndarray:
+    at = 0
+    for block, size, _, _ in LAYOUTS[version]:
+        if block == name:
+            return f[at : at + size]
+        at += size
+    raise KeyError(name)
+
+
+def test_geodesic_blocks_do_not_see_a_bent_chain() -> None:
+    # along a chain of touching balls the inner distance of two balls is the sum of the
+    # radii between them, straight or bent; the straight-line blocks see the bend
+    straight, bent = _chain(60, 0.0), _chain(60, 3.0)
+    fs, fb = describe(straight, 3), describe(bent, 3)
+    for name in ("geodesic", "geodesic_mean"):
+        assert np.abs(_block(fs, name)).sum() > 0
+        np.testing.assert_allclose(_block(fb, name), _block(fs, name), atol=1e-9)
+    assert np.abs(_block(fb, "inertia") - _block(fs, "inertia")).sum() > 0.1
+
+
+def test_geodesic_distances_between_components_are_finite_and_long() -> None:
+    from shapedb.descriptor import _geodesics
+
+    a = _chain(10, 0.0)
+    shifted = a.centers + [0.0, 50.0, 0.0]
+    g = ContactGraph(
+        np.vstack([a.centers, shifted]),
+        np.concatenate([a.radii, a.radii]),
+        np.vstack([a.edges, a.edges + 10]),
+    )
+    d = _geodesics(g, 20)
+    assert np.isfinite(d).all()
+    np.testing.assert_allclose(d[0, 1], a.radii[0] + a.radii[1])  # touching neighbours
+    straight = np.linalg.norm(g.centers[0] - g.centers[10])
+    np.testing.assert_allclose(d[0, 10], 3.0 * straight)  # other component: 3x straight
+    assert np.isfinite(describe(g)).all()
 
 
 @pytest.mark.parametrize("version", sorted(LAYOUTS))
@@ -70,4 +108,4 @@ def test_a_store_keeps_the_descriptor_version_it_was_built_with(tmp_path: Path) 
     hits = again.search(examples.figure(0, 0), k=2)
     assert hits[0].name == "figure" and hits[0].similarity > 0.99
     with pytest.raises(shapedb.errors.ConfigError, match="descriptor"):
-        shapedb.connect(path, descriptor=2)
+        shapedb.connect(path, descriptor=VERSION)
