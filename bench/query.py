@@ -66,6 +66,64 @@ def synthetic_features(n: int, n_r: int, seed: int, *, chunk: int = 100_000) -> 
     return out
 
 
+def synthetic_descriptors(
+    n: int, version: int, seed: int, *, chunk: int = 100_000
+) -> NDArray[np.float32]:
+    """(n, dim(version)) float32 vectors shaped like :func:`shapedb.descriptor.describe`'s.
+
+    Each distribution block is the cumulative histogram of a random two-bump density
+    over its bins (smooth and of few parameters, as real ones are), ``inertia`` three
+    sorted positive values, ``paper`` :func:`synthetic_features`; each block is then
+    scaled, as ``describe`` scales it, so that its median pairwise L1 is its weight
+    times the calibration (unrelated shapes at about ln 10 in all).
+    """
+    from shapedb.descriptor import LAYOUTS
+
+    layout = LAYOUTS[version]
+    calibration = np.log(10.0) / sum(b[3] for b in layout)
+    rng = np.random.default_rng(seed)
+
+    def cdfs(m: int, size: int) -> NDArray[np.float64]:
+        x = np.linspace(0.0, 1.0, size)
+        mu = rng.uniform(0.1, 0.9, (m, 2, 1))
+        sd = rng.uniform(0.03, 0.25, (m, 2, 1))
+        a = rng.uniform(0.0, 1.0, (m, 1))
+        pdf = a * np.exp(-0.5 * ((x - mu[:, 0]) / sd[:, 0]) ** 2) + (1 - a) * np.exp(
+            -0.5 * ((x - mu[:, 1]) / sd[:, 1]) ** 2
+        )
+        c = np.cumsum(pdf, axis=1)
+        return c / c[:, -1:]
+
+    def block(m: int, name: str, size: int) -> NDArray[np.float64]:
+        if name == "inertia":
+            return -np.sort(-np.exp(rng.normal(-1.0, 0.5, (m, size))), axis=1)
+        if name == "paper":
+            return synthetic_features(m, size // 2, int(rng.integers(2**31))).astype(np.float64)
+        if name == "walk":
+            return np.concatenate([cdfs(m, size // 3) for _ in range(3)], axis=1)
+        return cdfs(m, size)
+
+    scale = {}
+    for name, size, _, weight in layout:  # median pairwise L1 of each block, from a sample
+        b = block(400, name, size)
+        d = np.abs(b[:200] - b[200:]).sum(axis=1)
+        scale[name] = weight * calibration / float(np.median(d))
+    out = np.empty((n, sum(b[1] for b in layout)), np.float32)
+    for lo in range(0, n, chunk):
+        m = min(chunk, n - lo)
+        out[lo : lo + m] = np.concatenate(
+            [block(m, name, size) * scale[name] for name, size, _, _ in layout], axis=1
+        )
+    return out
+
+
+def synthetic_vectors(n: int, config: KernelConfig, seed: int) -> NDArray[np.float32]:
+    """Synthetic feature vectors of ``config``'s method and length, (n, config.dim)."""
+    if config.method == "paper":
+        return synthetic_features(n, config.n_r, seed)
+    return synthetic_descriptors(n, config.descriptor, seed)
+
+
 def _rss_mb() -> float:
     with open("/proc/self/statm") as fh:
         return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
@@ -101,16 +159,22 @@ def _percentiles(seconds: list[float]) -> tuple[float, float]:
 
 
 def run_size(
-    n: int, *, n_queries: int, n_latency: int, n_baseline: int, seed: int = 0
+    n: int,
+    *,
+    n_queries: int,
+    n_latency: int,
+    n_baseline: int,
+    seed: int = 0,
+    config: KernelConfig | None = None,
 ) -> dict[str, Any]:
     """All measures for one size; returns one JSON row."""
-    config = KernelConfig()
+    config = config or KernelConfig()
     w = weights(config)
     t0 = time.perf_counter()
-    x = synthetic_features(n, config.n_r, seed)
+    x = synthetic_vectors(n, config, seed)
     log.info("n=%d: generated in %.1f s", n, time.perf_counter() - t0)
     ids = np.arange(n, dtype=np.int64)
-    queries = synthetic_features(max(n_queries, n_latency), config.n_r, seed + 1).astype(np.float64)
+    queries = synthetic_vectors(max(n_queries, n_latency), config, seed + 1).astype(np.float64)
 
     rss0 = _rss_mb()
     t0 = time.perf_counter()
@@ -165,7 +229,9 @@ def run_size(
     return row
 
 
-def run_store(n: int, *, n_latency: int = 300) -> dict[str, Any]:
+def run_store(
+    n: int, *, n_latency: int = 300, kernel: KernelConfig | None = None
+) -> dict[str, Any]:
     """End-to-end ``query.engine.search`` latency on a real store of n synthetic shapes."""
     import shapedb.database as database
     from query.engine import search
@@ -173,8 +239,8 @@ def run_store(n: int, *, n_latency: int = 300) -> dict[str, Any]:
     from shapedb.mdbd import Decomposition
     from shapedb.schema import ShapeRecord
 
-    config = Config()
-    x = synthetic_features(n, config.kernel.n_r, 7)
+    config = Config(kernel=kernel or KernelConfig())
+    x = synthetic_vectors(n, config.kernel, 7)
     one = Decomposition(
         centers=np.zeros((1, 3)),
         radii=np.ones(1),
@@ -238,8 +304,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--queries", type=int, default=1000, help="queries for recall@10")
     parser.add_argument("--latency-queries", type=int, default=1000)
     parser.add_argument("--baseline-queries", type=int, default=50)
+    parser.add_argument(
+        "--method",
+        choices=("mdbd", "paper"),
+        default=KernelConfig().method,
+        help="feature vectors: the default descriptor (mdbd) or the paper's Eq. 1 (paper)",
+    )
     parser.add_argument("--out", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
+    kernel = KernelConfig(method=args.method)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
     logging.getLogger("faiss.loader").setLevel(logging.WARNING)
     load_start = os.getloadavg()
@@ -251,10 +324,11 @@ def main(argv: list[str] | None = None) -> int:
             n_queries=args.queries,
             n_latency=args.latency_queries,
             n_baseline=args.baseline_queries,
+            config=kernel,
         )
         for n in args.sizes
     ]
-    stores = [run_store(n) for n in args.store_sizes]
+    stores = [run_store(n, kernel=kernel) for n in args.store_sizes]
     import faiss
 
     result = {
@@ -267,6 +341,7 @@ def main(argv: list[str] | None = None) -> int:
             "load_average_start": load_start,
             "load_average_end": os.getloadavg(),
         },
+        "kernel": {"method": kernel.method, "descriptor": kernel.descriptor, "dim": kernel.dim},
         "index": rows,
         "store_search": stores,
         "total_seconds": time.perf_counter() - started,
