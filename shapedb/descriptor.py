@@ -107,6 +107,14 @@ Layout = tuple[tuple[str, int, float, float], ...]
 #: Typical distances are the geometric means over the three validation sets of the
 #: median pairwise distance (bench/select_descriptors.py; versions 2 and 3 with the
 #: current engine); weights are the selected combination.
+_VERSION_2: Layout = (
+    ("radius", 30, 0.290, 4.0),
+    ("d2c", 40, 0.255, 1.0),
+    ("d2c_mean", 30, 0.0712, 2.0),
+    ("inertia", 3, 0.604, 2.0),
+    ("walk", 90, 0.950, 2.0),
+    ("paper", 64, 4.461, 8.0),
+)
 LAYOUTS: dict[int, Layout] = {
     1: (
         ("radius", 30, 0.244, 1.0),
@@ -116,24 +124,8 @@ LAYOUTS: dict[int, Layout] = {
         ("walk", 90, 0.886, 1.0),
         ("paper", 64, 3.955, 2.0),
     ),
-    2: (
-        ("radius", 30, 0.290, 4.0),
-        ("d2c", 40, 0.255, 1.0),
-        ("d2c_mean", 30, 0.0712, 2.0),
-        ("inertia", 3, 0.604, 2.0),
-        ("walk", 90, 0.950, 2.0),
-        ("paper", 64, 4.461, 8.0),
-    ),
-    3: (
-        ("radius", 30, 0.290, 4.0),
-        ("d2c", 40, 0.255, 1.0),
-        ("d2c_mean", 30, 0.0712, 2.0),
-        ("inertia", 3, 0.604, 2.0),
-        ("walk", 90, 0.950, 2.0),
-        ("paper", 64, 4.461, 8.0),
-        ("geodesic", 48, 0.383, 2.0),
-        ("geodesic_mean", 30, 0.0752, 1.0),
-    ),
+    2: _VERSION_2,
+    3: _VERSION_2 + (("geodesic", 48, 0.383, 2.0), ("geodesic_mean", 30, 0.0752, 1.0)),
 }
 #: The default version (``KernelConfig().descriptor``).
 VERSION: int = 3
