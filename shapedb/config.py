@@ -182,8 +182,8 @@ class KernelConfig:
     descriptor : int
         Version of the "mdbd" descriptor's blocks and weights (see
         :mod:`shapedb.descriptor`; 3 is the default, 2 the one before it, 1 the first
-        selection). Stored
-        with every record, so that a store never mixes versions; ignored by "paper".
+        selection). Stored with every record, so that a store never mixes versions;
+        ignored by "paper".
     """
 
     n_r: int = 32

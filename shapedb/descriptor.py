@@ -57,8 +57,9 @@ computed with, and refuses to mix them):
   bench.retrieval``), meshes NN / 1-T / DCG and NN of cloud queries, version 2 -> 3:
   figures 0.954 / 0.768 / 0.934, 0.810 -> 0.964 / 0.799 / 0.945, 0.867; CAPOD 0.958 /
   0.848 / 0.937, 0.900 -> 0.958 / 0.868 / 0.945, 0.892; parts 0.917 / 0.598 / 0.828,
-  0.781 -> 0.917 / 0.597 / 0.833, 0.812. About 15 ms per model (Dijkstra from 400
-  sources), against 0.3-1 s of decomposition.
+  0.781 -> 0.917 / 0.597 / 0.833, 0.812. The inner distances add about 0.02 s per
+  model (Dijkstra from 400 sources; 0.04 s for the whole descriptor at 128 cells and
+  512 balls, ``bench/mdbd.py``), against 0.3-1 s of decomposition.
 * **2**: radius 4, d2c 1, d2c_mean 2, inertia 2, walk 2, paper 8 (no d1c).
   Chosen on the validation splits with the engine's splat distance and ridge ties, by
   the objective of ``bench/select_descriptors.py`` ((NN + 1-T + DCG) / 3 + 0.25 NN of
