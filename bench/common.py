@@ -203,6 +203,8 @@ class Balls:
         Wall-clock time of geometry construction plus decomposition.
     timings : dict
         The decomposition's own per-stage timings.
+    sampling : float
+        The source's surface sample spacing, model units (0.0 for exact surfaces).
     """
 
     centers: NDArray[np.float64]
@@ -211,13 +213,17 @@ class Balls:
     spacing: float
     seconds: float
     timings: dict[str, float] = field(default_factory=dict)
+    sampling: float = 0.0
 
     def truncate(self, n: int) -> Balls:
         """The first ``n`` balls and the contacts among them (greedy MDBD prefix)."""
         if n >= len(self.radii):
             return self
         e = self.edges[(self.edges < n).all(axis=1)]
-        return Balls(self.centers[:n], self.radii[:n], e, self.spacing, self.seconds, self.timings)
+        return Balls(
+            self.centers[:n], self.radii[:n], e, self.spacing, self.seconds, self.timings,
+            self.sampling,
+        )  # fmt: skip
 
     def decomposition(self) -> Any:
         """A :class:`shapedb.mdbd.Decomposition` with these balls."""
@@ -231,6 +237,7 @@ class Balls:
             edges=self.edges.astype(np.int32),
             spacing=self.spacing,
             bounds=np.stack([lo, hi]),
+            sampling=self.sampling,
         )
 
 
@@ -375,6 +382,7 @@ def _work(model: Model, variant: str, config: MDBDConfig, path: str) -> tuple[st
             spacing=np.float64(dec.spacing),
             seconds=np.float64(seconds),
             timings=np.asarray(json.dumps(dict(dec.timings))),
+            sampling=np.float64(dec.sampling),
         )
         os.replace(tmp, path)
         return path, None
@@ -392,6 +400,7 @@ def load_balls(path: Path | str) -> Balls:
             spacing=float(z["spacing"]),
             seconds=float(z["seconds"]),
             timings=json.loads(str(z["timings"])),
+            sampling=float(z["sampling"]) if "sampling" in z else 0.0,
         )
 
 

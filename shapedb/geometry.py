@@ -107,6 +107,16 @@ class Geometry(ABC):
     representation: ClassVar[str] = "abstract"
 
     @property
+    def surface_sampling(self) -> float:
+        """Typical spacing of the samples the boundary is known from, model units.
+
+        0.0 for representations whose boundary is exact (meshes, voxel grids, implicit
+        functions, B-reps); point clouds report their median sample spacing. The
+        descriptor uses it to correct the measured bias of sparse samples.
+        """
+        return 0.0
+
+    @property
     @abstractmethod
     def bounds(self) -> NDArray[np.float64]:
         """(2, 3) float: minimum and maximum corner of the solid, model units."""

@@ -86,6 +86,10 @@ class Decomposition:
         Parameters it was computed with.
     representation : str
         Representation of the source ("mesh", "pointcloud", "voxels", "implicit", "brep").
+    sampling : float
+        Typical spacing of the samples the source's boundary was known from, model
+        units (:attr:`shapedb.geometry.Geometry.surface_sampling`); 0.0 for exact
+        boundaries.
     timings : dict[str, float]
         Seconds per stage: "frame" (coarse pass), "sdf", "decompose" (the loop,
         refinement included), "refine" (its share), "graph".
@@ -102,6 +106,7 @@ class Decomposition:
     bounds: NDArray[np.float64]
     config: MDBDConfig = field(default_factory=MDBDConfig)
     representation: str = "unknown"
+    sampling: float = 0.0
     timings: dict[str, float] = field(default_factory=dict)
     frame: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
 
@@ -520,6 +525,7 @@ def _finish(
         bounds=np.asarray(geometry.bounds, dtype=np.float64).copy(),
         config=cfg,
         representation=str(getattr(geometry, "representation", "unknown")),
+        sampling=float(getattr(geometry, "surface_sampling", 0.0)),
         timings=timings,
         frame=prep.frame,
     )

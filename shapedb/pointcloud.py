@@ -205,6 +205,11 @@ class PointCloud(Geometry):
         d, _ = self._tree.query(self._points, k=self.k + 1)
         return np.maximum(d[:, -1], 1e-12)
 
+    @property
+    def surface_sampling(self) -> float:
+        """Median distance of a point to its k-th nearest neighbour, model units."""
+        return float(np.median(self.spacing))
+
     @cached_property
     def _local_pca(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Covariance of each sample's neighbourhood (itself and its k nearest).
