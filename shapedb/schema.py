@@ -79,6 +79,8 @@ def shapes_schema(dim: int) -> pa.Schema:
         pa.field("bounds", pa.list_(pa.float64(), 6), nullable=False),
         # (4, 4) grid frame -> model, row-major; null in rows written before it existed
         pa.field("frame", pa.list_(pa.float64(), 16)),
+        # source's surface sample spacing, model units (0: exact); null in older rows
+        pa.field("sampling", pa.float64()),
         pa.field("timings", pa.map_(pa.string(), pa.float64())),
         pa.field("build_seconds", pa.float64(), nullable=False),
         pa.field("created_at", _TS, nullable=False),
@@ -265,6 +267,7 @@ def shapes_table(records: Sequence[ShapeRecord], dim: int) -> pa.Table:
         "spacing": [float(r.decomposition.spacing) for r in records],
         "bounds": pa.FixedSizeListArray.from_arrays(pa.array(bounds, pa.float64()), 6),
         "frame": pa.FixedSizeListArray.from_arrays(pa.array(frames, pa.float64()), 16),
+        "sampling": [float(r.decomposition.sampling) for r in records],
         "timings": [
             sorted((str(k), float(v)) for k, v in r.decomposition.timings.items()) for r in records
         ],
@@ -383,6 +386,7 @@ def record_from_rows(row: Mapping[str, Any], balls: pa.Table, edges: pa.Table) -
         bounds=np.asarray(row["bounds"], dtype=np.float64).reshape(2, 3),
         config=config.mdbd,
         representation=row["representation"],
+        sampling=float(row.get("sampling") or 0.0),
         timings={k: float(v) for k, v in _pairs(row.get("timings")).items()},
         frame=_frame(row.get("frame")),
     )

@@ -108,3 +108,26 @@ def test_samples_along_a_wire_add_no_volume() -> None:
     assert np.all(np.abs(cloud.winding_number(near)) < 0.25)
     assert np.all(cloud.signed_distance(near) < 0)
     assert cloud.contains([[0.0, 0.0, 0.0], [0.5, 0.2, 0.1]]).all()
+
+
+def test_surface_sampling_is_the_median_sample_spacing() -> None:
+    # a 20 x 20 lattice on each face of a unit cube: every point's 10th neighbour is
+    # within two lattice steps (the exact figure depends on edges and corners)
+    t = np.linspace(0.0, 1.0, 20)
+    u, v = (a.ravel() for a in np.meshgrid(t, t))
+    faces = []
+    for axis in range(3):
+        for side in (0.0, 1.0):
+            p = np.empty((u.size, 3))
+            p[:, axis] = side
+            p[:, (axis + 1) % 3], p[:, (axis + 2) % 3] = u, v
+            faces.append(p)
+    cloud = PointCloud(np.vstack(faces))
+    step = 1.0 / 19
+    assert step < cloud.surface_sampling <= 2.0 * step + 1e-9
+    assert cloud.surface_sampling == float(np.median(cloud.spacing))
+    assert _plate().surface_sampling == 0.0
+    from shapedb.mdbd import decompose
+
+    d = decompose(cloud, resolution=24, n_balls=16)
+    assert d.representation == "pointcloud" and d.sampling == cloud.surface_sampling

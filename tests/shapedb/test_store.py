@@ -138,6 +138,19 @@ def test_frame_round_trips_and_old_rows_read_as_identity(tmp_store: Store) -> No
     np.testing.assert_array_equal(again.get("framed").decomposition.frame, np.eye(4))
 
 
+def test_sampling_round_trips_and_old_rows_read_as_exact(tmp_store: Store) -> None:
+    rec = make_record("cloud")
+    rec = replace(rec, decomposition=replace(rec.decomposition, sampling=0.125))
+    tmp_store.add([rec])
+    assert tmp_store.get("cloud").decomposition.sampling == 0.125
+    # a segment written before the column existed: the row reads back as exact (0)
+    seg = next(p for p in tmp_store.path.rglob("*.parquet") if "shapes" in str(p))
+    pq.write_table(pq.read_table(seg).drop_columns(["sampling"]), seg)
+    again = Store.open(tmp_store.path)
+    assert again.shapes(["sampling"]).column("sampling").to_pylist() == [None]
+    assert again.get("cloud").decomposition.sampling == 0.0
+
+
 def test_reads_through_pyarrow_and_duckdb(tmp_store: Store) -> None:
     tmp_store.add([make_record("a"), make_record("b")])
     tmp_store.add([make_record("c")])
