@@ -39,6 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common import Balls, decompose_all, format_table, retrieval_scores, write_json
+from bench.descriptors import l1_matrix
 from bench.retrieval import _mixture_mask, build_sets
 from shapedb.config import MDBDConfig
 from shapedb.descriptor import describe
@@ -65,10 +66,6 @@ def _lever(balls: list[Balls]) -> NDArray[np.float64]:
     return np.clip(_cells(balls), X0, X_MAX) - X0
 
 
-def _l1(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.abs(a[:, None, :] - b[None, :, :]).sum(-1)
-
-
 def _load(ds: Any, split: str, mdbd: MDBDConfig, workers: int, dense: bool) -> dict[str, Any]:
     sub = ds.split(split)
     kinds: tuple[str, ...] = ("mesh", "pointcloud")
@@ -88,20 +85,20 @@ def _scores(data: dict[str, Any], beta: NDArray[np.float64] | None) -> dict[str,
     lab = data["labels"]
     mix = _mixture_mask(data["names"])
     fx = np.where(mix[:, None], fp, fm)
-    d = _l1(fp, fm)
+    d = l1_matrix(fp, fm)
     same = lab[:, None] == lab[None, :]
     near = np.where(same, d, np.inf).min(1) / np.where(~same, d, np.inf).min(1)
     out = {
-        "mesh_nn": retrieval_scores(-_l1(fm, fm), lab)["nn"],
+        "mesh_nn": retrieval_scores(-l1_matrix(fm, fm), lab)["nn"],
         "cloud_nn": retrieval_scores(-d, lab)["nn"],
-        "mixture_nn": retrieval_scores(-_l1(fx, fx), lab)["nn"],
+        "mixture_nn": retrieval_scores(-l1_matrix(fx, fx), lab)["nn"],
         "own_first": float(np.mean(np.argmin(d, axis=1) == np.arange(len(fp)))),
         "log_margin": float(np.mean(np.log(near))),
         "cells": float(np.median(_cells(data["pointcloud"]))),
     }
     if "pointcloud_dense" in data:
         fd = _describe(data["pointcloud_dense"], beta)
-        out["dense_nn"] = retrieval_scores(-_l1(fd, fm), lab)["nn"]
+        out["dense_nn"] = retrieval_scores(-l1_matrix(fd, fm), lab)["nn"]
         out["dense_cells"] = float(np.median(_cells(data["pointcloud_dense"])))
     return out
 

@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common import Balls, decompose_all, format_table, retrieval_scores, write_json
+from bench.descriptors import l1_matrix
 from bench.retrieval import build_sets
 from shapedb.config import MDBDConfig
 from shapedb.descriptor import describe
@@ -50,14 +51,10 @@ def _features(balls: list[Balls], tol_cells: float) -> NDArray[np.float64]:
     return np.stack(rows)
 
 
-def _l1(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.abs(a[:, None, :] - b[None, :, :]).sum(-1)
-
-
 def _scores(mesh: list[Balls], cloud: list[Balls], labels: Any, tol: float) -> dict[str, float]:
     fm, fp = _features(mesh, tol), _features(cloud, tol)
-    s = retrieval_scores(-_l1(fm, fm), labels)
-    d = _l1(fp, fm)
+    s = retrieval_scores(-l1_matrix(fm, fm), labels)
+    d = l1_matrix(fp, fm)
     same = labels[:, None] == labels[None, :]
     near = np.where(same, d, np.inf).min(1) / np.where(~same, d, np.inf).min(1)
     pc = retrieval_scores(-d, labels)["nn"]
