@@ -1,13 +1,15 @@
 """Shared pieces of the bench scripts: tables, JSON, retrieval scores, cached decompositions.
 
 Decompositions are cached in ``bench/results/cache/dec/`` as npz files keyed by the
-model's source (path, size and modification time, or generator spec), the
-representation variant and the decomposition parameters, so that reruns only compute
-what changed. They are computed by a pool of worker processes (2 by default).
+model's source (path, size and content digest, or generator spec), the
+representation variant and the parameters the balls depend on, so that reruns only
+compute what changed. The contact tolerance is not part of the key: the balls do not
+depend on it, and the contact graph is rebuilt at the requested tolerance on loading. They are computed by a pool of worker processes (2 by default).
 """
 
 from __future__ import annotations
 
+import ast
 import functools
 import hashlib
 import json
@@ -16,7 +18,7 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -241,10 +243,23 @@ class Balls:
         )
 
 
+@functools.lru_cache(maxsize=65536)
+def _file_digest(path: str, size: int, mtime_ns: int) -> str:
+    """sha256 (16 hex) of a file's content; cached per path, size and mtime."""
+    with open(path, "rb") as fh:
+        return hashlib.file_digest(fh, "sha256").hexdigest()[:16]
+
+
 def _source_key(model: Model) -> str:
+    """The model's source: path, size and content digest of a file, else its spec.
+
+    The content, not the modification time, so that data copied afresh (same bytes,
+    new mtime) keeps its cached decompositions.
+    """
     if os.path.exists(model.source):
         st = os.stat(model.source)
-        return f"{model.source}:{st.st_size}:{int(st.st_mtime)}"
+        digest = _file_digest(model.source, st.st_size, st.st_mtime_ns)
+        return f"{model.source}:{st.st_size}:{digest}"
     return model.source
 
 
@@ -256,10 +271,27 @@ _ENGINE_MODULES = (
 )  # fmt: skip
 
 
+def _code_only(source: str) -> str:
+    """``source``'s syntax tree without docstrings (comments are not in it)."""
+    tree = ast.parse(source)
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if (
+            isinstance(body, list)
+            and body
+            and isinstance(body[0], ast.Expr)
+            and isinstance(body[0].value, ast.Constant)
+            and isinstance(body[0].value.value, str)
+        ):
+            body[0] = ast.Pass()
+    return ast.dump(tree)
+
+
 @functools.lru_cache(maxsize=4)
 def engine_version(variant: str | None = None) -> str:
-    """A digest (16 hex) of the decomposition engine's source code.
+    """A digest (16 hex) of the decomposition engine's code.
 
+    Docstrings and comments do not count, so documentation edits keep the cache.
     Mesh variants leave ``pointcloud.py`` out of it, so that work on the point-cloud
     distance does not recompute every mesh decomposition.
     """
@@ -270,7 +302,7 @@ def engine_version(variant: str | None = None) -> str:
     skip = () if variant is None or variant.startswith("pointcloud") else ("pointcloud",)
     for name in _ENGINE_MODULES:
         if name not in skip:
-            digest.update((root / f"{name}.py").read_bytes())
+            digest.update(_code_only((root / f"{name}.py").read_text()).encode())
     return digest.hexdigest()[:16]
 
 
@@ -282,8 +314,6 @@ def mdbd_config(
     no_refine: bool = False,
 ) -> MDBDConfig:
     """``base`` (default ``MDBDConfig()``) with the bench scripts' command-line overrides."""
-    from dataclasses import replace
-
     cfg = base or MDBDConfig()
     if resolution:
         cfg = replace(cfg, resolution=resolution)
@@ -295,10 +325,13 @@ def mdbd_config(
 def cache_path(model: Model, variant: str, config: MDBDConfig) -> Path:
     """Where the decomposition of ``model`` in ``variant`` with ``config`` is cached.
 
-    The key holds the model's source, the variant, the config and
+    The key holds the model's source, the variant, the config (without
+    ``contact_tol_cells``, which only the contact graph depends on) and
     :func:`engine_version` of the variant.
     """
-    key = [_source_key(model), variant, asdict(config), engine_version(variant)]
+    params = asdict(config)
+    del params["contact_tol_cells"]
+    key = [_source_key(model), variant, params, engine_version(variant)]
     text = json.dumps(key, sort_keys=True)
     digest = hashlib.sha256(text.encode()).hexdigest()[:20]
     return CACHE_DIR / "dec" / f"{digest}.npz"
@@ -383,6 +416,7 @@ def _work(model: Model, variant: str, config: MDBDConfig, path: str) -> tuple[st
             seconds=np.float64(seconds),
             timings=np.asarray(json.dumps(dict(dec.timings))),
             sampling=np.float64(dec.sampling),
+            contact_tol_cells=np.float64(config.contact_tol_cells),
         )
         os.replace(tmp, path)
         return path, None
@@ -390,10 +424,20 @@ def _work(model: Model, variant: str, config: MDBDConfig, path: str) -> tuple[st
         return path, f"{type(exc).__name__}: {exc}"
 
 
-def load_balls(path: Path | str) -> Balls:
-    """Read a cached decomposition."""
+#: The contact tolerance of cache files written before it was recorded in them.
+_LEGACY_TOL_CELLS = 0.5
+
+
+def load_balls(path: Path | str, contact_tol_cells: float | None = None) -> Balls:
+    """Read a cached decomposition.
+
+    With ``contact_tol_cells`` (grid cells), the contact graph is rebuilt at that
+    tolerance when the file's was another.
+    """
+    from shapedb.graph import contact_edges
+
     with np.load(path) as z:
-        return Balls(
+        b = Balls(
             centers=z["centers"],
             radii=z["radii"],
             edges=z["edges"],
@@ -402,6 +446,11 @@ def load_balls(path: Path | str) -> Balls:
             timings=json.loads(str(z["timings"])),
             sampling=float(z["sampling"]) if "sampling" in z else 0.0,
         )
+        tol = float(z["contact_tol_cells"]) if "contact_tol_cells" in z else _LEGACY_TOL_CELLS
+    if contact_tol_cells is None or contact_tol_cells == tol or len(b.radii) == 0:
+        return b
+    edges = contact_edges(b.centers, b.radii, contact_tol_cells * b.spacing).astype(np.int64)
+    return replace(b, edges=edges.reshape(-1, 2))
 
 
 def decompose_all(
@@ -450,4 +499,5 @@ def decompose_all(
             progress(msg)
         else:
             logger.warning(msg)
-    return [load_balls(p) if p.exists() else None for p in paths]
+    tol = config.contact_tol_cells
+    return [load_balls(p, tol) if p.exists() else None for p in paths]

@@ -3,7 +3,7 @@
 Nodes are balls, ordered by decreasing radius; an edge joins two balls that touch.
 Balls of a computed MDBD are tangent only up to the grid's accuracy, so "touch"
 means a gap ``|ci - cj| - ri - rj`` of at most ``tol``. shapedb ties ``tol`` to
-the grid, ``tol = MDBDConfig.contact_tol_cells * spacing`` (half a cell by
+the grid, ``tol = MDBDConfig.contact_tol_cells * spacing`` (one cell by
 default), which is scale invariant; the paper used an absolute 0.05 on models
 normalised to unit size, i.e. several cells at its resolutions, which also
 connects balls that are merely close.

@@ -1,0 +1,86 @@
+"""The bench scripts' decomposition cache: what its key holds and what loading rebuilds."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+import bench.common as common
+from bench.datasets import Model
+from shapedb.config import MDBDConfig
+from shapedb.graph import contact_edges
+
+CONFIG = MDBDConfig(resolution=24, n_balls=48, contact_tol_cells=0.5)
+
+
+@pytest.fixture
+def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    monkeypatch.setattr(common, "CACHE_DIR", tmp_path / "cache")
+    return tmp_path / "cache"
+
+
+@pytest.fixture
+def model(tmp_path: Path) -> Model:
+    path = tmp_path / "capsule.obj"
+    trimesh.creation.capsule(height=2.0, radius=0.6).export(path)
+    return Model(name="capsule", label="capsule", source=str(path))
+
+
+def test_contact_tolerance_is_not_part_of_the_key(model: Model, cache: Path) -> None:
+    wider = replace(CONFIG, contact_tol_cells=1.5)
+    assert common.cache_path(model, "mesh", CONFIG) == common.cache_path(model, "mesh", wider)
+    assert common.cache_path(model, "mesh", CONFIG) != common.cache_path(
+        model, "mesh", replace(CONFIG, n_balls=32)
+    )
+
+
+def test_loading_rebuilds_the_contacts_at_the_requested_tolerance(
+    model: Model, cache: Path
+) -> None:
+    (narrow,) = common.decompose_all([model], "mesh", CONFIG, workers=1, progress=None)
+    assert narrow is not None
+    assert len(list((cache / "dec").glob("*.npz"))) == 1
+    (wide,) = common.decompose_all(
+        [model], "mesh", replace(CONFIG, contact_tol_cells=2.0), workers=1, progress=None
+    )
+    assert wide is not None
+    assert len(list((cache / "dec").glob("*.npz"))) == 1  # nothing decomposed again
+    np.testing.assert_array_equal(wide.radii, narrow.radii)
+    for balls, tol in ((narrow, 0.5), (wide, 2.0)):
+        want = contact_edges(balls.centers, balls.radii, tol * balls.spacing)
+        np.testing.assert_array_equal(balls.edges, want)
+    assert len(wide.edges) > len(narrow.edges)  # 2 cells join balls 0.5 cells do not
+
+
+def test_source_key_follows_the_content_not_the_modification_time(
+    model: Model, tmp_path: Path
+) -> None:
+    key = common._source_key(model)
+    os.utime(model.source, (1_000_000, 1_000_000))
+    assert common._source_key(model) == key  # data copied afresh keeps its cache
+    copy = tmp_path / "elsewhere.obj"
+    shutil.copy(model.source, copy)
+    assert common._source_key(replace_source(model, copy)).split(":")[1:] == key.split(":")[1:]
+    data = bytearray(copy.read_bytes())
+    data[data.index(b"v ") + 2] ^= 0x01  # one vertex coordinate's digit or sign: same size
+    copy.write_bytes(bytes(data))
+    os.utime(copy, (1_000_000, 1_000_000))
+    assert common._source_key(replace_source(model, copy)).split(":")[1:] != key.split(":")[1:]
+
+
+def replace_source(model: Model, path: Path) -> Model:
+    return Model(name=model.name, label=model.label, source=str(path))
+
+
+def test_engine_digest_ignores_docstrings_and_comments() -> None:
+    a = 'def f(x):\n    """Doc."""\n    return x + 1\n'
+    b = 'def f(x):\n    """Other words."""\n    # a comment\n    return x + 1  # why\n'
+    c = 'def f(x):\n    """Doc."""\n    return x + 2\n'
+    assert common._code_only(a) == common._code_only(b)
+    assert common._code_only(a) != common._code_only(c)
