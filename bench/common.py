@@ -4,7 +4,8 @@ Decompositions are cached in ``bench/results/cache/dec/`` as npz files keyed by 
 model's source (path, size and content digest, or generator spec), the
 representation variant and the parameters the balls depend on, so that reruns only
 compute what changed. The contact tolerance is not part of the key: the balls do not
-depend on it, and the contact graph is rebuilt at the requested tolerance on loading. They are computed by a pool of worker processes (2 by default).
+depend on it, and the contact graph is rebuilt at the requested tolerance on loading.
+They are computed by a pool of worker processes (2 by default).
 """
 
 from __future__ import annotations
@@ -227,6 +228,13 @@ class Balls:
             self.sampling,
         )  # fmt: skip
 
+    def with_contact_tol(self, tol_cells: float) -> Balls:
+        """The same balls with their contacts found again at ``tol_cells`` grid cells."""
+        from shapedb.graph import contact_edges
+
+        edges = contact_edges(self.centers, self.radii, tol_cells * self.spacing)
+        return replace(self, edges=edges.astype(np.int64).reshape(-1, 2))
+
     def decomposition(self) -> Any:
         """A :class:`shapedb.mdbd.Decomposition` with these balls."""
         from shapedb.mdbd import Decomposition
@@ -434,8 +442,6 @@ def load_balls(path: Path | str, contact_tol_cells: float | None = None) -> Ball
     With ``contact_tol_cells`` (grid cells), the contact graph is rebuilt at that
     tolerance when the file's was another.
     """
-    from shapedb.graph import contact_edges
-
     with np.load(path) as z:
         b = Balls(
             centers=z["centers"],
@@ -449,8 +455,7 @@ def load_balls(path: Path | str, contact_tol_cells: float | None = None) -> Ball
         tol = float(z["contact_tol_cells"]) if "contact_tol_cells" in z else _LEGACY_TOL_CELLS
     if contact_tol_cells is None or contact_tol_cells == tol or len(b.radii) == 0:
         return b
-    edges = contact_edges(b.centers, b.radii, contact_tol_cells * b.spacing).astype(np.int64)
-    return replace(b, edges=edges.reshape(-1, 2))
+    return b.with_contact_tol(contact_tol_cells)
 
 
 def decompose_all(

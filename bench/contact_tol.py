@@ -47,19 +47,13 @@ from bench.descriptors import l1_matrix
 from bench.retrieval import build_sets
 from shapedb.config import MDBDConfig
 from shapedb.descriptor import describe
-from shapedb.graph import contact_edges
 
 OUT = Path(__file__).resolve().parent / "results" / "contact_tol.json"
 
 
 def _features(balls: list[Balls], tol_cells: float) -> NDArray[np.float64]:
     """Default descriptors (n, d) with contact graphs rebuilt at ``tol_cells``."""
-    rows = []
-    for b in balls:
-        e = contact_edges(b.centers, b.radii, tol_cells * b.spacing).astype(np.int64)
-        g = Balls(b.centers, b.radii, e, b.spacing, b.seconds).decomposition().graph
-        rows.append(describe(g))
-    return np.stack(rows)
+    return np.stack([describe(b.with_contact_tol(tol_cells).decomposition().graph) for b in balls])
 
 
 def _scores(mesh: list[Balls], cloud: list[Balls], labels: Any, tol: float) -> dict[str, float]:
