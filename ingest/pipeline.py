@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ingest.labels import LabelEntry, LabelTable, folder_label, read_labels
 from ingest.loaders import AS_OPTIONS, SUPPORTED, load
@@ -214,9 +215,13 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
             )
         t1 = time.perf_counter()
         feature = np.asarray(features(decomposition, config.kernel), dtype=np.float32)
+        t2 = time.perf_counter()
+        view = _view_feature(geometry, decomposition, config)
         timings = dict(decomposition.timings)
+        if view is not None:
+            timings["view"] = time.perf_counter() - t2
         timings["load"] = t_load
-        timings["features"] = time.perf_counter() - t1
+        timings["features"] = t2 - t1
         timings["cpu"] = time.process_time() - c0  # this process's CPU seconds
         decomposition = replace(decomposition, timings=timings)
     except Exception as exc:  # any bad input becomes a recorded failure, never a crash
@@ -234,7 +239,26 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
         metadata=dict(item.metadata),
         source=item.path,
         build_seconds=time.perf_counter() - t0,
+        view_feature=view,
     )
+
+
+def _view_feature(geometry: Any, decomposition: Any, config: Config) -> NDArray[np.float32] | None:
+    """Feature of the shape's sparse view (:mod:`shapedb.view`), when the store keeps views."""
+    from shapedb.kernel import features
+    from shapedb.mdbd import decompose
+    from shapedb.view import is_sparse, view_geometry
+
+    cells = config.kernel.view_cells
+    if not cells or is_sparse(decomposition.sampling, decomposition.spacing):
+        return None
+    view = view_geometry(geometry, decomposition.spacing, cells)
+    if view is None:
+        return None
+    found = decompose(view, config=config.mdbd)
+    if found.n_balls == 0:
+        return None
+    return np.asarray(features(found, config.kernel), dtype=np.float32)
 
 
 class _Serial:

@@ -130,13 +130,17 @@ def search_batch(
     if not len(queries):
         return []
     index = open_index(db)
-    vectors = np.stack([query_features(db, q, index=index) for q in queries])
+    resolved = [_resolve(db, q, index) for q in queries]
     allowed = None
     if where is not None:
         from query.sql import allowed_ids
 
         allowed = allowed_ids(db, where)
-    ids, dist = index.search(vectors, int(k), allowed=allowed)
+    if db.config.kernel.view_cells:
+        ids, dist = _search_with_views(db, index, resolved, int(k), allowed)
+    else:
+        vectors = np.stack([r.feature for r in resolved])
+        ids, dist = index.search(vectors, int(k), allowed=allowed)
     catalog = _catalog(db, index.version_)
     lam = float(db.config.kernel.lam)
     out: list[list[Hit]] = []
@@ -154,7 +158,7 @@ def search_batch(
 
 
 def query_features(db: Any, query: Any, *, index: Any = None) -> NDArray[np.float64]:
-    """The Eq. 1 feature vector of a query, computed with the store's configuration.
+    """The feature vector of a query, computed with the store's configuration.
 
     Parameters
     ----------
@@ -167,9 +171,33 @@ def query_features(db: Any, query: Any, *, index: Any = None) -> NDArray[np.floa
     -------
     (d,) float64
     """
+    return _resolve(db, query, index).feature
+
+
+@dataclass
+class _Query:
+    """A resolved query: its feature, whether it is a sparse cloud, and its view.
+
+    ``view`` is the feature of the query's sparse view (:mod:`shapedb.view`), or a
+    function computing it (only called when a store's sparse records need it), or
+    None when the query has none (a raw vector, a decomposition, a sparse cloud).
+    """
+
+    feature: NDArray[np.float64]
+    sparse: bool = False
+    view: Any = None
+
+    def view_feature(self) -> NDArray[np.float64] | None:
+        if callable(self.view):
+            self.view = self.view()
+        return self.view
+
+
+def _resolve(db: Any, query: Any, index: Any) -> _Query:
     from shapedb.geometry import Geometry
     from shapedb.mdbd import Decomposition
     from shapedb.schema import ShapeRecord
+    from shapedb.view import is_sparse
 
     config = db.config
     dim = config.kernel.dim
@@ -183,15 +211,17 @@ def query_features(db: Any, query: Any, *, index: Any = None) -> NDArray[np.floa
                 f"decomposition was computed with {query.config}, but the store uses {config.mdbd}",
                 source="query decomposition",
             )
-        return _featurise(query, config)
+        return _Query(_featurise(query, config), is_sparse(query.sampling, query.spacing))
     if isinstance(query, Geometry):
-        from shapedb.mdbd import decompose
-
-        return _featurise(decompose(query, config=config.mdbd), config)
+        return _from_geometry(db, query)
     if isinstance(query, ShapeRecord):
         if query.config != config:
             raise ConfigError("record was built with another configuration", source=query.name)
-        return _vector(query.feature, dim, source=query.name)
+        d = query.decomposition
+        view = None if query.view_feature is None else np.asarray(query.view_feature, np.float64)
+        return _Query(
+            _vector(query.feature, dim, source=query.name), is_sparse(d.sampling, d.spacing), view
+        )
     if isinstance(query, os.PathLike) or (isinstance(query, str) and _is_file(query)):
         return _from_file(db, Path(query))
     if isinstance(query, str):
@@ -203,7 +233,7 @@ def query_features(db: Any, query: Any, *, index: Any = None) -> NDArray[np.floa
             ) from None
         return _stored(db, sid, index)
     if isinstance(query, (np.ndarray, list, tuple)):
-        return _vector(query, dim, source="query vector")
+        return _Query(_vector(query, dim, source="query vector"))
     raise QueryError(
         "unsupported query type: expected a shape id or name, a path, a Geometry, "
         "a Decomposition or a feature vector",
@@ -230,15 +260,22 @@ def _vector(value: Any, dim: int, *, source: str) -> NDArray[np.float64]:
     return v
 
 
-def _stored(db: Any, sid: int, index: Any) -> NDArray[np.float64]:
-    if index is not None:
-        v = index.features_of(sid)
-        if v is not None:
-            return v
-    table = db.store.shapes(["feature"], ids=[sid])
+def _stored(db: Any, sid: int, index: Any) -> _Query:
+    from shapedb.view import is_sparse
+
+    columns = ["feature", "sampling", "spacing", "view_feature"]
+    table = db.store.shapes(columns, ids=[sid])
     if table.num_rows == 0:
         raise NotFoundError("no shape with this id", source=sid)
-    return np.asarray(table.column("feature")[0].as_py(), dtype=np.float64)
+    row = table.to_pylist()[0]
+    v = index.features_of(sid) if index is not None else None
+    feature = v if v is not None else np.asarray(row["feature"], dtype=np.float64)
+    view = row.get("view_feature")
+    return _Query(
+        feature,
+        is_sparse(float(row["sampling"] or 0.0), float(row["spacing"])),
+        None if view is None else np.asarray(view, dtype=np.float64),
+    )
 
 
 def _featurise(decomposition: Any, config: Any) -> NDArray[np.float64]:
@@ -247,13 +284,71 @@ def _featurise(decomposition: Any, config: Any) -> NDArray[np.float64]:
     return np.asarray(features(decomposition, config.kernel), dtype=np.float64)
 
 
-def _from_file(db: Any, path: Path) -> NDArray[np.float64]:
-    import ingest  # the public API only: ingest.load(path) -> Geometry
+def _from_geometry(db: Any, geometry: Any) -> _Query:
     from shapedb.mdbd import decompose
+    from shapedb.view import is_sparse, view_geometry
+
+    config = db.config
+    d = decompose(geometry, config=config.mdbd)
+    sparse = is_sparse(d.sampling, d.spacing)
+
+    def view() -> NDArray[np.float64] | None:
+        g = view_geometry(geometry, d.spacing, config.kernel.view_cells)
+        if g is None:
+            return None
+        found = decompose(g, config=config.mdbd)
+        return _featurise(found, config) if found.n_balls else None
+
+    return _Query(_featurise(d, config), sparse, view if config.kernel.view_cells else None)
+
+
+def _from_file(db: Any, path: Path) -> _Query:
+    import ingest  # the public API only: ingest.load(path) -> Geometry
 
     geometry = ingest.load(path)
     log.debug("query %s: decomposing with %s", path, db.config.mdbd)
-    return _featurise(decompose(geometry, config=db.config.mdbd), db.config)
+    return _from_geometry(db, geometry)
+
+
+def _search_with_views(
+    db: Any, index: Any, queries: list[_Query], k: int, allowed: NDArray[np.int64] | None
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Search a store that keeps sparse views (:mod:`shapedb.view`).
+
+    A sparse query is compared with every shape's view (a sparse record's view is
+    its own feature). A dense query is compared with dense shapes by their own
+    features and, through its own view, with sparse shapes; the two lists are
+    merged by distance (ties by ascending id). A dense query without a view (a raw
+    vector) compares with every shape's own feature.
+    """
+    from query.index import open_index
+
+    out_ids = np.full((len(queries), k), -1, np.int64)
+    out_d = np.full((len(queries), k), np.inf)
+    sparse_ids = db.store.sparse_ids()
+    views = (
+        open_index(db, view=True) if (any(q.sparse for q in queries) or len(sparse_ids)) else None
+    )
+    for row, q in enumerate(queries):
+        if q.sparse and views is not None:
+            ids, dist = views.search(q.feature[None], k, allowed=allowed)
+        elif not len(sparse_ids) or views is None or q.view_feature() is None:
+            ids, dist = index.search(q.feature[None], k, allowed=allowed)
+        else:
+            scope = index.ids_[index.alive_] if allowed is None else np.asarray(allowed)
+            dense = np.setdiff1d(scope, sparse_ids)
+            sparse = np.intersect1d(scope, sparse_ids)
+            a_ids, a_d = index.search(q.feature[None], k, allowed=dense)
+            b_ids, b_d = views.search(q.view_feature()[None], k, allowed=sparse)
+            ids = np.concatenate([a_ids, b_ids], axis=1)
+            dist = np.concatenate([a_d, b_d], axis=1)
+            order = np.lexsort((np.where(ids < 0, np.iinfo(np.int64).max, ids), dist), axis=-1)
+            ids, dist = (
+                np.take_along_axis(ids, order, 1)[:, :k],
+                np.take_along_axis(dist, order, 1)[:, :k],
+            )
+        out_ids[row], out_d[row] = ids[0], dist[0]
+    return out_ids, out_d
 
 
 class _Catalog:

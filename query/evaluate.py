@@ -273,7 +273,9 @@ def evaluate(
         Column of ``shapes`` (default ``"label"``) or a metadata key giving the class.
     method : None, "kernel" or callable, optional
         None / "kernel": the Eq. 3 kernel of the stored features (ranked by the
-        equivalent Eq. 2 distance, so no precision is lost to ``exp``). A callable
+        equivalent Eq. 2 distance, so no precision is lost to ``exp``); in a store
+        with sparse views, pairs with a sparse side compare views, as the search
+        does. A callable
         receives the (n, d) features of the labelled shapes and returns an (n, n)
         similarity matrix.
     plot : path, optional
@@ -298,13 +300,24 @@ def evaluate(
 
         from shapedb.kernel import weights
 
-        xw = x * weights(db.config.kernel)
+        w = weights(db.config.kernel)
+        xw = x * w
+        sparse = vw = None
+        if db.config.kernel.view_cells:  # the search's rule: views when either side is sparse
+            vid, views = db.store.features(view=True)
+            pos = np.searchsorted(vid, ids)
+            vw = np.asarray(views[pos], np.float64) * w
+            sparse = np.isin(ids, db.store.sparse_ids())
 
         def rows() -> Iterator[tuple[NDArray[np.intp], NDArray[np.float64]]]:
             step = max(1, _CHUNK_CELLS // max(n, 1))
             for lo in range(0, n, step):
                 idx = np.arange(lo, min(lo + step, n))
-                yield idx, cdist(xw[idx], xw, "cityblock")
+                d = cdist(xw[idx], xw, "cityblock")
+                if sparse is not None and vw is not None and sparse.any():
+                    either = sparse[idx, None] | sparse[None, :]
+                    d = np.where(either, cdist(vw[idx], vw, "cityblock"), d)
+                yield idx, d
 
         scores = _score(rows, labels, ids=ids, distance=True, recall_levels=RECALL_LEVELS)
     elif callable(method):

@@ -46,6 +46,8 @@ __all__ = ["FeatureIndex", "open_index", "build_index", "on_commit", "INDEX_DIR"
 log = logging.getLogger(__name__)
 
 INDEX_DIR = "index"
+#: Where the index over the shapes' sparse-view features lives (stores with views).
+VIEW_INDEX_DIR = "index_view"
 _FORMAT = 1
 _KINDS = ("auto", "flat", "hnsw")
 _PARAMS = tuple(
@@ -498,7 +500,7 @@ def _store_key(db: Any) -> str:
 
 
 def open_index(
-    db: Any, *, kind: str | None = None, rebuild: bool = False, **params: Any
+    db: Any, *, kind: str | None = None, rebuild: bool = False, view: bool = False, **params: Any
 ) -> FeatureIndex:
     """The store's feature index, loaded, updated to the store's version, or built.
 
@@ -511,6 +513,9 @@ def open_index(
         Force an index type (rebuilding if the current one differs).
     rebuild : bool
         Rebuild from scratch even when up to date.
+    view : bool
+        The index over the shapes' sparse-view features (each shape's own feature
+        where it has no view; :mod:`shapedb.view`), kept in ``<store>/index_view/``.
     **params
         Other :class:`FeatureIndex` settings for a (re)build.
 
@@ -520,7 +525,9 @@ def open_index(
         Up to date with ``db.store.version``; cached in-process per store path.
     """
     store = db.store
-    key = _store_key(db)
+    root = Path(_store_key(db))
+    key = _store_key(db) + ("#view" if view else "")
+    directory = root / (VIEW_INDEX_DIR if view else INDEX_DIR)
     config = db.config.kernel
     with _LOCK:
         version = store.version
@@ -530,7 +537,7 @@ def open_index(
                 return cached[1]
             index: FeatureIndex | None = cached[1].copy()  # searches in flight keep the old one
         else:
-            index = None if rebuild else _load(Path(key) / INDEX_DIR)
+            index = None if rebuild else _load(directory)
         from shapedb.kernel import weights
 
         w = np.asarray(weights(config), dtype=np.float64)
@@ -541,7 +548,7 @@ def open_index(
         ):
             index = None  # kernel configuration or requested type changed
         if index is None or index.version_ != version:
-            ids, feats = store.features()
+            ids, feats = store.features(view=view)
             feats = np.asarray(feats, np.float32).reshape(len(ids), w.shape[0])
             if index is None:
                 settings = {**params, "kind": kind or params.get("kind", "auto")}
@@ -549,7 +556,7 @@ def open_index(
                 action = "built"
             else:
                 action = index.sync(ids, feats)
-            index.save(Path(key) / INDEX_DIR, version=version)
+            index.save(directory, version=version)
             log.info("feature index %s at store version %s: %r", action, version, index)
         _CACHE[key] = (config, index)
         return index
@@ -576,9 +583,12 @@ def on_commit(db: Any, *args: Any, **kwargs: Any) -> None:
     Only an index that was already built is updated (incrementally when possible);
     a store that was never searched gets its index lazily on the first search.
     """
-    if _store_key(db) in _CACHE or (Path(_store_key(db)) / INDEX_DIR / POINTER).exists():
-        open_index(db)
+    for view, directory in ((False, INDEX_DIR), (True, VIEW_INDEX_DIR)):
+        key = _store_key(db) + ("#view" if view else "")
+        if key in _CACHE or (Path(_store_key(db)) / directory / POINTER).exists():
+            open_index(db, view=view)
 
 
-def _forget(db: Any) -> None:  # drop a store's in-process cache entry (tests)
+def _forget(db: Any) -> None:  # drop a store's in-process cache entries (tests)
     _CACHE.pop(_store_key(db), None)
+    _CACHE.pop(_store_key(db) + "#view", None)

@@ -85,6 +85,9 @@ def shapes_schema(dim: int) -> pa.Schema:
         pa.field("build_seconds", pa.float64(), nullable=False),
         pa.field("created_at", _TS, nullable=False),
         pa.field("feature", pa.list_(pa.float32(), dim), nullable=False),
+        # feature of the shape's sparse view (shapedb.view); null when the store keeps
+        # no views, for shapes without an exact surface, and in rows older than it
+        pa.field("view_feature", pa.list_(pa.float32(), dim)),
     ]
     return pa.schema(fields, metadata={"shapedb.schema_version": str(SCHEMA_VERSION)})
 
@@ -163,6 +166,10 @@ class ShapeRecord:
         UTC time the record was built.
     id : int or None
         Assigned by the store when the record is committed.
+    view_feature : (config.kernel.dim,) float32 or None
+        Feature of the shape's sparse view (:mod:`shapedb.view`), when the store
+        keeps views (``KernelConfig.view_cells > 0``) and the shape has an exact
+        surface; None otherwise.
     """
 
     name: str
@@ -177,6 +184,7 @@ class ShapeRecord:
     build_seconds: float = 0.0
     created_at: datetime = field(default_factory=_now)
     id: int | None = None
+    view_feature: NDArray[np.float32] | None = None
 
     @property
     def n_balls(self) -> int:
@@ -246,6 +254,7 @@ def shapes_table(records: Sequence[ShapeRecord], dim: int) -> pa.Table:
         if f.shape != (dim,):
             raise ValueError(f"record {r.name!r}: feature has length {f.size}, expected {dim}")
         feats[k] = f
+    views = [None if r.view_feature is None else _checked(r, r.view_feature, dim) for r in records]
     bounds = np.array(
         [np.asarray(r.decomposition.bounds, dtype=np.float64).reshape(6) for r in records]
     ).reshape(-1)
@@ -274,6 +283,7 @@ def shapes_table(records: Sequence[ShapeRecord], dim: int) -> pa.Table:
         "build_seconds": [float(r.build_seconds) for r in records],
         "created_at": [r.created_at for r in records],
         "feature": pa.FixedSizeListArray.from_arrays(pa.array(feats.ravel()), dim),
+        "view_feature": views,
     }
     schema = shapes_schema(dim)
     arrays = [
@@ -281,6 +291,13 @@ def shapes_table(records: Sequence[ShapeRecord], dim: int) -> pa.Table:
         for n, c in cols.items()
     ]
     return pa.Table.from_arrays(arrays, schema=schema)
+
+
+def _checked(record: ShapeRecord, view: Any, dim: int) -> list[float]:
+    v = np.asarray(view, dtype=np.float32).ravel()
+    if v.shape != (dim,) or not np.all(np.isfinite(v)):
+        raise ValueError(f"record {record.name!r}: view feature must be {dim} finite values")
+    return v.tolist()
 
 
 def balls_table(records: Sequence[ShapeRecord]) -> pa.Table:
@@ -403,4 +420,9 @@ def record_from_rows(row: Mapping[str, Any], balls: pa.Table, edges: pa.Table) -
         build_seconds=float(row["build_seconds"]),
         created_at=row["created_at"],
         id=int(row["id"]),
+        view_feature=(
+            None
+            if row.get("view_feature") is None
+            else np.asarray(row["view_feature"], dtype=np.float32)
+        ),
     )

@@ -109,6 +109,12 @@ class _Snapshot:
         return list(self.data["tables"][table])
 
 
+def _matrix(column: Any, n: int, dim: int) -> NDArray[np.float32]:
+    """(n, dim) float32 copy of the non-null rows of a fixed-size-list column."""
+    flat = pc.list_flatten(column).to_numpy(zero_copy_only=False) if n else np.zeros(0)
+    return np.array(flat, dtype=np.float32).reshape(n, dim)
+
+
 class Store:
     """A shape store on disk; open one with :meth:`open` or :meth:`create`.
 
@@ -314,21 +320,40 @@ class Store:
         """Ids of all stored shapes, ascending."""
         return self.shapes(["id"]).column("id").to_numpy()
 
-    def features(self) -> tuple[NDArray[np.int64], NDArray[np.float32]]:
-        """All Eq. 1 feature vectors.
+    def features(self, *, view: bool = False) -> tuple[NDArray[np.int64], NDArray[np.float32]]:
+        """All feature vectors.
+
+        Parameters
+        ----------
+        view : bool
+            Return each shape's sparse-view feature (``view_feature``) instead, and
+            its own feature where it has no view (:mod:`shapedb.view`).
 
         Returns
         -------
         ids : (n,) int64
             Shape ids, ascending.
         matrix : (n, d) float32
-            Row k is the feature of ``ids[k]``; d = 2 * n_r.
+            Row k is the feature of ``ids[k]``; d = ``KernelConfig.dim``.
         """
-        t = self.shapes(["id", "feature"])
+        t = self.shapes(["id", "feature", "view_feature"] if view else ["id", "feature"])
         ids = t.column("id").to_numpy()
-        col = t.column("feature").combine_chunks()
-        flat = col.values.to_numpy(zero_copy_only=False) if len(col) else np.zeros(0, np.float32)
-        return ids, np.asarray(flat, dtype=np.float32).reshape(len(ids), self.dim)
+        out = _matrix(t.column("feature"), len(ids), self.dim)
+        if view:
+            views = t.column("view_feature").combine_chunks()
+            has = views.is_valid().to_numpy(zero_copy_only=False)
+            if has.any():
+                out[has] = _matrix(views, int(has.sum()), self.dim)
+        return ids, out
+
+    def sparse_ids(self) -> NDArray[np.int64]:
+        """Ids of the shapes whose source is a sparse sample (:func:`shapedb.view.is_sparse`)."""
+        from shapedb.view import SPARSE_CELLS
+
+        t = self.shapes(["id", "sampling", "spacing"])
+        sampling = np.nan_to_num(t.column("sampling").to_numpy(zero_copy_only=False), nan=0.0)
+        spacing = t.column("spacing").to_numpy()
+        return t.column("id").to_numpy()[(spacing > 0) & (sampling >= SPARSE_CELLS * spacing)]
 
     def hashes(self) -> dict[str, int]:
         """Content hash -> id of every stored shape (for idempotent ingest)."""
