@@ -1,0 +1,170 @@
+"""Stores with sparse views (KernelConfig.view_cells): ingest, search routing, evaluate.
+
+Expected results are computed here from the stored features with the rule of
+``shapedb.view``: two exact shapes compare their own features, a pair with a sparse
+side compares views (a sparse record's view is its own feature).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import trimesh
+from conftest import _forget
+
+import shapedb
+from query.evaluate import retrieval_scores
+from shapedb.config import Config
+from shapedb.kernel import features
+from shapedb.mdbd import decompose
+from shapedb.mesh import TriangleMesh
+from shapedb.pointcloud import PointCloud
+from shapedb.view import view_geometry
+
+CONFIG = Config().with_options(resolution=40, n_balls=96, view_cells=4.0)
+
+
+def _meshes() -> dict[str, tuple[str, TriangleMesh]]:
+    c = trimesh.creation
+    shapes = {
+        "box-a": ("box", c.box(extents=(2.0, 1.0, 1.0))),
+        "box-b": ("box", c.box(extents=(3.0, 1.0, 1.2))),
+        "capsule-a": ("capsule", c.capsule(height=2.0, radius=0.4, count=[24, 24])),
+        "capsule-b": ("capsule", c.capsule(height=3.0, radius=0.45, count=[24, 24])),
+        "disc-a": ("disc", c.cylinder(radius=1.0, height=0.3, sections=48)),
+        "disc-b": ("disc", c.cylinder(radius=1.2, height=0.4, sections=48)),
+    }
+    return {n: (lab, TriangleMesh.from_trimesh(m, name=n)) for n, (lab, m) in shapes.items()}
+
+
+def _cloud(mesh: TriangleMesh, name: str, n: int = 600) -> PointCloud:
+    return PointCloud(mesh.sample_surface(n, seed=7), name=name)
+
+
+@pytest.fixture(scope="module")
+def view_db(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
+    """Six meshes and one sparse cloud (of capsule-b), ingested with views."""
+    meshes = _meshes()
+    names = [*meshes, "cloud-capsule-b"]
+    geoms = [g for _, g in meshes.values()] + [_cloud(meshes["capsule-b"][1], "c")]
+    labels = {n: lab for n, (lab, _) in meshes.items()} | {"cloud-capsule-b": "capsule"}
+    db = shapedb.connect(Path(tmp_path_factory.mktemp("views")) / "store", config=CONFIG)
+    report = db.ingest(geoms, names=names, labels=labels, workers=1)
+    assert len(report.failed) == 0, report.failed
+    yield db
+    _forget(db)
+
+
+def _table(db: Any) -> dict[str, Any]:
+    t = db.shapes(["id", "name", "feature", "view_feature", "timings"]).to_pylist()
+    return {r["name"]: r for r in t}
+
+
+def _own_and_view(db: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    ids, own = db.store.features()
+    _, view = db.store.features(view=True)
+    sparse = np.isin(ids, db.store.sparse_ids())
+    return ids, own.astype(np.float64), view.astype(np.float64), sparse
+
+
+def test_meshes_get_a_view_and_clouds_do_not(view_db: Any) -> None:
+    rows = _table(view_db)
+    for name, row in rows.items():
+        if name.startswith("cloud"):
+            assert row["view_feature"] is None
+        else:
+            assert row["view_feature"] is not None, name
+            assert dict(row["timings"])["view"] > 0
+            assert not np.allclose(row["view_feature"], row["feature"])  # a real other packing
+    ids = view_db.store.sparse_ids()
+    assert [view_db.get(int(i)).name for i in ids] == ["cloud-capsule-b"]
+    record = view_db.get("box-a")
+    assert record.view_feature is not None and record.view_feature.shape == record.feature.shape
+
+
+def test_features_view_falls_back_to_own_feature(view_db: Any) -> None:
+    ids, own, view, sparse = _own_and_view(view_db)
+    rows = _table(view_db)
+    for i, sid in enumerate(ids):
+        row = rows[view_db.get(int(sid)).name]
+        want = row["feature"] if row["view_feature"] is None else row["view_feature"]
+        np.testing.assert_array_equal(view[i], np.asarray(want, np.float32))
+    assert sparse.sum() == 1
+
+
+def test_sparse_query_compares_with_views(view_db: Any) -> None:
+    mesh = _meshes()["disc-a"][1]
+    query = _cloud(mesh, "q", n=500)
+    f = features(decompose(query, config=CONFIG.mdbd), CONFIG.kernel)
+    ids, _, view, _ = _own_and_view(view_db)
+    want = np.abs(view - f).sum(axis=1)
+    hits = view_db.search(query, k=len(ids))
+    got = {h.id: h.distance for h in hits}
+    assert set(got) == set(ids.tolist())
+    for sid, d in zip(ids, want, strict=True):
+        assert got[int(sid)] == pytest.approx(d, rel=1e-5, abs=1e-6)
+    assert hits[0].name == "disc-a"
+
+
+def test_dense_query_in_a_mixed_store_uses_its_view_for_sparse_records(view_db: Any) -> None:
+    mesh = _meshes()["capsule-b"][1]
+    dec = decompose(mesh, config=CONFIG.mdbd)
+    f = features(dec, CONFIG.kernel)
+    v = features(
+        decompose(view_geometry(mesh, dec.spacing, 4.0), config=CONFIG.mdbd), CONFIG.kernel
+    )
+    ids, own, _, sparse = _own_and_view(view_db)
+    want = np.where(sparse, np.abs(own - v).sum(1), np.abs(own - f).sum(1))
+    hits = view_db.search(mesh, k=len(ids))
+    assert [h.id for h in hits] == ids[np.lexsort((ids, want))].tolist()
+    for h in hits:
+        assert h.distance == pytest.approx(want[ids == h.id][0], rel=1e-5, abs=1e-6)
+    assert hits[0].name == "capsule-b" and hits[0].distance == pytest.approx(0.0, abs=1e-6)
+    # the same mesh's stored record, and a where predicate restricting the results
+    stored = view_db.search("capsule-b", k=3, where="label = 'capsule'")
+    assert [h.name for h in stored][0] == "capsule-b"
+    assert {h.name for h in stored} == {"capsule-a", "capsule-b", "cloud-capsule-b"}
+
+
+def test_stored_cloud_query_is_symmetric_with_its_mesh(view_db: Any) -> None:
+    from_cloud = {h.name: h.distance for h in view_db.search("cloud-capsule-b", k=7)}
+    from_mesh = {h.name: h.distance for h in view_db.search("capsule-b", k=7)}
+    assert from_cloud["capsule-b"] == pytest.approx(from_mesh["cloud-capsule-b"], rel=1e-6)
+    assert from_cloud["cloud-capsule-b"] == 0.0
+
+
+def test_evaluate_follows_the_view_rule(view_db: Any) -> None:
+    ids, own, view, sparse = _own_and_view(view_db)
+    d_own = np.abs(own[:, None] - own[None]).sum(-1)
+    d_view = np.abs(view[:, None] - view[None]).sum(-1)
+    d = np.where(sparse[:, None] | sparse[None, :], d_view, d_own)
+    labels = np.asarray([view_db.get(int(i)).label for i in ids])
+    want = retrieval_scores(-d, labels)
+    got = view_db.evaluate()
+    assert got.nn == pytest.approx(want.nn)
+    assert got.first_tier == pytest.approx(want.first_tier)
+    assert got.dcg == pytest.approx(want.dcg)
+
+
+def test_store_without_views_keeps_one_feature(tmp_path: Path) -> None:
+    cfg = Config().with_options(resolution=32, n_balls=48)
+    db = shapedb.connect(tmp_path / "plain", config=cfg)
+    mesh = _meshes()["box-a"][1]
+    db.ingest([mesh, _cloud(mesh, "c")], names=["box", "cloud"], workers=1)
+    try:
+        assert db.get("box").view_feature is None
+        ids, own = db.store.features()
+        _, view = db.store.features(view=True)
+        np.testing.assert_array_equal(own, view)
+        hits = db.search(_cloud(mesh, "q"), k=2)
+        f = features(decompose(_cloud(mesh, "q"), config=cfg.mdbd), cfg.kernel)
+        want = np.abs(own - f).sum(1)
+        assert {h.id: round(h.distance, 4) for h in hits} == {
+            int(i): round(float(w), 4) for i, w in zip(ids, want, strict=True)
+        }
+    finally:
+        _forget(db)

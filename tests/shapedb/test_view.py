@@ -1,0 +1,90 @@
+"""Sparse views (shapedb.view): sparsity test, view sampling, configuration, records."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from shapedb.config import Config, KernelConfig
+from shapedb.errors import ConfigError
+from shapedb.implicit import Sphere
+from shapedb.mesh import TriangleMesh
+from shapedb.pointcloud import PointCloud
+from shapedb.view import AREA_PER_SAMPLE, MIN_VIEW_SAMPLES, SPARSE_CELLS, is_sparse, view_geometry
+
+
+def _cube(side: float = 1.0) -> TriangleMesh:
+    return TriangleMesh.from_trimesh(trimesh.creation.box(extents=(side, side, side)), name="cube")
+
+
+@pytest.mark.parametrize(
+    ("sampling", "spacing", "expected"),
+    [
+        (0.0, 0.1, False),  # exact surface
+        (SPARSE_CELLS * 0.1, 0.1, True),  # exactly at the threshold
+        (SPARSE_CELLS * 0.1 * 0.99, 0.1, False),
+        (0.5, 0.1, True),
+        (float("nan"), 0.1, False),
+        (0.5, 0.0, False),  # no grid
+    ],
+)
+def test_is_sparse(sampling: float, spacing: float, expected: bool) -> None:
+    assert is_sparse(sampling, spacing) is expected
+
+
+def test_surface_area_of_a_cube_is_exact() -> None:
+    assert _cube(2.0).surface_area == pytest.approx(24.0, rel=1e-12)
+
+
+def test_view_of_a_cube_has_the_formula_count_on_the_surface() -> None:
+    cube = _cube(1.0)
+    view = view_geometry(cube, spacing=0.05, view_cells=4.0)
+    assert isinstance(view, PointCloud)
+    n = round(6.0 / (AREA_PER_SAMPLE * (4.0 * 0.05) ** 2))
+    assert len(view.points) == n
+    # every sample lies on a face of the cube: one coordinate at +-0.5, the others inside
+    p = np.abs(view.points)
+    assert np.allclose(p.max(axis=1), 0.5, atol=1e-9)
+    assert (p <= 0.5 + 1e-9).all()
+
+
+def test_view_is_deterministic_and_sparse_at_the_requested_spacing() -> None:
+    sphere = TriangleMesh.from_trimesh(trimesh.creation.icosphere(subdivisions=5), name="s")
+    a = view_geometry(sphere, spacing=0.02, view_cells=4.0)
+    b = view_geometry(sphere, spacing=0.02, view_cells=4.0)
+    assert a is not None and b is not None
+    np.testing.assert_array_equal(a.points, b.points)
+    cells = a.surface_sampling / 0.02
+    assert 3.0 < cells < 5.0  # AREA_PER_SAMPLE makes the median k-th-neighbour distance ~4
+    assert is_sparse(a.surface_sampling, 0.02)
+
+
+def test_tiny_surface_gets_the_minimum_view() -> None:
+    view = view_geometry(_cube(0.01), spacing=0.05, view_cells=4.0)
+    assert view is not None and len(view.points) == MIN_VIEW_SAMPLES
+
+
+def test_shapes_without_an_exact_surface_have_no_view() -> None:
+    cloud = PointCloud(np.random.default_rng(0).normal(size=(500, 3)))
+    assert view_geometry(cloud, spacing=0.05, view_cells=4.0) is None
+    assert view_geometry(Sphere([0, 0, 0], 1.0), spacing=0.05, view_cells=4.0) is None
+
+
+def test_view_needs_a_positive_spacing() -> None:
+    with pytest.raises(ConfigError, match="view_cells"):
+        view_geometry(_cube(), spacing=0.05, view_cells=0.0)
+
+
+@pytest.mark.parametrize("bad", [1.0, 17.0, -4.0, float("nan"), True, "4"])
+def test_view_cells_is_validated(bad: object) -> None:
+    with pytest.raises(ConfigError, match="view_cells"):
+        KernelConfig(view_cells=bad)  # type: ignore[arg-type]
+
+
+def test_view_cells_round_trips_and_defaults_off_for_older_configs() -> None:
+    cfg = Config().with_options(view_cells=4.0)
+    assert Config.from_json(cfg.to_json()) == cfg
+    old = cfg.to_dict()
+    del old["kernel"]["view_cells"]
+    assert Config.from_dict(old).kernel.view_cells == 0.0
