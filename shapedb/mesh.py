@@ -204,15 +204,6 @@ class TriangleMesh(Geometry):
         used = self._vertices[np.unique(self._faces)]
         return np.stack([used.min(0), used.max(0)])
 
-    @cached_property
-    def surface_area(self) -> float:
-        """Total area of the faces, model units squared."""
-        tri = self._vertices[self._faces]
-        return float(
-            0.5
-            * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
-        )
-
     def sample_surface(self, n: int, *, seed: int | None = None) -> NDArray[np.float64]:
         """``n`` points (n, 3) drawn uniformly by area on the surface, model units."""
         tri = self._vertices[self._faces]

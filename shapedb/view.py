@@ -31,7 +31,14 @@ from numpy.typing import NDArray
 from shapedb.errors import ConfigError
 from shapedb.geometry import Geometry
 
-__all__ = ["SPARSE_CELLS", "AREA_PER_SAMPLE", "MAX_VIEW_SAMPLES", "is_sparse", "view_geometry"]
+__all__ = [
+    "SPARSE_CELLS",
+    "AREA_PER_SAMPLE",
+    "MAX_VIEW_SAMPLES",
+    "is_sparse",
+    "view_geometry",
+    "surface_area",
+]
 
 #: A source sampled more coarsely than this (its ``sampling`` in grid cells) is sparse.
 #: The paper's 20 % clouds measure 2.8-5.1 cells (q10-q90), dense clouds of 20,000
@@ -67,9 +74,9 @@ def view_geometry(geometry: Geometry, spacing: float, view_cells: float) -> Geom
     Parameters
     ----------
     geometry : Geometry
-        A shape with an exact surface that can be sampled (a ``sample_surface(n,
-        seed=)`` method and a ``surface_area``, as :class:`~shapedb.mesh.TriangleMesh`
-        has). Others (point clouds, implicit solids, voxel grids) have no view: None.
+        A shape with an exact surface that can be sampled: a triangle mesh
+        (:class:`~shapedb.mesh.TriangleMesh`: ``vertices``, ``faces`` and
+        ``sample_surface(n, seed=)``). Others (point clouds, implicit solids, voxel grids) have no view: None.
     spacing : float
         Grid cell size of ``geometry``'s own decomposition, model units.
     view_cells : float
@@ -83,8 +90,10 @@ def view_geometry(geometry: Geometry, spacing: float, view_cells: float) -> Geom
     if view_cells <= 0:
         raise ConfigError(f"view_cells={view_cells!r} is invalid: views need a positive spacing")
     sample = getattr(geometry, "sample_surface", None)
-    area = float(getattr(geometry, "surface_area", 0.0) or 0.0)
-    if sample is None or not np.isfinite(area) or area <= 0 or spacing <= 0:
+    if sample is None or not hasattr(geometry, "faces") or spacing <= 0:
+        return None
+    area = surface_area(geometry.vertices, geometry.faces)
+    if not np.isfinite(area) or area <= 0:
         return None
     from shapedb.pointcloud import PointCloud
 
@@ -94,8 +103,14 @@ def view_geometry(geometry: Geometry, spacing: float, view_cells: float) -> Geom
     return PointCloud(points, name=f"{getattr(geometry, 'name', None) or 'shape'} (view)")
 
 
+def surface_area(vertices: NDArray[np.floating], faces: NDArray[np.integer]) -> float:
+    """Total area of triangles ``faces`` (m, 3) over ``vertices`` (v, 3), model units squared."""
+    tri = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    return float(0.5 * np.linalg.norm(cross, axis=1).sum())
+
+
 def _seed(geometry: Geometry) -> int:
-    """A seed from the geometry's bounds and area, so a view is reproducible."""
-    key = np.concatenate([np.asarray(geometry.bounds, np.float64).ravel(),
-                          [float(getattr(geometry, "surface_area", 0.0))]])  # fmt: skip
-    return int.from_bytes(hashlib.sha256(key.tobytes()).digest()[:8], "little")
+    """A seed from the geometry's bounds, so that a view is reproducible."""
+    key = np.asarray(geometry.bounds, np.float64).tobytes()
+    return int.from_bytes(hashlib.sha256(key).digest()[:8], "little")
