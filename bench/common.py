@@ -307,8 +307,12 @@ def engine_version(variant: str | None = None) -> str:
 
     root = Path(shapedb.__file__).parent
     digest = hashlib.sha256()
-    skip = () if variant is None or variant.startswith("pointcloud") else ("pointcloud",)
-    for name in _ENGINE_MODULES:
+    clouds = variant is None or variant.startswith(("pointcloud", "view_"))
+    skip = () if clouds else ("pointcloud",)
+    modules = (
+        (*_ENGINE_MODULES, "view") if variant and variant.startswith("view_") else _ENGINE_MODULES
+    )
+    for name in modules:
         if name not in skip:
             digest.update(_code_only((root / f"{name}.py").read_text()).encode())
     return digest.hexdigest()[:16]
@@ -360,13 +364,20 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
     (0.37, 0.21, 0.43) grid cells; ``mesh_rotate`` randomly rotated (seeded);
     ``mesh_decimate`` decimated to 25 % of its faces (fast-simplification);
     ``mesh_subdivide`` every triangle split in four at its edge midpoints (the same
-    solid, other triangles); ``mesh_turn_<deg>`` rotated by ``<deg>`` degrees about
+    solid, other triangles); ``view_<cells>`` the mesh's sparse view
+    (:func:`shapedb.view.view_geometry`, one sample per ``<cells>`` grid cells of its
+    mesh decomposition); ``mesh_turn_<deg>`` rotated by ``<deg>`` degrees about
     :data:`TURN_AXIS` through the vertex centroid (decomposed without the canonical
     frame, this turns the grid against the solid by that angle).
     """
     from shapedb.mesh import TriangleMesh
 
     v, f = mesh_arrays(model)
+    if variant.startswith("view_"):
+        from shapedb.view import view_geometry
+
+        spacing = _mesh_spacing(model, config)
+        return view_geometry(TriangleMesh(v, f, name=model.name), spacing, float(variant[5:]))
     if variant in ("pointcloud", "pointcloud_b"):
         from shapedb.pointcloud import PointCloud
 
@@ -403,6 +414,17 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
     elif variant != "mesh":
         raise ValueError(f"unknown variant {variant!r}; known: {VARIANTS}")
     return TriangleMesh(v, f, name=model.name)
+
+
+def _mesh_spacing(model: Model, config: MDBDConfig) -> float:
+    """Grid cell size of the model's mesh decomposition (cached, or decomposed now)."""
+    path = cache_path(model, "mesh", config)
+    if path.exists():
+        return load_balls(path).spacing
+    from shapedb.mdbd import decompose
+    from shapedb.mesh import TriangleMesh
+
+    return float(decompose(TriangleMesh(*mesh_arrays(model)), config=config).spacing)
 
 
 def _work(model: Model, variant: str, config: MDBDConfig, path: str) -> tuple[str, str | None]:
