@@ -18,7 +18,11 @@ as before. Everything is still computed from MDBD balls and contact graphs.
 The sample count is ``area / (AREA_PER_SAMPLE * (s * cell)^2)``: a uniform sample's
 :attr:`~shapedb.pointcloud.PointCloud.surface_sampling` (distance to the k-th
 neighbour) is about ``sqrt(area per sample / AREA_PER_SAMPLE)`` (measured on the
-paper's 20 % clouds of the three labelled sets: 0.33-0.39).
+paper's 20 % clouds of the three labelled sets: 0.33-0.39). Meshes with hidden or
+doubled faces (CAPOD's polygon soups) have more area than surface, so the view's
+spacing is then measured and the sample thinned to ``s`` cells: on CAPOD's test split
+a fifth of the views need it, and cloud queries against thinned views find a model of
+their class first 0.958 of the time against 0.917 unthinned (meshes: 0.967).
 """
 
 from __future__ import annotations
@@ -50,6 +54,8 @@ AREA_PER_SAMPLE = 0.33
 MAX_VIEW_SAMPLES = 200_000
 #: Fewest samples in a view (below this a point cloud is refused).
 MIN_VIEW_SAMPLES = 200
+#: A view whose measured spacing is below this fraction of ``view_cells`` is thinned.
+THIN_BELOW = 0.97
 
 
 def is_sparse(sampling: float, spacing: float) -> bool:
@@ -90,17 +96,30 @@ def view_geometry(geometry: Geometry, spacing: float, view_cells: float) -> Geom
     if view_cells <= 0:
         raise ConfigError(f"view_cells={view_cells!r} is invalid: views need a positive spacing")
     sample = getattr(geometry, "sample_surface", None)
-    if sample is None or not hasattr(geometry, "faces") or spacing <= 0:
+    vertices, faces = getattr(geometry, "vertices", None), getattr(geometry, "faces", None)
+    if sample is None or vertices is None or faces is None or spacing <= 0:
         return None
-    area = surface_area(geometry.vertices, geometry.faces)
+    area = surface_area(vertices, faces)
     if not np.isfinite(area) or area <= 0:
         return None
     from shapedb.pointcloud import PointCloud
 
     n = area / (AREA_PER_SAMPLE * (view_cells * spacing) ** 2)
     n = int(np.clip(np.round(n), MIN_VIEW_SAMPLES, MAX_VIEW_SAMPLES))
-    points: NDArray[np.float64] = sample(n, seed=_seed(geometry))
-    return PointCloud(points, name=f"{getattr(geometry, 'name', None) or 'shape'} (view)")
+    rng = np.random.default_rng(_seed(geometry))
+    points: NDArray[np.float64] = sample(n, seed=rng)
+    name = f"{getattr(geometry, 'name', None) or 'shape'} (view)"
+    cloud = PointCloud(points, name=name)
+    # hidden or doubled faces (polygon soups) make the area, hence the count, too
+    # large: thin to the spacing the sample actually measures
+    cells = cloud.surface_sampling / spacing
+    if cells < THIN_BELOW * view_cells:
+        keep = max(MIN_VIEW_SAMPLES, int(round(len(cloud.points) * (cells / view_cells) ** 2)))
+        if keep < len(cloud.points):
+            cloud = PointCloud(
+                cloud.points[rng.choice(len(cloud.points), keep, replace=False)], name=name
+            )
+    return cloud
 
 
 def surface_area(vertices: NDArray[np.floating], faces: NDArray[np.integer]) -> float:
