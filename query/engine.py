@@ -330,16 +330,17 @@ def _search_with_views(
         open_index(db, view=True) if (any(q.sparse for q in queries) or len(sparse_ids)) else None
     )
     for row, q in enumerate(queries):
+        own_view = None if q.sparse or not len(sparse_ids) else q.view_feature()
         if q.sparse and views is not None:
             ids, dist = views.search(q.feature[None], k, allowed=allowed)
-        elif not len(sparse_ids) or views is None or q.view_feature() is None:
+        elif views is None or own_view is None:
             ids, dist = index.search(q.feature[None], k, allowed=allowed)
         else:
             scope = index.ids_[index.alive_] if allowed is None else np.asarray(allowed)
             dense = np.setdiff1d(scope, sparse_ids)
             sparse = np.intersect1d(scope, sparse_ids)
             a_ids, a_d = index.search(q.feature[None], k, allowed=dense)
-            b_ids, b_d = views.search(q.view_feature()[None], k, allowed=sparse)
+            b_ids, b_d = views.search(own_view[None], k, allowed=sparse)
             ids = np.concatenate([a_ids, b_ids], axis=1)
             dist = np.concatenate([a_d, b_d], axis=1)
             order = np.lexsort((np.where(ids < 0, np.iinfo(np.int64).max, ids), dist), axis=-1)
