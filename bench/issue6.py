@@ -164,9 +164,20 @@ _SHAPEDB_COLUMNS = ("shapedb", "shapedb, own or re-posed")
 
 
 def run_stability(
-    ds: Dataset, mdbd: MDBDConfig, kcfg: KernelConfig, *, workers: int = 2, probes: int = 30
+    ds: Dataset,
+    mdbd: MDBDConfig,
+    kcfg: KernelConfig,
+    *,
+    workers: int = 2,
+    probes: int = 30,
+    view_cells: float = 0.0,
 ) -> dict[str, Any]:
-    """Does a transformed copy rank its original first among all test-split meshes?"""
+    """Does a transformed copy rank its original first among all test-split meshes?
+
+    With ``view_cells``, a last row asks it of the point clouds against the meshes'
+    sparse views (:mod:`shapedb.view`), as a store with ``view_cells`` compares them
+    (shapedb's descriptor only).
+    """
     test = ds.split("test")
     mesh = decompose_all(test.models, "mesh", mdbd, workers=workers)
     keep = [i for i, b in enumerate(mesh) if b is not None]
@@ -209,6 +220,21 @@ def run_stability(
             res["D2"] = _d2_first(test, v_arr, target, variant, mdbd)
         out[variant] = {"copies": len(ok), **res}
         rows.append([variant, len(ok), *(res.get(m) for m in [*_SHAPEDB_COLUMNS, *methods, "D2"])])
+        if variant == "pointcloud" and view_cells:
+            views = decompose_all(test.models, f"view_{view_cells:g}", mdbd, workers=workers)
+            if all(v is not None for v in views):
+                fv = kernel_features(views, kcfg)  # type: ignore[arg-type]
+                d = np.abs(fq[:, None, :] - fv[None, :, :]).sum(-1)
+                hit = np.argmin(d, axis=1)
+                res = {
+                    "shapedb": float(np.mean(hit == target)),
+                    "shapedb, own or re-posed": float(np.mean(fam[hit] == fam[target])),
+                }
+                name = f"pointcloud -> views {view_cells:g}"
+                out[name] = {"copies": len(ok), **res}
+                rows.append(
+                    [name, len(ok), *(res.get(m) for m in [*_SHAPEDB_COLUMNS, *methods, "D2"])]
+                )
     print()
     print(
         format_table(

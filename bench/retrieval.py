@@ -398,7 +398,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                 entry["descriptors"] = run_descriptors(ds, mdbd, workers=args.workers)
             if args.stability:
                 entry["stability"] = run_stability(
-                    ds, mdbd, kcfg, workers=args.workers, probes=12 if args.quick else args.probes
+                    ds,
+                    mdbd,
+                    kcfg,
+                    workers=args.workers,
+                    probes=12 if args.quick else args.probes,
+                    view_cells=args.views,
                 )
         if not (args.study or args.descriptors or args.stability or args.refine_shift):
             entry["tables"] = run_tables(
