@@ -5,9 +5,11 @@ the default configuration, once per executor setting, and reports models per
 minute. The baseline is one worker in this process, measured in the same run.
 
     python -m bench.ingest [--data ../shared/data/capod] [--limit N] [--workers 1 2]
-                           [--no-dask] [--resolution N] [--balls N]
+                           [--no-dask] [--resolution N] [--balls N] [--views CELLS]
 
-Prints a table and writes bench/results/ingest.json.
+Prints a table and writes bench/results/ingest.json. ``--views CELLS`` adds a run
+into a store that keeps sparse views (``KernelConfig.view_cells``): its CPU seconds per
+model against the runs without are the views' cost.
 """
 
 from __future__ import annotations
@@ -78,6 +80,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-dask", action="store_true")
     p.add_argument("--resolution", type=int, default=None, help="default: the Config default")
     p.add_argument("--balls", type=int, default=None)
+    p.add_argument(
+        "--views",
+        type=float,
+        default=0.0,
+        help="also ingest into a store with sparse views every VIEWS grid cells (view_cells)",
+    )
     p.add_argument("--out", type=Path, default=HERE / "results" / "ingest.json")
     args = p.parse_args(argv)
 
@@ -102,6 +110,16 @@ def main(argv: list[str] | None = None) -> int:
                 "setting": f"{w} worker" + ("s" if w > 1 else ""),
                 "workers": w,
                 **_run(files, options, workers=w),
+            }
+        )
+    if args.views:
+        w = max(args.workers)
+        print(f"ingesting {len(files)} models with views, {w} worker(s)...", file=sys.stderr)
+        rows.append(
+            {
+                "setting": f"{w} workers, views {args.views:g}",
+                "workers": w,
+                **_run(files, {**options, "view_cells": args.views}, workers=w),
             }
         )
     if not args.no_dask:
