@@ -252,11 +252,13 @@ def _view_feature(geometry: Any, decomposition: Any, config: Config) -> NDArray[
     cells = config.kernel.view_cells
     if not cells or is_sparse(decomposition.sampling, decomposition.spacing):
         return None
-    view = view_geometry(geometry, decomposition.spacing, cells)
-    if view is None:
+    try:
+        view = view_geometry(geometry, decomposition.spacing, cells)
+        found = None if view is None else decompose(view, config=config.mdbd)
+    except ShapeDBError as exc:  # the shape itself is fine: stored without a view
+        log.warning("%s: no sparse view (%s)", getattr(geometry, "name", None) or "shape", exc)
         return None
-    found = decompose(view, config=config.mdbd)
-    if found.n_balls == 0:
+    if found is None or found.n_balls == 0:
         return None
     return np.asarray(features(found, config.kernel), dtype=np.float32)
 

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from shapedb.errors import ConfigError, NotFoundError, QueryError
+from shapedb.errors import ConfigError, NotFoundError, QueryError, ShapeDBError
 
 __all__ = ["Hit", "search", "search_batch", "query_features"]
 
@@ -293,11 +293,13 @@ def _from_geometry(db: Any, geometry: Any) -> _Query:
     sparse = is_sparse(d.sampling, d.spacing)
 
     def view() -> NDArray[np.float64] | None:
-        g = view_geometry(geometry, d.spacing, config.kernel.view_cells)
-        if g is None:
+        try:
+            g = view_geometry(geometry, d.spacing, config.kernel.view_cells)
+            found = None if g is None else decompose(g, config=config.mdbd)
+        except ShapeDBError as exc:  # compare by its own feature instead
+            log.warning("query has no sparse view: %s", exc)
             return None
-        found = decompose(g, config=config.mdbd)
-        return _featurise(found, config) if found.n_balls else None
+        return _featurise(found, config) if found is not None and found.n_balls else None
 
     return _Query(_featurise(d, config), sparse, view if config.kernel.view_cells else None)
 

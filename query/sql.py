@@ -103,7 +103,9 @@ def connect(db: Any) -> Any:
     for table, paths in _files(store).items():
         if paths:
             listing = ", ".join(_quote(p) for p in paths)
-            con.execute(f"CREATE VIEW {table} AS SELECT * FROM read_parquet([{listing}])")
+            con.execute(
+                f"CREATE VIEW {table} AS SELECT * FROM read_parquet([{listing}], union_by_name = true)"
+            )
         else:  # no committed file yet: an empty view with the table's schema
             empty = schema_for(table, int(db.config.kernel.dim)).empty_table()
             con.register(f"_empty_{table}", empty)
@@ -131,7 +133,7 @@ def script(db: Any) -> str:
         if paths:
             listing = ", ".join(_quote(p) for p in paths)
             lines.append(
-                f"CREATE OR REPLACE VIEW {table} AS SELECT * FROM read_parquet([{listing}]);"
+                f"CREATE OR REPLACE VIEW {table} AS SELECT * FROM read_parquet([{listing}], union_by_name = true);"
             )
     return "\n".join(lines) + "\n"
 

@@ -168,3 +168,49 @@ def test_store_without_views_keeps_one_feature(tmp_path: Path) -> None:
         }
     finally:
         _forget(db)
+
+
+def test_rows_written_before_the_view_column_read_as_null(tmp_path: Path) -> None:
+    """A store whose first Parquet file predates ``view_feature`` (the column is absent)."""
+    import pyarrow.parquet as pq
+
+    cfg = Config().with_options(resolution=32, n_balls=48, view_cells=4.0)
+    db = shapedb.connect(tmp_path / "old", config=cfg)
+    meshes = _meshes()
+    try:
+        db.ingest([meshes["box-a"][1]], names=["old"], workers=1)
+        (old_file,) = db.store.files("shapes")
+        table = pq.read_table(old_file)
+        pq.write_table(table.drop_columns(["view_feature"]), old_file)
+        db.ingest([meshes["disc-a"][1]], names=["new"], workers=1)
+        assert db.get("old").view_feature is None
+        assert db.get("new").view_feature is not None
+        ids, own = db.store.features()
+        _, view = db.store.features(view=True)
+        np.testing.assert_array_equal(view[0], own[0])  # no view: its own feature
+        assert not np.array_equal(view[1], own[1])
+        counts = db.sql("SELECT count(*) AS n, count(view_feature) AS v FROM shapes").to_pylist()
+        assert counts == [{"n": 2, "v": 1}]
+        assert {h.name for h in db.search(_cloud(meshes["disc-a"][1], "q"), k=2)} == {"old", "new"}
+    finally:
+        _forget(db)
+
+
+def test_a_shape_whose_view_fails_is_stored_without_one(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import shapedb.view as view_module
+    from shapedb.errors import DegenerateGeometryError
+
+    def broken(*args: Any, **kwargs: Any) -> None:
+        raise DegenerateGeometryError("all points lie on a plane or a line", source="view")
+
+    monkeypatch.setattr(view_module, "view_geometry", broken)
+    cfg = Config().with_options(resolution=32, n_balls=48, view_cells=4.0)
+    db = shapedb.connect(tmp_path / "broken", config=cfg)
+    try:
+        report = db.ingest([_meshes()["box-a"][1]], names=["box"], workers=1)
+        assert len(report.ingested) == 1 and not report.failed
+        assert db.get("box").view_feature is None
+    finally:
+        _forget(db)
