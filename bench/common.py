@@ -301,7 +301,8 @@ def engine_version(variant: str | None = None) -> str:
 
     Docstrings and comments do not count, so documentation edits keep the cache.
     Mesh variants leave ``pointcloud.py`` out of it, so that work on the point-cloud
-    distance does not recompute every mesh decomposition.
+    distance does not recompute every mesh decomposition; ``view_*`` variants (sparse
+    views, decomposed as point clouds) add ``view.py``.
     """
     import shapedb
 

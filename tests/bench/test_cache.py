@@ -84,3 +84,21 @@ def test_engine_digest_ignores_docstrings_and_comments() -> None:
     c = 'def f(x):\n    """Doc."""\n    return x + 2\n'
     assert common._code_only(a) == common._code_only(b)
     assert common._code_only(a) != common._code_only(c)
+
+
+def test_view_variant_is_the_library_view_of_the_cached_mesh(model: Model, cache: Path) -> None:
+    from shapedb.mesh import TriangleMesh
+    from shapedb.pointcloud import PointCloud
+    from shapedb.view import view_geometry
+
+    (mesh,) = common.decompose_all([model], "mesh", CONFIG, workers=1, progress=None)
+    assert mesh is not None
+    got = common.variant_geometry(model, "view_4", CONFIG)
+    assert isinstance(got, PointCloud)
+    v, f = common.mesh_arrays(model)
+    want = view_geometry(TriangleMesh(v, f), mesh.spacing, 4.0)
+    assert want is not None
+    np.testing.assert_array_equal(got.points, want.points)
+    # views depend on shapedb/view.py and the point-cloud code; meshes on neither
+    assert common.engine_version("view_4") != common.engine_version("mesh")
+    assert common.cache_path(model, "view_4", CONFIG) != common.cache_path(model, "view_5", CONFIG)
