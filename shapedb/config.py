@@ -190,9 +190,9 @@ class KernelConfig:
         ignored by "paper".
     view_cells : float
         0 (default) stores one feature per shape. A positive value also stores, for
-        every shape with an exact surface (a mesh), the feature of a *sparse view*:
-        a point cloud drawn uniformly on its surface, one sample per ``view_cells``
-        grid cells of spacing (:mod:`shapedb.view`). Sparse point-cloud queries and
+        every shape that is not itself a sparse point cloud, the feature of a *sparse
+        view*: a point cloud drawn uniformly on its surface, one sample per
+        ``view_cells`` grid cells of spacing (:mod:`shapedb.view`). Sparse point-cloud queries and
         records are then compared with views instead of exact shapes, which removes
         most of the systematic difference between a sparse cloud's decomposition and
         its mesh's (issue 6); ingest then costs a point-cloud decomposition more per

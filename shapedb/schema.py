@@ -86,7 +86,7 @@ def shapes_schema(dim: int) -> pa.Schema:
         pa.field("created_at", _TS, nullable=False),
         pa.field("feature", pa.list_(pa.float32(), dim), nullable=False),
         # feature of the shape's sparse view (shapedb.view); null when the store keeps
-        # no views, for shapes without an exact surface, and in rows older than it
+        # no views, for sparse point clouds, and in rows older than it
         pa.field("view_feature", pa.list_(pa.float32(), dim)),
     ]
     return pa.schema(fields, metadata={"shapedb.schema_version": str(SCHEMA_VERSION)})
@@ -168,8 +168,8 @@ class ShapeRecord:
         Assigned by the store when the record is committed.
     view_feature : (config.kernel.dim,) float32 or None
         Feature of the shape's sparse view (:mod:`shapedb.view`), when the store
-        keeps views (``KernelConfig.view_cells > 0``) and the shape has an exact
-        surface; None otherwise.
+        keeps views (``KernelConfig.view_cells > 0``) and the shape is not itself a
+        sparse point cloud; None otherwise.
     """
 
     name: str

@@ -8,9 +8,11 @@ into a systematic difference (about 15 % fewer exact contacts; issue 6 and
 alike: on the test splits, clouds against clouds retrieve nearly as well as meshes
 against meshes, clouds against meshes 0.08-0.11 NN worse.
 
-So a store built with ``KernelConfig(view_cells=s)`` keeps, for every shape with an
-exact surface, a second feature: that of a cloud drawn uniformly by area on its
-surface with one sample per ``s`` grid cells of spacing (:func:`view_geometry`).
+So a store built with ``KernelConfig(view_cells=s)`` keeps, for every shape that is
+not itself a sparse cloud, a second feature: that of a cloud drawn uniformly by area
+on its surface (a mesh's faces; for other representations the marching-cubes surface
+of their grid SDF) with one sample per ``s`` grid cells of spacing
+(:func:`view_geometry`).
 Whenever one side of a comparison is a sparse cloud (:func:`is_sparse`), the other
 side's view is used instead of its exact feature; two exact shapes compare exactly
 as before. Everything is still computed from MDBD balls and contact graphs.
@@ -42,6 +44,7 @@ __all__ = [
     "is_sparse",
     "view_geometry",
     "surface_area",
+    "boundary_mesh",
 ]
 
 #: A source sampled more coarsely than this (its ``sampling`` in grid cells) is sparse.
@@ -80,9 +83,11 @@ def view_geometry(geometry: Geometry, spacing: float, view_cells: float) -> Geom
     Parameters
     ----------
     geometry : Geometry
-        A shape with an exact surface that can be sampled: a triangle mesh
-        (:class:`~shapedb.mesh.TriangleMesh`: ``vertices``, ``faces`` and
-        ``sample_surface(n, seed=)``). Others (point clouds, implicit solids, voxel grids) have no view: None.
+        A shape known exactly, or densely enough (its ``surface_sampling`` below
+        :data:`SPARSE_CELLS` grid cells). A triangle mesh is sampled on its faces;
+        any other representation (implicit solids, voxel grids, CAD solids, dense
+        clouds) on the marching-cubes surface of its grid SDF at ``spacing``
+        (:func:`boundary_mesh`).
     spacing : float
         Grid cell size of ``geometry``'s own decomposition, model units.
     view_cells : float
@@ -91,15 +96,19 @@ def view_geometry(geometry: Geometry, spacing: float, view_cells: float) -> Geom
     Returns
     -------
     PointCloud or None
-        Deterministic: the sample is seeded by the geometry's surface.
+        None when the geometry has no surface to sample. Deterministic: the sample
+        is seeded by the geometry's bounds.
     """
     if view_cells <= 0:
         raise ConfigError(f"view_cells={view_cells!r} is invalid: views need a positive spacing")
-    sample = getattr(geometry, "sample_surface", None)
-    vertices, faces = getattr(geometry, "vertices", None), getattr(geometry, "faces", None)
-    if sample is None or vertices is None or faces is None or spacing <= 0:
+    if not np.isfinite(spacing) or spacing <= 0:
         return None
-    area = surface_area(vertices, faces)
+    surface: Geometry | None = geometry
+    if getattr(geometry, "faces", None) is None or not hasattr(geometry, "sample_surface"):
+        surface = boundary_mesh(geometry, spacing)
+    if surface is None:
+        return None
+    area = surface_area(surface.vertices, surface.faces)  # type: ignore[attr-defined]
     if not np.isfinite(area) or area <= 0:
         return None
     from shapedb.pointcloud import PointCloud
@@ -107,7 +116,7 @@ def view_geometry(geometry: Geometry, spacing: float, view_cells: float) -> Geom
     n = area / (AREA_PER_SAMPLE * (view_cells * spacing) ** 2)
     n = int(np.clip(np.round(n), MIN_VIEW_SAMPLES, MAX_VIEW_SAMPLES))
     rng = np.random.default_rng(_seed(geometry))
-    points: NDArray[np.float64] = sample(n, seed=rng)
+    points: NDArray[np.float64] = surface.sample_surface(n, seed=rng)  # type: ignore[attr-defined]
     name = f"{getattr(geometry, 'name', None) or 'shape'} (view)"
     cloud = PointCloud(points, name=name)
     # hidden or doubled faces (polygon soups) make the area, hence the count, too
@@ -120,6 +129,28 @@ def view_geometry(geometry: Geometry, spacing: float, view_cells: float) -> Geom
                 cloud.points[rng.choice(len(cloud.points), keep, replace=False)], name=name
             )
     return cloud
+
+
+def boundary_mesh(geometry: Geometry, spacing: float) -> Geometry | None:
+    """The boundary of ``geometry`` as a triangle mesh: marching cubes on its grid SDF.
+
+    The grid has cells of ``spacing`` (model units; at most 512 along the longest
+    side). None when the field has no zero crossing (nothing inside, or no outside).
+    """
+    from skimage import measure
+
+    from shapedb.geometry import Grid
+    from shapedb.mesh import TriangleMesh
+
+    b = np.asarray(geometry.bounds, dtype=np.float64)
+    longest = float((b[1] - b[0]).max())
+    resolution = int(np.clip(np.ceil(longest / spacing) + 4, 8, 512))
+    grid = Grid.fit(b, resolution=resolution, padding=2)
+    field = np.asarray(geometry.grid_sdf(grid), dtype=np.float32)
+    if not (np.nanmax(field) > 0 > np.nanmin(field)):
+        return None
+    verts, faces, _, _ = measure.marching_cubes(field, level=0.0, spacing=(grid.spacing,) * 3)
+    return TriangleMesh(verts + grid.origin, faces, name=getattr(geometry, "name", None))
 
 
 def surface_area(vertices: NDArray[np.floating], faces: NDArray[np.integer]) -> float:

@@ -214,3 +214,25 @@ def test_a_shape_whose_view_fails_is_stored_without_one(
         assert db.get("box").view_feature is None
     finally:
         _forget(db)
+
+
+def test_implicit_and_voxel_shapes_get_views_too(tmp_path: Path) -> None:
+    from shapedb.implicit import Capsule
+    from shapedb.voxels import VoxelGrid
+
+    cfg = Config().with_options(resolution=32, n_balls=48, view_cells=4.0)
+    db = shapedb.connect(tmp_path / "implicit", config=cfg)
+    capsule = Capsule([0, 0, 0], [2, 0, 0], 0.5)
+    occupancy = np.zeros((12, 12, 12), bool)
+    occupancy[2:10, 3:9, 4:8] = True
+    try:
+        report = db.ingest(
+            [capsule, VoxelGrid(occupancy, pitch=0.1)], names=["capsule", "block"], workers=1
+        )
+        assert len(report.ingested) == 2, report.failed
+        for name in ("capsule", "block"):
+            record = db.get(name)
+            assert record.view_feature is not None, name
+            assert not np.allclose(record.view_feature, record.feature)
+    finally:
+        _forget(db)

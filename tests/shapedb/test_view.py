@@ -15,6 +15,7 @@ from shapedb.view import (
     AREA_PER_SAMPLE,
     MIN_VIEW_SAMPLES,
     SPARSE_CELLS,
+    boundary_mesh,
     is_sparse,
     surface_area,
     view_geometry,
@@ -89,10 +90,21 @@ def test_tiny_surface_gets_the_minimum_view() -> None:
     assert view is not None and len(view.points) == MIN_VIEW_SAMPLES
 
 
-def test_shapes_without_an_exact_surface_have_no_view() -> None:
-    cloud = PointCloud(np.random.default_rng(0).normal(size=(500, 3)))
-    assert view_geometry(cloud, spacing=0.05, view_cells=4.0) is None
-    assert view_geometry(Sphere([0, 0, 0], 1.0), spacing=0.05, view_cells=4.0) is None
+def test_implicit_solids_are_viewed_on_their_marching_cubes_surface() -> None:
+    sphere = Sphere([0, 0, 0], 1.0)
+    view = view_geometry(sphere, spacing=0.04, view_cells=4.0)
+    assert isinstance(view, PointCloud)
+    r = np.linalg.norm(view.points, axis=1)
+    assert np.abs(r - 1.0).max() < 0.04  # within a cell of the sphere
+    n = 4 * np.pi / (AREA_PER_SAMPLE * (4.0 * 0.04) ** 2)
+    assert 0.7 * n <= len(view.points) <= 1.05 * n
+    assert 0.9 * 4.0 <= view.surface_sampling / 0.04 <= 1.3 * 4.0
+
+
+def test_boundary_mesh_of_nothing_is_none() -> None:
+    empty = Sphere([0, 0, 0], 1.0) - Sphere([0, 0, 0], 2.0)
+    assert boundary_mesh(empty, 0.1) is None
+    assert view_geometry(_cube(), spacing=float("nan"), view_cells=4.0) is None
 
 
 def test_view_needs_a_positive_spacing() -> None:
