@@ -15,6 +15,11 @@ Accepted queries, tried in this order:
   ``ingest.load``, decomposed and featurised with the store's configuration;
 * a stored shape name (a ``str`` that is not an existing file).
 
+In a store with sparse views (``KernelConfig.view_cells > 0``, :mod:`shapedb.view`) a
+sparse point-cloud query is compared with every shape's view, and a dense query with
+the sparse clouds through its own view, which for a geometry or file query costs one
+more (point-cloud) decomposition when the store holds sparse clouds.
+
 A stored query is *not* excluded from its own results: it ranks first, with
 similarity 1.0 (distance 0), unless another shape has an identical feature and a
 smaller id. Ties are broken by ascending id everywhere.
