@@ -364,6 +364,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument(
         "--tie-cells", type=float, default=None, help="MDBDConfig.tie_cells (default: its default)"
     )
+    ap.add_argument(
+        "--contact-tol",
+        type=float,
+        default=None,
+        help="MDBDConfig.contact_tol_cells (default: its default)",
+    )
     ap.add_argument("--hops", type=int, default=None, help="K of 'after' (default PartConfig)")
     ap.add_argument("--no-sweep", action="store_true", help="skip the validation sweep")
     ap.add_argument("--workers", type=int, default=2)
@@ -373,6 +379,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     mdbd = MDBDConfig(resolution=args.resolution, n_balls=args.n_balls)
     if args.tie_cells is not None:
         mdbd = replace(mdbd, tie_cells=args.tie_cells)
+    if args.contact_tol is not None:
+        mdbd = replace(mdbd, contact_tol_cells=args.contact_tol)
     after = PartConfig() if args.hops is None else PartConfig(hops=args.hops)
     before = replace(BEFORE, hops=after.hops)
     selection = None
