@@ -268,12 +268,14 @@ def _vector(value: Any, dim: int, *, source: str) -> NDArray[np.float64]:
 def _stored(db: Any, sid: int, index: Any) -> _Query:
     from shapedb.view import is_sparse
 
+    v = index.features_of(sid) if index is not None else None
+    if v is not None and not db.config.kernel.view_cells:
+        return _Query(v)  # without views only the feature matters: no store read
     columns = ["feature", "sampling", "spacing", "view_feature"]
     table = db.store.shapes(columns, ids=[sid])
     if table.num_rows == 0:
         raise NotFoundError("no shape with this id", source=sid)
     row = table.to_pylist()[0]
-    v = index.features_of(sid) if index is not None else None
     feature = v if v is not None else np.asarray(row["feature"], dtype=np.float64)
     view = row.get("view_feature")
     return _Query(
