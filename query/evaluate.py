@@ -275,9 +275,8 @@ def evaluate(
         None / "kernel": the Eq. 3 kernel of the stored features (ranked by the
         equivalent Eq. 2 distance, so no precision is lost to ``exp``); in a store
         with sparse views, pairs with a sparse side compare views, as the search
-        does. A callable
-        receives the (n, d) features of the labelled shapes and returns an (n, n)
-        similarity matrix.
+        does. A callable receives the (n, d) features of the labelled shapes and
+        returns an (n, n) similarity matrix.
     plot : path, optional
         Also save the precision-recall curve there (PNG).
 
