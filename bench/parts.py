@@ -103,7 +103,10 @@ class _Graph:
     def __init__(self, m: Labelled, cfg: PartConfig | None) -> None:
         self.labels = m.labels
         self.queries = m.queries
-        r, e = m.balls.radii, m.balls.edges
+        balls = m.balls
+        if cfg is not None and cfg.contact_tol_cells > 0:  # the part graph (subgraph.part_graph)
+            balls = balls.with_contact_tol(cfg.contact_tol_cells)
+        r, e = balls.radii, balls.edges
         if cfg is None:
             self.features = (r / r.max())[:, None]
             self.members = neighbourhoods((r, e), 0)

@@ -62,7 +62,7 @@ _SCAN_BLOCK = 262_144
 
 #: PartConfig fields added after part indexes were first written, and the values that
 #: reproduce what those indexes hold (the paper's Eq. 1 vector alone).
-_LEGACY = {"size": 0.0, "centre": 0.0}
+_LEGACY = {"size": 0.0, "centre": 0.0, "contact_tol_cells": 0.0}
 
 
 def read_part_config(data: dict[str, Any]) -> PartConfig:
@@ -535,17 +535,32 @@ _CACHE: dict[tuple[str, str], PartIndex] = {}
 _LOCK = threading.Lock()
 
 
-def _graphs_from_store(db: Any, ids: NDArray[np.int64]) -> list[tuple[Any, Any]]:
-    """(radii, edges) of each stored shape ``ids`` (ascending), read in one go."""
+def _graphs_from_store(db: Any, ids: NDArray[np.int64], cfg: PartConfig) -> list[tuple[Any, Any]]:
+    """(radii, edges) of each stored shape ``ids`` (ascending), read in one go.
+
+    The edges are the stored contact graph's when ``cfg.contact_tol_cells`` is 0, and
+    otherwise found again from the balls at that tolerance (:func:`part_graph`).
+    """
+    from shapedb.graph import contact_edges
+
     if not len(ids):
         return []
     balls = db.store.balls(ids.tolist())
-    edges = db.store.edges(ids.tolist())
     bs, r = balls.column("shape_id").to_numpy(), balls.column("r").to_numpy()
-    es = edges.column("shape_id").to_numpy()
-    e = np.stack([edges.column("i").to_numpy(), edges.column("j").to_numpy()], 1)
     ends = np.r_[ids, np.iinfo(np.int64).max]
     b_ptr = np.asarray(np.searchsorted(bs, ends), np.int64)
+    if cfg.contact_tol_cells > 0:
+        c = np.stack([balls.column(a).to_numpy() for a in ("x", "y", "z")], 1)
+        spacing = db.store.shapes(["spacing"], ids=ids.tolist()).column("spacing").to_numpy()
+        out = []
+        for g in range(len(ids)):
+            lo, hi = b_ptr[g], b_ptr[g + 1]
+            tol = cfg.contact_tol_cells * float(spacing[g])
+            out.append((r[lo:hi], contact_edges(c[lo:hi], r[lo:hi], tol).astype(np.int64)))
+        return out
+    edges = db.store.edges(ids.tolist())
+    es = edges.column("shape_id").to_numpy()
+    e = np.stack([edges.column("i").to_numpy(), edges.column("j").to_numpy()], 1)
     e_ptr = np.asarray(np.searchsorted(es, ends), np.int64)
     return [(r[b_ptr[g] : b_ptr[g + 1]], e[e_ptr[g] : e_ptr[g + 1]]) for g in range(len(ids))]
 
@@ -590,7 +605,7 @@ def open_parts_index(
             return index
         ids = np.asarray(store.ids(), np.int64)
         if index is None:
-            index = PartIndex(cfg, **params).fit(ids, _graphs_from_store(db, ids))
+            index = PartIndex(cfg, **params).fit(ids, _graphs_from_store(db, ids, cfg))
             action = "built"
         else:
             have = index.shapes_[index.alive_]
@@ -599,7 +614,7 @@ def open_parts_index(
             if len(gone):
                 index.remove(gone)
             if len(new):
-                index.add(new, _graphs_from_store(db, new))
+                index.add(new, _graphs_from_store(db, new, cfg))
             action = f"updated (+{len(new)}, -{len(gone)})"
         index.save(root, version=version)
         log.info("part index %s at store version %s: %r", action, version, index)

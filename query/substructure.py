@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import logging
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -53,6 +53,7 @@ from shapedb.subgraph import (
     neighbourhoods,
     node_sets,
     part_config,
+    part_graph,
     part_vector,
     part_weights,
 )
@@ -165,10 +166,25 @@ class PartGeometry:
 
 
 # ------------------------------------------------------------------ resolving inputs
-def resolve(db: Any, x: Any, *, complement: bool = False, padding: float = 0.0) -> Model:
+def resolve(
+    db: Any,
+    x: Any,
+    *,
+    complement: bool = False,
+    padding: float = 0.0,
+    part: PartConfig | None = None,
+) -> Model:
     """A :class:`Model` from a stored id/name, path, Geometry, Decomposition,
     ShapeRecord or ContactGraph; decomposed with the store's configuration (or the
-    default one when ``db`` is None)."""
+    default one when ``db`` is None). With ``part``, the model's graph is the part
+    graph (:func:`shapedb.subgraph.part_graph`; a ContactGraph is taken as it is)."""
+    model = _resolve(db, x, complement=complement, padding=padding)
+    if part is None or model.decomposition is None:
+        return model
+    return replace(model, graph=part_graph(model.decomposition, part))
+
+
+def _resolve(db: Any, x: Any, *, complement: bool, padding: float) -> Model:
     from shapedb.geometry import Geometry
     from shapedb.mdbd import Decomposition, decompose
     from shapedb.schema import ShapeRecord
@@ -462,10 +478,10 @@ def match(
         Best first.
     """
     cfg = part_config(config, hops=hops)
-    qa = resolve(db, a, complement=complement)
+    qa = resolve(db, a, complement=complement, part=cfg)
     v = _query_node(qa, node, point)
     if b is not None:
-        qb = resolve(db, b)
+        qb = resolve(db, b, part=cfg)
         vs, us, ds = match_pairs(
             qa.graph,
             qb.graph,
@@ -593,14 +609,14 @@ def match_brute_force(
     from shapedb.subgraph import neighbourhood_features_naive
 
     cfg = part_config(config, hops=hops)
-    qa = resolve(db, a)
+    qa = resolve(db, a, part=cfg)
     v = _query_node(qa, node, point)
     feat, qnodes = part_feature(qa.graph, v, cfg)
     w = part_weights(cfg)
     rows = []
     for sid in db.store.ids().tolist():
         rec = db.get(int(sid))
-        g = rec.decomposition.graph
+        g = part_graph(rec.decomposition, cfg)
         d = np.abs(neighbourhood_features_naive(g, cfg) - feat) @ w
         u = int(np.argmin(d))
         rows.append((float(d[u]), int(sid), u, rec, g))

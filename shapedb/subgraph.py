@@ -64,6 +64,7 @@ __all__ = [
     "part_dim",
     "part_weights",
     "part_vector",
+    "part_graph",
     "neighbourhoods",
     "neighbourhood_features",
     "neighbourhood_features_many",
@@ -104,6 +105,32 @@ def part_weights(cfg: PartConfig) -> NDArray[np.float64]:
     if cfg.centre > 0:
         blocks.append(np.full(2, float(cfg.centre)))
     return np.concatenate(blocks)
+
+
+def part_graph(decomposition: Any, config: PartConfig | None = None) -> ContactGraph:
+    """The contact graph part matching uses: contacts found again at the part tolerance.
+
+    Parameters
+    ----------
+    decomposition : Decomposition
+        Its balls (``centers``, ``radii``) and grid ``spacing``; its own contact
+        graph (``decomposition.graph``) when ``config.contact_tol_cells`` is 0.
+    config : PartConfig, optional
+
+    Returns
+    -------
+    ContactGraph
+        Balls closer than ``config.contact_tol_cells`` grid cells are joined.
+    """
+    from shapedb.graph import contact_edges
+
+    cfg = part_config(config)
+    if cfg.contact_tol_cells <= 0:
+        graph: ContactGraph = decomposition.graph
+        return graph
+    tol = cfg.contact_tol_cells * float(decomposition.spacing)
+    edges = contact_edges(decomposition.centers, decomposition.radii, tol)
+    return ContactGraph(decomposition.centers, decomposition.radii, edges)
 
 
 def part_vector(

@@ -19,7 +19,7 @@ from shapedb.config import PartConfig
 from shapedb.errors import NotFoundError, QueryError
 from shapedb.graph import ContactGraph
 from shapedb.implicit import Capsule
-from shapedb.subgraph import neighbourhood_features, neighbourhoods, part_weights
+from shapedb.subgraph import neighbourhood_features, neighbourhoods, part_graph, part_weights
 
 #: The paper's part vector alone (Eq. 1 of the subgraph), as before the size block.
 PAPER = PartConfig(size=0.0, centre=0.0)
@@ -183,8 +183,8 @@ def test_corpus_search_agrees_with_brute_force(tmp_db, query) -> None:
     np.testing.assert_allclose([m.distance for m in got], [m.distance for m in want], atol=1e-6)
     assert got[0].similarity == 1.0 and got[0].id == tmp_db.store.resolve(sid)
     assert all(isinstance(m, PartMatch) and m.name and m.label for m in got)
-    # the matched node set is N(u, K) in the stored graph
-    g = tmp_db.get(got[1].id).decomposition.graph
+    # the matched node set is N(u, K) in the part graph (contacts at PartConfig's tolerance)
+    g = part_graph(tmp_db.get(got[1].id).decomposition, PartConfig())
     assert got[1].nodes == tuple(int(x) for x in g.neighbourhood(got[1].node, 2))
     assert db_match_is_same(tmp_db, sid, node, got)
 
@@ -264,7 +264,9 @@ def test_corpus_nms_per_shape_agrees_with_brute_force(cfg: PartConfig) -> None:
 def test_legacy_part_index_config() -> None:
     old = {"hops": 2, "n_r": 10, "t": 10, "w": 0.9, "la": 0.75, "lb": 0.75, "lam": 1.0}
     cfg = read_part_config(old)
-    assert cfg == PAPER and cfg.fingerprint != PartConfig().fingerprint
+    # the paper's vector on the stored contact graph, as indexes held before
+    assert cfg == PartConfig(size=0.0, centre=0.0, contact_tol_cells=0.0)
+    assert cfg.fingerprint != PartConfig().fingerprint
     index = PartIndex(cfg).fit([0, 1], [graph(20, 0), graph(20, 1)])
     assert index.features_.shape == (40, 20)  # the paper's vector, as stored before
 

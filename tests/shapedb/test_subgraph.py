@@ -208,3 +208,24 @@ def test_complement_in_the_exact_box_isolates_through_holes() -> None:
     for hole in holes:
         assert hole.sum() >= 1
         np.testing.assert_array_equal(np.isin(comp, comp[hole]), hole)
+
+
+def test_part_graph_rebuilds_contacts_at_the_part_tolerance() -> None:
+    """Two spheres one cell apart touch at 1.5 cells, not at 0.5; 0 keeps the stored graph."""
+    from shapedb.config import PartConfig
+    from shapedb.mdbd import Decomposition
+    from shapedb.subgraph import part_graph
+
+    h = 0.1  # grid cell
+    centers = np.array([[0.0, 0, 0], [2.0 + h, 0, 0], [0, 3.0, 0]])
+    radii = np.array([1.0, 1.0, 1.0])
+    stored = np.array([[0, 1], [0, 2]])  # what the store holds (an arbitrary graph here)
+    d = Decomposition(
+        centers=centers, radii=radii, edges=stored.astype(np.int32), spacing=h,
+        bounds=np.array([[-1.0, -1, -1], [3.1, 4, 1]]),
+    )  # fmt: skip
+    assert part_graph(d, PartConfig(contact_tol_cells=1.5)).edges.tolist() == [[0, 1]]
+    assert part_graph(d, PartConfig(contact_tol_cells=0.5)).edges.tolist() == []
+    assert part_graph(d, PartConfig(contact_tol_cells=0.0)).edges.tolist() == stored.tolist()
+    with pytest.raises(ConfigError, match="contact_tol_cells"):
+        PartConfig(contact_tol_cells=-1.0)
