@@ -20,17 +20,20 @@ node sets overlap by at most ``overlap``, Jaccard, default 0.0: disjoint). When 
 candidates hold fewer than k distinct shapes the search widens (more candidates,
 more lists) and finally falls back to the exact scan.
 
-Per shape the index also keeps the contact edges, so that a hit's node set
-``N(u, K)`` is known without reading the store.
+Per shape the index also keeps the contact edges of its part graph (the contacts
+found again from the balls at ``PartConfig.contact_tol_cells``,
+:func:`shapedb.subgraph.part_graph`), so that a hit's node set ``N(u, K)`` is known
+without reading the store.
 
 On disk, beside the store: ``<store>/parts/<PartConfig fingerprint>/current.json``
 (replaced atomically) names ``v<version>-<token>/`` holding ``features.npy``,
 ``shapes.npy``, ``node_ptr.npy``, ``edge_ptr.npy``, ``edges.npy``, ``alive.npy`` and,
 for IVF, ``faiss.index``. When the store version has moved, new shapes are
-featurised from the store's balls and edges and added, deleted ones tombstoned (the
-index is compacted once a fifth of it is dead). An index written before
-:class:`PartConfig` had ``size``/``centre`` holds the paper's vectors alone and is
-read with ``size = centre = 0`` (:func:`read_part_config`).
+featurised from the store's balls and added, deleted ones tombstoned (the index is
+compacted once a fifth of it is dead). An index written before :class:`PartConfig`
+had ``size``/``centre`` holds the paper's vectors alone and is read with ``size =
+centre = 0``, and one written before ``contact_tol_cells`` with 0 (the stored contact
+graph; :func:`read_part_config`).
 """
 
 from __future__ import annotations
