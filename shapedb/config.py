@@ -296,12 +296,10 @@ class PartConfig:
 
     The defaults (K = 2, n_r = 10 as in the paper; size = 4, centre = 8) were chosen
     on a validation subset of ``bench.parts`` (figure subjects 2-3, poses 8-15;
-    plates 8-15), never on the reported one. On today's 1-cell contact graphs
-    centre = 4 scores 0.584 there against 0.572 (the same figures, 0.898 / 0.900,
-    and a better through-feature mean, 0.271 / 0.244, on the 8 validation
-    plates); measured on the reported subset too, it matched
-    figure parts 0.86-0.89 of the time against 0.90-0.92 and holes 0.27 / 0.21
-    against 0.25 / 0.19, so the default stays.
+    plates 8-15), never on the reported one. With today's 0.5-cell part graphs
+    centre = 4 scores 0.619 there against 0.607 (on 1-cell graphs 0.584 against
+    0.572, when it matched the reported figure parts 0.86-0.89 of the time against
+    0.90-0.92), within the sweep's noise, so the default stays.
     """
 
     hops: int = 2
