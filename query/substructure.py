@@ -459,7 +459,9 @@ def match(
     k : int
         Shapes returned by the corpus search.
     config : PartConfig, optional
-        Part kernel parameters (n_r, t, w, la, lb, lam).
+        Part kernel parameters (n_r, t, w, la, lb, lam) and the tolerance at which
+        the contacts of a decomposed model are found again
+        (:func:`shapedb.subgraph.part_graph`; a ContactGraph is used as it is).
     where : str, optional
         SQL predicate over ``shapes`` restricting the corpus (exact scan).
     per_shape : int
