@@ -185,8 +185,8 @@ class KernelConfig:
         distance and turned into a similarity by Eq. 3.
     descriptor : int
         Version of the "mdbd" descriptor's blocks and weights (see
-        :mod:`shapedb.descriptor`; 3 is the default, 2 the one before it, 1 the first
-        selection). Stored with every record, so that a store never mixes versions;
+        :mod:`shapedb.descriptor`; 4 is the default, 3 and 2 the ones before it, 1
+        the first selection). Stored with every record, so that a store never mixes versions;
         ignored by "paper".
     view_cells : float
         0 (default) stores one feature per shape. A positive value also stores, for
@@ -206,7 +206,7 @@ class KernelConfig:
     lb: float = 0.75
     lam: float = 1.0
     method: str = "mdbd"
-    descriptor: int = 3
+    descriptor: int = 4
     view_cells: float = 0.0
 
     def __post_init__(self) -> None:
@@ -233,10 +233,10 @@ class KernelConfig:
         _check(0.0 < self.lb <= 1.0, "lb", self.lb, "must be in (0, 1]")
         _check(self.lam > 0.0, "lam", self.lam, "must be > 0")
         _check(
-            self.descriptor in (1, 2, 3),
+            self.descriptor in (1, 2, 3, 4),
             "descriptor",
             self.descriptor,
-            "must be 1, 2 or 3 (see shapedb.descriptor)",
+            "must be 1, 2, 3 or 4 (see shapedb.descriptor)",
         )
         _check(
             isinstance(self.view_cells, (int, float))

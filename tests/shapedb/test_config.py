@@ -29,8 +29,8 @@ def test_a_stored_kernel_without_descriptor_version_is_version_1() -> None:
     old = {"kernel": {"n_r": 32, "t": 10, "w": 0.9, "la": 0.75, "lb": 0.75, "lam": 1.0}}
     old["kernel"]["method"] = "mdbd"
     assert Config.from_dict(old).kernel.descriptor == 1
-    assert Config.from_dict({}).kernel.descriptor == 3
-    assert Config.from_json(Config().to_json()).kernel.descriptor == 3
+    assert Config.from_dict({}).kernel.descriptor == 4
+    assert Config.from_json(Config().to_json()).kernel.descriptor == 4
     assert Config.from_dict({"kernel": {"method": "mdbd", "descriptor": 2}}).kernel.descriptor == 2
 
 
@@ -47,7 +47,7 @@ def test_a_stored_mdbd_config_without_tie_rule_took_the_first_cell() -> None:
         (MDBDConfig, {"resolution": 4}, "resolution"),
         (KernelConfig, {"method": "other"}, "method"),
         (KernelConfig, {"w": 0.0}, "w="),
-        (KernelConfig, {"descriptor": 4}, "descriptor"),
+        (KernelConfig, {"descriptor": 5}, "descriptor"),
         (MDBDConfig, {"tie_rule": "last"}, "tie_rule"),
         (MDBDConfig, {"colour": 1}, "unknown MDBDConfig option"),
     ],

@@ -40,7 +40,11 @@ def test_every_version_has_its_length_and_ignores_similarity_transforms(version:
 def test_versions_differ_and_the_default_is_the_latest() -> None:
     assert VERSION == max(LAYOUTS) == KernelConfig().descriptor
     g = _chain(40, 1.0)
-    assert len({dim(v) for v in LAYOUTS}) == len(LAYOUTS)
+    assert len({LAYOUTS[v] for v in LAYOUTS}) == len(LAYOUTS)
+    rows = [describe(g, v) for v in sorted(LAYOUTS)]
+    for a in range(len(rows)):
+        for b in range(a):
+            assert rows[a].shape != rows[b].shape or not np.allclose(rows[a], rows[b])
     f1 = shapedb.features(g, KernelConfig(descriptor=1))
     f = shapedb.features(g, KernelConfig())
     np.testing.assert_array_equal(f1, describe(g, 1))
@@ -54,6 +58,37 @@ def _block(f: np.ndarray, name: str, version: int = 3) -> np.ndarray:
             return f[at : at + size]
         at += size
     raise KeyError(name)
+
+
+def _swapped(g: ContactGraph, i: int, j: int) -> ContactGraph:
+    """``g`` with nodes i and j exchanged (same balls, other order)."""
+    order = np.arange(g.n_nodes)
+    order[[i, j]] = [j, i]
+    where = np.argsort(order)  # new index of every old node
+    return ContactGraph(g.centers[order], g.radii[order], where[g.edges])
+
+
+def test_version_4_does_not_see_which_of_two_equal_balls_came_first() -> None:
+    # a chain with a branch: balls 3 and 4 have one radius but touch different
+    # numbers of balls, so their walk averages differ; the packing may list either
+    # first (its chaos decides), and only version 4's sorted Eq. 1 block ignores it
+    g = _chain(30, 1.0)
+    r = g.radii.copy()
+    r[4] = r[3]
+    c = g.centers.copy()
+    extra_c = c[3] + np.array([0.0, r[3] + 0.15, 0.0])
+    g = ContactGraph(
+        np.vstack([c, extra_c]),
+        np.append(r, 0.15),
+        contact_edges(np.vstack([c, extra_c]), np.append(r, 0.15), 1e-6),
+    )
+    s = _swapped(g, 3, 4)
+    before, after = describe(g, 3), describe(s, 3)
+    assert not np.allclose(_block(before, "paper"), _block(after, "paper"))
+    np.testing.assert_allclose(
+        _block(describe(g, 4), "paper_sorted", 4), _block(describe(s, 4), "paper_sorted", 4)
+    )
+    np.testing.assert_allclose(describe(g, 4), describe(s, 4), atol=1e-12)
 
 
 def test_geodesic_blocks_do_not_see_a_bent_chain() -> None:
