@@ -144,3 +144,16 @@ def test_a_store_keeps_the_descriptor_version_it_was_built_with(tmp_path: Path) 
     assert hits[0].name == "figure" and hits[0].similarity > 0.99
     with pytest.raises(shapedb.errors.ConfigError, match="descriptor"):
         shapedb.connect(path, descriptor=VERSION)
+
+
+def test_walk_averages_sort_within_groups_of_near_equal_radii() -> None:
+    from shapedb.descriptor import _sorted_walks
+
+    p0 = np.array([1.0, 0.99, 0.5, 0.49, 0.2, 0.0])
+    walks = np.array([3.0, 5.0, 1.0, 2.0, 7.0, 0.0])
+    paper = np.concatenate([p0, walks])
+    grouped = _sorted_walks(paper, 0.05)  # groups {1, 0.99}, {0.5, 0.49}, {0.2}, {0}
+    np.testing.assert_array_equal(grouped, np.concatenate([p0, [5.0, 3.0, 2.0, 1.0, 7.0, 0.0]]))
+    every = _sorted_walks(paper, 1.0)  # the default: one group
+    np.testing.assert_array_equal(every, np.concatenate([p0, [7.0, 5.0, 3.0, 2.0, 1.0, 0.0]]))
+    np.testing.assert_array_equal(_sorted_walks(paper), every)
