@@ -32,6 +32,7 @@ from shapedb.config import MDBDConfig
 __all__ = [
     "format_table",
     "write_json",
+    "log_margin",
     "retrieval_scores",
     "Balls",
     "VARIANTS",
@@ -138,6 +139,19 @@ def _psb_scores(similarity: NDArray[np.float64], labels: NDArray[Any]) -> dict[s
         sums["dcg"] += (rel * disc).sum() / disc[:k].sum()
         counted += 1
     return {m: sums[m] / max(counted, 1) for m in MEASURES}
+
+
+def log_margin(d: NDArray[np.float64], labels: NDArray[Any]) -> float:
+    """Mean over queries (rows) of log(d(nearest same class) / d(nearest other class)).
+
+    The diagonal (a query against itself, or against its own model in another
+    representation) is left out; lower is better, and far less noisy than NN.
+    """
+    same = labels[:, None] == labels[None, :]
+    off = ~np.eye(len(labels), dtype=bool)
+    near = np.where(same & off, d, np.inf).min(1) / np.where(~same, d, np.inf).min(1)
+    ok = np.isfinite(near) & (near > 0)
+    return float(np.mean(np.log(near[ok])))
 
 
 def retrieval_scores(similarity: ArrayLike, labels: ArrayLike) -> dict[str, float]:

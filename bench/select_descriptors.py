@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from bench import descriptors as desc
-from bench.common import decompose_all, format_table, retrieval_scores, write_json
+from bench.common import decompose_all, format_table, log_margin, retrieval_scores, write_json
 from bench.datasets import Dataset
 from bench.issue6 import _scales
 from bench.retrieval import build_sets
@@ -154,18 +154,9 @@ def _weighted_score(data: Any, weights: dict[str, float]) -> dict[str, float]:
     return {
         **s,
         "pc_to_mesh_nn": retrieval_scores(-dpm, lab)["nn"],
-        "mesh_margin": _log_margin(dmm, lab),
-        "pc_margin": _log_margin(dpm, lab),
+        "mesh_margin": log_margin(dmm, lab),
+        "pc_margin": log_margin(dpm, lab),
     }
-
-
-def _log_margin(d: np.ndarray, labels: np.ndarray) -> float:
-    """Mean log(d(nearest same class) / d(nearest other class)) over queries (rows)."""
-    same = labels[:, None] == labels[None, :]
-    off = ~np.eye(len(labels), dtype=bool)
-    near = np.where(same & off, d, np.inf).min(1) / np.where(~same, d, np.inf).min(1)
-    ok = np.isfinite(near) & (near > 0)
-    return float(np.mean(np.log(near[ok])))
 
 
 def select_geodesic(sets: Sequence[Dataset], mdbd: MDBDConfig, workers: int) -> dict[str, Any]:

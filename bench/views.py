@@ -26,7 +26,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.common import Balls, decompose_all, format_table, retrieval_scores, write_json
+from bench.common import (
+    Balls,
+    decompose_all,
+    format_table,
+    log_margin,
+    retrieval_scores,
+    write_json,
+)
 from bench.descriptors import l1_matrix
 from bench.retrieval import _mixture_mask, build_sets
 from shapedb.config import MDBDConfig
@@ -37,14 +44,6 @@ OUT = Path(__file__).resolve().parent / "results" / "views.json"
 
 def _features(balls: Sequence[Balls]) -> NDArray[np.float64]:
     return np.stack([describe(b.decomposition().graph) for b in balls])
-
-
-def _margin(d: NDArray[np.float64], labels: NDArray[Any]) -> float:
-    same = labels[:, None] == labels[None, :]
-    off = ~np.eye(len(labels), dtype=bool)
-    near = np.where(same & off, d, np.inf).min(1) / np.where(~same, d, np.inf).min(1)
-    ok = np.isfinite(near) & (near > 0)
-    return float(np.mean(np.log(near[ok])))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -91,7 +90,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             res = {
                 "mesh_nn": mesh_nn,
                 "cloud_nn": retrieval_scores(-d_pv, labels)["nn"],
-                "cloud_log_margin": _margin(d_pv, labels),
+                "cloud_log_margin": log_margin(d_pv, labels),
                 "mixture_nn": retrieval_scores(-d_mix, labels)["nn"],
             }
             record[f"{ds.name}/{name}"] = res
