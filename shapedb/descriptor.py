@@ -229,7 +229,9 @@ def _sorted_walks(paper: FloatArray, tie: float | None = None) -> FloatArray:
 
     ``p0`` (radii over r1) is sorted already; sorting ``P`` too makes the vector blind
     to which of two near-equal balls came first, a swap that the packing's chaos
-    makes often and that otherwise exchanges two of its entries.
+    makes often and that otherwise exchanges two of its entries. ``P`` is sorted
+    within runs of balls each within ``tie`` (default :data:`WALK_TIE`) of the
+    previous one's radius; ``tie = 1`` sorts it whole.
     """
     n_r = len(paper) // 2
     p0, walks = paper[:n_r], paper[n_r:]
