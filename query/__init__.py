@@ -16,12 +16,14 @@ from __future__ import annotations
 from query.engine import Hit, query_features, search, search_batch
 from query.evaluate import RetrievalScores, retrieval_scores
 from query.index import FeatureIndex, build_index, open_index
+from query.metric import LearnedMetric, fit_metric
 from query.parts_index import PartIndex, open_parts_index
 from query.substructure import PartGeometry, PartMatch, match_pairs, part_geometry
 
 __all__ = [
     "FeatureIndex",
     "Hit",
+    "LearnedMetric",
     "PartGeometry",
     "PartIndex",
     "PartMatch",
@@ -31,6 +33,7 @@ __all__ = [
     "part_geometry",
     "RetrievalScores",
     "build_index",
+    "fit_metric",
     "open_index",
     "query_features",
     "retrieval_scores",

@@ -73,7 +73,9 @@ class Hit:
         return asdict(self)
 
 
-def search(db: Any, query: Any, *, k: int = 10, where: str | None = None) -> list[Hit]:
+def search(
+    db: Any, query: Any, *, k: int = 10, where: str | None = None, metric: Any = None
+) -> list[Hit]:
     """The k stored shapes most similar to ``query``, best first.
 
     Parameters
@@ -87,6 +89,10 @@ def search(db: Any, query: Any, *, k: int = 10, where: str | None = None) -> lis
     where : str, optional
         SQL predicate over the ``shapes`` table (e.g. ``"label = 'Chair'"``); only
         shapes satisfying it are returned, and the search is then exhaustive (exact).
+    metric : LearnedMetric or path, optional
+        A similarity fitted on the store's labels (``db.fit_metric``,
+        :mod:`query.metric`) instead of the default; distances are then weighted
+        by its block weights.
 
     Returns
     -------
@@ -100,11 +106,16 @@ def search(db: Any, query: Any, *, k: int = 10, where: str | None = None) -> lis
     QueryError
         Malformed query, k or ``where`` predicate.
     """
-    return search_batch(db, [query], k=k, where=where)[0]
+    return search_batch(db, [query], k=k, where=where, metric=metric)[0]
 
 
 def search_batch(
-    db: Any, queries: Sequence[Any], *, k: int = 10, where: str | None = None
+    db: Any,
+    queries: Sequence[Any],
+    *,
+    k: int = 10,
+    where: str | None = None,
+    metric: Any = None,
 ) -> list[list[Hit]]:
     """:func:`search` for many queries at once (one faiss call, one filter).
 
@@ -115,13 +126,15 @@ def search_batch(
         Each as accepted by :func:`search`.
     k : int
     where : str, optional
+    metric : LearnedMetric or path, optional
 
     Returns
     -------
     list of list of Hit
         One list per query, in the order of ``queries``.
     """
-    from query.index import open_index
+    from query.index import open_index, with_metric
+    from query.metric import as_metric
 
     if isinstance(queries, (str, bytes, os.PathLike)) or not isinstance(queries, Sequence):
         if isinstance(queries, np.ndarray) and queries.ndim == 2:
@@ -132,17 +145,21 @@ def search_batch(
             )
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
         raise QueryError("k must be a positive integer", source=f"k={k!r}")
+    learned = as_metric(metric)
+    if learned is not None:
+        learned.check(db.config)
     if not len(queries):
         return []
     index = open_index(db)
     resolved = [_resolve(db, q, index) for q in queries]
+    index = with_metric(index, learned)
     allowed = None
     if where is not None:
         from query.sql import allowed_ids
 
         allowed = allowed_ids(db, where)
     if db.config.kernel.view_cells:
-        ids, dist = _search_with_views(db, index, resolved, int(k), allowed)
+        ids, dist = _search_with_views(db, index, resolved, int(k), allowed, learned)
     else:
         vectors = np.stack([r.feature for r in resolved])
         ids, dist = index.search(vectors, int(k), allowed=allowed)
@@ -320,7 +337,12 @@ def _from_file(db: Any, path: Path) -> _Query:
 
 
 def _search_with_views(
-    db: Any, index: Any, queries: list[_Query], k: int, allowed: NDArray[np.int64] | None
+    db: Any,
+    index: Any,
+    queries: list[_Query],
+    k: int,
+    allowed: NDArray[np.int64] | None,
+    metric: Any = None,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """Search a store that keeps sparse views (:mod:`shapedb.view`).
 
@@ -330,13 +352,15 @@ def _search_with_views(
     merged by distance (ties by ascending id). A dense query without a view (a raw
     vector) compares with every shape's own feature.
     """
-    from query.index import open_index
+    from query.index import open_index, with_metric
 
     out_ids = np.full((len(queries), k), -1, np.int64)
     out_d = np.full((len(queries), k), np.inf)
     sparse_ids = db.store.sparse_ids()
     views = (
-        open_index(db, view=True) if (any(q.sparse for q in queries) or len(sparse_ids)) else None
+        with_metric(open_index(db, view=True), metric)
+        if (any(q.sparse for q in queries) or len(sparse_ids))
+        else None
     )
     for row, q in enumerate(queries):
         own_view = None if q.sparse or not len(sparse_ids) else q.view_feature()

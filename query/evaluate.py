@@ -263,6 +263,7 @@ def evaluate(
     label: str = "label",
     method: str | Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
     plot: str | os.PathLike[str] | None = None,
+    metric: Any = None,
 ) -> RetrievalScores:
     """Leave-one-out PSB measures of the store's shapes, grouped by ``label``.
 
@@ -279,11 +280,23 @@ def evaluate(
         returns an (n, n) similarity matrix.
     plot : path, optional
         Also save the precision-recall curve there (PNG).
+    metric : LearnedMetric or path, optional
+        Rank by a similarity fitted on labels (``db.fit_metric``, :mod:`query.metric`)
+        instead of the default kernel (with ``method`` None or "kernel" only). Scoring a
+        metric on the shapes it was fitted on flatters it: fit on one store (or split)
+        and evaluate on another.
 
     Returns
     -------
     RetrievalScores
     """
+    from query.metric import as_metric
+
+    learned = as_metric(metric)
+    if learned is not None:
+        learned.check(db.config)
+        if callable(method):
+            raise QueryError("a metric weighs the kernel: not with a callable method", source="metric")
     ids_all, labels_all = _labels(db, label)
     fid, feats = db.store.features()
     if not np.array_equal(fid, ids_all):  # a commit happened in between: align on ids
@@ -300,6 +313,8 @@ def evaluate(
         from shapedb.kernel import weights
 
         w = weights(db.config.kernel)
+        if learned is not None:
+            w = w * learned.dim_weights()
         xw = x * w
         sparse = vw = None
         if db.config.kernel.view_cells:  # the search's rule: views when either side is sparse

@@ -29,6 +29,7 @@ from __future__ import annotations
 import logging
 import os
 import threading
+import weakref
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -39,9 +40,10 @@ from query._versioned import POINTER, current, save_version
 from shapedb.errors import ConfigError, NotFittedError, QueryError, StoreError, require
 
 if TYPE_CHECKING:
+    from query.metric import LearnedMetric
     from shapedb.config import KernelConfig
 
-__all__ = ["FeatureIndex", "open_index", "build_index", "on_commit", "INDEX_DIR"]
+__all__ = ["FeatureIndex", "open_index", "build_index", "on_commit", "with_metric", "INDEX_DIR"]
 
 log = logging.getLogger(__name__)
 
@@ -575,6 +577,46 @@ def _load(root: Path) -> FeatureIndex | None:
 def build_index(db: Any, *, kind: str = "auto", **params: Any) -> FeatureIndex:
     """Rebuild the store's index from scratch with the given settings."""
     return open_index(db, kind=kind, rebuild=True, **params)
+
+
+#: In-memory indexes re-weighted by learned metrics, per base index and metric.
+_METRIC_INDEXES: weakref.WeakKeyDictionary[FeatureIndex, dict[Any, FeatureIndex]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def with_metric(index: FeatureIndex, metric: LearnedMetric | None) -> FeatureIndex:
+    """``index`` with its weights multiplied by a learned metric's (:mod:`query.metric`).
+
+    Built in memory from the live vectors of ``index`` (same settings) and cached
+    while ``index`` lives; ``index`` itself when ``metric`` is None or the identity.
+
+    Raises
+    ------
+    ConfigError
+        When the metric was fitted on vectors of another length.
+    """
+    if metric is None or not metric.learned:
+        return index
+    index._check_fitted()
+    if metric.dim != index.dim:
+        raise ConfigError(
+            f"the metric weighs {metric.dim}-long vectors, the index holds {index.dim}",
+            source="metric",
+        )
+    key = (metric.fingerprint, metric.weights)
+    with _LOCK:
+        per = _METRIC_INDEXES.setdefault(index, {})
+        if key not in per:
+            alive = index.alive_
+            out = FeatureIndex(**index.params).fit(
+                index.ids_[alive],
+                np.asarray(index.features_)[alive],
+                index.weights_ * metric.dim_weights(),
+            )
+            out.version_ = index.version_
+            per[key] = out
+        return per[key]
 
 
 def on_commit(db: Any, *args: Any, **kwargs: Any) -> None:

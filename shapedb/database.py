@@ -39,6 +39,7 @@ _PROVIDERS = {
     "sql": "query",
     "match": "query",
     "evaluate": "query",
+    "fit_metric": "query",
     "on_commit": "query",
     "show": "query",
     "render_matches": "query",
@@ -308,6 +309,14 @@ class Database:
     def evaluate(self, *, label: str = "label", **options: Any) -> Any:
         """Leave-one-out retrieval quality by ``label`` (``query.evaluate.evaluate``)."""
         return _extension("evaluate")(self, label=label, **options)
+
+    def fit_metric(self, *, label: str = "label", **options: Any) -> Any:
+        """Fit block weights of the similarity on the stored labels (``query.metric``).
+
+        Returns a ``LearnedMetric`` for ``search(..., metric=)`` and
+        ``evaluate(metric=)``; the identity when cross-validation finds no gain.
+        """
+        return _extension("fit_metric")(self, label=label, **options)
 
     def show(self, model: Any, out: str | os.PathLike[str], **options: Any) -> Path:
         """Draw ``model`` with its MDBD balls into the PNG ``out`` (``query.render.show``)."""

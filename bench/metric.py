@@ -1,0 +1,166 @@
+"""Issue 6: a similarity learned on a labelled store (:mod:`query.metric`), held out.
+
+Usage (from the repository root)::
+
+    python -m bench.metric [--sets capod articulated parts] [--quick]
+
+For each set a :class:`~query.metric.LearnedMetric` is fitted on the *validation*
+split exactly as ``db.fit_metric`` fits a store (block weights, regularisation
+cross-validated inside the split) and scored on the *test* split against the
+unlearned default, in two store layouts: meshes only, and meshes with their sparse
+views (``view_cells = 4``; each mesh's view is an extra query during the fit, and a
+cloud query is compared with the views, as ``KernelConfig.view_cells`` does). Rows:
+meshes NN / 1-T / DCG, point-cloud queries (20 % of the vertices) against the mesh
+database, the even mixture, and the mean log margin ``log(d(nearest same class) /
+d(nearest other class))`` of mesh and cloud queries (lower is better). Results go to
+bench/results/metric.json. Decompositions come from the bench cache
+(:func:`bench.common.decompose_all`), so after ``python -m bench.retrieval --views 4``
+this takes a minute.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from bench import descriptors as desc
+from bench.common import decompose_all, format_table, log_margin, mdbd_config, retrieval_scores, write_json
+from bench.datasets import Dataset
+from bench.retrieval import _complete, _mixture_mask, build_sets, kernel_features
+from query.metric import LearnedMetric, block_layout, fit_metric
+from shapedb.config import KernelConfig, MDBDConfig
+
+RESULTS = Path(__file__).resolve().parent / "results"
+VIEW_CELLS = 4.0
+
+
+def _features(ds: Dataset, split: str, mdbd: MDBDConfig, cfg: KernelConfig, workers: int) -> dict[str, Any]:
+    sub = ds.split(split)
+    mesh = decompose_all(sub.models, "mesh", mdbd, workers=workers)
+    pc = decompose_all(sub.models, "pointcloud", mdbd, workers=workers)
+    view = decompose_all(sub.models, f"view_{VIEW_CELLS:g}", mdbd, workers=workers)
+    sub, (mesh, pc, view) = _complete(sub, mesh, pc, view)
+    return {
+        "mesh": kernel_features(mesh, cfg),
+        "pc": kernel_features(pc, cfg),
+        "view": kernel_features(view, cfg),
+        "labels": sub.labels,
+        "mix": _mixture_mask([m.name for m in sub.models]),
+    }
+
+
+def _scores(f: dict[str, Any], w: NDArray[np.float64], views: bool) -> dict[str, float]:
+    """Test-split measures with per-dimension weights ``w``."""
+    m, p, v, lab = f["mesh"] * w, f["pc"] * w, f["view"] * w, f["labels"]
+    d_mm = desc.l1_matrix(m, m)
+    d_pm = desc.l1_matrix(p, v if views else m)
+    x = np.where(f["mix"][:, None], p, m)
+    d_xx = desc.l1_matrix(x, x)
+    if views:  # pairs with a cloud side compare the meshes' views
+        y = np.where(f["mix"][:, None], p, v)
+        either = f["mix"][:, None] | f["mix"][None, :]
+        d_xx = np.where(either, desc.l1_matrix(y, y), d_xx)
+    s = retrieval_scores(-d_mm, lab)
+    return {
+        "nn": s["nn"],
+        "first_tier": s["first_tier"],
+        "dcg": s["dcg"],
+        "pc_to_mesh_nn": retrieval_scores(-d_pm, lab)["nn"],
+        "mixture_nn": retrieval_scores(-d_xx, lab)["nn"],
+        "margin_mesh": log_margin(d_mm, lab),
+        "margin_pc": log_margin(d_pm, lab),
+    }
+
+
+def run(sets: Sequence[Dataset], mdbd: MDBDConfig, workers: int) -> dict[str, Any]:
+    """Fit on validation, score on test, per set and store layout; print the tables."""
+    cfg = KernelConfig()
+    blocks = block_layout(cfg)
+    out: dict[str, Any] = {}
+    for ds in sets:
+        val = _features(ds, "validation", mdbd, cfg, workers)
+        test = _features(ds, "test", mdbd, cfg, workers)
+        n = len(val["labels"])
+        fits: dict[str, LearnedMetric] = {
+            "meshes": fit_metric(val["mesh"], val["labels"], blocks=blocks),
+            "meshes + views": fit_metric(
+                val["mesh"], val["labels"], blocks=blocks, extra=(val["view"], np.arange(n))
+            ),
+        }
+        rows, entry = [], {}
+        for layout, views in (("meshes", False), ("meshes + views", True)):
+            metric = fits[layout]
+            base = _scores(test, np.ones(metric.dim), views)
+            learned = _scores(test, metric.dim_weights(), views)
+            entry[layout] = {
+                "default": base,
+                "learned": learned,
+                "reg": metric.reg,
+                "weights": dict(zip([b for b, _ in blocks], metric.weights, strict=True)),
+                "cv": metric.cv,
+            }
+            for name, s in (("default", base), (f"learned (reg {metric.reg})", learned)):
+                rows.append(
+                    [
+                        layout,
+                        name,
+                        *(
+                            round(s[k], 3)
+                            for k in (
+                                "nn",
+                                "first_tier",
+                                "dcg",
+                                "pc_to_mesh_nn",
+                                "mixture_nn",
+                                "margin_mesh",
+                                "margin_pc",
+                            )
+                        ),
+                    ]
+                )
+        print(
+            format_table(
+                f"{ds.name}: metric fitted on validation ({n} models), test split "
+                f"({len(test['labels'])} models)",
+                (
+                    "store",
+                    "similarity",
+                    "NN",
+                    "1-T",
+                    "DCG",
+                    "cloud->mesh NN",
+                    "mixture NN",
+                    "margin mesh",
+                    "margin cloud",
+                ),
+                rows,
+            )
+        )
+        for layout, e in entry.items():
+            print(f"  {layout}: weights {', '.join(f'{k} {v:.2f}' for k, v in e['weights'].items())}")
+        out[ds.name] = entry
+    return out
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sets", nargs="+", default=["capod", "articulated", "parts"])
+    ap.add_argument("--quick", action="store_true", help="small subsets")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--out", type=Path, default=RESULTS / "metric.json")
+    args = ap.parse_args(argv)
+    sets = build_sets(args.sets, args.quick)
+    result = run(sets, mdbd_config(), args.workers)
+    write_json(args.out, {"quick": args.quick, "view_cells": VIEW_CELLS, "datasets": result})
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
