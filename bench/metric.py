@@ -30,7 +30,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench import descriptors as desc
-from bench.common import decompose_all, format_table, log_margin, mdbd_config, retrieval_scores, write_json
+from bench.common import (
+    decompose_all,
+    format_table,
+    log_margin,
+    mdbd_config,
+    retrieval_scores,
+    write_json,
+)
 from bench.datasets import Dataset
 from bench.retrieval import _complete, _mixture_mask, build_sets, kernel_features
 from query.metric import LearnedMetric, block_layout, fit_metric
@@ -40,7 +47,9 @@ RESULTS = Path(__file__).resolve().parent / "results"
 VIEW_CELLS = 4.0
 
 
-def _features(ds: Dataset, split: str, mdbd: MDBDConfig, cfg: KernelConfig, workers: int) -> dict[str, Any]:
+def _features(
+    ds: Dataset, split: str, mdbd: MDBDConfig, cfg: KernelConfig, workers: int
+) -> dict[str, Any]:
     sub = ds.split(split)
     mesh = decompose_all(sub.models, "mesh", mdbd, workers=workers)
     pc = decompose_all(sub.models, "pointcloud", mdbd, workers=workers)
@@ -143,7 +152,9 @@ def run(sets: Sequence[Dataset], mdbd: MDBDConfig, workers: int) -> dict[str, An
             )
         )
         for layout, e in entry.items():
-            print(f"  {layout}: weights {', '.join(f'{k} {v:.2f}' for k, v in e['weights'].items())}")
+            print(
+                f"  {layout}: weights {', '.join(f'{k} {v:.2f}' for k, v in e['weights'].items())}"
+            )
         out[ds.name] = entry
     return out
 

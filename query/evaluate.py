@@ -296,7 +296,9 @@ def evaluate(
     if learned is not None:
         learned.check(db.config)
         if callable(method):
-            raise QueryError("a metric weighs the kernel: not with a callable method", source="metric")
+            raise QueryError(
+                "a metric weighs the kernel: not with a callable method", source="metric"
+            )
     ids_all, labels_all = _labels(db, label)
     fid, feats = db.store.features()
     if not np.array_equal(fid, ids_all):  # a commit happened in between: align on ids

@@ -255,7 +255,10 @@ def _nca_weights(
 
 
 def _log_margins(
-    blocks: NDArray[np.float64], w: NDArray[np.float64], same: NDArray[np.bool_], exclude: NDArray[np.bool_]
+    blocks: NDArray[np.float64],
+    w: NDArray[np.float64],
+    same: NDArray[np.bool_],
+    exclude: NDArray[np.bool_],
 ) -> NDArray[np.float64]:
     """log(d(nearest same class) / d(nearest other class)) of each query (NaN if undefined)."""
     d = np.where(exclude, np.inf, blocks @ w)
