@@ -95,6 +95,8 @@ class LearnedMetric:
         margin and its paired standard error against the default (lower is better).
     n_shapes, n_classes : int
         Labelled shapes (and classes) the fit used.
+    n_extra : int
+        Extra queries (other representations of those shapes, e.g. sparse views).
     label : str
         The column or metadata key the classes came from.
     """
@@ -106,6 +108,7 @@ class LearnedMetric:
     cv: dict[str, dict[str, float]] = field(default_factory=dict)
     n_shapes: int = 0
     n_classes: int = 0
+    n_extra: int = 0
     label: str = "label"
 
     def __post_init__(self) -> None:
@@ -161,6 +164,7 @@ class LearnedMetric:
                 cv={str(k): dict(v) for k, v in data.get("cv", {}).items()},
                 n_shapes=int(data.get("n_shapes", 0)),
                 n_classes=int(data.get("n_classes", 0)),
+                n_extra=int(data.get("n_extra", 0)),
                 label=str(data.get("label", "label")),
             )
         except (KeyError, TypeError, ValueError) as exc:
@@ -431,6 +435,7 @@ def fit_metric(
         cv=cv,
         n_shapes=n,
         n_classes=int(len(np.unique(y))),
+        n_extra=len(ex_x),
         label=label,
     )
 

@@ -12,11 +12,13 @@ def test_public_all():
     assert sorted(query.__all__) == [
         "FeatureIndex",
         "Hit",
+        "LearnedMetric",
         "PartGeometry",
         "PartIndex",
         "PartMatch",
         "RetrievalScores",
         "build_index",
+        "fit_metric",
         "match_pairs",
         "on_commit",
         "open_index",
@@ -32,7 +34,7 @@ def test_public_all():
 
 def test_import_is_light():
     code = (
-        "import sys, query, query.index, query.engine, query.sql, query.evaluate; "
+        "import sys, query, query.index, query.engine, query.sql, query.evaluate, query.metric; "
         "print(sorted(m for m in ('faiss', 'duckdb', 'matplotlib', 'torch') if m in sys.modules))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

@@ -150,6 +150,33 @@ def test_evaluate_follows_the_view_rule(view_db: Any) -> None:
     assert got.dcg == pytest.approx(want.dcg)
 
 
+def test_a_learned_metric_weighs_views_too(view_db: Any) -> None:
+    from query.metric import LearnedMetric, block_layout
+
+    blocks = block_layout(CONFIG.kernel)
+    metric = LearnedMetric(
+        blocks=blocks,
+        weights=tuple(float(i + 1) for i in range(len(blocks))),
+        fingerprint=view_db.config.fingerprint,
+        reg=0.1,
+    )
+    w = metric.dim_weights()
+    ids, own, view, sparse = _own_and_view(view_db)
+    cloud = int(ids[sparse][0])
+    hits = view_db.search(cloud, k=len(ids), metric=metric)  # a sparse query: views
+    want = np.abs(view - view[ids == cloud][0]) @ w
+    for h in hits:
+        assert h.distance == pytest.approx(want[ids == h.id][0], rel=1e-5, abs=1e-6)
+    d_own = np.abs(own[:, None] - own[None]) @ w
+    d_view = np.abs(view[:, None] - view[None]) @ w
+    d = np.where(sparse[:, None] | sparse[None, :], d_view, d_own)
+    labels = np.asarray([view_db.get(int(i)).label for i in ids])
+    assert view_db.evaluate(metric=metric).nn == pytest.approx(retrieval_scores(-d, labels).nn)
+    fitted = view_db.fit_metric(folds=2)  # the dense shapes' views are extra queries
+    assert fitted.n_shapes == len(ids) and fitted.n_extra == int((~sparse).sum())
+    assert fitted.fingerprint == view_db.config.fingerprint
+
+
 def test_store_without_views_keeps_one_feature(tmp_path: Path) -> None:
     cfg = Config().with_options(resolution=32, n_balls=48)
     db = shapedb.connect(tmp_path / "plain", config=cfg)

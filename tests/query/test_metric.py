@@ -1,0 +1,180 @@
+"""query.metric: block weights learned on labels, and search / evaluate with them."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import numpy as np
+import pytest
+
+from query.evaluate import evaluate, retrieval_scores
+from query.metric import LearnedMetric, as_metric, block_layout, fit_metric
+from shapedb.errors import ConfigError, LoadError, QueryError
+
+BLOCKS = (("signal", 6), ("noise", 6))
+
+
+def _data(
+    n_per: int = 12, classes: int = 4, seed: int = 0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Features of two blocks: ``signal`` separates the classes, ``noise`` does not.
+
+    Returns features (n, 12), labels (n,) and "views" (n, 12): the same shapes with
+    a little noise on the signal block.
+    """
+    rng = np.random.default_rng(seed)
+    centres = rng.normal(0, 1.0, (classes, 6))
+    y = np.repeat(np.arange(classes), n_per)
+    signal = centres[y] + 0.3 * rng.normal(size=(len(y), 6))
+    noise = 1.0 * rng.normal(size=(len(y), 6))
+    x = np.concatenate([signal, noise], 1)
+    views = x.copy()
+    views[:, :6] += 0.1 * rng.normal(size=(len(y), 6))
+    return x, y.astype(str), views
+
+
+def _nn(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> float:
+    d = np.abs(x[:, None] - x[None]) @ w
+    return float(retrieval_scores(-d, y).nn)
+
+
+def test_the_informative_block_gains_weight_and_held_out_retrieval_improves() -> None:
+    x, y, _ = _data(seed=1)
+    m = fit_metric(x, y, blocks=BLOCKS, fingerprint="f")
+    assert m.learned and m.reg is not None
+    w_signal, w_noise = m.weights
+    assert w_signal > 2 * w_noise
+    assert m.dim == 12 and m.dim_weights().shape == (12,)
+    assert np.all(m.dim_weights()[:6] == w_signal) and np.all(m.dim_weights()[6:] == w_noise)
+    assert m.cv["default"]["gain"] == 0.0
+    assert m.cv[f"{m.reg:g}"]["gain"] < -2 * m.cv[f"{m.reg:g}"]["se"]
+    xt, yt, _ = _data(seed=2)  # other shapes of the same kind
+    assert _nn(xt, yt, m.dim_weights()) > _nn(xt, yt, np.ones(12)) + 0.05
+
+
+def test_labels_without_signal_keep_the_default() -> None:
+    x, _, _ = _data(seed=3)
+    y = np.random.default_rng(4).permutation(np.repeat(np.arange(4), 12)).astype(str)
+    m = fit_metric(x, y, blocks=BLOCKS)
+    assert not m.learned and m.weights == (1.0, 1.0)
+
+
+def test_extra_queries_teach_what_another_representation_keeps() -> None:
+    # both blocks separate the classes, but the views blur the first: fitted with
+    # the views as extra queries, the second block must gain against the first
+    rng = np.random.default_rng(5)
+    y = np.repeat(np.arange(4), 12)
+    a = rng.normal(0, 1.0, (4, 6))[y] + 0.3 * rng.normal(size=(48, 6))
+    b = rng.normal(0, 1.0, (4, 6))[y] + 0.3 * rng.normal(size=(48, 6))
+    x = np.concatenate([a, b], 1)
+    views = np.concatenate([a + 1.5 * rng.normal(size=a.shape), b], 1)
+    blocks = (("blurred", 6), ("kept", 6))
+    alone = fit_metric(x, y.astype(str), blocks=blocks)
+    both = fit_metric(x, y.astype(str), blocks=blocks, extra=(views, np.arange(48)))
+    assert both.learned
+    assert both.weights[1] / both.weights[0] > 1.5 * alone.weights[1] / alone.weights[0]
+    assert both.weights[1] > both.weights[0]
+    assert both.n_shapes == 48 and both.n_extra == 48 and alone.n_extra == 0
+
+
+def test_large_inputs_are_sampled_by_class() -> None:
+    x, y, views = _data(n_per=30, seed=6)
+    m = fit_metric(x, y, blocks=BLOCKS, max_shapes=40, extra=(views, np.arange(len(x))))
+    assert m.n_shapes == 40 and m.n_classes == 4 and m.n_extra == 40
+
+
+def test_bad_inputs_are_named() -> None:
+    x, y, _ = _data()
+    with pytest.raises(QueryError, match="two classes"):
+        fit_metric(x, np.zeros(len(x)).astype(str), blocks=BLOCKS)
+    with pytest.raises(QueryError, match="features of shape"):
+        fit_metric(x[:, :5], y, blocks=BLOCKS)
+    bad = x.copy()
+    bad[0, 0] = np.nan
+    with pytest.raises(QueryError, match="NaN"):
+        fit_metric(bad, y, blocks=BLOCKS)
+    with pytest.raises(QueryError, match="extra"):
+        fit_metric(x, y, blocks=BLOCKS, extra=(x[:, :3], np.arange(len(x))))
+    with pytest.raises(ConfigError, match="folds"):
+        fit_metric(x, y, blocks=BLOCKS, folds=1)
+    with pytest.raises(ConfigError, match="positive"):
+        LearnedMetric(blocks=BLOCKS, weights=(1.0, 0.0), fingerprint="f")
+    with pytest.raises(QueryError, match="LearnedMetric"):
+        as_metric(3)
+
+
+def test_save_and_load(tmp_path: Any) -> None:
+    x, y, _ = _data(seed=1)
+    m = fit_metric(x, y, blocks=BLOCKS, fingerprint="abc", label="kind")
+    path = m.save(tmp_path / "sub" / "m.json")
+    back = LearnedMetric.load(path)
+    assert back == m and as_metric(path) == m and as_metric(str(path)) == m
+    (tmp_path / "garbage.json").write_text("{not json")
+    with pytest.raises(LoadError, match="garbage.json"):
+        LearnedMetric.load(tmp_path / "garbage.json")
+    (tmp_path / "other.json").write_text(json.dumps({"format": "something else"}))
+    with pytest.raises(LoadError, match="not a shapedb metric"):
+        LearnedMetric.load(tmp_path / "other.json")
+    (tmp_path / "broken.json").write_text(json.dumps({"format": "shapedb-metric/1"}))
+    with pytest.raises(LoadError, match="malformed"):
+        LearnedMetric.load(tmp_path / "broken.json")
+
+
+def _handmade(db: Any, first: float = 10.0) -> LearnedMetric:
+    """A metric weighing the first block ``first`` times, the others once."""
+    blocks = block_layout(db.config.kernel)
+    weights = (first,) + (1.0,) * (len(blocks) - 1)
+    return LearnedMetric(blocks=blocks, weights=weights, fingerprint=db.config.fingerprint, reg=0.1)
+
+
+def test_store_metric_search_and_evaluate(tmp_db: Any) -> None:
+    fitted = tmp_db.fit_metric(label="label", folds=2)
+    assert isinstance(fitted, LearnedMetric)
+    assert fitted.fingerprint == tmp_db.config.fingerprint
+    assert fitted.dim == tmp_db.store.dim and fitted.n_shapes == len(tmp_db.store)
+    ids, x = tmp_db.store.features()
+    x = x.astype(np.float64)
+    m = _handmade(tmp_db)
+    w = m.dim_weights()
+    # search: exact weighted L1, ranked like a brute-force scan
+    for sid in ids[:4]:
+        hits = tmp_db.search(int(sid), k=5, metric=m)
+        d = np.abs(x - x[ids == sid][0]) @ w
+        order = np.lexsort((ids, d))[:5]
+        assert [h.id for h in hits] == ids[order].tolist()
+        assert [h.distance for h in hits] == pytest.approx(d[order].tolist(), rel=1e-5)
+    batch = tmp_db.search_batch([int(i) for i in ids[:4]], k=5, metric=m)
+    assert [[h.id for h in row] for row in batch] == [
+        [h.id for h in tmp_db.search(int(i), k=5, metric=m)] for i in ids[:4]
+    ]
+    # the identity is the default
+    identity = LearnedMetric(
+        blocks=m.blocks, weights=(1.0,) * len(m.blocks), fingerprint=m.fingerprint
+    )
+    assert tmp_db.search(int(ids[0]), k=5, metric=identity) == tmp_db.search(int(ids[0]), k=5)
+    # evaluate: the same measures as the weighted distance matrix gives
+    labels = tmp_db.store.shapes(["label"]).column("label").to_pylist()
+    d = np.abs(x[:, None] - x[None]) @ w
+    ref = retrieval_scores(-d, labels, ids=ids).to_dict()
+    got = evaluate(tmp_db, metric=m).to_dict()
+    for key in ("nn", "first_tier", "second_tier", "dcg"):
+        assert got[key] == pytest.approx(ref[key], abs=1e-12)
+    assert tmp_db.evaluate(metric=identity).to_dict() == tmp_db.evaluate().to_dict()
+
+
+def test_a_metric_of_another_store_is_refused(tmp_db: Any) -> None:
+    other = LearnedMetric(
+        blocks=block_layout(tmp_db.config.kernel),
+        weights=(1.0,) * len(block_layout(tmp_db.config.kernel)),
+        fingerprint="0" * 16,
+        reg=0.1,
+    )
+    with pytest.raises(ConfigError, match="another configuration"):
+        tmp_db.search(0, metric=other)
+    with pytest.raises(ConfigError, match="another configuration"):
+        tmp_db.evaluate(metric=other)
+    with pytest.raises(QueryError, match="callable"):
+        tmp_db.evaluate(metric=_handmade(tmp_db), method=lambda f: -f @ f.T)
+    with pytest.raises(QueryError, match="metric"):
+        tmp_db.search(0, metric=object())
