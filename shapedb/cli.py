@@ -7,9 +7,10 @@
                    [--scheduler ADDR] [--force] [--json]
     shapedb info --db DIR [--json]
     shapedb delete ID_OR_NAME... --db DIR
-    shapedb search QUERY --db DIR [-k 10] [--where SQL] [--json]
+    shapedb search QUERY --db DIR [-k 10] [--where SQL] [--metric JSON] [--json]
     shapedb sql "SELECT ..." --db DIR [--json | --csv]
-    shapedb eval --db DIR [--label label] [--json] [--plot pr.png]
+    shapedb eval --db DIR [--label label] [--metric JSON] [--json] [--plot pr.png]
+    shapedb fit-metric --db DIR [--label label] --out metric.json [--json]
     shapedb show MODEL --out PNG [--db DIR] [--complement]
     shapedb match QUERY --db DIR [--node N | --point X Y Z] [--hops K] [-k 10] [--json] [--out PNG]
     shapedb train --db DIR [--label label] [--conv tag|arma|spline] [--epochs N] --out model.pt
@@ -90,6 +91,7 @@ def build_parser() -> argparse.ArgumentParser:
     db_arg(s)
     s.add_argument("-k", type=int, default=10, help="number of hits (default 10)")
     s.add_argument("--where", metavar="SQL", help="filter, e.g. \"label = 'Chair'\"")
+    s.add_argument("--metric", metavar="JSON", help="a similarity saved by fit-metric")
     s.add_argument("--json", action="store_true")
 
     s = sub.add_parser("sql", help="run DuckDB SQL over the views shapes, balls, edges")
@@ -102,8 +104,17 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("eval", help="leave-one-out retrieval scores by label")
     db_arg(s)
     s.add_argument("--label", default="label", help="column or metadata key of the class")
+    s.add_argument("--metric", metavar="JSON", help="a similarity saved by fit-metric")
     s.add_argument("--json", action="store_true")
     s.add_argument("--plot", metavar="PNG", help="save the precision-recall curve")
+
+    s = sub.add_parser(
+        "fit-metric", help="learn block weights of the similarity from the stored labels"
+    )
+    db_arg(s)
+    s.add_argument("--label", default="label", help="column or metadata key of the class")
+    s.add_argument("--out", required=True, metavar="JSON", help="where to save the metric")
+    s.add_argument("--json", action="store_true")
 
     s = sub.add_parser("show", help="draw a model with its MDBD balls into a PNG")
     s.add_argument("model", metavar="MODEL", help="a model file, or a stored id or name (--db)")
@@ -273,7 +284,7 @@ def _query_arg(text: str) -> Any:
 
 def _search(args: argparse.Namespace) -> int:
     db = _existing(args.db)
-    hits = db.search(_query_arg(args.query), k=args.k, where=args.where)
+    hits = db.search(_query_arg(args.query), k=args.k, where=args.where, metric=args.metric)
     rows = [_hit(h) for h in hits]
     if args.json:
         _print_json(rows)
@@ -309,11 +320,7 @@ def _sql(args: argparse.Namespace) -> int:
 
 def _eval(args: argparse.Namespace) -> int:
     db = _existing(args.db)
-    scores = (
-        db.evaluate(label=args.label, plot=args.plot)
-        if args.plot
-        else db.evaluate(label=args.label)
-    )
+    scores = db.evaluate(label=args.label, plot=args.plot, metric=args.metric)
     out = scores.to_dict() if hasattr(scores, "to_dict") else dict(vars(scores))
     if args.json:
         _print_json(out)
@@ -324,6 +331,27 @@ def _eval(args: argparse.Namespace) -> int:
             print(f"{key:12s} {out[key]:.4f}")
     if args.plot:
         print(f"precision-recall curve: {args.plot}")
+    return 0
+
+
+def _fit_metric(args: argparse.Namespace) -> int:
+    metric = _existing(args.db).fit_metric(label=args.label)
+    path = metric.save(args.out)
+    out = metric.to_dict()
+    if args.json:
+        _print_json(out)
+        return 0
+    print(
+        f"{metric.n_shapes} shapes, {metric.n_classes} classes, "
+        f"{metric.n_extra} sparse views as extra queries"
+    )
+    if metric.learned:
+        print(f"cross-validated: reg {metric.reg:g}")
+        for (name, _), w in zip(metric.blocks, metric.weights, strict=True):
+            print(f"  {name:16s} {w:.3f}")
+    else:
+        print("cross-validation found no gain over the default: the metric is the identity")
+    print(f"saved to {path}")
     return 0
 
 
@@ -448,6 +476,7 @@ def _classify(args: argparse.Namespace) -> int:
 
 
 _COMMANDS = {
+    "fit-metric": _fit_metric,
     "ingest": _ingest,
     "info": _info,
     "delete": _delete,

@@ -164,6 +164,19 @@ def test_search_sql_eval(tmp_path: Path, models: Path, capsys: pytest.CaptureFix
     assert scores["queries"] == 6 and 0.0 <= scores["nn"] <= 1.0
     assert (tmp_path / "pr.png").stat().st_size > 0
 
+    metric = tmp_path / "metric.json"
+    assert main(["fit-metric", "--db", str(db), "--out", str(metric)]) == 0
+    assert f"saved to {metric}" in capsys.readouterr().out
+    assert main(["fit-metric", "--db", str(db), "--out", str(metric), "--json"]) == 0
+    fitted = _json(capsys)
+    assert fitted["n_shapes"] == 6 and fitted["n_classes"] == 2 and metric.exists()
+    assert main(["eval", "--db", str(db), "--metric", str(metric), "--json"]) == 0
+    assert _json(capsys)["queries"] == 6
+    assert main(["search", "rods1", "--db", str(db), "--metric", str(metric), "--json"]) == 0
+    assert _json(capsys)[0]["name"] == "rods1"
+    assert main(["search", "rods1", "--db", str(db), "--metric", str(tmp_path / "no.json")]) == 1
+    assert "no.json" in capsys.readouterr().err
+
 
 @pytest.mark.slow
 def test_demo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
