@@ -56,8 +56,8 @@ REGS = (1.0, 0.3, 0.1, 0.03, 0.01, 0.003, 0.001)
 #: Softmax sharpness: distances are divided by their median and multiplied by this.
 TEMPERATURE = 10.0
 #: Shapes used for a fit at most (a class-stratified sample beyond that): the fit
-#: holds (queries x shapes x blocks) float64 distances, 256 MB at 2,000 x 2,000 x 8.
-MAX_SHAPES = 2000
+#: holds (queries x shapes x blocks) float64 distances: 128 MB at 2,000 x 1,000 x 8.
+MAX_SHAPES = 1000
 FORMAT = "shapedb-metric/1"
 
 
