@@ -8,8 +8,9 @@ For each set a :class:`~query.metric.LearnedMetric` is fitted on the *validation
 split exactly as ``db.fit_metric`` fits a store (block weights, regularisation
 cross-validated inside the split) and scored on the *test* split against the
 unlearned default, in two store layouts: meshes only, and meshes with their sparse
-views (``view_cells = 4``; each mesh's view is an extra query during the fit, and a
-cloud query is compared with the views, as ``KernelConfig.view_cells`` does). Rows:
+views (``view_cells = 4``; each mesh's view is one more query during the fit, compared
+with the other meshes' views, and a cloud query is compared with the views, as
+``KernelConfig.view_cells`` does). Rows:
 meshes NN / 1-T / DCG, point-cloud queries (20 % of the vertices) against the mesh
 database, the even mixture, and the mean log margin ``log(d(nearest same class) /
 d(nearest other class))`` of mesh and cloud queries (lower is better). Results go to
@@ -99,7 +100,7 @@ def run(sets: Sequence[Dataset], mdbd: MDBDConfig, workers: int) -> dict[str, An
         fits: dict[str, LearnedMetric] = {
             "meshes": fit_metric(val["mesh"], val["labels"], blocks=blocks),
             "meshes + views": fit_metric(
-                val["mesh"], val["labels"], blocks=blocks, extra=(val["view"], np.arange(n))
+                val["mesh"], val["labels"], blocks=blocks, views=val["view"]
             ),
         }
         rows, entry = [], {}

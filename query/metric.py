@@ -13,7 +13,8 @@ re-ranking and the sparse views work unchanged::
 
 The fit is neighbourhood components analysis (Goldberger et al., 2004) restricted to
 non-negative block weights ``exp(theta_b)``: every labelled shape (and, in a store
-with sparse views, every shape's view) queries the stored features, the other shapes
+with sparse views, every shape's view) queries the others, compared as the search
+compares them (a pair with a sparse side by its views); the other shapes
 are picked with probability ``softmax(-temperature * d / median d)`` and the mean
 log probability of picking one of the query's class is maximised, with a penalty
 ``reg * |theta|^2`` that pulls the weights towards the default. The strength ``reg``
@@ -96,7 +97,7 @@ class LearnedMetric:
     n_shapes, n_classes : int
         Labelled shapes (and classes) the fit used.
     n_extra : int
-        Extra queries (other representations of those shapes, e.g. sparse views).
+        Sparse views of those shapes that were queries too.
     label : str
         The column or metadata key the classes came from.
     """
@@ -289,8 +290,9 @@ def fit_metric(
     labels: ArrayLike,
     *,
     blocks: Sequence[tuple[str, int]],
+    views: ArrayLike | None = None,
+    sparse: ArrayLike | None = None,
     fingerprint: str = "",
-    extra: tuple[ArrayLike, ArrayLike] | None = None,
     regs: Sequence[float] = REGS,
     temperature: float = TEMPERATURE,
     folds: int = 3,
@@ -299,6 +301,12 @@ def fit_metric(
     label: str = "label",
 ) -> LearnedMetric:
     """Fit block weights on labelled feature vectors, regularisation cross-validated.
+
+    Every shape queries the others. With ``views`` the pairs follow a views store's
+    rule (:mod:`shapedb.view`): a pair with a sparse side compares the two views,
+    two dense shapes their own features; and each dense shape's view is one more
+    (sparse) query, so that the weights also learn what a sparse sample of a surface
+    keeps. A query never counts its own shape.
 
     Parameters
     ----------
@@ -309,12 +317,12 @@ def fit_metric(
         Class of each row.
     blocks : sequence of (name, length)
         The vector's blocks (:func:`block_layout`); one weight is fitted per block.
+    views : (n, d) float, optional
+        Each shape's sparse-view feature (its own feature where it has none).
+    sparse : (n,) bool, optional
+        Shapes that are themselves sparse samples (compared by their views).
     fingerprint : str
         Configuration fingerprint recorded in the metric.
-    extra : ((m, d) float, (m,) int), optional
-        More queries, each another representation of shape ``extra[1][i]`` (a row of
-        ``features``): e.g. the shapes' sparse views, so the weights also learn to
-        match a sparse sample with its surface. A query never counts its own shape.
     regs : sequence of float
         Regularisation strengths to try.
     temperature : float
@@ -340,12 +348,14 @@ def fit_metric(
             f"expected ({len(y)}, {sum(sizes)}) features and one label per row",
             source=f"features of shape {x.shape}",
         )
-    if not np.all(np.isfinite(x)):
+    v = x if views is None else np.asarray(views, dtype=np.float64)
+    if v.shape != x.shape:
+        raise QueryError(f"views must have the features' shape {x.shape}", source="views")
+    sp = np.zeros(len(x), bool) if sparse is None else np.asarray(sparse, dtype=bool)
+    if sp.shape != (len(x),):
+        raise QueryError(f"sparse must be ({len(x)},) booleans", source="sparse")
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
         raise QueryError("features have NaN or inf entries", source="features")
-    ex_x = np.zeros((0, x.shape[1])) if extra is None else np.asarray(extra[0], np.float64)
-    ex_own = np.zeros(0, np.int64) if extra is None else np.asarray(extra[1], np.int64)
-    if ex_x.ndim != 2 or ex_x.shape[1] != x.shape[1] or len(ex_own) != len(ex_x):
-        raise QueryError("extra queries must be ((m, d) features, (m,) owners)", source="extra")
     classes, counts = np.unique(y, return_counts=True)
     if len(classes) < 2 or (counts >= 2).sum() < 2:
         raise QueryError(
@@ -366,14 +376,18 @@ def fit_metric(
                 ]
             )
         )
-        remap = np.full(len(x), -1)
-        remap[keep] = np.arange(len(keep))
-        sel = remap[ex_own] >= 0
-        x, y, ex_x, ex_own = x[keep], y[keep], ex_x[sel], remap[ex_own[sel]]
+        x, v, y, sp = x[keep], v[keep], y[keep], sp[keep]
     n = len(x)
-    q = np.concatenate([x, ex_x])
-    owner = np.concatenate([np.arange(n), ex_own])
-    bd = _block_distances(q, x, sizes)  # (q, n, b)
+    # queries: every shape, then the view of every dense shape that has one
+    extra = np.flatnonzero(~sp & np.any(v != x, axis=1))
+    owner = np.concatenate([np.arange(n), extra])
+    q_sparse = np.concatenate([sp, np.ones(len(extra), bool)])
+    bd = _block_distances(np.concatenate([x, v[extra]]), x, sizes)  # (q, n, b)
+    by_view = q_sparse[:, None] | sp[None, :]
+    if by_view.any():
+        bd = np.where(
+            by_view[:, :, None], _block_distances(np.concatenate([v, v[extra]]), v, sizes), bd
+        )
     same = y[owner][:, None] == y[None, :]
     exclude = owner[:, None] == np.arange(n)[None, :]
 
@@ -382,7 +396,7 @@ def fit_metric(
     held: dict[float | None, list[NDArray[np.float64]]] = {r: [] for r in (None, *regs)}
     for k in range(folds):
         train = fold != k
-        tq = (qfold != k) & train[owner]
+        tq = qfold != k
         hq = qfold == k
         sub = bd[tq][:, train]
         for r in held:
@@ -392,17 +406,17 @@ def fit_metric(
                 else _nca_weights(sub, same[tq][:, train], exclude[tq][:, train], r, temperature)
             )
             held[r].append(_log_margins(bd[hq], w, same[hq], exclude[hq]))
-    margins = {r: np.concatenate(v) for r, v in held.items()}
+    margins = {r: np.concatenate(m) for r, m in held.items()}
     ok = np.isfinite(margins[None])
-    for v in margins.values():
-        ok &= np.isfinite(v)
+    for m in margins.values():
+        ok &= np.isfinite(m)
     cv: dict[str, dict[str, float]] = {}
     stats: dict[float, tuple[float, float]] = {}
-    for r, v in margins.items():
-        diff = v[ok] - margins[None][ok]
+    for r, m in margins.items():
+        diff = m[ok] - margins[None][ok]
         se = float(diff.std(ddof=1) / np.sqrt(len(diff))) if len(diff) > 1 else float("inf")
         cv["default" if r is None else f"{r:g}"] = {
-            "margin": float(v[ok].mean()) if ok.any() else float("nan"),
+            "margin": float(m[ok].mean()) if ok.any() else float("nan"),
             "gain": float(diff.mean()) if ok.any() else 0.0,
             "se": se,
         }
@@ -420,22 +434,22 @@ def fit_metric(
         else _nca_weights(bd, same, exclude, chosen, temperature)
     )
     log.info(
-        "fit_metric: %d shapes, %d classes, %d extra queries; reg %s, weights %s",
+        "fit_metric: %d shapes, %d classes, %d view queries; reg %s, weights %s",
         n,
         len(np.unique(y)),
-        len(ex_x),
+        len(extra),
         chosen,
         np.round(weights, 3).tolist(),
     )
     return LearnedMetric(
         blocks=tuple((str(name), int(s)) for name, s in blocks),
-        weights=tuple(float(v) for v in weights),
+        weights=tuple(float(w) for w in weights),
         fingerprint=fingerprint,
         reg=chosen,
         cv=cv,
         n_shapes=n,
         n_classes=int(len(np.unique(y))),
-        n_extra=len(ex_x),
+        n_extra=len(extra),
         label=label,
     )
 
@@ -443,11 +457,10 @@ def fit_metric(
 def fit_store_metric(db: Any, *, label: str = "label", **options: Any) -> LearnedMetric:
     """``db.fit_metric``: :func:`fit_metric` on a store's labelled shapes.
 
-    The stored features query each other; in a store with sparse views
-    (``KernelConfig.view_cells``) each dense shape's view is an extra query for it,
-    so that the weights also learn what a sparse sample keeps of a surface.
-    ``options`` go to :func:`fit_metric` (``regs``, ``temperature``, ``folds``,
-    ``max_shapes``, ``seed``).
+    In a store with sparse views (``KernelConfig.view_cells``) the pairs follow the
+    search's rule and each dense shape's view is one more query (see
+    :func:`fit_metric`). ``options`` go to :func:`fit_metric` (``regs``,
+    ``temperature``, ``folds``, ``max_shapes``, ``seed``).
     """
     from query.evaluate import _labels
     from shapedb.kernel import weights as kernel_weights
@@ -460,21 +473,18 @@ def fit_store_metric(db: Any, *, label: str = "label", **options: Any) -> Learne
     ids, labels, feats = common[keep], labels[keep], feats[keep]
     config = db.config
     w = np.asarray(kernel_weights(config.kernel), np.float64)
-    extra = None
+    views = sparse = None
     if config.kernel.view_cells:
-        vid, views = db.store.features(view=True)
-        pos = np.searchsorted(vid, ids)
-        dense = ~np.isin(ids, db.store.sparse_ids())
-        own = np.flatnonzero(dense)
-        vx = np.asarray(views[pos[own]], np.float64)
-        differs = np.any(vx != feats[own], axis=1)  # shapes without a view repeat themselves
-        extra = (vx[differs] * w, own[differs])
+        vid, stored_views = db.store.features(view=True)
+        views = np.asarray(stored_views[np.searchsorted(vid, ids)], np.float64) * w
+        sparse = np.isin(ids, db.store.sparse_ids())
     return fit_metric(
         feats * w,
         labels,
         blocks=block_layout(config.kernel),
+        views=views,
+        sparse=sparse,
         fingerprint=config.fingerprint,
-        extra=extra,
         label=label,
         **options,
     )

@@ -60,9 +60,10 @@ def test_labels_without_signal_keep_the_default() -> None:
     assert not m.learned and m.weights == (1.0, 1.0)
 
 
-def test_extra_queries_teach_what_another_representation_keeps() -> None:
+def test_views_teach_what_a_sparse_sample_keeps() -> None:
     # both blocks separate the classes, but the views blur the first: fitted with
-    # the views as extra queries, the second block must gain against the first
+    # the views (extra queries, compared with the other shapes' views), the second
+    # block must gain against the first
     rng = np.random.default_rng(5)
     y = np.repeat(np.arange(4), 12)
     a = rng.normal(0, 1.0, (4, 6))[y] + 0.3 * rng.normal(size=(48, 6))
@@ -71,16 +72,33 @@ def test_extra_queries_teach_what_another_representation_keeps() -> None:
     views = np.concatenate([a + 1.5 * rng.normal(size=a.shape), b], 1)
     blocks = (("blurred", 6), ("kept", 6))
     alone = fit_metric(x, y.astype(str), blocks=blocks)
-    both = fit_metric(x, y.astype(str), blocks=blocks, extra=(views, np.arange(48)))
+    both = fit_metric(x, y.astype(str), blocks=blocks, views=views)
     assert both.learned
     assert both.weights[1] / both.weights[0] > 1.5 * alone.weights[1] / alone.weights[0]
     assert both.weights[1] > both.weights[0]
     assert both.n_shapes == 48 and both.n_extra == 48 and alone.n_extra == 0
 
 
+def test_pairs_with_a_sparse_side_compare_views() -> None:
+    # dense shapes carry the classes in block a of their own features, views carry
+    # them in block b; half the shapes are sparse (their feature is their view).
+    # Compared as a views store compares them, block b is what separates.
+    rng = np.random.default_rng(8)
+    y = np.repeat(np.arange(4), 12)
+    ca, cb = rng.normal(size=(4, 6)), rng.normal(size=(4, 6))
+    own = np.concatenate([ca[y] + 0.3 * rng.normal(size=(48, 6)), rng.normal(size=(48, 6))], 1)
+    views = np.concatenate([rng.normal(size=(48, 6)), cb[y] + 0.3 * rng.normal(size=(48, 6))], 1)
+    sparse = np.arange(48) % 2 == 1
+    x = np.where(sparse[:, None], views, own)
+    blocks = (("a", 6), ("b", 6))
+    m = fit_metric(x, y.astype(str), blocks=blocks, views=views, sparse=sparse)
+    assert m.learned and m.weights[1] > 2 * m.weights[0]
+    assert m.n_extra == 24  # the dense shapes' views
+
+
 def test_large_inputs_are_sampled_by_class() -> None:
     x, y, views = _data(n_per=30, seed=6)
-    m = fit_metric(x, y, blocks=BLOCKS, max_shapes=40, extra=(views, np.arange(len(x))))
+    m = fit_metric(x, y, blocks=BLOCKS, max_shapes=40, views=views)
     assert m.n_shapes == 40 and m.n_classes == 4 and m.n_extra == 40
 
 
@@ -94,8 +112,10 @@ def test_bad_inputs_are_named() -> None:
     bad[0, 0] = np.nan
     with pytest.raises(QueryError, match="NaN"):
         fit_metric(bad, y, blocks=BLOCKS)
-    with pytest.raises(QueryError, match="extra"):
-        fit_metric(x, y, blocks=BLOCKS, extra=(x[:, :3], np.arange(len(x))))
+    with pytest.raises(QueryError, match="views"):
+        fit_metric(x, y, blocks=BLOCKS, views=x[:, :3])
+    with pytest.raises(QueryError, match="sparse"):
+        fit_metric(x, y, blocks=BLOCKS, sparse=[True])
     with pytest.raises(ConfigError, match="folds"):
         fit_metric(x, y, blocks=BLOCKS, folds=1)
     with pytest.raises(ConfigError, match="positive"):
