@@ -133,7 +133,7 @@ def search_batch(
     list of list of Hit
         One list per query, in the order of ``queries``.
     """
-    from query.index import open_index, with_metric
+    from query.index import open_index
     from query.metric import as_metric
 
     if isinstance(queries, (str, bytes, os.PathLike)) or not isinstance(queries, Sequence):
@@ -150,9 +150,8 @@ def search_batch(
         learned.check(db.config)
     if not len(queries):
         return []
-    index = open_index(db)
+    index = open_index(db, metric=learned)
     resolved = [_resolve(db, q, index) for q in queries]
-    index = with_metric(index, learned)
     allowed = None
     if where is not None:
         from query.sql import allowed_ids
@@ -352,13 +351,13 @@ def _search_with_views(
     merged by distance (ties by ascending id). A dense query without a view (a raw
     vector) compares with every shape's own feature.
     """
-    from query.index import open_index, with_metric
+    from query.index import open_index
 
     out_ids = np.full((len(queries), k), -1, np.int64)
     out_d = np.full((len(queries), k), np.inf)
     sparse_ids = db.store.sparse_ids()
     views = (
-        with_metric(open_index(db, view=True), metric)
+        open_index(db, view=True, metric=metric)
         if (any(q.sparse for q in queries) or len(sparse_ids))
         else None
     )

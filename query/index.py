@@ -29,7 +29,6 @@ from __future__ import annotations
 import logging
 import os
 import threading
-import weakref
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -43,7 +42,7 @@ if TYPE_CHECKING:
     from query.metric import LearnedMetric
     from shapedb.config import KernelConfig
 
-__all__ = ["FeatureIndex", "open_index", "build_index", "on_commit", "with_metric", "INDEX_DIR"]
+__all__ = ["FeatureIndex", "open_index", "build_index", "on_commit", "INDEX_DIR"]
 
 log = logging.getLogger(__name__)
 
@@ -502,7 +501,13 @@ def _store_key(db: Any) -> str:
 
 
 def open_index(
-    db: Any, *, kind: str | None = None, rebuild: bool = False, view: bool = False, **params: Any
+    db: Any,
+    *,
+    kind: str | None = None,
+    rebuild: bool = False,
+    view: bool = False,
+    metric: LearnedMetric | None = None,
+    **params: Any,
 ) -> FeatureIndex:
     """The store's feature index, loaded, updated to the store's version, or built.
 
@@ -518,6 +523,11 @@ def open_index(
     view : bool
         The index over the shapes' sparse-view features (each shape's own feature
         where it has no view; :mod:`shapedb.view`), kept in ``<store>/index_view/``.
+    metric : LearnedMetric, optional
+        Weigh the distance by a learned metric (:mod:`query.metric`): an index of its
+        own, kept in ``<store>/index_metric_<digest>/`` (``index_view_metric_...``
+        for views) and brought up to date lazily, at its next search. The identity
+        metric is the plain index.
     **params
         Other :class:`FeatureIndex` settings for a (re)build.
 
@@ -528,9 +538,21 @@ def open_index(
     """
     store = db.store
     root = Path(_store_key(db))
-    key = _store_key(db) + ("#view" if view else "")
-    directory = root / (VIEW_INDEX_DIR if view else INDEX_DIR)
     config = db.config.kernel
+    from shapedb.kernel import weights
+
+    w = np.asarray(weights(config), dtype=np.float64)
+    suffix = ""
+    if metric is not None and metric.learned:
+        if metric.dim != w.shape[0]:
+            raise ConfigError(
+                f"the metric weighs {metric.dim}-long vectors, the store's are {w.shape[0]}",
+                source="metric",
+            )
+        w = w * metric.dim_weights()
+        suffix = f"_metric_{metric.digest}"
+    key = _store_key(db) + ("#view" if view else "") + suffix
+    directory = root / ((VIEW_INDEX_DIR if view else INDEX_DIR) + suffix)
     with _LOCK:
         version = store.version
         cached = None if rebuild else _CACHE.get(key)
@@ -540,9 +562,6 @@ def open_index(
             index: FeatureIndex | None = cached[1].copy()  # searches in flight keep the old one
         else:
             index = None if rebuild else _load(directory)
-        from shapedb.kernel import weights
-
-        w = np.asarray(weights(config), dtype=np.float64)
         if index is not None and (
             index.weights_.shape != w.shape
             or not np.allclose(index.weights_, w, rtol=1e-12, atol=0)
@@ -579,51 +598,12 @@ def build_index(db: Any, *, kind: str = "auto", **params: Any) -> FeatureIndex:
     return open_index(db, kind=kind, rebuild=True, **params)
 
 
-#: In-memory indexes re-weighted by learned metrics, per base index and metric.
-_METRIC_INDEXES: weakref.WeakKeyDictionary[FeatureIndex, dict[Any, FeatureIndex]] = (
-    weakref.WeakKeyDictionary()
-)
-
-
-def with_metric(index: FeatureIndex, metric: LearnedMetric | None) -> FeatureIndex:
-    """``index`` with its weights multiplied by a learned metric's (:mod:`query.metric`).
-
-    Built in memory from the live vectors of ``index`` (same settings) and cached
-    while ``index`` lives; ``index`` itself when ``metric`` is None or the identity.
-
-    Raises
-    ------
-    ConfigError
-        When the metric was fitted on vectors of another length.
-    """
-    if metric is None or not metric.learned:
-        return index
-    index._check_fitted()
-    if metric.dim != index.dim:
-        raise ConfigError(
-            f"the metric weighs {metric.dim}-long vectors, the index holds {index.dim}",
-            source="metric",
-        )
-    key = (metric.fingerprint, metric.weights)
-    with _LOCK:
-        per = _METRIC_INDEXES.setdefault(index, {})
-        if key not in per:
-            alive = index.alive_
-            out = FeatureIndex(**index.params).fit(
-                index.ids_[alive],
-                np.asarray(index.features_)[alive],
-                index.weights_ * metric.dim_weights(),
-            )
-            out.version_ = index.version_
-            per[key] = out
-        return per[key]
-
-
 def on_commit(db: Any, *args: Any, **kwargs: Any) -> None:
     """Store commit hook (entry point ``on_commit``): update an existing index.
 
     Only an index that was already built is updated (incrementally when possible);
-    a store that was never searched gets its index lazily on the first search.
+    a store that was never searched gets its index lazily on the first search, and
+    the indexes of learned metrics are updated at their next search.
     """
     for view, directory in ((False, INDEX_DIR), (True, VIEW_INDEX_DIR)):
         key = _store_key(db) + ("#view" if view else "")
@@ -632,5 +612,6 @@ def on_commit(db: Any, *args: Any, **kwargs: Any) -> None:
 
 
 def _forget(db: Any) -> None:  # drop a store's in-process cache entries (tests)
-    _CACHE.pop(_store_key(db), None)
-    _CACHE.pop(_store_key(db) + "#view", None)
+    root = _store_key(db)
+    for key in [k for k in _CACHE if k == root or k.startswith(root + "#")]:
+        _CACHE.pop(key, None)

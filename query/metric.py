@@ -32,6 +32,7 @@ gain most, CAPOD keeps the default; see the closing note of issue 6 and README.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import os
@@ -124,6 +125,12 @@ class LearnedMetric:
     def learned(self) -> bool:
         """False when cross-validation kept the default (all weights 1)."""
         return self.reg is not None
+
+    @property
+    def digest(self) -> str:
+        """12 hex digits naming the weighting (fingerprint, blocks and weights)."""
+        text = json.dumps([self.fingerprint, [list(b) for b in self.blocks], list(self.weights)])
+        return hashlib.sha256(text.encode()).hexdigest()[:12]
 
     @property
     def dim(self) -> int:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from typing import Any
 
@@ -183,6 +184,31 @@ def test_store_metric_search_and_evaluate(tmp_db: Any) -> None:
     assert tmp_db.evaluate(metric=identity).to_dict() == tmp_db.evaluate().to_dict()
 
 
+def test_metric_index_is_kept_on_disk_and_follows_commits(
+    tmp_db: Any, example_records: list[Any]
+) -> None:
+    from query.index import _forget, open_index
+
+    m = _handmade(tmp_db)
+    sid = int(tmp_db.store.features()[0][0])
+    first = tmp_db.search(sid, k=3, metric=m)
+    directory = tmp_db.path / f"index_metric_{m.digest}"
+    assert (directory / "current.json").exists()
+    np.testing.assert_allclose(
+        open_index(tmp_db, metric=m).weights_, m.dim_weights() * open_index(tmp_db).weights_
+    )
+    _forget(tmp_db)  # a new process: loaded from disk, same answer
+    assert tmp_db.search(sid, k=3, metric=m) == first
+    # a commit adds a shape: the metric's index catches up at its next search
+    rec = example_records[0]
+    tmp_db.commit([dataclasses.replace(rec, name="copy-of-" + rec.name, content_hash="f" * 64)])
+    new_id = int(tmp_db.get("copy-of-" + rec.name).id)
+    hits = tmp_db.search(rec.name, k=2, metric=m)
+    assert {h.id for h in hits} == {int(tmp_db.get(rec.name).id), new_id}
+    assert all(h.distance == pytest.approx(0.0, abs=1e-6) for h in hits)
+    assert open_index(tmp_db, metric=m).version_ == tmp_db.store.version
+
+
 def test_a_metric_of_another_store_is_refused(tmp_db: Any) -> None:
     other = LearnedMetric(
         blocks=block_layout(tmp_db.config.kernel),
@@ -191,10 +217,10 @@ def test_a_metric_of_another_store_is_refused(tmp_db: Any) -> None:
         reg=0.1,
     )
     with pytest.raises(ConfigError, match="another configuration"):
-        tmp_db.search(0, metric=other)
+        tmp_db.search(int(tmp_db.store.features()[0][0]), metric=other)
     with pytest.raises(ConfigError, match="another configuration"):
         tmp_db.evaluate(metric=other)
     with pytest.raises(QueryError, match="callable"):
         tmp_db.evaluate(metric=_handmade(tmp_db), method=lambda f: -f @ f.T)
     with pytest.raises(QueryError, match="metric"):
-        tmp_db.search(0, metric=object())
+        tmp_db.search(int(tmp_db.store.features()[0][0]), metric=object())
