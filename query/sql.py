@@ -8,7 +8,9 @@ Each call opens an in-memory DuckDB connection with
 * SQL macros ``mdbd_distance(a, b)`` (Eq. 2, the weighted L1 distance) and
   ``mdbd_kernel(a, b)`` (Eq. 3, ``exp(-lam * d)``) on feature vectors, with the
   weights ``[la^1..la^nr, lb^1..lb^nr]`` and ``lam`` of the store's KernelConfig
-  written in as constants; ``mdbd_weights()`` returns the weight list.
+  written in as constants; ``mdbd_weights()`` returns the weight list. Given a learned
+  metric (``db.sql(statement, metric=m)``, :mod:`query.metric`), the macros weigh by it,
+  as ``db.search(..., metric=m)`` does.
 
 The distance is a SQL macro (``list_zip`` + ``list_transform`` + ``list_sum``) rather
 than a Python UDF: it runs inside DuckDB's vectorised, multi-threaded engine, is at
@@ -36,13 +38,15 @@ log = logging.getLogger(__name__)
 _VIEWS = ("shapes", "balls", "edges", "failures")
 
 
-def macros(config: Any) -> list[str]:
+def macros(config: Any, metric: Any = None) -> list[str]:
     """The ``CREATE MACRO`` statements of ``mdbd_distance`` and ``mdbd_kernel``.
 
     Parameters
     ----------
     config : shapedb.config.KernelConfig
         Supplies n_r, la, lb and lam.
+    metric : LearnedMetric, optional
+        Multiplies the weights by the metric's (:mod:`query.metric`).
 
     Returns
     -------
@@ -52,6 +56,13 @@ def macros(config: Any) -> list[str]:
     from shapedb.kernel import weights
 
     w = np.asarray(weights(config), dtype=np.float64)
+    if metric is not None:
+        if metric.dim != len(w):
+            raise QueryError(
+                f"the metric weighs {metric.dim}-long vectors, the store's are {len(w)}",
+                source="metric",
+            )
+        w = w * metric.dim_weights()
     d = len(w)
     wl = "[" + ", ".join(repr(float(x)) for x in w) + "]::DOUBLE[]"
     lam = repr(float(config.lam))
@@ -82,12 +93,14 @@ def _quote(text: str) -> str:
     return "'" + text.replace("'", "''") + "'"
 
 
-def connect(db: Any) -> Any:
+def connect(db: Any, metric: Any = None) -> Any:
     """A new in-memory DuckDB connection with the store's views and macros.
 
     Parameters
     ----------
     db : shapedb.Database
+    metric : LearnedMetric or path, optional
+        Weigh the macros by a learned metric (checked against the store's config).
 
     Returns
     -------
@@ -97,8 +110,9 @@ def connect(db: Any) -> Any:
 
     duckdb = require("duckdb", extra="sql", feature="SQL queries")
     store = db.store
+    learned = _metric(db, metric)
     con = duckdb.connect(":memory:")
-    for stmt in macros(db.config.kernel):
+    for stmt in macros(db.config.kernel, learned):
         con.execute(stmt)
     for table, paths in _files(store).items():
         if paths:
@@ -113,7 +127,16 @@ def connect(db: Any) -> Any:
     return con
 
 
-def script(db: Any) -> str:
+def _metric(db: Any, metric: Any) -> Any:
+    from query.metric import as_metric
+
+    learned = as_metric(metric)
+    if learned is not None:
+        learned.check(db.config)
+    return learned
+
+
+def script(db: Any, metric: Any = None) -> str:
     """SQL that sets up a plain ``duckdb`` session like :func:`connect` does.
 
     The views name the files of the store's current version explicitly (absolute
@@ -122,13 +145,15 @@ def script(db: Any) -> str:
     Parameters
     ----------
     db : shapedb.Database
+    metric : LearnedMetric or path, optional
+        Weigh the macros by a learned metric.
 
     Returns
     -------
     str
         ``CREATE MACRO`` and ``CREATE VIEW`` statements, one per line.
     """
-    lines = [stmt + ";" for stmt in macros(db.config.kernel)]
+    lines = [stmt + ";" for stmt in macros(db.config.kernel, _metric(db, metric))]
     for table, paths in _files(db.store).items():
         if paths:
             listing = ", ".join(_quote(p) for p in paths)
@@ -138,7 +163,7 @@ def script(db: Any) -> str:
     return "\n".join(lines) + "\n"
 
 
-def sql(db: Any, statement: str) -> pa.Table:
+def sql(db: Any, statement: str, *, metric: Any = None) -> pa.Table:
     """Run one SQL statement over the store and return its result.
 
     Parameters
@@ -146,6 +171,8 @@ def sql(db: Any, statement: str) -> pa.Table:
     db : shapedb.Database
     statement : str
         Any DuckDB SQL; the views and macros of :func:`connect` are available.
+    metric : LearnedMetric or path, optional
+        Weigh ``mdbd_distance`` / ``mdbd_kernel`` by a learned metric.
 
     Returns
     -------
@@ -161,7 +188,7 @@ def sql(db: Any, statement: str) -> pa.Table:
 
     if not isinstance(statement, str) or not statement.strip():
         raise QueryError("empty SQL statement", source=repr(statement))
-    con = connect(db)
+    con = connect(db, metric)
     try:
         rel = con.sql(statement)
         return pa.table({}) if rel is None else rel.to_arrow_table()

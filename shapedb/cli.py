@@ -8,7 +8,7 @@
     shapedb info --db DIR [--json]
     shapedb delete ID_OR_NAME... --db DIR
     shapedb search QUERY --db DIR [-k 10] [--where SQL] [--metric JSON] [--json]
-    shapedb sql "SELECT ..." --db DIR [--json | --csv]
+    shapedb sql "SELECT ..." --db DIR [--metric JSON] [--json | --csv]
     shapedb eval --db DIR [--label label] [--metric JSON] [--json] [--plot pr.png]
     shapedb fit-metric --db DIR [--label label] --out metric.json [--json]
     shapedb show MODEL --out PNG [--db DIR] [--complement]
@@ -97,6 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("sql", help="run DuckDB SQL over the views shapes, balls, edges")
     s.add_argument("statement", metavar="SQL")
     db_arg(s)
+    s.add_argument("--metric", metavar="JSON", help="weigh mdbd_distance / mdbd_kernel by it")
     fmt = s.add_mutually_exclusive_group()
     fmt.add_argument("--json", action="store_true")
     fmt.add_argument("--csv", action="store_true")
@@ -300,7 +301,7 @@ def _hit(h: Any) -> dict[str, Any]:
 
 
 def _sql(args: argparse.Namespace) -> int:
-    table = _existing(args.db).sql(args.statement)
+    table = _existing(args.db).sql(args.statement, metric=args.metric)
     if args.csv:
         import io
 

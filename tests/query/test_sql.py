@@ -8,7 +8,7 @@ from query_helpers import CONFIG
 
 from query.engine import search
 from query.sql import connect, sql
-from shapedb.errors import QueryError
+from shapedb.errors import ConfigError, QueryError
 from shapedb.kernel import distance, weights
 
 
@@ -113,3 +113,40 @@ def test_script_sets_up_a_plain_duckdb_session(tmp_db):
     hits = search(tmp_db, "box2", k=3)
     assert [r[0] for r in got] == [h.id for h in hits]
     np.testing.assert_allclose([r[1] for r in got], [h.similarity for h in hits], rtol=1e-12)
+
+
+def test_macros_weigh_by_a_learned_metric(tmp_db, tmp_path):
+    import duckdb
+
+    from query.metric import LearnedMetric, block_layout
+    from query.sql import script
+
+    blocks = block_layout(tmp_db.config.kernel)
+    metric = LearnedMetric(
+        blocks=blocks,
+        weights=tuple(float(i % 3 + 1) for i in range(len(blocks))),
+        fingerprint=tmp_db.config.fingerprint,
+        reg=0.1,
+    )
+    query = (
+        "SELECT s.id, mdbd_kernel(s.feature, q.feature) AS k FROM shapes s, shapes q "
+        "WHERE q.name = 'torus1' ORDER BY k DESC, s.id LIMIT 5"
+    )
+    hits = search(tmp_db, "torus1", k=5, metric=metric)
+    for how in (metric, metric.save(tmp_path / "m.json")):  # the object, or its file
+        t = sql(tmp_db, query, metric=how)
+        assert t.column("id").to_pylist() == [h.id for h in hits]
+        np.testing.assert_allclose(
+            t.column("k").to_numpy(), [h.similarity for h in hits], rtol=1e-6
+        )
+    w = sql(tmp_db, "SELECT mdbd_weights() AS w", metric=metric).column("w")[0].as_py()
+    np.testing.assert_allclose(w, weights(CONFIG.kernel) * metric.dim_weights())
+    con = duckdb.connect()
+    try:
+        con.execute(script(tmp_db, metric))
+        assert [r[0] for r in con.sql(query).fetchall()] == [h.id for h in hits]
+    finally:
+        con.close()
+    other = LearnedMetric(blocks=blocks, weights=metric.weights, fingerprint="x", reg=0.1)
+    with pytest.raises(ConfigError, match="another configuration"):
+        sql(tmp_db, "SELECT 1", metric=other)

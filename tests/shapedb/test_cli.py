@@ -174,6 +174,9 @@ def test_search_sql_eval(tmp_path: Path, models: Path, capsys: pytest.CaptureFix
     assert _json(capsys)["queries"] == 6
     assert main(["search", "rods1", "--db", str(db), "--metric", str(metric), "--json"]) == 0
     assert _json(capsys)[0]["name"] == "rods1"
+    weighted = "SELECT mdbd_kernel(feature, feature) AS k FROM shapes LIMIT 1"
+    assert main(["sql", weighted, "--db", str(db), "--metric", str(metric), "--json"]) == 0
+    assert _json(capsys) == [{"k": 1.0}]
     assert main(["search", "rods1", "--db", str(db), "--metric", str(tmp_path / "no.json")]) == 1
     assert "no.json" in capsys.readouterr().err
 
