@@ -285,6 +285,16 @@ def _log_margins(
     return out
 
 
+def _sample_by_class(labels: NDArray[Any], size: int, rng: np.random.Generator) -> NDArray[np.intp]:
+    """Sorted indices of about ``size`` rows, each class in proportion (two at least)."""
+    picks = []
+    for c in np.unique(labels):
+        idx = np.flatnonzero(labels == c)
+        want = max(2, round(len(idx) * size / len(labels)))
+        picks.append(rng.choice(idx, want, replace=False) if len(idx) > want else idx)
+    return np.sort(np.concatenate(picks))
+
+
 def _folds(labels: NDArray[Any], k: int, rng: np.random.Generator) -> NDArray[np.int64]:
     """Class-stratified fold number of each shape."""
     fold = np.empty(len(labels), np.int64)
@@ -375,17 +385,8 @@ def fit_metric(
     if folds < 2:
         raise ConfigError("must be at least 2", source=f"folds={folds}")
     rng = np.random.default_rng(seed)
-    if len(x) > max_shapes:  # a class-stratified sample
-        keep = np.sort(
-            np.concatenate(
-                [
-                    rng.choice(idx, max(2, round(len(idx) * max_shapes / len(x))), replace=False)
-                    if len(idx) > 2
-                    else idx
-                    for idx in (np.flatnonzero(y == c) for c in classes)
-                ]
-            )
-        )
+    if len(x) > max_shapes:
+        keep = _sample_by_class(y, max_shapes, rng)
         x, v, y, sp = x[keep], v[keep], y[keep], sp[keep]
     n = len(x)
     # queries: every shape, then the view of every dense shape that has one
@@ -469,25 +470,43 @@ def fit_store_metric(db: Any, *, label: str = "label", **options: Any) -> Learne
 
     In a store with sparse views (``KernelConfig.view_cells``) the pairs follow the
     search's rule and each dense shape's view is one more query (see
-    :func:`fit_metric`). ``options`` go to :func:`fit_metric` (``regs``,
-    ``temperature``, ``folds``, ``max_shapes``, ``seed``).
+    :func:`fit_metric`). A store with more than ``max_shapes`` labelled shapes is
+    sampled by class before any feature is read. ``options`` go to :func:`fit_metric`
+    (``regs``, ``temperature``, ``folds``, ``max_shapes``, ``seed``).
     """
     from query.evaluate import _labels
     from shapedb.kernel import weights as kernel_weights
 
-    ids_all, labels_all = _labels(db, label)
-    fid, feats = db.store.features()
-    common, a, b = np.intersect1d(ids_all, fid, return_indices=True)
-    labels, feats = labels_all[a], np.asarray(feats[b], np.float64)
+    ids, labels = _labels(db, label)
     keep = np.array([v is not None for v in labels], bool)
-    ids, labels, feats = common[keep], labels[keep], feats[keep]
+    ids, labels = ids[keep], labels[keep]
+    max_shapes = int(options.get("max_shapes", MAX_SHAPES))
+    if len(ids) > max_shapes:
+        pick = _sample_by_class(labels, max_shapes, np.random.default_rng(options.get("seed", 0)))
+        ids, labels = ids[pick], labels[pick]
     config = db.config
+    views_kept = bool(config.kernel.view_cells)
+    columns = ["id", "feature", "view_feature"] if views_kept else ["id", "feature"]
+    table = db.store.shapes(columns, ids=ids.tolist())
+    found = table.column("id").to_numpy()
+    pos = np.searchsorted(ids, found)  # a commit may have deleted some meanwhile
+    labels = labels[pos]
     w = np.asarray(kernel_weights(config.kernel), np.float64)
+    feats = np.asarray(table.column("feature").to_pylist(), np.float64).reshape(len(found), -1)
     views = sparse = None
-    if config.kernel.view_cells:
-        vid, stored_views = db.store.features(view=True)
-        views = np.asarray(stored_views[np.searchsorted(vid, ids)], np.float64) * w
-        sparse = np.isin(ids, db.store.sparse_ids())
+    if views_kept:
+        own = table.column("feature").to_pylist()
+        views = (
+            np.asarray(
+                [
+                    o if v is None else v
+                    for o, v in zip(own, table.column("view_feature").to_pylist(), strict=True)
+                ],
+                np.float64,
+            ).reshape(len(found), -1)
+            * w
+        )
+        sparse = np.isin(found, db.store.sparse_ids())
     return fit_metric(
         feats * w,
         labels,

@@ -154,6 +154,8 @@ def test_store_metric_search_and_evaluate(tmp_db: Any) -> None:
     assert isinstance(fitted, LearnedMetric)
     assert fitted.fingerprint == tmp_db.config.fingerprint
     assert fitted.dim == tmp_db.store.dim and fitted.n_shapes == len(tmp_db.store)
+    sampled = tmp_db.fit_metric(label="label", folds=2, max_shapes=8)  # 2 of each class
+    assert sampled.n_shapes == 8 and sampled.n_classes == 4
     ids, x = tmp_db.store.features()
     x = x.astype(np.float64)
     m = _handmade(tmp_db)
