@@ -226,3 +226,13 @@ def test_a_metric_of_another_store_is_refused(tmp_db: Any) -> None:
         tmp_db.evaluate(metric=_handmade(tmp_db), method=lambda f: -f @ f.T)
     with pytest.raises(QueryError, match="metric"):
         tmp_db.search(int(tmp_db.store.features()[0][0]), metric=object())
+
+
+def test_block_layouts_cover_the_feature_vector() -> None:
+    from shapedb.config import KernelConfig
+
+    for cfg in (KernelConfig(), KernelConfig(descriptor=3), KernelConfig(method="paper", n_r=10)):
+        layout = block_layout(cfg)
+        assert sum(n for _, n in layout) == cfg.dim
+    assert block_layout(KernelConfig(method="paper", n_r=10)) == (("p0", 10), ("walk", 10))
+    assert [b for b, _ in block_layout(KernelConfig())][-2:] == ["geodesic", "geodesic_mean"]
