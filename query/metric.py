@@ -17,7 +17,9 @@ with sparse views, every shape's view) queries the others, compared as the searc
 compares them (a pair with a sparse side by its views); the other shapes
 are picked with probability ``softmax(-temperature * d / median d)`` and the mean
 log probability of picking one of the query's class is maximised, with a penalty
-``reg * |theta|^2`` that pulls the weights towards the default. The strength ``reg``
+``reg * |theta|^2`` that pulls the weights towards the default; the fitted weights are
+then scaled so that shapes of different classes lie as far apart (median) as under the
+default, which keeps the similarity ``exp(-lam d)`` calibrated. The strength ``reg``
 is chosen by k-fold cross-validation on the mean log margin ``log(d(nearest same
 class) / d(nearest other class))`` of held-out queries: a weighting is kept only if
 it beats the default's held-out margins by two standard errors (paired over queries),
@@ -439,11 +441,13 @@ def fit_metric(
         best = min(passed, key=lambda r: stats[r][0])
         within = [r for r in passed if stats[r][0] <= stats[best][0] + stats[best][1]]
         chosen = max(within)  # the most regularised of the near-best
-    weights = (
-        np.ones(len(sizes))
-        if chosen is None
-        else _nca_weights(bd, same, exclude, chosen, temperature)
-    )
+    weights = np.ones(len(sizes))
+    if chosen is not None:
+        weights = _nca_weights(bd, same, exclude, chosen, temperature)
+        # keep the similarity's calibration: shapes of different classes as far apart
+        # (median) as under the default, so exp(-lam d) reads as before
+        other = ~same & ~exclude
+        weights *= np.median(bd[other].sum(-1)) / max(np.median(bd[other] @ weights), 1e-300)
     log.info(
         "fit_metric: %d shapes, %d classes, %d view queries; reg %s, weights %s",
         n,

@@ -50,6 +50,10 @@ def test_the_informative_block_gains_weight_and_held_out_retrieval_improves() ->
     assert np.all(m.dim_weights()[:6] == w_signal) and np.all(m.dim_weights()[6:] == w_noise)
     assert m.cv["default"]["gain"] == 0.0
     assert m.cv[f"{m.reg:g}"]["gain"] < -2 * m.cv[f"{m.reg:g}"]["se"]
+    # calibration kept: shapes of different classes as far apart (median) as before
+    d = np.abs(x[:, None] - x[None])
+    other = y[:, None] != y[None, :]
+    assert np.median(d[other] @ m.dim_weights()) == pytest.approx(np.median(d[other].sum(-1)))
     xt, yt, _ = _data(seed=2)  # other shapes of the same kind
     assert _nn(xt, yt, m.dim_weights()) > _nn(xt, yt, np.ones(12)) + 0.05
 
