@@ -224,8 +224,8 @@ def run_stability(
             views = decompose_all(test.models, f"view_{view_cells:g}", mdbd, workers=workers)
             if all(v is not None for v in views):
                 fv = kernel_features(views, kcfg)  # type: ignore[arg-type]
-                d = np.abs(fq[:, None, :] - fv[None, :, :]).sum(-1)
-                hit = np.argmin(d, axis=1)
+                d_view = np.abs(fq[:, None, :] - fv[None, :, :]).sum(-1)
+                hit = np.argmin(np.minimum(d, d_view), axis=1)  # the nearer (query.engine)
                 res = {
                     "shapedb": float(np.mean(hit == target)),
                     "shapedb, own or re-posed": float(np.mean(fam[hit] == fam[target])),

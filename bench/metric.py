@@ -9,9 +9,9 @@ split exactly as ``db.fit_metric`` fits a store (block weights, regularisation
 cross-validated inside the split) and scored on the *test* split against the
 unlearned default; then the other way round (fitted on the larger test split, scored
 on validation), so that a choice that only one split favours shows. Two store layouts: meshes only, and meshes with their sparse
-views (``view_cells = 4``; each mesh's view is one more query during the fit, compared
-with the other meshes' views, and a cloud query is compared with the views, as
-``KernelConfig.view_cells`` does). Rows:
+views (``view_cells = 4``; each mesh's view is one more query during the fit, and a
+pair with a cloud side is as far apart as the nearer of the mesh's own feature and
+view, as ``KernelConfig.view_cells`` compares them). Rows:
 meshes NN / 1-T / DCG, point-cloud queries (20 % of the vertices) against the mesh
 database, the even mixture, and the mean log margin ``log(d(nearest same class) /
 d(nearest other class))`` of mesh and cloud queries (lower is better). Results go to
@@ -70,13 +70,14 @@ def _scores(f: dict[str, Any], w: NDArray[np.float64], views: bool) -> dict[str,
     """Test-split measures with per-dimension weights ``w``."""
     m, p, v, lab = f["mesh"] * w, f["pc"] * w, f["view"] * w, f["labels"]
     d_mm = desc.l1_matrix(m, m)
-    d_pm = desc.l1_matrix(p, v if views else m)
+    d_pm = desc.l1_matrix(p, m)
     x = np.where(f["mix"][:, None], p, m)
     d_xx = desc.l1_matrix(x, x)
-    if views:  # pairs with a cloud side compare the meshes' views
+    if views:  # a pair with a cloud side: the nearer of the mesh's feature and view
+        d_pm = np.minimum(d_pm, desc.l1_matrix(p, v))
         y = np.where(f["mix"][:, None], p, v)
         either = f["mix"][:, None] | f["mix"][None, :]
-        d_xx = np.where(either, desc.l1_matrix(y, y), d_xx)
+        d_xx = np.where(either, np.minimum(desc.l1_matrix(y, y), d_xx), d_xx)
     s = retrieval_scores(-d_mm, lab)
     return {
         "nn": s["nn"],

@@ -125,8 +125,8 @@ def run_tables(
 
     With ``view_cells`` the meshes' sparse views (:mod:`shapedb.view`) are decomposed
     too, and the cloud-query and mixture rows are repeated as a store with
-    ``KernelConfig(view_cells=...)`` compares: a pair with a cloud side compares the
-    cloud with the mesh's view.
+    ``KernelConfig(view_cells=...)`` compares: a pair with a cloud side is as similar as
+    the cloud and the nearer of the mesh's own feature and view (``query.engine``).
     """
     t0 = time.perf_counter()
     mesh = decompose_all(ds.models, "mesh", mdbd, workers=workers)
@@ -167,11 +167,11 @@ def run_tables(
             rows.append(_row(f"{label}, pc query -> mesh db", k_pm, labels, feat_s[label]))
             if view is not mesh and label == "shapedb":
                 fv = kernel_features(view, cfg)
-                k_pv = kernel_matrix(fp, fv, cfg.lam)
+                k_pv = np.maximum(kernel_matrix(fp, fv, cfg.lam), k_pm)  # the nearer
                 fy = np.where(mix[:, None], fp, fv)  # clouds, and the meshes' views
                 k_yy = np.where(
                     (~mix)[:, None] & (~mix)[None, :], kernel_matrix(fm, fm, cfg.lam),
-                    kernel_matrix(fy, fy, cfg.lam),
+                    np.maximum(kernel_matrix(fy, fy, cfg.lam), k_xx),
                 )  # fmt: skip
                 name = f"{label}, views {view_cells:g} cells"
                 rows.append(_row(f"{name}: pc query -> mesh db", k_pv, labels, feat_s[label]))

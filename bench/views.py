@@ -84,9 +84,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         settings: list[tuple[str, NDArray[np.float64]]] = [("none", fm)]
         settings += [(f"{c:g}", _features([views[c][i] for i in keep])) for c in args.cells]  # type: ignore[misc]
         for name, fv in settings:
-            d_pv = l1_matrix(fp, fv)
+            d_pv = np.minimum(l1_matrix(fp, fv), l1_matrix(fp, fm))  # the nearer (query.engine)
+            fx = np.where(mix[:, None], fp, fm)
             fy = np.where(mix[:, None], fp, fv)
-            d_mix = np.where(both, d_mm, l1_matrix(fy, fy))
+            d_mix = np.where(both, d_mm, np.minimum(l1_matrix(fy, fy), l1_matrix(fx, fx)))
             res = {
                 "mesh_nn": mesh_nn,
                 "cloud_nn": retrieval_scores(-d_pv, labels)["nn"],

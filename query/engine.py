@@ -16,9 +16,9 @@ Accepted queries, tried in this order:
 * a stored shape name (a ``str`` that is not an existing file).
 
 In a store with sparse views (``KernelConfig.view_cells > 0``, :mod:`shapedb.view`) a
-sparse point-cloud query is compared with every shape's view, and a dense query with
-the sparse clouds through its own view, which for a geometry or file query costs one
-more (point-cloud) decomposition when the store holds sparse clouds.
+pair with one sparse point cloud is as far apart as the cloud is from the nearer of the
+other shape's two features, its own and its view's; for a dense geometry or file query
+that costs one more (point-cloud) decomposition when the store holds sparse clouds.
 
 A stored query is *not* excluded from its own results: it ranks first, with
 similarity 1.0 (distance 0), unless another shape has an identical feature and a
@@ -345,11 +345,13 @@ def _search_with_views(
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """Search a store that keeps sparse views (:mod:`shapedb.view`).
 
-    A sparse query is compared with every shape's view (a sparse record's view is
-    its own feature). A dense query is compared with dense shapes by their own
-    features and, through its own view, with sparse shapes; the two lists are
-    merged by distance (ties by ascending id). A dense query without a view (a raw
-    vector) compares with every shape's own feature.
+    A pair with a sparse side is as far apart as the nearer of the dense side's two
+    features (its own and its view's) is from the sparse side's feature (a sparse
+    record's view is its own feature); two dense shapes compare their own features.
+    So a sparse query searches both indexes, and a dense query with a view searches
+    the sparse shapes a second time through its view; the lists are merged keeping
+    each shape's smaller distance (ties by ascending id). A dense query without a
+    view (a raw vector) compares with every shape's own feature.
     """
     from query.index import open_index
 
@@ -363,25 +365,48 @@ def _search_with_views(
     )
     for row, q in enumerate(queries):
         own_view = None if q.sparse or not len(sparse_ids) else q.view_feature()
+        ids, dist = index.search(q.feature[None], k, allowed=allowed)
         if q.sparse and views is not None:
-            ids, dist = views.search(q.feature[None], k, allowed=allowed)
-        elif views is None or own_view is None:
-            ids, dist = index.search(q.feature[None], k, allowed=allowed)
-        else:
+            ids, dist = _nearer(
+                ids[0], dist[0], *views.search(q.feature[None], k, allowed=allowed), k
+            )
+        elif views is not None and own_view is not None:
             scope = index.ids_[index.alive_] if allowed is None else np.asarray(allowed)
-            dense = np.setdiff1d(scope, sparse_ids)
             sparse = np.intersect1d(scope, sparse_ids)
-            a_ids, a_d = index.search(q.feature[None], k, allowed=dense)
-            b_ids, b_d = views.search(own_view[None], k, allowed=sparse)
-            ids = np.concatenate([a_ids, b_ids], axis=1)
-            dist = np.concatenate([a_d, b_d], axis=1)
-            order = np.lexsort((np.where(ids < 0, np.iinfo(np.int64).max, ids), dist), axis=-1)
-            ids, dist = (
-                np.take_along_axis(ids, order, 1)[:, :k],
-                np.take_along_axis(dist, order, 1)[:, :k],
+            ids, dist = _nearer(
+                ids[0], dist[0], *views.search(own_view[None], k, allowed=sparse), k
             )
         out_ids[row], out_d[row] = ids[0], dist[0]
     return out_ids, out_d
+
+
+def _nearer(
+    ids: NDArray[np.int64],
+    dist: NDArray[np.float64],
+    more_ids: NDArray[np.int64],
+    more_dist: NDArray[np.float64],
+    k: int,
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Two result lists merged: each id once, at its smaller distance; (1, k) each.
+
+    ``ids`` / ``dist`` are (k,), ``more_ids`` / ``more_dist`` (1, k); -1 ids pad.
+    Sorted by distance, ties by ascending id. Two top-k lists suffice: a shape among
+    the k nearest by the smaller distance is among the k nearest of the list that
+    gives it that distance.
+    """
+    i = np.concatenate([ids, more_ids[0]])
+    d = np.concatenate([dist, more_dist[0]])
+    real = i >= 0
+    i, d = i[real], d[real]
+    order = np.lexsort((d, i))  # by id, the smaller distance first
+    i, d = i[order], d[order]
+    first = np.r_[True, i[1:] != i[:-1]]
+    i, d = i[first], d[first]
+    order = np.lexsort((i, d))[:k]
+    out_i = np.full((1, k), -1, np.int64)
+    out_d = np.full((1, k), np.inf)
+    out_i[0, : len(order)], out_d[0, : len(order)] = i[order], d[order]
+    return out_i, out_d
 
 
 class _Catalog:

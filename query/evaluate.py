@@ -275,8 +275,8 @@ def evaluate(
     method : None, "kernel" or callable, optional
         None / "kernel": the Eq. 3 kernel of the stored features (ranked by the
         equivalent Eq. 2 distance, so no precision is lost to ``exp``); in a store
-        with sparse views, pairs with a sparse side compare views, as the search
-        does. A callable receives the (n, d) features of the labelled shapes and
+        with sparse views, a pair with a sparse side is as far apart as the nearer of
+        the dense side's own feature and view, as the search compares them. A callable receives the (n, d) features of the labelled shapes and
         returns an (n, n) similarity matrix.
     plot : path, optional
         Also save the precision-recall curve there (PNG).
@@ -319,7 +319,8 @@ def evaluate(
             w = w * learned.dim_weights()
         xw = x * w
         sparse = vw = None
-        if db.config.kernel.view_cells:  # the search's rule: views when either side is sparse
+        if db.config.kernel.view_cells:  # the search's rule (query.engine): with a sparse
+            # side, the nearer of own features and views (a sparse shape's view is itself)
             vid, views = db.store.features(view=True)
             pos = np.searchsorted(vid, ids)
             vw = np.asarray(views[pos], np.float64) * w
@@ -332,7 +333,7 @@ def evaluate(
                 d = cdist(xw[idx], xw, "cityblock")
                 if sparse is not None and vw is not None and sparse.any():
                     either = sparse[idx, None] | sparse[None, :]
-                    d = np.where(either, cdist(vw[idx], vw, "cityblock"), d)
+                    d = np.where(either, np.minimum(d, cdist(vw[idx], vw, "cityblock")), d)
                 yield idx, d
 
         scores = _score(rows, labels, ids=ids, distance=True, recall_levels=RECALL_LEVELS)

@@ -14,9 +14,10 @@ re-ranking and the sparse views work unchanged::
 The fit is neighbourhood components analysis (Goldberger et al., 2004) restricted to
 non-negative block weights ``exp(theta_b)``: every labelled shape (and, in a store
 with sparse views, every shape's view) queries the others, compared as the search
-compares them (a pair with a sparse side by its views); the other shapes
-are picked with probability ``softmax(-temperature * d / median d)`` and the mean
-log probability of picking one of the query's class is maximised, with a penalty
+compares them (a pair with a sparse side by the nearer of the dense side's own feature
+and view); the other shapes are picked with probability
+``softmax(-temperature * d / median d)`` and the mean log probability of picking one
+of the query's class is maximised, with a penalty
 ``reg * |theta|^2`` that pulls the weights towards the default; the fitted weights are
 then scaled so that shapes of different classes lie as far apart (median) as under the
 default, which keeps the similarity ``exp(-lam d)`` calibrated. The strength ``reg``
@@ -237,32 +238,42 @@ def _nca_weights(
     exclude: NDArray[np.bool_],
     reg: float,
     temperature: float,
+    alt: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """Block weights maximising the NCA objective; see the module docstring.
 
     ``blocks`` (q, n, b) per-block distances, ``same`` (q, n) same class, ``exclude``
-    (q, n) pairs left out (a query against itself or its own shape).
+    (q, n) pairs left out (a query against itself or its own shape); ``alt``, like
+    ``blocks``, another way of comparing each pair (the views): a pair is as far
+    apart as the smaller of the two weighted sums.
     """
-    total = blocks.sum(-1)
+    total = _pair_distances(blocks, alt, np.ones(blocks.shape[-1]))
     scale = temperature / max(float(np.median(total[~exclude])), 1e-12)
     same = same & ~exclude
     counted = same.any(1)
     if not counted.any():
         return np.ones(blocks.shape[-1])
     a = blocks[counted] * scale
+    b = None if alt is None else alt[counted] * scale
     s, ex = same[counted], exclude[counted]
     m = len(a)
 
     def objective(theta: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
         w = np.exp(theta)
-        logits = np.where(ex, -np.inf, -(a @ w))
+        d = a @ w
+        active = a
+        if b is not None:  # the gradient follows the nearer of the two comparisons
+            db = b @ w
+            active = np.where((db < d)[..., None], b, a)
+            d = np.minimum(d, db)
+        logits = np.where(ex, -np.inf, -d)
         logits -= logits.max(1, keepdims=True)
         p = np.exp(logits)
         p /= p.sum(1, keepdims=True)
         ps = np.maximum((p * s).sum(1), 1e-300)
         loss = -np.log(ps).sum() / m + reg * float(theta @ theta)
         g_d = (p * s / ps[:, None] - p) / m  # d loss / d distance
-        grad = np.einsum("ij,ijk->k", g_d, a) * w + 2 * reg * theta
+        grad = np.einsum("ij,ijk->k", g_d, active) * w + 2 * reg * theta
         return loss, grad
 
     res = minimize(
@@ -271,14 +282,23 @@ def _nca_weights(
     return np.exp(np.clip(res.x, -20, 20))
 
 
+def _pair_distances(
+    blocks: NDArray[np.float64], alt: NDArray[np.float64] | None, w: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(q, n) weighted distances: ``blocks @ w``, or the smaller of it and ``alt @ w``."""
+    d = blocks @ w
+    return d if alt is None else np.minimum(d, alt @ w)
+
+
 def _log_margins(
     blocks: NDArray[np.float64],
     w: NDArray[np.float64],
     same: NDArray[np.bool_],
     exclude: NDArray[np.bool_],
+    alt: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """log(d(nearest same class) / d(nearest other class)) of each query (NaN if undefined)."""
-    d = np.where(exclude, np.inf, blocks @ w)
+    d = np.where(exclude, np.inf, _pair_distances(blocks, alt, w))
     near = np.where(same, d, np.inf).min(1)
     far = np.where(~same, d, np.inf).min(1)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -325,8 +345,9 @@ def fit_metric(
     """Fit block weights on labelled feature vectors, regularisation cross-validated.
 
     Every shape queries the others. With ``views`` the pairs follow a views store's
-    rule (:mod:`shapedb.view`): a pair with a sparse side compares the two views,
-    two dense shapes their own features; and each dense shape's view is one more
+    rule (:mod:`query.engine`): a pair with a sparse side is as far apart as the
+    nearer of the dense side's own feature and view, two dense shapes compare their
+    own features; and each dense shape's view is one more
     (sparse) query, so that the weights also learn what a sparse sample of a surface
     keeps. A query never counts its own shape.
 
@@ -396,9 +417,11 @@ def fit_metric(
     owner = np.concatenate([np.arange(n), extra])
     q_sparse = np.concatenate([sp, np.ones(len(extra), bool)])
     bd = _block_distances(np.concatenate([x, v[extra]]), x, sizes)  # (q, n, b)
+    # a pair with a sparse side: also through the views, the nearer counts (query.engine)
     by_view = q_sparse[:, None] | sp[None, :]
+    alt = None
     if by_view.any():
-        bd = np.where(
+        alt = np.where(
             by_view[:, :, None], _block_distances(np.concatenate([v, v[extra]]), v, sizes), bd
         )
     same = y[owner][:, None] == y[None, :]
@@ -416,9 +439,18 @@ def fit_metric(
             w = (
                 np.ones(len(sizes))
                 if r is None
-                else _nca_weights(sub, same[tq][:, train], exclude[tq][:, train], r, temperature)
+                else _nca_weights(
+                    sub,
+                    same[tq][:, train],
+                    exclude[tq][:, train],
+                    r,
+                    temperature,
+                    None if alt is None else alt[tq][:, train],
+                )
             )
-            held[r].append(_log_margins(bd[hq], w, same[hq], exclude[hq]))
+            held[r].append(
+                _log_margins(bd[hq], w, same[hq], exclude[hq], None if alt is None else alt[hq])
+            )
     margins = {r: np.concatenate(m) for r, m in held.items()}
     ok = np.isfinite(margins[None])
     for m in margins.values():
@@ -443,11 +475,13 @@ def fit_metric(
         chosen = max(within)  # the most regularised of the near-best
     weights = np.ones(len(sizes))
     if chosen is not None:
-        weights = _nca_weights(bd, same, exclude, chosen, temperature)
+        weights = _nca_weights(bd, same, exclude, chosen, temperature, alt)
         # keep the similarity's calibration: shapes of different classes as far apart
         # (median) as under the default, so exp(-lam d) reads as before
         other = ~same & ~exclude
-        weights *= np.median(bd[other].sum(-1)) / max(np.median(bd[other] @ weights), 1e-300)
+        before = _pair_distances(bd, alt, np.ones(len(sizes)))[other]
+        after = _pair_distances(bd, alt, weights)[other]
+        weights *= np.median(before) / max(np.median(after), 1e-300)
     log.info(
         "fit_metric: %d shapes, %d classes, %d view queries; reg %s, weights %s",
         n,

@@ -13,9 +13,12 @@ not itself a sparse cloud, a second feature: that of a cloud drawn uniformly by 
 on its surface (a mesh's faces; for other representations the marching-cubes surface
 of their grid SDF) with one sample per ``s`` grid cells of spacing
 (:func:`view_geometry`).
-Whenever one side of a comparison is a sparse cloud (:func:`is_sparse`), the other
-side's view is used instead of its exact feature; two exact shapes compare exactly
-as before. Everything is still computed from MDBD balls and contact graphs.
+Whenever one side of a comparison is a sparse cloud (:func:`is_sparse`), the pair is
+as far apart as the cloud is from the nearer of the other side's two features, its
+exact one and its view's (:mod:`query.engine`): a sparse cloud's packing sometimes
+resembles the exact packing more, and taking the nearer of the two widens every
+validation set's margin over the view alone. Two exact shapes compare exactly as
+before. Everything is still computed from MDBD balls and contact graphs.
 
 The sample count is ``area / (AREA_PER_SAMPLE * (s * cell)^2)``: a uniform sample's
 :attr:`~shapedb.pointcloud.PointCloud.surface_sampling` (distance to the k-th

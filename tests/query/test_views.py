@@ -1,8 +1,9 @@
 """Stores with sparse views (KernelConfig.view_cells): ingest, search routing, evaluate.
 
 Expected results are computed here from the stored features with the rule of
-``shapedb.view``: two exact shapes compare their own features, a pair with a sparse
-side compares views (a sparse record's view is its own feature).
+``query.engine``: two exact shapes compare their own features; a pair with a sparse
+side is as far apart as the nearer of the dense side's own feature and view (a sparse
+record's view is its own feature).
 """
 
 from __future__ import annotations
@@ -96,12 +97,14 @@ def test_features_view_falls_back_to_own_feature(view_db: Any) -> None:
     assert sparse.sum() == 1
 
 
-def test_sparse_query_compares_with_views(view_db: Any) -> None:
+def test_sparse_query_takes_the_nearer_of_own_feature_and_view(view_db: Any) -> None:
     mesh = _meshes()["disc-a"][1]
     query = _cloud(mesh, "q", n=500)
     f = features(decompose(query, config=CONFIG.mdbd), CONFIG.kernel)
-    ids, _, view, _ = _own_and_view(view_db)
-    want = np.abs(view - f).sum(axis=1)
+    ids, own, view, _ = _own_and_view(view_db)
+    by_view = np.abs(view - f).sum(axis=1)
+    want = np.minimum(np.abs(own - f).sum(axis=1), by_view)
+    assert (want < by_view).any()  # the rule matters here: some own features are nearer
     hits = view_db.search(query, k=len(ids))
     got = {h.id: h.distance for h in hits}
     assert set(got) == set(ids.tolist())
@@ -110,7 +113,7 @@ def test_sparse_query_compares_with_views(view_db: Any) -> None:
     assert hits[0].name == "disc-a"
 
 
-def test_dense_query_in_a_mixed_store_uses_its_view_for_sparse_records(view_db: Any) -> None:
+def test_dense_query_reaches_sparse_records_through_feature_or_view(view_db: Any) -> None:
     mesh = _meshes()["capsule-b"][1]
     dec = decompose(mesh, config=CONFIG.mdbd)
     f = features(dec, CONFIG.kernel)
@@ -118,7 +121,8 @@ def test_dense_query_in_a_mixed_store_uses_its_view_for_sparse_records(view_db: 
         decompose(view_geometry(mesh, dec.spacing, 4.0), config=CONFIG.mdbd), CONFIG.kernel
     )
     ids, own, _, sparse = _own_and_view(view_db)
-    want = np.where(sparse, np.abs(own - v).sum(1), np.abs(own - f).sum(1))
+    want = np.abs(own - f).sum(1)
+    want = np.where(sparse, np.minimum(want, np.abs(own - v).sum(1)), want)
     hits = view_db.search(mesh, k=len(ids))
     assert [h.id for h in hits] == ids[np.lexsort((ids, want))].tolist()
     for h in hits:
@@ -141,7 +145,7 @@ def test_evaluate_follows_the_view_rule(view_db: Any) -> None:
     ids, own, view, sparse = _own_and_view(view_db)
     d_own = np.abs(own[:, None] - own[None]).sum(-1)
     d_view = np.abs(view[:, None] - view[None]).sum(-1)
-    d = np.where(sparse[:, None] | sparse[None, :], d_view, d_own)
+    d = np.where(sparse[:, None] | sparse[None, :], np.minimum(d_view, d_own), d_own)
     labels = np.asarray([view_db.get(int(i)).label for i in ids])
     want = retrieval_scores(-d, labels)
     got = view_db.evaluate()
@@ -163,13 +167,14 @@ def test_a_learned_metric_weighs_views_too(view_db: Any) -> None:
     w = metric.dim_weights()
     ids, own, view, sparse = _own_and_view(view_db)
     cloud = int(ids[sparse][0])
-    hits = view_db.search(cloud, k=len(ids), metric=metric)  # a sparse query: views
-    want = np.abs(view - view[ids == cloud][0]) @ w
+    hits = view_db.search(cloud, k=len(ids), metric=metric)  # a sparse query
+    q = own[ids == cloud][0]
+    want = np.minimum(np.abs(view - q) @ w, np.abs(own - q) @ w)
     for h in hits:
         assert h.distance == pytest.approx(want[ids == h.id][0], rel=1e-5, abs=1e-6)
     d_own = np.abs(own[:, None] - own[None]) @ w
     d_view = np.abs(view[:, None] - view[None]) @ w
-    d = np.where(sparse[:, None] | sparse[None, :], d_view, d_own)
+    d = np.where(sparse[:, None] | sparse[None, :], np.minimum(d_view, d_own), d_own)
     labels = np.asarray([view_db.get(int(i)).label for i in ids])
     assert view_db.evaluate(metric=metric).nn == pytest.approx(retrieval_scores(-d, labels).nn)
     fitted = view_db.fit_metric(folds=2)  # the dense shapes' views are extra queries
@@ -263,3 +268,20 @@ def test_implicit_and_voxel_shapes_get_views_too(tmp_path: Path) -> None:
             assert not np.allclose(record.view_feature, record.feature)
     finally:
         _forget(db)
+
+
+def test_merged_lists_keep_each_shape_once_at_its_smaller_distance() -> None:
+    from query.engine import _nearer
+
+    ids, dist = _nearer(
+        np.array([4, 2, -1]),
+        np.array([0.5, 1.0, np.inf]),
+        np.array([[2, 7, 4]]),
+        np.array([[0.25, 0.5, 0.75]]),
+        3,
+    )
+    assert ids.tolist() == [[2, 4, 7]]  # 2 at its smaller distance; 4 and 7 tie: by id
+    assert dist.tolist() == [[0.25, 0.5, 0.5]]
+    ids, dist = _nearer(np.array([-1, -1]), np.full(2, np.inf), np.array([[3, -1]]),
+                        np.array([[1.0, np.inf]]), 2)  # fmt: skip
+    assert ids.tolist() == [[3, -1]] and dist[0, 1] == np.inf
