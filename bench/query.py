@@ -13,7 +13,9 @@ KernelConfig), and measures, with a numpy brute-force baseline in the same run:
 
 With ``--store-sizes`` it also times ``query.engine.search`` end to end on a real
 store (synthetic records committed through ``Store.commit``), i.e. including the
-version check, id lookup and Hit construction.
+version check, id lookup and Hit construction; and in a store with sparse views
+(``view_cells=4``, a tenth of the shapes sparse), where a sparse query searches two
+indexes and merges them.
 
 Run ``python -m bench.query`` (all sizes) or ``--sizes 10000 100000`` for a quicker
 run (about 1.5 minutes). The full run took 13 to 15 minutes on 2 cores shared with
@@ -297,6 +299,7 @@ def run_store(
     p50, p99 = _percentiles(lat)
     w50, w99 = _percentiles(lat_where)
     m50, m99 = _percentiles(lat_metric)
+    views = _views_store(n, x, picks, kernel=config.kernel)
     return {
         "n": n,
         "commit_s": commit,
@@ -310,6 +313,84 @@ def run_store(
         "metric_index_build_s": metric_build,
         "metric_search_p50_ms": m50,
         "metric_search_p99_ms": m99,
+        **views,
+    }
+
+
+def _views_store(
+    n: int, x: NDArray[np.float32], picks: list[int], *, kernel: KernelConfig
+) -> dict[str, float]:
+    """Search latency in a store with sparse views (``view_cells=4``), one in ten shapes sparse.
+
+    Each dense shape's view feature is its feature perturbed; a sparse query searches
+    both indexes (own features and views) and merges them, a dense one also reaches
+    the sparse shapes through its view (``query.engine``).
+    """
+    import dataclasses
+
+    import shapedb.database as database
+    from query.engine import search
+    from query.index import open_index
+    from shapedb.mdbd import Decomposition
+    from shapedb.schema import ShapeRecord
+
+    config = Config(kernel=dataclasses.replace(kernel, view_cells=4.0))
+    rng = np.random.default_rng(3)
+    views = (x * rng.uniform(0.9, 1.1, x.shape)).astype(np.float32)
+    sparse = np.arange(n) % 10 == 0
+    dec = {
+        flag: Decomposition(
+            centers=np.zeros((1, 3)),
+            radii=np.ones(1),
+            edges=np.zeros((0, 2), np.int32),
+            spacing=0.1,
+            bounds=np.array([[-1.0, -1, -1], [1, 1, 1]]),
+            config=config.mdbd,
+            representation="pointcloud" if flag else "mesh",
+            sampling=0.4 if flag else 0.0,  # 4 cells: a sparse cloud
+        )
+        for flag in (False, True)
+    }
+    with tempfile.TemporaryDirectory() as tmp:
+        db = database.connect(Path(tmp) / "views", config=config)
+        records = [
+            ShapeRecord(
+                f"s{i}",
+                dec[bool(sparse[i])],
+                x[i],
+                config,
+                f"h{i}",
+                "mesh",
+                view_feature=None if sparse[i] else views[i],
+            )  # fmt: skip
+            for i in range(n)
+        ]
+        db.commit(records)
+        t0 = time.perf_counter()
+        open_index(db)
+        open_index(db, view=True)
+        build = time.perf_counter() - t0
+        ids = np.asarray(picks)
+        sparse_ids = db.store.sparse_ids()
+        lat: dict[str, list[float]] = {"sparse": [], "dense": []}
+        for sid in ids.tolist():
+            kind = "sparse" if np.isin(sid, sparse_ids) else "dense"
+            t0 = time.perf_counter()
+            search(db, int(sid), k=10)
+            lat[kind].append(time.perf_counter() - t0)
+        extra = db.store.sparse_ids()[:50]  # at least 50 sparse queries
+        for sid in extra.tolist():
+            t0 = time.perf_counter()
+            search(db, int(sid), k=10)
+            lat["sparse"].append(time.perf_counter() - t0)
+    s50, s99 = _percentiles(lat["sparse"])
+    d50, d99 = _percentiles(lat["dense"])
+    return {
+        "views_index_build_s": build,
+        "views_sparse_search_p50_ms": s50,
+        "views_sparse_search_p99_ms": s99,
+        "views_dense_search_p50_ms": d50,
+        "views_dense_search_p99_ms": d99,
     }
 
 
@@ -409,6 +490,22 @@ def main(argv: list[str] | None = None) -> int:
                     ("metric_search_p99_ms", "metric p99 ms", "{:.2f}"),
                     ("metric_index_build_s", "metric index s", "{:.2f}"),
                     ("metric_fit_s", "fit_metric s", "{:.1f}"),
+                ],
+            )
+        )
+        print(
+            "\nThe same in a store with sparse views (view_cells=4, a tenth of the shapes sparse)"
+        )
+        print(
+            format_table(
+                stores,
+                [
+                    ("n", "shapes", "{:,}"),
+                    ("views_sparse_search_p50_ms", "sparse query p50 ms", "{:.2f}"),
+                    ("views_sparse_search_p99_ms", "p99 ms", "{:.2f}"),
+                    ("views_dense_search_p50_ms", "dense query p50 ms", "{:.2f}"),
+                    ("views_dense_search_p99_ms", "p99 ms", "{:.2f}"),
+                    ("views_index_build_s", "both indexes s", "{:.2f}"),
                 ],
             )
         )

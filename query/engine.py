@@ -282,11 +282,19 @@ def _vector(value: Any, dim: int, *, source: str) -> NDArray[np.float64]:
 
 
 def _stored(db: Any, sid: int, index: Any) -> _Query:
+    from query.index import open_index
     from shapedb.view import is_sparse
 
     v = index.features_of(sid) if index is not None else None
     if v is not None and not db.config.kernel.view_cells:
         return _Query(v)  # without views only the feature matters: no store read
+    if v is not None:  # with views: sparseness and the view from memory too
+        catalog = _catalog(db, index.version_)
+        pos = min(int(np.searchsorted(catalog.sparse, sid)), max(len(catalog.sparse) - 1, 0))
+        if len(catalog.sparse) and catalog.sparse[pos] == sid:
+            return _Query(v, True)
+        view = open_index(db, view=True).features_of(sid)  # own feature where none
+        return _Query(v, False, None if view is None or np.array_equal(view, v) else view)
     columns = ["feature", "sampling", "spacing", "view_feature"]
     table = db.store.shapes(columns, ids=[sid])
     if table.num_rows == 0:
@@ -357,7 +365,7 @@ def _search_with_views(
 
     out_ids = np.full((len(queries), k), -1, np.int64)
     out_d = np.full((len(queries), k), np.inf)
-    sparse_ids = db.store.sparse_ids()
+    sparse_ids = _catalog(db, index.version_).sparse
     views = (
         open_index(db, view=True, metric=metric)
         if (any(q.sparse for q in queries) or len(sparse_ids))
@@ -410,12 +418,23 @@ def _nearer(
 
 
 class _Catalog:
-    """id -> (name, label) for one store version, sorted by id for searchsorted."""
+    """id -> (name, label) for one store version, sorted by id for searchsorted.
 
-    def __init__(self, ids: NDArray[np.int64], names: list[str], labels: list[str | None]):
+    ``sparse`` holds the ids of the shapes that are sparse samples
+    (:func:`shapedb.view.is_sparse`), sorted.
+    """
+
+    def __init__(
+        self,
+        ids: NDArray[np.int64],
+        names: list[str],
+        labels: list[str | None],
+        sparse: NDArray[np.int64],
+    ):
         self.ids = ids
         self.names = names
         self.labels = labels
+        self.sparse = sparse
 
     def lookup(self, ids: NDArray[np.int64]) -> list[tuple[str, str | None] | None]:
         """(name, label) of each id; None for an id this catalog does not hold."""
@@ -435,9 +454,13 @@ def _catalog(db: Any, version: int | None) -> _Catalog:
     cached = _CATALOGS.get(key)
     if cached is not None and cached[0] == version and version is not None:
         return cached[1]
-    t = db.store.shapes(["id", "name", "label"])
-    cat = _Catalog(
-        t.column("id").to_numpy(), t.column("name").to_pylist(), t.column("label").to_pylist()
-    )
+    from shapedb.view import SPARSE_CELLS
+
+    t = db.store.shapes(["id", "name", "label", "sampling", "spacing"])
+    ids = t.column("id").to_numpy()
+    sampling = np.nan_to_num(t.column("sampling").to_numpy(zero_copy_only=False), nan=0.0)
+    spacing = t.column("spacing").to_numpy()
+    sparse = ids[(spacing > 0) & (sampling >= SPARSE_CELLS * spacing)]
+    cat = _Catalog(ids, t.column("name").to_pylist(), t.column("label").to_pylist(), sparse)
     _CATALOGS[key] = (version, cat)
     return cat
