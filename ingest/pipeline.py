@@ -138,10 +138,15 @@ def content_hash(path: str | os.PathLike[str], *, as_: str | None = None) -> str
 
 def geometry_hash(geometry: Geometry) -> str:
     """sha256 of an in-memory shape: its arrays, or its distance on a fixed lattice."""
+    from shapedb.pointcloud import PointCloud
+
     h = hashlib.sha256(type(geometry).__qualname__.encode())
+    # a cloud's given normals only: asking for ``normals`` would estimate them here, in
+    # the model's frame, and its decomposition would then reuse them (PointCloud.transformed)
+    normals = "_given_normals" if isinstance(geometry, PointCloud) else "normals"
     arrays = [
         getattr(geometry, a, None)
-        for a in ("vertices", "faces", "points", "normals", "occupancy", "origin", "pitch")
+        for a in ("vertices", "faces", "points", normals, "occupancy", "origin", "pitch")
     ]
     arrays = [a for a in arrays if a is not None]
     if arrays:
@@ -244,17 +249,26 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
 
 
 def _view_feature(geometry: Any, decomposition: Any, config: Config) -> NDArray[np.float32] | None:
-    """Feature of the shape's sparse view (:mod:`shapedb.view`), when the store keeps views."""
+    """The shape's second feature, or None.
+
+    A sparse point cloud's reconstruction (:mod:`shapedb.reconstruct`, when kept); a
+    dense shape's sparse view (:mod:`shapedb.view`), when the store keeps views.
+    """
     from shapedb.kernel import features
     from shapedb.mdbd import decompose
+    from shapedb.reconstruct import reconstructed
     from shapedb.view import is_sparse, view_geometry
 
     cells = config.kernel.view_cells
-    if not cells or is_sparse(decomposition.sampling, decomposition.spacing):
+    sparse = is_sparse(decomposition.sampling, decomposition.spacing)
+    if not (cells or sparse):
         return None
     try:
-        view = view_geometry(geometry, decomposition.spacing, cells)
-        found = None if view is None else decompose(view, config=config.mdbd)
+        if sparse:
+            found = reconstructed(geometry, decomposition, config.mdbd)
+        else:
+            view = view_geometry(geometry, decomposition.spacing, cells)
+            found = None if view is None else decompose(view, config=config.mdbd)
     except ShapeDBError as exc:  # the shape itself is fine: stored without a view
         log.warning("%s: no sparse view (%s)", getattr(geometry, "name", None) or "shape", exc)
         return None

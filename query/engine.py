@@ -15,10 +15,14 @@ Accepted queries, tried in this order:
   ``ingest.load``, decomposed and featurised with the store's configuration;
 * a stored shape name (a ``str`` that is not an existing file).
 
-In a store with sparse views (``KernelConfig.view_cells > 0``, :mod:`shapedb.view`) a
-pair with one sparse point cloud is as far apart as the cloud is from the nearer of the
-other shape's two features, its own and its view's; for a dense geometry or file query
-that costs one more (point-cloud) decomposition when the store holds sparse clouds.
+A sparse point cloud (a sample every 2 grid cells or more) also has the feature of its
+reconstruction (:mod:`shapedb.reconstruct`), and in a store with sparse views
+(``KernelConfig.view_cells > 0``, :mod:`shapedb.view`) every dense shape that of its
+view. A pair of a sparse cloud and a dense shape is as far apart as the nearest of the
+cloud's own feature and the dense shape's own feature or view, and the cloud's
+reconstruction and the dense shape's own feature. A sparse geometry or file query
+costs a Poisson reconstruction and its decomposition; a dense one in a store with
+views and sparse clouds one more (point-cloud) decomposition.
 
 A stored query is *not* excluded from its own results: it ranks first, with
 similarity 1.0 (distance 0), unless another shape has an identical feature and a
@@ -157,7 +161,11 @@ def search_batch(
         from query.sql import allowed_ids
 
         allowed = allowed_ids(db, where)
-    if db.config.kernel.view_cells:
+    if (
+        db.config.kernel.view_cells
+        or any(q.sparse for q in resolved)
+        or len(_catalog(db, index.version_).sparse)
+    ):
         ids, dist = _search_with_views(db, index, resolved, int(k), allowed, learned)
     else:
         vectors = np.stack([r.feature for r in resolved])
@@ -199,9 +207,10 @@ def query_features(db: Any, query: Any, *, index: Any = None) -> NDArray[np.floa
 class _Query:
     """A resolved query: its feature, whether it is a sparse cloud, and its view.
 
-    ``view`` is the feature of the query's sparse view (:mod:`shapedb.view`), or a
-    function computing it (only called when a store's sparse records need it), or
-    None when the query has none (a raw vector, a decomposition, a sparse cloud).
+    ``view`` is the query's other feature: a dense shape's sparse view
+    (:mod:`shapedb.view`), a sparse cloud's reconstruction (:mod:`shapedb.reconstruct`);
+    or a function computing it (only called when the search needs it), or None when
+    the query has none (a raw vector, a decomposition, a rejected reconstruction).
     """
 
     feature: NDArray[np.float64]
@@ -286,15 +295,12 @@ def _stored(db: Any, sid: int, index: Any) -> _Query:
     from shapedb.view import is_sparse
 
     v = index.features_of(sid) if index is not None else None
-    if v is not None and not db.config.kernel.view_cells:
-        return _Query(v)  # without views only the feature matters: no store read
-    if v is not None:  # with views: sparseness and the view from memory too
+    if v is not None:  # sparseness and the view from memory too
         catalog = _catalog(db, index.version_)
         pos = min(int(np.searchsorted(catalog.sparse, sid)), max(len(catalog.sparse) - 1, 0))
-        if len(catalog.sparse) and catalog.sparse[pos] == sid:
-            return _Query(v, True)
+        sparse = bool(len(catalog.sparse) and catalog.sparse[pos] == sid)
         view = open_index(db, view=True).features_of(sid)  # own feature where none
-        return _Query(v, False, None if view is None or np.array_equal(view, v) else view)
+        return _Query(v, sparse, None if view is None or np.array_equal(view, v) else view)
     columns = ["feature", "sampling", "spacing", "view_feature"]
     table = db.store.shapes(columns, ids=[sid])
     if table.num_rows == 0:
@@ -322,6 +328,12 @@ def _from_geometry(db: Any, geometry: Any) -> _Query:
     config = db.config
     d = decompose(geometry, config=config.mdbd)
     sparse = is_sparse(d.sampling, d.spacing)
+    if sparse:
+        from shapedb.reconstruct import reconstructed
+
+        found = reconstructed(geometry, d, config.mdbd)
+        recon = None if found is None else _featurise(found, config)
+        return _Query(_featurise(d, config), True, recon)
 
     def view() -> NDArray[np.float64] | None:
         try:
@@ -332,7 +344,7 @@ def _from_geometry(db: Any, geometry: Any) -> _Query:
             return None
         return _featurise(found, config) if found is not None and found.n_balls else None
 
-    return _Query(_featurise(d, config), sparse, view if config.kernel.view_cells else None)
+    return _Query(_featurise(d, config), False, view if config.kernel.view_cells else None)
 
 
 def _from_file(db: Any, path: Path) -> _Query:
@@ -351,59 +363,58 @@ def _search_with_views(
     allowed: NDArray[np.int64] | None,
     metric: Any = None,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Search a store that keeps sparse views (:mod:`shapedb.view`).
+    """Search with each shape's second feature (:mod:`shapedb.view`, :mod:`shapedb.reconstruct`).
 
-    A pair with a sparse side is as far apart as the nearer of the dense side's two
-    features (its own and its view's) is from the sparse side's feature (a sparse
-    record's view is its own feature); two dense shapes compare their own features.
-    So a sparse query searches both indexes, and a dense query with a view searches
-    the sparse shapes a second time through its view; the lists are merged keeping
-    each shape's smaller distance (ties by ascending id). A dense query without a
-    view (a raw vector) compares with every shape's own feature.
+    Two dense shapes, and two sparse clouds, compare their own features. A pair of a
+    sparse cloud and a dense shape is as far apart as the nearest of: the two own
+    features; the cloud's own feature and the dense shape's view (stores with
+    views); the cloud's reconstruction and the dense shape's own feature. Each
+    comparison is one index search (the view index holds a dense shape's view and a
+    sparse cloud's reconstruction, or the shape's own feature where it has none);
+    the lists are merged keeping each shape's smallest distance (ties by ascending
+    id). A raw vector compares with every shape's own feature.
     """
     from query.index import open_index
 
     out_ids = np.full((len(queries), k), -1, np.int64)
     out_d = np.full((len(queries), k), np.inf)
     sparse_ids = _catalog(db, index.version_).sparse
-    views = (
-        open_index(db, view=True, metric=metric)
-        if (any(q.sparse for q in queries) or len(sparse_ids))
-        else None
-    )
+    views = None
+    with_views = bool(db.config.kernel.view_cells)
     for row, q in enumerate(queries):
-        own_view = None if q.sparse or not len(sparse_ids) else q.view_feature()
-        ids, dist = index.search(q.feature[None], k, allowed=allowed)
-        if q.sparse and views is not None:
-            ids, dist = _nearer(
-                ids[0], dist[0], *views.search(q.feature[None], k, allowed=allowed), k
-            )
-        elif views is not None and own_view is not None:
-            scope = index.ids_[index.alive_] if allowed is None else np.asarray(allowed)
+        lists = [index.search(q.feature[None], k, allowed=allowed)]
+        scope = index.ids_[index.alive_] if allowed is None else np.asarray(allowed)
+        if q.sparse:
+            dense = np.setdiff1d(scope, sparse_ids)
+            recon = q.view_feature()
+            if len(dense) and recon is not None:
+                lists.append(index.search(recon[None], k, allowed=dense))
+            if len(dense) and with_views:
+                views = views if views is not None else open_index(db, view=True, metric=metric)
+                lists.append(views.search(q.feature[None], k, allowed=dense))
+        else:
             sparse = np.intersect1d(scope, sparse_ids)
-            ids, dist = _nearer(
-                ids[0], dist[0], *views.search(own_view[None], k, allowed=sparse), k
-            )
-        out_ids[row], out_d[row] = ids[0], dist[0]
+            if len(sparse):
+                views = views if views is not None else open_index(db, view=True, metric=metric)
+                lists.append(views.search(q.feature[None], k, allowed=sparse))
+                own_view = q.view_feature() if with_views else None
+                if own_view is not None:
+                    lists.append(index.search(own_view[None], k, allowed=sparse))
+        out_ids[row], out_d[row] = _nearest(lists, k)
     return out_ids, out_d
 
 
-def _nearer(
-    ids: NDArray[np.int64],
-    dist: NDArray[np.float64],
-    more_ids: NDArray[np.int64],
-    more_dist: NDArray[np.float64],
-    k: int,
+def _nearest(
+    lists: list[tuple[NDArray[np.int64], NDArray[np.float64]]], k: int
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Two result lists merged: each id once, at its smaller distance; (1, k) each.
+    """Result lists ((1, k) ids, (1, k) distances each) merged: each id once, nearest first.
 
-    ``ids`` / ``dist`` are (k,), ``more_ids`` / ``more_dist`` (1, k); -1 ids pad.
-    Sorted by distance, ties by ascending id. Two top-k lists suffice: a shape among
-    the k nearest by the smaller distance is among the k nearest of the list that
-    gives it that distance.
+    Each id keeps its smallest distance; sorted by distance, ties by ascending id;
+    -1 ids pad. Top-k lists suffice: a shape among the k nearest by the smallest
+    distance is among the k nearest of the list that gives it that distance.
     """
-    i = np.concatenate([ids, more_ids[0]])
-    d = np.concatenate([dist, more_dist[0]])
+    i = np.concatenate([ids[0] for ids, _ in lists])
+    d = np.concatenate([dist[0] for _, dist in lists])
     real = i >= 0
     i, d = i[real], d[real]
     order = np.lexsort((d, i))  # by id, the smaller distance first
@@ -411,9 +422,9 @@ def _nearer(
     first = np.r_[True, i[1:] != i[:-1]]
     i, d = i[first], d[first]
     order = np.lexsort((i, d))[:k]
-    out_i = np.full((1, k), -1, np.int64)
-    out_d = np.full((1, k), np.inf)
-    out_i[0, : len(order)], out_d[0, : len(order)] = i[order], d[order]
+    out_i = np.full(k, -1, np.int64)
+    out_d = np.full(k, np.inf)
+    out_i[: len(order)], out_d[: len(order)] = i[order], d[order]
     return out_i, out_d
 
 

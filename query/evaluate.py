@@ -274,9 +274,9 @@ def evaluate(
         Column of ``shapes`` (default ``"label"``) or a metadata key giving the class.
     method : None, "kernel" or callable, optional
         None / "kernel": the Eq. 3 kernel of the stored features (ranked by the
-        equivalent Eq. 2 distance, so no precision is lost to ``exp``); in a store
-        with sparse views, a pair with a sparse side is as far apart as the nearer of
-        the dense side's own feature and view, as the search compares them. A callable receives the (n, d) features of the labelled shapes and
+        equivalent Eq. 2 distance, so no precision is lost to ``exp``); a pair of a
+        sparse cloud and a dense shape compares as the search compares it
+        (:mod:`query.engine`: the nearest of own features, views and reconstructions). A callable receives the (n, d) features of the labelled shapes and
         returns an (n, n) similarity matrix.
     plot : path, optional
         Also save the precision-recall curve there (PNG).
@@ -318,22 +318,26 @@ def evaluate(
         if learned is not None:
             w = w * learned.dim_weights()
         xw = x * w
-        sparse = vw = None
-        if db.config.kernel.view_cells:  # the search's rule (query.engine): with a sparse
-            # side, the nearer of own features and views (a sparse shape's view is itself)
+        sparse = np.isin(ids, db.store.sparse_ids())
+        vw = None
+        if sparse.any():  # the search's rule (query.engine): a sparse-dense pair is as far
+            # apart as the nearest of own-own and either side's second feature (its view
+            # or reconstruction; its own feature where it has none) against the other's own
             vid, views = db.store.features(view=True)
             pos = np.searchsorted(vid, ids)
             vw = np.asarray(views[pos], np.float64) * w
-            sparse = np.isin(ids, db.store.sparse_ids())
 
         def rows() -> Iterator[tuple[NDArray[np.intp], NDArray[np.float64]]]:
             step = max(1, _CHUNK_CELLS // max(n, 1))
             for lo in range(0, n, step):
                 idx = np.arange(lo, min(lo + step, n))
                 d = cdist(xw[idx], xw, "cityblock")
-                if sparse is not None and vw is not None and sparse.any():
-                    either = sparse[idx, None] | sparse[None, :]
-                    d = np.where(either, np.minimum(d, cdist(vw[idx], vw, "cityblock")), d)
+                if vw is not None:
+                    one = sparse[idx, None] != sparse[None, :]
+                    near = np.minimum(
+                        cdist(xw[idx], vw, "cityblock"), cdist(vw[idx], xw, "cityblock")
+                    )
+                    d = np.where(one, np.minimum(d, near), d)
                 yield idx, d
 
         scores = _score(rows, labels, ids=ids, distance=True, recall_levels=RECALL_LEVELS)

@@ -14,8 +14,8 @@ re-ranking and the sparse views work unchanged::
 The fit is neighbourhood components analysis (Goldberger et al., 2004) restricted to
 non-negative block weights ``exp(theta_b)``: every labelled shape (and, in a store
 with sparse views, every shape's view) queries the others, compared as the search
-compares them (a pair with a sparse side by the nearer of the dense side's own feature
-and view); the other shapes are picked with probability
+compares them (a sparse-dense pair by the nearest of own features, views and
+reconstructions, :mod:`query.engine`); the other shapes are picked with probability
 ``softmax(-temperature * d / median d)`` and the mean log probability of picking one
 of the query's class is maximised, with a penalty
 ``reg * |theta|^2`` that pulls the weights towards the default; the fitted weights are
@@ -238,23 +238,23 @@ def _nca_weights(
     exclude: NDArray[np.bool_],
     reg: float,
     temperature: float,
-    alt: NDArray[np.float64] | None = None,
+    alts: tuple[NDArray[np.float64], ...] = (),
 ) -> NDArray[np.float64]:
     """Block weights maximising the NCA objective; see the module docstring.
 
     ``blocks`` (q, n, b) per-block distances, ``same`` (q, n) same class, ``exclude``
-    (q, n) pairs left out (a query against itself or its own shape); ``alt``, like
-    ``blocks``, another way of comparing each pair (the views): a pair is as far
-    apart as the smaller of the two weighted sums.
+    (q, n) pairs left out (a query against itself or its own shape); ``alts``, each
+    like ``blocks``, other ways of comparing each pair (views, reconstructions): a
+    pair is as far apart as the smallest of the weighted sums.
     """
-    total = _pair_distances(blocks, alt, np.ones(blocks.shape[-1]))
+    total = _pair_distances(blocks, alts, np.ones(blocks.shape[-1]))
     scale = temperature / max(float(np.median(total[~exclude])), 1e-12)
     same = same & ~exclude
     counted = same.any(1)
     if not counted.any():
         return np.ones(blocks.shape[-1])
     a = blocks[counted] * scale
-    b = None if alt is None else alt[counted] * scale
+    others = [alt[counted] * scale for alt in alts]
     s, ex = same[counted], exclude[counted]
     m = len(a)
 
@@ -262,9 +262,9 @@ def _nca_weights(
         w = np.exp(theta)
         d = a @ w
         active = a
-        if b is not None:  # the gradient follows the nearer of the two comparisons
+        for b in others:  # the gradient follows the nearest comparison
             db = b @ w
-            active = np.where((db < d)[..., None], b, a)
+            active = np.where((db < d)[..., None], b, active)
             d = np.minimum(d, db)
         logits = np.where(ex, -np.inf, -d)
         logits -= logits.max(1, keepdims=True)
@@ -283,11 +283,13 @@ def _nca_weights(
 
 
 def _pair_distances(
-    blocks: NDArray[np.float64], alt: NDArray[np.float64] | None, w: NDArray[np.float64]
+    blocks: NDArray[np.float64], alts: tuple[NDArray[np.float64], ...], w: NDArray[np.float64]
 ) -> NDArray[np.float64]:
-    """(q, n) weighted distances: ``blocks @ w``, or the smaller of it and ``alt @ w``."""
+    """(q, n) weighted distances: the smallest of ``blocks @ w`` and each ``alt @ w``."""
     d = blocks @ w
-    return d if alt is None else np.minimum(d, alt @ w)
+    for alt in alts:
+        d = np.minimum(d, alt @ w)
+    return d
 
 
 def _log_margins(
@@ -295,10 +297,10 @@ def _log_margins(
     w: NDArray[np.float64],
     same: NDArray[np.bool_],
     exclude: NDArray[np.bool_],
-    alt: NDArray[np.float64] | None = None,
+    alts: tuple[NDArray[np.float64], ...] = (),
 ) -> NDArray[np.float64]:
     """log(d(nearest same class) / d(nearest other class)) of each query (NaN if undefined)."""
-    d = np.where(exclude, np.inf, _pair_distances(blocks, alt, w))
+    d = np.where(exclude, np.inf, _pair_distances(blocks, alts, w))
     near = np.where(same, d, np.inf).min(1)
     far = np.where(~same, d, np.inf).min(1)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -345,9 +347,9 @@ def fit_metric(
     """Fit block weights on labelled feature vectors, regularisation cross-validated.
 
     Every shape queries the others. With ``views`` the pairs follow a views store's
-    rule (:mod:`query.engine`): a pair with a sparse side is as far apart as the
-    nearer of the dense side's own feature and view, two dense shapes compare their
-    own features; and each dense shape's view is one more
+    rule (:mod:`query.engine`): a sparse-dense pair is as far apart as the nearest
+    of the own features and either side's second feature (view or reconstruction)
+    against the other's own, other pairs compare their own features; and each dense shape's view is one more
     (sparse) query, so that the weights also learn what a sparse sample of a surface
     keeps. A query never counts its own shape.
 
@@ -361,7 +363,8 @@ def fit_metric(
     blocks : sequence of (name, length)
         The vector's blocks (:func:`block_layout`); one weight is fitted per block.
     views : (n, d) float, optional
-        Each shape's sparse-view feature (its own feature where it has none).
+        Each shape's second feature: a dense shape's sparse view, a sparse cloud's
+        reconstruction (its own feature where it has none).
     sparse : (n,) bool, optional
         Shapes that are themselves sparse samples (compared by their views).
     fingerprint : str
@@ -416,13 +419,17 @@ def fit_metric(
     extra = np.flatnonzero(~sp & np.any(v != x, axis=1))
     owner = np.concatenate([np.arange(n), extra])
     q_sparse = np.concatenate([sp, np.ones(len(extra), bool)])
-    bd = _block_distances(np.concatenate([x, v[extra]]), x, sizes)  # (q, n, b)
-    # a pair with a sparse side: also through the views, the nearer counts (query.engine)
-    by_view = q_sparse[:, None] | sp[None, :]
-    alt = None
-    if by_view.any():
-        alt = np.where(
-            by_view[:, :, None], _block_distances(np.concatenate([v, v[extra]]), v, sizes), bd
+    own = np.concatenate([x, v[extra]])  # the queries' own features, and their second
+    second = np.concatenate([v, v[extra]])  # (a view query has none but itself)
+    bd = _block_distances(own, x, sizes)  # (q, n, b)
+    # a sparse-dense pair: the nearest of own-own and either side's second feature
+    # against the other's own feature (query.engine)
+    one = q_sparse[:, None] != sp[None, :]
+    alts: tuple[NDArray[np.float64], ...] = ()
+    if one.any():
+        alts = tuple(
+            np.where(one[:, :, None], _block_distances(a, b, sizes), bd)
+            for a, b in ((own, v), (second, x))
         )
     same = y[owner][:, None] == y[None, :]
     exclude = owner[:, None] == np.arange(n)[None, :]
@@ -445,11 +452,11 @@ def fit_metric(
                     exclude[tq][:, train],
                     r,
                     temperature,
-                    None if alt is None else alt[tq][:, train],
+                    tuple(alt[tq][:, train] for alt in alts),
                 )
             )
             held[r].append(
-                _log_margins(bd[hq], w, same[hq], exclude[hq], None if alt is None else alt[hq])
+                _log_margins(bd[hq], w, same[hq], exclude[hq], tuple(alt[hq] for alt in alts))
             )
     margins = {r: np.concatenate(m) for r, m in held.items()}
     ok = np.isfinite(margins[None])
@@ -475,12 +482,12 @@ def fit_metric(
         chosen = max(within)  # the most regularised of the near-best
     weights = np.ones(len(sizes))
     if chosen is not None:
-        weights = _nca_weights(bd, same, exclude, chosen, temperature, alt)
+        weights = _nca_weights(bd, same, exclude, chosen, temperature, alts)
         # keep the similarity's calibration: shapes of different classes as far apart
         # (median) as under the default, so exp(-lam d) reads as before
         other = ~same & ~exclude
-        before = _pair_distances(bd, alt, np.ones(len(sizes)))[other]
-        after = _pair_distances(bd, alt, weights)[other]
+        before = _pair_distances(bd, alts, np.ones(len(sizes)))[other]
+        after = _pair_distances(bd, alts, weights)[other]
         weights *= np.median(before) / max(np.median(after), 1e-300)
     log.info(
         "fit_metric: %d shapes, %d classes, %d view queries; reg %s, weights %s",

@@ -1,9 +1,11 @@
 """Stores with sparse views (KernelConfig.view_cells): ingest, search routing, evaluate.
 
 Expected results are computed here from the stored features with the rule of
-``query.engine``: two exact shapes compare their own features; a pair with a sparse
-side is as far apart as the nearer of the dense side's own feature and view (a sparse
-record's view is its own feature).
+``query.engine``: two exact shapes, and two sparse clouds, compare their own features;
+a pair of a sparse cloud and a dense shape is as far apart as the nearest of own-own,
+the cloud's own feature against the dense shape's view, and the cloud's
+reconstruction (:mod:`shapedb.reconstruct`, stored as its view) against the dense
+shape's own feature.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from shapedb.kernel import features
 from shapedb.mdbd import decompose
 from shapedb.mesh import TriangleMesh
 from shapedb.pointcloud import PointCloud
+from shapedb.reconstruct import reconstructed
 from shapedb.view import view_geometry
 
 CONFIG = Config().with_options(resolution=40, n_balls=96, view_cells=4.0)
@@ -72,15 +75,19 @@ def _own_and_view(db: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarr
     return ids, own.astype(np.float64), view.astype(np.float64), sparse
 
 
-def test_meshes_get_a_view_and_clouds_do_not(view_db: Any) -> None:
+def test_meshes_get_a_view_and_clouds_a_reconstruction(view_db: Any) -> None:
     rows = _table(view_db)
     for name, row in rows.items():
-        if name.startswith("cloud"):
-            assert row["view_feature"] is None
-        else:
-            assert row["view_feature"] is not None, name
-            assert dict(row["timings"])["view"] > 0
-            assert not np.allclose(row["view_feature"], row["feature"])  # a real other packing
+        assert row["view_feature"] is not None, name
+        assert dict(row["timings"])["view"] > 0
+        assert not np.allclose(row["view_feature"], row["feature"])  # a real other packing
+    cloud = _cloud(_meshes()["capsule-b"][1], "c")
+    dec = decompose(cloud, config=CONFIG.mdbd)
+    recon = reconstructed(cloud, dec, CONFIG.mdbd)
+    assert recon is not None
+    np.testing.assert_allclose(
+        rows["cloud-capsule-b"]["view_feature"], features(recon, CONFIG.kernel), rtol=1e-5
+    )
     ids = view_db.store.sparse_ids()
     assert [view_db.get(int(i)).name for i in ids] == ["cloud-capsule-b"]
     record = view_db.get("box-a")
@@ -97,14 +104,19 @@ def test_features_view_falls_back_to_own_feature(view_db: Any) -> None:
     assert sparse.sum() == 1
 
 
-def test_sparse_query_takes_the_nearer_of_own_feature_and_view(view_db: Any) -> None:
+def test_sparse_query_takes_the_nearest_of_its_comparisons(view_db: Any) -> None:
     mesh = _meshes()["disc-a"][1]
     query = _cloud(mesh, "q", n=500)
-    f = features(decompose(query, config=CONFIG.mdbd), CONFIG.kernel)
-    ids, own, view, _ = _own_and_view(view_db)
+    dec = decompose(query, config=CONFIG.mdbd)
+    f = features(dec, CONFIG.kernel)
+    r = features(reconstructed(query, dec, CONFIG.mdbd), CONFIG.kernel)
+    ids, own, view, sparse = _own_and_view(view_db)
+    own_own = np.abs(own - f).sum(axis=1)
     by_view = np.abs(view - f).sum(axis=1)
-    want = np.minimum(np.abs(own - f).sum(axis=1), by_view)
-    assert (want < by_view).any()  # the rule matters here: some own features are nearer
+    by_recon = np.abs(own - r).sum(axis=1)
+    want = np.where(sparse, own_own, np.minimum(own_own, np.minimum(by_view, by_recon)))
+    # the rule matters here: each comparison is the nearest for some shape
+    assert (want < own_own).any() and (want < by_view).any() and (want < by_recon).any()
     hits = view_db.search(query, k=len(ids))
     got = {h.id: h.distance for h in hits}
     assert set(got) == set(ids.tolist())
@@ -120,9 +132,10 @@ def test_dense_query_reaches_sparse_records_through_feature_or_view(view_db: Any
     v = features(
         decompose(view_geometry(mesh, dec.spacing, 4.0), config=CONFIG.mdbd), CONFIG.kernel
     )
-    ids, own, _, sparse = _own_and_view(view_db)
+    ids, own, view, sparse = _own_and_view(view_db)
     want = np.abs(own - f).sum(1)
-    want = np.where(sparse, np.minimum(want, np.abs(own - v).sum(1)), want)
+    near = np.minimum(np.abs(own - v).sum(1), np.abs(view - f).sum(1))
+    want = np.where(sparse, np.minimum(want, near), want)
     hits = view_db.search(mesh, k=len(ids))
     assert [h.id for h in hits] == ids[np.lexsort((ids, want))].tolist()
     for h in hits:
@@ -144,8 +157,9 @@ def test_stored_cloud_query_is_symmetric_with_its_mesh(view_db: Any) -> None:
 def test_evaluate_follows_the_view_rule(view_db: Any) -> None:
     ids, own, view, sparse = _own_and_view(view_db)
     d_own = np.abs(own[:, None] - own[None]).sum(-1)
-    d_view = np.abs(view[:, None] - view[None]).sum(-1)
-    d = np.where(sparse[:, None] | sparse[None, :], np.minimum(d_view, d_own), d_own)
+    a = np.abs(own[:, None] - view[None]).sum(-1)  # own_i against view_j
+    one = sparse[:, None] != sparse[None, :]
+    d = np.where(one, np.minimum(d_own, np.minimum(a, a.T)), d_own)
     labels = np.asarray([view_db.get(int(i)).label for i in ids])
     want = retrieval_scores(-d, labels)
     got = view_db.evaluate()
@@ -168,13 +182,16 @@ def test_a_learned_metric_weighs_views_too(view_db: Any) -> None:
     ids, own, view, sparse = _own_and_view(view_db)
     cloud = int(ids[sparse][0])
     hits = view_db.search(cloud, k=len(ids), metric=metric)  # a sparse query
-    q = own[ids == cloud][0]
-    want = np.minimum(np.abs(view - q) @ w, np.abs(own - q) @ w)
+    q, r = own[ids == cloud][0], view[ids == cloud][0]
+    near = np.minimum(np.abs(view - q) @ w, np.abs(own - r) @ w)
+    want = np.abs(own - q) @ w
+    want = np.where(sparse, want, np.minimum(want, near))
     for h in hits:
         assert h.distance == pytest.approx(want[ids == h.id][0], rel=1e-5, abs=1e-6)
     d_own = np.abs(own[:, None] - own[None]) @ w
-    d_view = np.abs(view[:, None] - view[None]) @ w
-    d = np.where(sparse[:, None] | sparse[None, :], np.minimum(d_view, d_own), d_own)
+    a = np.abs(own[:, None] - view[None]) @ w
+    one = sparse[:, None] != sparse[None, :]
+    d = np.where(one, np.minimum(d_own, np.minimum(a, a.T)), d_own)
     labels = np.asarray([view_db.get(int(i)).label for i in ids])
     assert view_db.evaluate(metric=metric).nn == pytest.approx(retrieval_scores(-d, labels).nn)
     fitted = view_db.fit_metric(folds=2)  # the dense shapes' views are extra queries
@@ -182,19 +199,26 @@ def test_a_learned_metric_weighs_views_too(view_db: Any) -> None:
     assert fitted.fingerprint == view_db.config.fingerprint
 
 
-def test_store_without_views_keeps_one_feature(tmp_path: Path) -> None:
+def test_store_without_views_keeps_meshes_to_one_feature(tmp_path: Path) -> None:
+    """Without views a mesh has one feature; a sparse cloud still has its reconstruction."""
     cfg = Config().with_options(resolution=32, n_balls=48)
     db = shapedb.connect(tmp_path / "plain", config=cfg)
     mesh = _meshes()["box-a"][1]
     db.ingest([mesh, _cloud(mesh, "c")], names=["box", "cloud"], workers=1)
     try:
         assert db.get("box").view_feature is None
+        assert db.get("cloud").view_feature is not None
         ids, own = db.store.features()
         _, view = db.store.features(view=True)
-        np.testing.assert_array_equal(own, view)
-        hits = db.search(_cloud(mesh, "q"), k=2)
-        f = features(decompose(_cloud(mesh, "q"), config=cfg.mdbd), cfg.kernel)
-        want = np.abs(own - f).sum(1)
+        is_box = ids == db.get("box").id
+        np.testing.assert_array_equal(own[is_box], view[is_box])
+        query = _cloud(mesh, "q")
+        hits = db.search(query, k=2)
+        dec = decompose(query, config=cfg.mdbd)
+        f = features(dec, cfg.kernel)
+        r = features(reconstructed(query, dec, cfg.mdbd), cfg.kernel)
+        want = np.abs(own - f).sum(1)  # the cloud: own features; the box: also by r
+        want = np.where(is_box, np.minimum(want, np.abs(own - r).sum(1)), want)
         assert {h.id: round(h.distance, 4) for h in hits} == {
             int(i): round(float(w), 4) for i, w in zip(ids, want, strict=True)
         }
@@ -270,18 +294,37 @@ def test_implicit_and_voxel_shapes_get_views_too(tmp_path: Path) -> None:
         _forget(db)
 
 
-def test_merged_lists_keep_each_shape_once_at_its_smaller_distance() -> None:
-    from query.engine import _nearer
+def test_merged_lists_keep_each_shape_once_at_its_smallest_distance() -> None:
+    from query.engine import _nearest
 
-    ids, dist = _nearer(
-        np.array([4, 2, -1]),
-        np.array([0.5, 1.0, np.inf]),
-        np.array([[2, 7, 4]]),
-        np.array([[0.25, 0.5, 0.75]]),
+    ids, dist = _nearest(
+        [
+            (np.array([[4, 2, -1]]), np.array([[0.5, 1.0, np.inf]])),
+            (np.array([[2, 7, 4]]), np.array([[0.25, 0.5, 0.75]])),
+            (np.array([[9, -1, -1]]), np.array([[0.1, np.inf, np.inf]])),
+        ],
         3,
     )
-    assert ids.tolist() == [[2, 4, 7]]  # 2 at its smaller distance; 4 and 7 tie: by id
-    assert dist.tolist() == [[0.25, 0.5, 0.5]]
-    ids, dist = _nearer(np.array([-1, -1]), np.full(2, np.inf), np.array([[3, -1]]),
-                        np.array([[1.0, np.inf]]), 2)  # fmt: skip
-    assert ids.tolist() == [[3, -1]] and dist[0, 1] == np.inf
+    assert ids.tolist() == [9, 2, 4]  # 2 at its smaller distance; 4 before 7 (tie: by id)
+    assert dist.tolist() == [0.1, 0.25, 0.5]
+    ids, dist = _nearest([(np.array([[-1, -1]]), np.full((1, 2), np.inf)),
+                          (np.array([[3, -1]]), np.array([[1.0, np.inf]]))], 2)  # fmt: skip
+    assert ids.tolist() == [3, -1] and dist[1] == np.inf
+
+
+def test_a_cloud_decomposes_alike_however_it_was_handled(tmp_path: Path) -> None:
+    """Hashing, ingesting and reconstructing a cloud leave no state that changes its packing."""
+    cfg = Config().with_options(resolution=32, n_balls=48)
+    mesh = _meshes()["box-a"][1]
+    fresh = features(decompose(_cloud(mesh, "fresh"), config=cfg.mdbd), cfg.kernel)
+    cloud = _cloud(mesh, "c")
+    db = shapedb.connect(tmp_path / "plain", config=cfg)
+    try:
+        db.ingest([cloud], names=["cloud"], workers=1)
+        np.testing.assert_allclose(db.get("cloud").feature, fresh, rtol=1e-6, atol=1e-7)
+        first = db.search(cloud, k=1)[0]
+        again = db.search(cloud, k=1)[0]
+        assert first.name == again.name == "cloud"
+        assert first.distance == again.distance == pytest.approx(0.0, abs=1e-5)
+    finally:
+        _forget(db)
