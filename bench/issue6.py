@@ -187,7 +187,7 @@ def run_stability(
     probe = list(range(0, len(test), step))
     db = desc.describe(mesh)  # type: ignore[arg-type]
     scales = _scales(db)
-    from bench.retrieval import kernel_features
+    from bench.retrieval import kernel_features, reconstructions
 
     shapedb_db = kernel_features(mesh, kcfg)  # type: ignore[arg-type]
     fam = families(test.models)
@@ -211,6 +211,12 @@ def run_stability(
             res[name] = first
         fq = kernel_features([copies[k] for k in ok], kcfg)  # type: ignore[misc]
         d = np.abs(fq[:, None, :] - shapedb_db[None, :, :]).sum(-1)
+        if variant == "pointcloud":  # and by its reconstruction, as a store compares
+            recon = reconstructions(
+                [test.models[probe[k]] for k in ok], [copies[k] for k in ok], mdbd, workers=workers
+            )
+            fr = kernel_features(recon, kcfg)  # type: ignore[arg-type]
+            d = np.minimum(d, np.abs(fr[:, None, :] - shapedb_db[None, :, :]).sum(-1))
         res["shapedb"] = float(np.mean(np.argmin(d, axis=1) == target))
         # a re-posed copy of the original (another pose of one mesh or subject) first:
         # what a pose-invariant signature cannot tell apart

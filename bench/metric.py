@@ -41,7 +41,13 @@ from bench.common import (
     write_json,
 )
 from bench.datasets import Dataset
-from bench.retrieval import _complete, _mixture_mask, build_sets, kernel_features
+from bench.retrieval import (
+    _complete,
+    _mixture_mask,
+    build_sets,
+    kernel_features,
+    reconstructions,
+)
 from query.metric import LearnedMetric, block_layout, fit_metric
 from shapedb.config import KernelConfig, MDBDConfig
 
@@ -56,10 +62,12 @@ def _features(
     mesh = decompose_all(sub.models, "mesh", mdbd, workers=workers)
     pc = decompose_all(sub.models, "pointcloud", mdbd, workers=workers)
     view = decompose_all(sub.models, f"view_{VIEW_CELLS:g}", mdbd, workers=workers)
-    sub, (mesh, pc, view) = _complete(sub, mesh, pc, view)
+    recon = reconstructions(sub.models, pc, mdbd, workers=workers)
+    sub, (mesh, pc, view, recon) = _complete(sub, mesh, pc, view, recon)
     return {
         "mesh": kernel_features(mesh, cfg),
         "pc": kernel_features(pc, cfg),
+        "recon": kernel_features(recon, cfg),
         "view": kernel_features(view, cfg),
         "labels": sub.labels,
         "mix": _mixture_mask([m.name for m in sub.models]),
@@ -69,15 +77,19 @@ def _features(
 def _scores(f: dict[str, Any], w: NDArray[np.float64], views: bool) -> dict[str, float]:
     """Test-split measures with per-dimension weights ``w``."""
     m, p, v, lab = f["mesh"] * w, f["pc"] * w, f["view"] * w, f["labels"]
+    r, mix = f["recon"] * w, f["mix"]
     d_mm = desc.l1_matrix(m, m)
-    d_pm = desc.l1_matrix(p, m)
-    x = np.where(f["mix"][:, None], p, m)
+    # cloud-mesh pairs: the nearest of the store's comparisons (query.engine)
+    d_pm = np.minimum(desc.l1_matrix(p, m), desc.l1_matrix(r, m))
+    x = np.where(mix[:, None], p, m)
     d_xx = desc.l1_matrix(x, x)
-    if views:  # a pair with a cloud side: the nearer of the mesh's feature and view
+    one = mix[:, None] != mix[None, :]
+    d_rx = desc.l1_matrix(np.where(mix[:, None], r, m), x)
+    d_xx = np.where(one, np.minimum(d_xx, np.minimum(d_rx, d_rx.T)), d_xx)
+    if views:  # and the cloud against the mesh's view
         d_pm = np.minimum(d_pm, desc.l1_matrix(p, v))
-        y = np.where(f["mix"][:, None], p, v)
-        either = f["mix"][:, None] | f["mix"][None, :]
-        d_xx = np.where(either, np.minimum(desc.l1_matrix(y, y), d_xx), d_xx)
+        d_xy = desc.l1_matrix(x, np.where(mix[:, None], p, v))
+        d_xx = np.where(one, np.minimum(d_xx, np.minimum(d_xy, d_xy.T)), d_xx)
     s = retrieval_scores(-d_mm, lab)
     return {
         "nn": s["nn"],

@@ -99,6 +99,20 @@ def _mixture_mask(names: Sequence[str]) -> NDArray[np.bool_]:
     return mask
 
 
+def reconstructions(
+    models: Sequence[Any], clouds: list[Balls | None], mdbd: MDBDConfig, *, workers: int = 2
+) -> list[Balls | None]:
+    """Each cloud's kept reconstruction (:mod:`shapedb.reconstruct`), else the cloud itself.
+
+    The cloud itself adds no comparison to the nearest-of rule (``query.engine``).
+    """
+    found = decompose_all(models, "pointcloud_recon", mdbd, workers=workers)
+    return [
+        r if r is not None and c is not None and volumes_agree(c.radii, r.radii) else c
+        for r, c in zip(found, clouds, strict=True)
+    ]
+
+
 def _complete(ds: Dataset, *lists: list[Balls | None]) -> tuple[Dataset, list[list[Balls]]]:
     keep = [i for i in range(len(ds)) if all(lst[i] is not None for lst in lists)]
     if len(keep) < len(ds):
@@ -142,15 +156,7 @@ def run_tables(
     view = mesh
     if view_cells and have_pc:
         view = decompose_all(ds.models, f"view_{view_cells:g}", mdbd, workers=workers)
-    # a cloud's reconstruction (shapedb.reconstruct), where it exists and is kept; else
-    # the cloud itself, which adds no comparison
-    recon: list[Balls | None] = pc
-    if have_pc:
-        found = decompose_all(ds.models, "pointcloud_recon", mdbd, workers=workers)
-        recon = [
-            r if r is not None and c is not None and volumes_agree(c.radii, r.radii) else c
-            for r, c in zip(found, pc, strict=True)
-        ]
+    recon = reconstructions(ds.models, pc, mdbd, workers=workers) if have_pc else pc
     ds, (mesh, pc, view, recon) = _complete(ds, mesh, pc, view, recon)
     labels = ds.labels
     names = [m.name for m in ds.models]
