@@ -35,7 +35,7 @@ from bench.common import (
     write_json,
 )
 from bench.descriptors import l1_matrix
-from bench.retrieval import _mixture_mask, build_sets
+from bench.retrieval import _mixture_mask, build_sets, reconstructions
 from shapedb.config import MDBDConfig
 from shapedb.descriptor import describe
 
@@ -62,6 +62,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         sub = ds.split(args.split)
         m = decompose_all(sub.models, "mesh", mdbd, workers=args.workers, progress=None)
         p = decompose_all(sub.models, "pointcloud", mdbd, workers=args.workers, progress=None)
+        r = reconstructions(sub.models, p, mdbd, workers=args.workers)
         views = {
             c: decompose_all(sub.models, f"view_{c:g}", mdbd, workers=args.workers, progress=None)
             for c in args.cells
@@ -77,17 +78,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         names = [sub.models[i].name for i in keep]
         fm = _features([m[i] for i in keep])  # type: ignore[misc]
         fp = _features([p[i] for i in keep])  # type: ignore[misc]
+        fr = _features([r[i] for i in keep])  # type: ignore[misc]
         mix = _mixture_mask(names)
-        both = (~mix)[:, None] & (~mix)[None, :]
         d_mm = l1_matrix(fm, fm)
         mesh_nn = retrieval_scores(-d_mm, labels)["nn"]
         settings: list[tuple[str, NDArray[np.float64]]] = [("none", fm)]
         settings += [(f"{c:g}", _features([views[c][i] for i in keep])) for c in args.cells]  # type: ignore[misc]
         for name, fv in settings:
-            d_pv = np.minimum(l1_matrix(fp, fv), l1_matrix(fp, fm))  # the nearer (query.engine)
+            # the nearest of the store's comparisons (query.engine)
+            d_pv = np.minimum(np.minimum(l1_matrix(fp, fv), l1_matrix(fp, fm)), l1_matrix(fr, fm))
             fx = np.where(mix[:, None], fp, fm)
-            fy = np.where(mix[:, None], fp, fv)
-            d_mix = np.where(both, d_mm, np.minimum(l1_matrix(fy, fy), l1_matrix(fx, fx)))
+            d_xy = l1_matrix(fx, np.where(mix[:, None], fp, fv))
+            d_rx = l1_matrix(np.where(mix[:, None], fr, fm), fx)
+            one = mix[:, None] != mix[None, :]
+            near = np.minimum(np.minimum(d_xy, d_xy.T), np.minimum(d_rx, d_rx.T))
+            d_mix = np.where(one, np.minimum(l1_matrix(fx, fx), near), l1_matrix(fx, fx))
             res = {
                 "mesh_nn": mesh_nn,
                 "cloud_nn": retrieval_scores(-d_pv, labels)["nn"],
