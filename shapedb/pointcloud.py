@@ -479,8 +479,9 @@ class PointCloud(Geometry):
     def transformed(self, rotation: ArrayLike, translation: ArrayLike) -> PointCloud:
         """This cloud moved by ``x -> rotation @ x + translation`` (a rigid motion).
 
-        Normals move along; when they were already estimated and oriented, the copy
-        reuses them instead of estimating them again.
+        Given normals move along. Estimated ones do not: their orientation is voted on
+        an axis-aligned grid, so the copy estimates its own, and a cloud decomposes
+        alike whether or not its normals were asked for first.
         """
         from shapedb.geometry import rigid
 
@@ -491,8 +492,6 @@ class PointCloud(Geometry):
         out._points = np.ascontiguousarray(self._points @ R.T + t)
         given = self._given_normals
         out._given_normals = None if given is None else np.ascontiguousarray(given @ R.T)
-        if "normals" in self.__dict__:
-            out.__dict__["normals"] = np.ascontiguousarray(self.normals @ R.T)
         if "spacing" in self.__dict__:
             out.__dict__["spacing"] = self.spacing
         return out

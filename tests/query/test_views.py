@@ -328,3 +328,13 @@ def test_a_cloud_decomposes_alike_however_it_was_handled(tmp_path: Path) -> None
         assert first.distance == again.distance == pytest.approx(0.0, abs=1e-5)
     finally:
         _forget(db)
+
+
+def test_asking_for_a_clouds_normals_first_changes_nothing() -> None:
+    cfg = Config().with_options(resolution=32, n_balls=48)
+    mesh = _meshes()["box-a"][1]
+    fresh = features(decompose(_cloud(mesh, "fresh"), config=cfg.mdbd), cfg.kernel)
+    asked = _cloud(mesh, "asked")
+    assert asked.normals.shape == asked.points.shape  # estimated in the model's frame
+    again = features(decompose(asked, config=cfg.mdbd), cfg.kernel)
+    np.testing.assert_allclose(again, fresh, rtol=1e-9, atol=1e-12)  # rounding only
