@@ -122,7 +122,11 @@ def reconstructed(geometry: Geometry, decomposition: Any, config: Any) -> Any:
     # decomposition estimated them, and ``geometry`` keeps no state from this call
     frame = np.asarray(decomposition.frame, dtype=np.float64)
     rotation, centre = frame[:3, :3], frame[:3, 3]
-    surface = reconstruct(geometry.transformed(rotation.T, -rotation.T @ centre))
+    try:
+        surface = reconstruct(geometry.transformed(rotation.T, -rotation.T @ centre))
+    except Exception as exc:  # noqa: BLE001 - a failed solve only costs the second feature
+        log.warning("%s: no reconstruction (%s: %s)", geometry, type(exc).__name__, exc)
+        return None
     if surface is None:
         return None
     try:

@@ -338,3 +338,23 @@ def test_asking_for_a_clouds_normals_first_changes_nothing() -> None:
     assert asked.normals.shape == asked.points.shape  # estimated in the model's frame
     again = features(decompose(asked, config=cfg.mdbd), cfg.kernel)
     np.testing.assert_allclose(again, fresh, rtol=1e-9, atol=1e-12)  # rounding only
+
+
+def test_a_failed_reconstruction_leaves_the_cloud_with_one_feature(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import shapedb.reconstruct as rec
+
+    def boom(cloud: Any, **_: Any) -> None:
+        raise RuntimeError("solver failed")
+
+    monkeypatch.setattr(rec, "reconstruct", boom)
+    cfg = Config().with_options(resolution=32, n_balls=48)
+    db = shapedb.connect(tmp_path / "plain", config=cfg)
+    try:
+        report = db.ingest([_cloud(_meshes()["box-a"][1], "c")], names=["cloud"], workers=1)
+        assert len(report.failed) == 0
+        assert db.get("cloud").view_feature is None
+        assert db.search("cloud", k=1)[0].name == "cloud"
+    finally:
+        _forget(db)
