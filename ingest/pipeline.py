@@ -261,7 +261,7 @@ def _view_feature(geometry: Any, decomposition: Any, config: Config) -> NDArray[
 
     cells = config.kernel.view_cells
     sparse = is_sparse(decomposition.sampling, decomposition.spacing)
-    if not (cells or sparse):
+    if (sparse and not config.kernel.reconstruct) or not (cells or sparse):
         return None
     try:
         if sparse:

@@ -331,7 +331,7 @@ def _from_geometry(db: Any, geometry: Any) -> _Query:
     if sparse:
         from shapedb.reconstruct import reconstructed
 
-        found = reconstructed(geometry, d, config.mdbd)
+        found = reconstructed(geometry, d, config.mdbd) if config.kernel.reconstruct else None
         recon = None if found is None else _featurise(found, config)
         return _Query(_featurise(d, config), True, recon)
 

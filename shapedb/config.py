@@ -193,10 +193,16 @@ class KernelConfig:
         every shape that is not itself a sparse point cloud, the feature of a *sparse
         view*: a point cloud drawn uniformly on its surface, one sample per
         ``view_cells`` grid cells of spacing (:mod:`shapedb.view`). Sparse point-cloud queries and
-        records are then compared with views instead of exact shapes, which removes
-        most of the systematic difference between a sparse cloud's decomposition and
-        its mesh's (issue 6); ingest then costs a point-cloud decomposition more per
-        mesh (about three times the time).
+        records are then also compared with views, which removes most of the
+        systematic difference between a sparse cloud's decomposition and its mesh's
+        (issue 6); ingest then costs a point-cloud decomposition more per mesh (about
+        three times the time).
+    reconstruct : bool
+        True (default): every sparse point cloud, stored or queried, also has the
+        feature of its screened Poisson reconstruction (:mod:`shapedb.reconstruct`),
+        compared with dense shapes' own features; it about doubles a sparse cloud's
+        ingest and query time (dense shapes pay nothing). A stored configuration
+        without this field predates reconstructions and is read as False.
     """
 
     n_r: int = 32
@@ -208,6 +214,7 @@ class KernelConfig:
     method: str = "mdbd"
     descriptor: int = 4
     view_cells: float = 0.0
+    reconstruct: bool = True
 
     def __post_init__(self) -> None:
         _check(
@@ -245,6 +252,9 @@ class KernelConfig:
             "view_cells",
             self.view_cells,
             "must be 0 (no sparse views) or in [2, 16] grid cells",
+        )
+        _check(
+            isinstance(self.reconstruct, bool), "reconstruct", self.reconstruct, "must be a bool"
         )
 
     @property
@@ -371,12 +381,14 @@ class Config:
         A stored kernel configuration without ``method`` predates the default
         descriptor and is read as ``method="paper"``, which is what built it; one
         without ``descriptor`` predates descriptor versions and is read as version 1,
-        and a stored MDBD configuration without ``tie_rule`` as ``tie_rule="first"``.
+        and a stored MDBD configuration without ``tie_rule`` as ``tie_rule="first"``;
+        one without ``reconstruct`` predates reconstructions and is read as False.
         """
         kernel = dict(data.get("kernel", {}))
         if kernel:
             kernel.setdefault("method", "paper")
             kernel.setdefault("descriptor", 1)
+            kernel.setdefault("reconstruct", False)
         mdbd = dict(data.get("mdbd", {}))
         if mdbd:
             mdbd.setdefault("tie_rule", "first")

@@ -358,3 +358,24 @@ def test_a_failed_reconstruction_leaves_the_cloud_with_one_feature(
         assert db.search("cloud", k=1)[0].name == "cloud"
     finally:
         _forget(db)
+
+
+def test_reconstructions_can_be_turned_off_and_old_stores_read_without(tmp_path: Path) -> None:
+    cfg = Config().with_options(resolution=32, n_balls=48, reconstruct=False)
+    db = shapedb.connect(tmp_path / "plain", config=cfg)
+    mesh = _meshes()["box-a"][1]
+    try:
+        db.ingest([mesh, _cloud(mesh, "c")], names=["box", "cloud"], workers=1)
+        assert db.get("cloud").view_feature is None
+        ids, own = db.store.features()
+        query = _cloud(mesh, "q")
+        f = features(decompose(query, config=cfg.mdbd), cfg.kernel)
+        got = {h.id: h.distance for h in db.search(query, k=2)}
+        for sid, d in zip(ids, np.abs(own - f).sum(1), strict=True):  # own features only
+            assert got[int(sid)] == pytest.approx(d, rel=1e-5, abs=1e-6)
+    finally:
+        _forget(db)
+    stored = Config().to_dict()
+    del stored["kernel"]["reconstruct"]  # a store written before reconstructions
+    assert Config.from_dict(stored).kernel.reconstruct is False
+    assert Config().kernel.reconstruct is True
