@@ -299,6 +299,8 @@ def _stored(db: Any, sid: int, index: Any) -> _Query:
         catalog = _catalog(db, index.version_)
         pos = min(int(np.searchsorted(catalog.sparse, sid)), max(len(catalog.sparse) - 1, 0))
         sparse = bool(len(catalog.sparse) and catalog.sparse[pos] == sid)
+        if not (sparse or db.config.kernel.view_cells):
+            return _Query(v)  # a dense shape's second feature is a view: none here
         view = open_index(db, view=True).features_of(sid)  # own feature where none
         return _Query(v, sparse, None if view is None or np.array_equal(view, v) else view)
     columns = ["feature", "sampling", "spacing", "view_feature"]

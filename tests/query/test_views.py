@@ -379,3 +379,16 @@ def test_reconstructions_can_be_turned_off_and_old_stores_read_without(tmp_path:
     del stored["kernel"]["reconstruct"]  # a store written before reconstructions
     assert Config.from_dict(stored).kernel.reconstruct is False
     assert Config().kernel.reconstruct is True
+
+
+def test_a_store_of_meshes_never_builds_a_second_index(tmp_path: Path) -> None:
+    cfg = Config().with_options(resolution=32, n_balls=48)
+    db = shapedb.connect(tmp_path / "meshes", config=cfg)
+    meshes = _meshes()
+    try:
+        db.ingest([meshes["box-a"][1], meshes["disc-a"][1]], names=["box", "disc"], workers=1)
+        assert [h.name for h in db.search("box", k=2)][0] == "box"
+        db.search(meshes["disc-a"][1], k=2)
+        assert not (db.store.path / "index_view").exists()
+    finally:
+        _forget(db)
