@@ -385,25 +385,65 @@ def _search_with_views(
     with_views = bool(db.config.kernel.view_cells)
     for row, q in enumerate(queries):
         lists = [index.search(q.feature[None], k, allowed=allowed)]
-        scope = index.ids_[index.alive_] if allowed is None else np.asarray(allowed)
-        if q.sparse:
-            dense = np.setdiff1d(scope, sparse_ids)
+        if q.sparse:  # against the dense shapes: everything but the sparse ids
             recon = q.view_feature()
-            if len(dense) and recon is not None:
-                lists.append(index.search(recon[None], k, allowed=dense))
-            if len(dense) and with_views:
+            if recon is not None:
+                lists.append(_among(index, recon, k, allowed, sparse_ids, inside=False))
+            if with_views:
                 views = views if views is not None else open_index(db, view=True, metric=metric)
-                lists.append(views.search(q.feature[None], k, allowed=dense))
-        else:
-            sparse = np.intersect1d(scope, sparse_ids)
-            if len(sparse):
-                views = views if views is not None else open_index(db, view=True, metric=metric)
-                lists.append(views.search(q.feature[None], k, allowed=sparse))
-                own_view = q.view_feature() if with_views else None
-                if own_view is not None:
-                    lists.append(index.search(own_view[None], k, allowed=sparse))
+                lists.append(_among(views, q.feature, k, allowed, sparse_ids, inside=False))
+        elif len(sparse_ids):  # against the sparse shapes only
+            views = views if views is not None else open_index(db, view=True, metric=metric)
+            lists.append(_among(views, q.feature, k, allowed, sparse_ids, inside=True))
+            own_view = q.view_feature() if with_views else None
+            if own_view is not None:
+                lists.append(_among(index, own_view, k, allowed, sparse_ids, inside=True))
         out_ids[row], out_d[row] = _nearest(lists, k)
     return out_ids, out_d
+
+
+#: Up to this many ids, a search restricted to them scans them; beyond, the index is
+#: searched unrestricted and the results filtered.
+_SCAN_IDS = 4096
+
+
+def _among(
+    index: Any,
+    vector: NDArray[np.float64],
+    k: int,
+    allowed: NDArray[np.int64] | None,
+    ids: NDArray[np.int64],
+    *,
+    inside: bool,
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """The k nearest of ``vector`` (d,) among ``ids`` (sorted; or all but them), (1, k) each.
+
+    Within ``allowed`` when given. A small set is scanned exactly; a large one (the
+    dense shapes of a store, typically) is searched through the index without a
+    restriction, dropping the other ids and asking for more until k remain.
+    """
+    scope = index.ids_[index.alive_] if allowed is None else np.asarray(allowed)
+    if inside or allowed is not None or len(ids) == 0:
+        subset = np.intersect1d(scope, ids) if inside else np.setdiff1d(scope, ids)
+        if not inside and len(ids) == 0:
+            subset = scope
+        if len(subset) <= _SCAN_IDS or allowed is not None:
+            if not len(subset):
+                return np.full((1, k), -1, np.int64), np.full((1, k), np.inf)
+            return index.search(vector[None], k, allowed=subset)  # type: ignore[no-any-return]
+    want = k
+    while True:  # all but ``ids``, which are few next to the rest
+        got_ids, got_d = index.search(vector[None], want)
+        member = np.isin(got_ids[0], ids)
+        keep = (got_ids[0] >= 0) & (member == inside)
+        if keep.sum() >= k or want >= len(scope):
+            break
+        want = min(2 * want + int(member.sum()), len(scope))
+    out_i = np.full((1, k), -1, np.int64)
+    out_d = np.full((1, k), np.inf)
+    n = min(int(keep.sum()), k)
+    out_i[0, :n], out_d[0, :n] = got_ids[0][keep][:n], got_d[0][keep][:n]
+    return out_i, out_d
 
 
 def _nearest(

@@ -392,3 +392,18 @@ def test_a_store_of_meshes_never_builds_a_second_index(tmp_path: Path) -> None:
         assert not (db.store.path / "index_view").exists()
     finally:
         _forget(db)
+
+
+@pytest.mark.parametrize("query", ["cloud-capsule-b", "capsule-b", "disc-a"])
+def test_filtered_and_scanned_searches_agree(
+    view_db: Any, query: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import query.engine as engine
+
+    n = len(view_db.store.features()[0])
+    scanned = [(h.id, h.distance) for h in view_db.search(query, k=n)]
+    monkeypatch.setattr(engine, "_SCAN_IDS", 0)  # every restriction by filtering
+    filtered = [(h.id, h.distance) for h in view_db.search(query, k=n)]
+    assert filtered == scanned
+    few = [(h.id, h.distance) for h in view_db.search(query, k=2)]
+    assert few == scanned[:2]
