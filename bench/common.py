@@ -11,6 +11,7 @@ They are computed by a pool of worker processes (2 by default).
 from __future__ import annotations
 
 import ast
+import dataclasses
 import functools
 import hashlib
 import json
@@ -191,6 +192,11 @@ VARIANTS = (
     "mesh_decimate",
     "pointcloud_b",
     "pointcloud_recon",
+    "pointcloud_recon_d6",
+    "pointcloud_recon_d7",
+    "pointcloud_turn_0",
+    "pointcloud_turn_1",
+    "pointcloud_turn_2",
     "pointcloud_dense",
     "mesh_subdivide",
     "mesh_turn_0.01",
@@ -200,6 +206,9 @@ VARIANTS = (
 
 #: Axis (unit) of the ``mesh_turn_*`` variants' rotations about the vertex centroid.
 TURN_AXIS = np.array([0.6, 0.64, 0.48])
+
+#: Turn of the ``pointcloud_turn_<axis>`` variants about their frame's axis, degrees.
+CLOUD_TURN_DEGREES = 1.0
 
 #: Surface samples of the ``pointcloud_dense`` variant.
 DENSE_SAMPLES = 20_000
@@ -328,7 +337,7 @@ def engine_version(variant: str | None = None) -> str:
     modules = (
         (*_ENGINE_MODULES, "view") if variant and variant.startswith("view_") else _ENGINE_MODULES
     )
-    if variant == "pointcloud_recon":
+    if variant and variant.startswith("pointcloud_recon"):
         modules = (*modules, "reconstruct")
     for name in modules:
         if name not in skip:
@@ -383,7 +392,11 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
     ``mesh_decimate`` decimated to 25 % of its faces (fast-simplification);
     ``pointcloud_recon`` the screened Poisson surface of the paper's point cloud
     (:func:`shapedb.reconstruct.reconstruct`, decomposed as a mesh; whether it is kept
-    is decided against the cloud's own packing, :func:`shapedb.reconstruct.volumes_agree`);
+    is decided against the cloud's own packing, :func:`shapedb.reconstruct.volumes_agree`),
+    ``pointcloud_recon_d<depth>`` the same at another octree depth;
+    ``pointcloud_turn_<axis>`` the paper's point cloud in its canonical frame turned by
+    :data:`CLOUD_TURN_DEGREES` about that frame axis (0-2) and decomposed without
+    the canonical frame: another packing of the same cloud;
     ``mesh_subdivide`` every triangle split in four at its edge midpoints (the same
     solid, other triangles); ``view_<cells>`` the mesh's sparse view
     (:func:`shapedb.view.view_geometry`, one sample per ``<cells>`` grid cells of its
@@ -399,7 +412,7 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
 
         spacing = _mesh_spacing(model, config)
         return view_geometry(TriangleMesh(v, f, name=model.name), spacing, float(variant[5:]))
-    if variant == "pointcloud_recon":
+    if variant.startswith("pointcloud_recon"):
         from shapedb.frame import canonical_frame
         from shapedb.pointcloud import PointCloud
         from shapedb.reconstruct import reconstruct
@@ -408,10 +421,24 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
         found = canonical_frame(cloud, config)  # as shapedb.reconstruct.reconstructed does
         if found is not None:
             cloud = cloud.transformed(found[0].T, -found[0].T @ found[1])
-        surface = reconstruct(cloud)
+        depth = int(variant.rpartition("_d")[2]) if "_d" in variant else None
+        surface = reconstruct(cloud) if depth is None else reconstruct(cloud, depth=depth)
         if surface is None:
             raise ValueError(f"{model.name}: no reconstruction")
         return surface
+    if variant.startswith("pointcloud_turn_"):
+        from scipy.spatial.transform import Rotation
+
+        from shapedb.frame import canonical_frame
+        from shapedb.pointcloud import PointCloud
+
+        cloud = PointCloud(point_cloud(v, f, seed=stable_seed(model.name, "pointcloud")))
+        found = canonical_frame(cloud, config)
+        if found is not None:
+            cloud = cloud.transformed(found[0].T, -found[0].T @ found[1])
+        axis = np.eye(3)[int(variant.removeprefix("pointcloud_turn_"))]
+        turn = Rotation.from_rotvec(np.deg2rad(CLOUD_TURN_DEGREES) * axis).as_matrix()
+        return cloud.transformed(turn, np.zeros(3))
     if variant in ("pointcloud", "pointcloud_b"):
         from shapedb.pointcloud import PointCloud
 
@@ -468,6 +495,8 @@ def _work(model: Model, variant: str, config: MDBDConfig, path: str) -> tuple[st
     try:
         t0 = time.perf_counter()
         geom = variant_geometry(model, variant, config)
+        if variant.startswith("pointcloud_turn_"):  # the turn is against the canonical frame
+            config = dataclasses.replace(config, canonical_frame=False)
         dec = decompose(geom, config=config)
         seconds = time.perf_counter() - t0
         tmp = path + f".{os.getpid()}.tmp.npz"

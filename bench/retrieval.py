@@ -100,13 +100,18 @@ def _mixture_mask(names: Sequence[str]) -> NDArray[np.bool_]:
 
 
 def reconstructions(
-    models: Sequence[Any], clouds: list[Balls | None], mdbd: MDBDConfig, *, workers: int = 2
+    models: Sequence[Any],
+    clouds: list[Balls | None],
+    mdbd: MDBDConfig,
+    *,
+    workers: int = 2,
+    variant: str = "pointcloud_recon",
 ) -> list[Balls | None]:
     """Each cloud's kept reconstruction (:mod:`shapedb.reconstruct`), else the cloud itself.
 
     The cloud itself adds no comparison to the nearest-of rule (``query.engine``).
     """
-    found = decompose_all(models, "pointcloud_recon", mdbd, workers=workers)
+    found = decompose_all(models, variant, mdbd, workers=workers)
     return [
         r if r is not None and c is not None and volumes_agree(c.radii, r.radii) else c
         for r, c in zip(found, clouds, strict=True)

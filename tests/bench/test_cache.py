@@ -102,3 +102,20 @@ def test_view_variant_is_the_library_view_of_the_cached_mesh(model: Model, cache
     # views depend on shapedb/view.py and the point-cloud code; meshes on neither
     assert common.engine_version("view_4") != common.engine_version("mesh")
     assert common.cache_path(model, "view_4", CONFIG) != common.cache_path(model, "view_5", CONFIG)
+
+
+def test_turned_clouds_are_the_frame_cloud_turned_about_each_axis(model: Model) -> None:
+    from scipy.spatial.transform import Rotation
+
+    turned = [common.variant_geometry(model, f"pointcloud_turn_{k}", CONFIG) for k in range(3)]
+    angle = np.deg2rad(common.CLOUD_TURN_DEGREES)
+    for a in range(3):
+        for b in range(a + 1, 3):
+            # the same cloud, turned about axis a and about axis b: one rotation apart
+            want = Rotation.from_rotvec(angle * np.eye(3)[b]) * Rotation.from_rotvec(
+                -angle * np.eye(3)[a]
+            )
+            got, _ = Rotation.align_vectors(turned[b].points, turned[a].points)
+            assert (got * want.inv()).magnitude() < 1e-9
+    # a turn is about the frame's centroid, whatever the model's own placement
+    np.testing.assert_allclose(turned[0].points.mean(axis=0), 0.0, atol=1e-9)
