@@ -413,32 +413,20 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
         spacing = _mesh_spacing(model, config)
         return view_geometry(TriangleMesh(v, f, name=model.name), spacing, float(variant[5:]))
     if variant.startswith("pointcloud_recon"):
-        from shapedb.frame import canonical_frame
-        from shapedb.pointcloud import PointCloud
-        from shapedb.reconstruct import reconstruct
+        from shapedb.reconstruct import DEPTH, reconstruct
 
-        cloud = PointCloud(point_cloud(v, f, seed=stable_seed(model.name, "pointcloud")))
-        found = canonical_frame(cloud, config)  # as shapedb.reconstruct.reconstructed does
-        if found is not None:
-            cloud = cloud.transformed(found[0].T, -found[0].T @ found[1])
-        depth = int(variant.rpartition("_d")[2]) if "_d" in variant else None
-        surface = reconstruct(cloud) if depth is None else reconstruct(cloud, depth=depth)
+        depth = int(variant.rpartition("_d")[2]) if "_d" in variant else DEPTH
+        # in the cloud's frame, as shapedb.reconstruct.reconstructed does
+        surface = reconstruct(_framed_cloud(model, v, f, config), depth=depth)
         if surface is None:
             raise ValueError(f"{model.name}: no reconstruction")
         return surface
     if variant.startswith("pointcloud_turn_"):
         from scipy.spatial.transform import Rotation
 
-        from shapedb.frame import canonical_frame
-        from shapedb.pointcloud import PointCloud
-
-        cloud = PointCloud(point_cloud(v, f, seed=stable_seed(model.name, "pointcloud")))
-        found = canonical_frame(cloud, config)
-        if found is not None:
-            cloud = cloud.transformed(found[0].T, -found[0].T @ found[1])
         axis = np.eye(3)[int(variant.removeprefix("pointcloud_turn_"))]
         turn = Rotation.from_rotvec(np.deg2rad(CLOUD_TURN_DEGREES) * axis).as_matrix()
-        return cloud.transformed(turn, np.zeros(3))
+        return _framed_cloud(model, v, f, config).transformed(turn, np.zeros(3))
     if variant in ("pointcloud", "pointcloud_b"):
         from shapedb.pointcloud import PointCloud
 
@@ -475,6 +463,18 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
     elif variant != "mesh":
         raise ValueError(f"unknown variant {variant!r}; known: {VARIANTS}")
     return TriangleMesh(v, f, name=model.name)
+
+
+def _framed_cloud(
+    model: Model, v: NDArray[np.float64], f: NDArray[np.int64], config: MDBDConfig
+) -> Any:
+    """The paper's point cloud of ``model``, moved into its canonical frame."""
+    from shapedb.frame import canonical_frame
+    from shapedb.pointcloud import PointCloud
+
+    cloud = PointCloud(point_cloud(v, f, seed=stable_seed(model.name, "pointcloud")))
+    found = canonical_frame(cloud, config)
+    return cloud if found is None else cloud.transformed(found[0].T, -found[0].T @ found[1])
 
 
 def _mesh_spacing(model: Model, config: MDBDConfig) -> float:
