@@ -265,7 +265,9 @@ def _view_feature(geometry: Any, decomposition: Any, config: Config) -> NDArray[
         return None
     try:
         if sparse:
-            found = reconstructed(geometry, decomposition, config.mdbd)
+            found = reconstructed(
+                geometry, decomposition, config.mdbd, depth=config.kernel.reconstruct_depth
+            )
         else:
             view = view_geometry(geometry, decomposition.spacing, cells)
             found = None if view is None else decompose(view, config=config.mdbd)

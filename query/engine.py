@@ -333,7 +333,11 @@ def _from_geometry(db: Any, geometry: Any) -> _Query:
     if sparse:
         from shapedb.reconstruct import reconstructed
 
-        found = reconstructed(geometry, d, config.mdbd) if config.kernel.reconstruct else None
+        found = (
+            reconstructed(geometry, d, config.mdbd, depth=config.kernel.reconstruct_depth)
+            if config.kernel.reconstruct
+            else None
+        )
         recon = None if found is None else _featurise(found, config)
         return _Query(_featurise(d, config), True, recon)
 

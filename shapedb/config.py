@@ -203,6 +203,10 @@ class KernelConfig:
         compared with dense shapes' own features; it about doubles a sparse cloud's
         ingest and query time (dense shapes pay nothing). A stored configuration
         without this field predates reconstructions and is read as False.
+    reconstruct_depth : int
+        Octree depth of the reconstructions' Poisson solve (2^depth cells along the
+        cloud's box at the finest level; default 8; ``python -m bench.cloud_pairs``
+        measures 6 and 7). A stored configuration without this field read as 8.
     """
 
     n_r: int = 32
@@ -215,6 +219,7 @@ class KernelConfig:
     descriptor: int = 4
     view_cells: float = 0.0
     reconstruct: bool = True
+    reconstruct_depth: int = 8
 
     def __post_init__(self) -> None:
         _check(
@@ -255,6 +260,14 @@ class KernelConfig:
         )
         _check(
             isinstance(self.reconstruct, bool), "reconstruct", self.reconstruct, "must be a bool"
+        )
+        _check(
+            isinstance(self.reconstruct_depth, int)
+            and not isinstance(self.reconstruct_depth, bool)
+            and 4 <= self.reconstruct_depth <= 12,
+            "reconstruct_depth",
+            self.reconstruct_depth,
+            "must be an integer in [4, 12]",
         )
 
     @property
@@ -382,13 +395,15 @@ class Config:
         descriptor and is read as ``method="paper"``, which is what built it; one
         without ``descriptor`` predates descriptor versions and is read as version 1,
         and a stored MDBD configuration without ``tie_rule`` as ``tie_rule="first"``;
-        one without ``reconstruct`` predates reconstructions and is read as False.
+        one without ``reconstruct`` predates reconstructions and is read as False,
+        one without ``reconstruct_depth`` as depth 8 (the depth before it was stored).
         """
         kernel = dict(data.get("kernel", {}))
         if kernel:
             kernel.setdefault("method", "paper")
             kernel.setdefault("descriptor", 1)
             kernel.setdefault("reconstruct", False)
+            kernel.setdefault("reconstruct_depth", 8)
         mdbd = dict(data.get("mdbd", {}))
         if mdbd:
             mdbd.setdefault("tie_rule", "first")

@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from shapedb.config import KernelConfig
 from shapedb.errors import ShapeDBError
 from shapedb.geometry import Geometry
 
@@ -40,9 +41,10 @@ __all__ = ["DEPTH", "VOLUME_TOLERANCE", "reconstruct", "reconstructed", "volumes
 
 log = logging.getLogger(__name__)
 
-#: Octree depth of the Poisson solve (2^8 cells along the box at the finest level;
-#: the 20 % clouds have 2,000-5,000 samples).
-DEPTH = 8
+#: Default octree depth of the Poisson solve (2^8 cells along the box at the finest
+#: level; the 20 % clouds have 2,000-5,000 samples); stores record theirs as
+#: ``KernelConfig.reconstruct_depth``.
+DEPTH: int = KernelConfig.reconstruct_depth
 #: Largest ratio between the ball volumes of a cloud's packing and of its
 #: reconstruction's for the reconstruction to count (chosen on the validation
 #: splits: 1.1-1.5 measure the same there; figures and parts sit within 1.07).
@@ -98,7 +100,9 @@ def volumes_agree(radii: np.ndarray, other: np.ndarray) -> bool:
     return 1.0 / VOLUME_TOLERANCE < b / a < VOLUME_TOLERANCE
 
 
-def reconstructed(geometry: Geometry, decomposition: Any, config: Any) -> Any:
+def reconstructed(
+    geometry: Geometry, decomposition: Any, config: Any, *, depth: int = DEPTH
+) -> Any:
     """The kept decomposition of ``geometry``'s reconstruction, or None.
 
     Parameters
@@ -109,6 +113,8 @@ def reconstructed(geometry: Geometry, decomposition: Any, config: Any) -> Any:
         ``geometry``'s own decomposition (its ball volume is the reference).
     config : MDBDConfig
         The decomposition parameters.
+    depth : int
+        Octree depth of the Poisson solve (``KernelConfig.reconstruct_depth``).
 
     Returns
     -------
@@ -123,7 +129,7 @@ def reconstructed(geometry: Geometry, decomposition: Any, config: Any) -> Any:
     frame = np.asarray(decomposition.frame, dtype=np.float64)
     rotation, centre = frame[:3, :3], frame[:3, 3]
     try:
-        surface = reconstruct(geometry.transformed(rotation.T, -rotation.T @ centre))
+        surface = reconstruct(geometry.transformed(rotation.T, -rotation.T @ centre), depth=depth)
     except Exception as exc:  # noqa: BLE001 - a failed solve only costs the second feature
         log.warning("%s: no reconstruction (%s: %s)", geometry, type(exc).__name__, exc)
         return None

@@ -22,6 +22,7 @@ from conftest import _forget
 import shapedb
 from query.evaluate import retrieval_scores
 from shapedb.config import Config
+from shapedb.errors import ConfigError
 from shapedb.kernel import features
 from shapedb.mdbd import decompose
 from shapedb.mesh import TriangleMesh
@@ -379,6 +380,35 @@ def test_reconstructions_can_be_turned_off_and_old_stores_read_without(tmp_path:
     del stored["kernel"]["reconstruct"]  # a store written before reconstructions
     assert Config.from_dict(stored).kernel.reconstruct is False
     assert Config().kernel.reconstruct is True
+
+
+def test_the_stores_poisson_depth_reaches_ingest_and_search(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import shapedb.reconstruct as rec
+
+    depths: list[int] = []
+    solve = rec.reconstruct
+
+    def spy(cloud: Any, *, depth: int = rec.DEPTH) -> Any:
+        depths.append(depth)
+        return solve(cloud, depth=depth)
+
+    monkeypatch.setattr(rec, "reconstruct", spy)
+    cfg = Config().with_options(resolution=32, n_balls=48, reconstruct_depth=6)
+    db = shapedb.connect(tmp_path / "depth", config=cfg)
+    mesh = _meshes()["box-a"][1]
+    try:
+        db.ingest([mesh, _cloud(mesh, "c")], names=["box", "cloud"], workers=1)
+        db.search(_cloud(mesh, "q"), k=1)
+    finally:
+        _forget(db)
+    assert depths == [6, 6]  # the stored cloud, then the query
+    stored = Config().to_dict()
+    del stored["kernel"]["reconstruct_depth"]  # written before the depth was stored
+    assert Config.from_dict(stored).kernel.reconstruct_depth == 8
+    with pytest.raises(ConfigError, match="reconstruct_depth"):
+        Config().with_options(reconstruct_depth=20)
 
 
 def test_a_store_of_meshes_never_builds_a_second_index(tmp_path: Path) -> None:
