@@ -119,17 +119,11 @@ class ShapeClassifier:
         descriptors : (n, d) float
         """
         self._check_fitted()
-        x = np.asarray(descriptors, dtype=np.float64).reshape(-1, self._dim())
+        x = np.asarray(descriptors, dtype=np.float64)
+        x = x.reshape(1, -1) if x.ndim == 1 else x
         if self.needs_graphs and graphs is None:
             raise ConfigError(f"a {self.kind} classifier reads contact graphs: pass them")
         return predict_candidate(self.model_, list(graphs or [None] * len(x)), x)
-
-    def _dim(self) -> int:
-        m = self.model_
-        for attr in ("X_", "mean_", "descriptor_mean_"):
-            if hasattr(m, attr):
-                return int(np.shape(getattr(m, attr))[-1])
-        return -1
 
     def predict(self, graphs: Sequence[Any] | None, descriptors: Any) -> list[str]:
         """Most probable label of each shape."""

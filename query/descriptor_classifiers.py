@@ -205,6 +205,13 @@ class LinearDescriptor(_DescriptorModel):
         return self
 
 
+def _one_thread() -> Any:
+    """OpenMP limited to one thread: on hundreds of shapes, threads only add contention."""
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="openmp")
+
+
 class BoostedDescriptor(_DescriptorModel):
     """Histogram gradient boosting of shallow trees on the descriptors.
 
@@ -246,13 +253,15 @@ class BoostedDescriptor(_DescriptorModel):
 
         x = _matrix(descriptors)
         y = self._labels(x, labels)
-        self.model_ = HistGradientBoostingClassifier(
+        model = HistGradientBoostingClassifier(
             max_iter=self.max_iter,
             learning_rate=self.learning_rate,
             max_leaf_nodes=self.max_leaf_nodes,
             early_stopping=False,
             random_state=self.seed,
-        ).fit(x, y)
+        )
+        with _one_thread():
+            self.model_ = model.fit(x, y)
         self.X_, self.y_ = x, y
         return self
 
@@ -261,7 +270,8 @@ class BoostedDescriptor(_DescriptorModel):
         self._check_fitted()
         x = _matrix(descriptors).reshape(-1, self.X_.shape[1])
         proba = np.zeros((len(x), len(self.classes_)))
-        proba[:, self.model_.classes_] = self.model_.predict_proba(x)
+        with _one_thread():
+            proba[:, self.model_.classes_] = self.model_.predict_proba(x)
         return proba
 
     def state(self) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import pickle
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -482,7 +483,7 @@ class GraphClassifier:
             return cls.from_state(meta, arrays, device=device)
         try:
             state = torch.load(Path(path), map_location="cpu", weights_only=True)
-        except (OSError, RuntimeError, EOFError) as exc:
+        except (OSError, RuntimeError, EOFError, ValueError, pickle.UnpicklingError) as exc:
             raise LoadError(f"cannot read a classifier: {exc}", source=str(path)) from exc
         if not isinstance(state, dict) or state.get("format") != FORMAT:
             raise LoadError(
