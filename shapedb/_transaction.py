@@ -45,12 +45,14 @@ __all__ = [
     "DATA",
     "STAGING",
     "JOURNAL",
+    "REPLACES",
 ]
 
 log = logging.getLogger(__name__)
 
 STAGING = "staging"
 JOURNAL = "journal"
+REPLACES = b"shapedb.replaces"
 
 
 def fsync_dir(path: Path) -> None:
@@ -200,12 +202,25 @@ class Transaction:
         path = self.journal.with_suffix(".files.json") if files else self.journal
         _write_durably(path, json.dumps(entry))
 
-    def stage(self, table: str, t: pa.Table, id_column: str | None) -> dict[str, Any]:
+    def stage(
+        self,
+        table: str,
+        t: pa.Table,
+        id_column: str | None,
+        *,
+        replaces: list[str] = (),  # type: ignore[assignment]
+    ) -> dict[str, Any]:
         """Write ``t`` as a new segment of ``table``; returns its manifest entry.
 
         The entry records the file's size (``bytes``) and ``sha256``, which
-        ``shapedb check`` verifies.
+        ``shapedb check`` verifies. ``replaces`` (segments this one supersedes, after a
+        deletion or compaction) is written into the file's metadata
+        (``shapedb.replaces``), so ``shapedb repair`` never resurrects deleted rows.
         """
+        if replaces:
+            meta = dict(t.schema.metadata or {})
+            meta[REPLACES] = json.dumps(sorted(replaces)).encode()
+            t = t.replace_schema_metadata(meta)
         if not self._staged and not self.journal.exists():
             self._journal([])  # before anything is written: the staging folder is ours
         self.stage_dir.mkdir(parents=True, exist_ok=True)

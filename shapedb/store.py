@@ -553,8 +553,8 @@ class Store:
                     continue
                 rest = t.filter(pc.invert(mask))
                 txn.retire([seg["file"]])
-                if rest.num_rows:
-                    kept.append(txn.stage(table, rest, col))
+                # even when empty: the new file says which one it replaces (for repair)
+                kept.append(txn.stage(table, rest, col, replaces=[seg["file"]]))
             txn.tables[table] = kept
 
     def _read_segment(self, seg: dict[str, Any], table: str, dim: int) -> pa.Table:
@@ -617,8 +617,9 @@ class Store:
             for table in todo:
                 col = "id" if table == "shapes" else "shape_id"
                 t = self._read(table, snapshot=snap).sort_by(col)
-                txn.retire([s["file"] for s in snap.segments(table)])
-                txn.tables[table] = [txn.stage(table, t, col)] if t.num_rows else []
+                files = [s["file"] for s in snap.segments(table)]
+                txn.retire(files)
+                txn.tables[table] = [txn.stage(table, t, col, replaces=files)]
             return CommitResult(version=txn.publish())
 
 

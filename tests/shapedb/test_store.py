@@ -223,7 +223,8 @@ def test_delete_is_copy_on_write(tmp_store: Store) -> None:
     for f in before:  # retired, still readable by older readers
         assert Path(f).exists()
     assert tmp_store.delete([1, 3]) == 2 and len(tmp_store) == 0
-    assert tmp_store.files("shapes") == []
+    # an emptied segment is replaced by an empty one that names it (shapedb repair)
+    assert [pq.read_table(f).num_rows for f in tmp_store.files("shapes")] == [0]
     # ids are never reused
     assert tmp_store.add([make_record("d")])[0].id == 4
 
