@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 
 from shapedb.errors import ConfigError, NotFoundError, QueryError, ShapeDBError
 
-__all__ = ["Hit", "search", "search_batch", "query_features"]
+__all__ = ["Hit", "search", "search_batch", "query_features", "checked_k", "MAX_K"]
 
 log = logging.getLogger(__name__)
 
@@ -147,14 +147,14 @@ def search_batch(
             raise QueryError(
                 "search_batch expects a sequence of queries", source=type(queries).__name__
             )
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
-        raise QueryError("k must be a positive integer", source=f"k={k!r}")
+    k = checked_k(k)
     learned = as_metric(metric)
     if learned is not None:
         learned.check(db.config)
     if not len(queries):
         return []
     index = open_index(db, metric=learned)
+    k = min(k, max(len(index.ids_), 1))  # never more rows than the store holds
     resolved = [_resolve(db, q, index) for q in queries]
     allowed = None
     if where is not None:
@@ -184,6 +184,26 @@ def search_batch(
             hits.append(Hit(int(i), entry[0], entry[1], float(np.exp(-lam * d)), float(d)))
         out.append(hits)
     return out
+
+
+MAX_K = 1_000_000_000
+"""Largest ``k`` a search accepts (k above the store's size is capped at it)."""
+
+
+def checked_k(k: Any) -> int:
+    """``k`` as an int, or :class:`QueryError` when it is not an integer in [1, MAX_K].
+
+    Callers then cap it at the number of stored shapes, so a large ``k`` never
+    allocates more than the store's size.
+    """
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+        raise QueryError("k must be a positive integer", source=f"k={k!r}")
+    if k > MAX_K:
+        raise QueryError(
+            f"k is too large: at most {MAX_K:,} (results are capped at the store's size anyway)",
+            source=f"k={k!r}",
+        )
+    return int(k)
 
 
 def query_features(db: Any, query: Any, *, index: Any = None) -> NDArray[np.float64]:
