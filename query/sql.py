@@ -340,7 +340,7 @@ def _one_expression(statement: str, where: str) -> None:
     con = duckdb.connect(":memory:")
     try:
         got, want = (
-            json.loads(con.execute("SELECT json_serialize_sql(?)", [s]).fetchone()[0])
+            json.loads(con.execute("SELECT json_serialize_sql(?)", [s]).fetchone()[0])  # type: ignore[index]
             for s in (statement, _TEMPLATE)
         )
     finally:
