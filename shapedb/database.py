@@ -126,7 +126,13 @@ def connect(
                 source=str(root),
             )
     elif create:
-        store = Store.create(root, requested, lock_timeout=lock_timeout)
+        try:
+            store = Store.create(root, requested, lock_timeout=lock_timeout)
+        except StoreError:
+            if not Store.exists(root):
+                raise
+            # another process created it first: open it (and compare configurations)
+            return connect(root, create=False, config=config, lock_timeout=lock_timeout, **options)
     else:
         raise StoreError("no shapedb store here", source=str(root))
     return Database(store)

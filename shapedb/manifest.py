@@ -177,7 +177,9 @@ def require_empty(root: Path, *, ignore: tuple[str, ...] = ()) -> None:
     if (root / MANIFEST).exists():
         raise StoreError("a store already exists here", source=str(root))
     entries = sorted(p.name for p in root.iterdir() if p.name not in ignore)
-    if DATA in entries:
+    if DATA in entries or (
+        DATA in ignore and (root / DATA).is_dir() and any((root / DATA).rglob("*.parquet"))
+    ):
         read_manifest(root)  # raises: data/ without a manifest names the way to repair
     if entries:
         raise StoreError(

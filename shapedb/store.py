@@ -179,10 +179,12 @@ class Store:
         root = Path(path).absolute()
         if root.exists() and not root.is_dir():
             raise StoreError("exists and is not a directory", source=str(root))
-        require_empty(root, ignore=(_LOCK,))
+        # before the lock: refuse a foreign folder without leaving a lock file in it;
+        # what a concurrent creator may have written so far is checked under the lock
+        require_empty(root, ignore=(_LOCK, DATA, MANIFEST, "journal", "staging"))
         root.mkdir(parents=True, exist_ok=True)
         lock = FileLock(root / _LOCK)
-        lock.acquire(float(kwargs.get("lock_timeout", 0.0)), source=str(root))
+        lock.acquire(max(float(kwargs.get("lock_timeout", 0.0)), 5.0), source=str(root))
         try:  # under the lock: a second creator sees this store, or an empty folder
             require_empty(root, ignore=(_LOCK,))
             for t in TABLES:

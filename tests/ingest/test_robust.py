@@ -140,3 +140,18 @@ def test_ingest_into_a_folder_that_is_not_a_store_is_refused(tmp_path: Path) -> 
         database.connect(folder)
     assert [p.name for p in folder.iterdir()] == ["thesis.tex"]
     shutil.rmtree(folder)
+
+
+def test_ingest_into_a_store_without_its_manifest_changes_nothing(tmp_db, tmp_path: Path) -> None:
+    """Issue 24, case 1, as the issue ran it: rm manifest.json; ingest --db base."""
+    from shapedb.errors import StoreError
+
+    tmp_db.ingest([_write_obj(tmp_path / "a.obj")], workers=1)
+    root = tmp_db.store.path
+    files = sorted(root.rglob("*.parquet"))
+    (root / "manifest.json").unlink()
+    with pytest.raises(StoreError, match="manifest.json is missing.*shapedb repair"):
+        database.connect(root).ingest(
+            [_write_obj(tmp_path / "b.obj", trimesh.creation.icosphere())]
+        )
+    assert sorted(root.rglob("*.parquet")) == files

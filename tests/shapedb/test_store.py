@@ -463,3 +463,33 @@ def test_plain_duckdb_reads_through_the_manifest(
         )
     assert con.sql("SELECT id, name FROM shapes").fetchall() == [(2, "b")]
     assert con.sql("SELECT count(*) FROM balls").fetchall() == [(6,)]
+
+
+def test_two_creators_never_mix_configurations(tmp_path: Path) -> None:
+    """Issue 24, case 3: connect(p, resolution=a) and (p, resolution=b) at the same moment."""
+    import shapedb.database as database
+    from shapedb.implicit import Sphere
+
+    for run in range(8):
+        path = tmp_path / f"race{run}"
+        outcome: dict[int, str] = {}
+        start = threading.Barrier(2)
+
+        def create(resolution: int) -> None:
+            start.wait()
+            try:
+                db = database.connect(path, resolution=resolution, n_balls=16)
+                db.ingest([(f"s{resolution}", Sphere((0.0, 0.0, 0.0), 0.5))], workers=1)
+                outcome[resolution] = "ok"
+            except (ConfigError, StoreError) as exc:
+                outcome[resolution] = type(exc).__name__
+
+        threads = [threading.Thread(target=create, args=(r,)) for r in (16, 20)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        assert sorted(outcome.values()).count("ok") == 1, outcome
+        store = Store.open(path)
+        configs = set(store.shapes(["config"]).column("config").to_pylist())
+        assert configs == {store.config.to_json()}
