@@ -98,17 +98,28 @@ def _reader(path: str, stop: Any, start: Any, out: Any, seed: int) -> None:
     out.put({"samples": samples, "errors": errors, "lost": lost})
 
 
-def _writer(path: str, files: list[str], batch: int, timeout: float, out: Any, name: str) -> None:
+def _writer(
+    path: str, files: list[str], batch: int, timeout: float, out: Any, name: str, holding: Any
+) -> None:
     import shapedb.database as database
 
     db = database.connect(path, create=False, lock_timeout=timeout)
     t0 = time.time()
+
+    locked: list[float] = []
+
+    def progress(done: int, total: int) -> None:
+        if not locked:  # called first with the lock held, before any work
+            locked.append(time.time())
+            holding.set()
+
     try:
-        report = db.ingest(files, workers=1, batch_size=batch)
+        report = db.ingest(files, workers=1, batch_size=batch, progress=progress)
         out.put(
             {
                 "name": name,
                 "start": t0,
+                "locked": locked[0] if locked else None,
                 "end": time.time(),
                 "ingested": len(report.ingested),
                 "failed": len(report.failed),
@@ -176,12 +187,17 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     procs, start, out = _readers(path, args.readers, stop, 200)
     start.wait()
     wout = ctx.Queue()
-    w1 = ctx.Process(target=_writer, args=(path, first, args.batch, 0.0, wout, "writer 1"))
-    w1.start()
-    time.sleep(1.0)  # writer 1 holds the lock by now (it takes it before hashing)
-    w2 = ctx.Process(target=_writer, args=(path, second, args.batch, args.limit, wout, "writer 2"))
-    w2.start()
+    holding1, holding2 = ctx.Event(), ctx.Event()
     t_start = time.time()
+    w1 = ctx.Process(
+        target=_writer, args=(path, first, args.batch, args.limit, wout, "writer 1", holding1)
+    )
+    w1.start()
+    holding1.wait(args.limit)  # writer 2 starts once writer 1 holds the lock
+    w2 = ctx.Process(
+        target=_writer, args=(path, second, args.batch, args.limit, wout, "writer 2", holding2)
+    )
+    w2.start()
     writers: list[dict[str, Any]] = []
     while len(writers) < 2 and time.time() - t_start < args.limit:
         try:
@@ -200,7 +216,6 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     found = len(database.connect(path, create=False).store)
     report = check(path)
     w2r = by_name.get("writer 2", {})
-    w1r = by_name.get("writer 1", {})
     return {
         "readers": args.readers,
         "base": len(base.ingested),
@@ -210,7 +225,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "during_writes": during,
         "writers": writers,
         "writer2_waited_s": (
-            max(0.0, w1r.get("end", 0.0) - w2r.get("start", 0.0)) if w1r and w2r else None
+            w2r["locked"] - w2r["start"] if w2r.get("locked") and w2r.get("start") else None
         ),
         "rows_expected": expected,
         "rows_found": found,
