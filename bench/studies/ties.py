@@ -15,7 +15,7 @@ the default descriptor: mesh-mesh NN / 1-T / DCG, cloud queries against the mesh
 database (own mesh left out) and the even mixture, their gaps to mesh-mesh, and the
 mean kernel between a mesh and its own cloud.
 
-Usage: ``python -m bench.ties [--ties 0 0.5 1 2] [--split validation] [--workers 2]``.
+Usage: ``python -m bench.studies.ties [--ties 0 0.5 1 2] [--split validation] [--workers 2]``.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from bench.common import Balls, decompose_all, format_table, retrieval_scores, w
 from bench.datasets import articulated, capod, parts, stable_seed
 from shapedb.config import KernelConfig, MDBDConfig
 
-OUT = Path(__file__).resolve().parent / "results" / "ties.json"
+OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "ties.json"
 COLUMNS = (
     "set", "tie_cells", "mesh NN", "mesh 1-T", "mesh DCG", "pc->mesh NN", "mixture NN",
     "worst gap", "k(mesh, own pc)", "s/model",
