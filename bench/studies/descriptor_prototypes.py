@@ -1,5 +1,12 @@
 """Descriptor prototypes and stability, beside the paper's kernel and D2.
 
+Run through the retrieval bench, whose data sets and options they share (it imports
+this module; this module never imports it)::
+
+    python -m bench.retrieval --descriptors     # run_descriptors
+    python -m bench.retrieval --stability       # run_stability
+    python -m bench.retrieval --refine-shift    # run_refine_shift
+
 ``run_descriptors``
     Every block of :mod:`bench.studies.descriptors` alone and in combinations, on the
     validation split (mesh vs mesh retrieval and point-cloud queries against the mesh
@@ -13,7 +20,6 @@
 
 from __future__ import annotations
 
-import sys
 import time
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -28,7 +34,7 @@ from bench.features import kernel_features, reconstructions
 from bench.studies import descriptors as desc
 from shapedb.config import KernelConfig, MDBDConfig
 
-__all__ = ["CANDIDATES", "main", "run_descriptors", "run_refine_shift", "run_stability"]
+__all__ = ["CANDIDATES", "run_descriptors", "run_refine_shift", "run_stability"]
 
 #: Hand-made combinations (equal weights after scaling each block by its median distance).
 CANDIDATES: dict[str, tuple[str, ...]] = {
@@ -313,22 +319,3 @@ def run_refine_shift(
         )
     )
     return out
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run the prototype study through ``bench.retrieval``'s data sets and options.
-
-    ``python -m bench.studies.descriptor_prototypes [--stability] [--refine-shift]
-    [retrieval options]`` is ``python -m bench.retrieval --descriptors ...``: the
-    descriptor prototypes unless ``--stability`` or ``--refine-shift`` is given.
-    """
-    from bench.retrieval import main as retrieval_main
-
-    args = list(sys.argv[1:] if argv is None else argv)
-    if not {"--stability", "--refine-shift", "-h", "--help"} & set(args):
-        args.append("--descriptors")
-    return retrieval_main(args)
-
-
-if __name__ == "__main__":
-    sys.exit(main())
