@@ -28,12 +28,8 @@ and among those the most regularised one within one standard error of the best i
 chosen. When nothing passes, the metric is the identity and says so (``learned``
 False): on a store whose classes the default already separates, fitting is harmless.
 
-Measured in ``bench/metric.py`` (fitted on one split, scored on the other, both ways
-round): the articulated figures (classes are subjects, every pose one body plan)
-gain most (test split NN / 1-T / DCG 0.979 / 0.803 / 0.948 -> 1.000 / 0.944 /
-0.991; cloud queries against a store with views 0.928 -> 0.985); the parts gain first
-tier and margins; CAPOD keeps the default (fitted on validation) or takes a mild
-weighting that moves no NN (fitted on test). See README.
+What a fit gains on the labelled sets is measured by ``python -m bench.metric``
+(``docs/results.md``, "Learned metric").
 """
 
 from __future__ import annotations

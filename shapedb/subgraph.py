@@ -33,8 +33,7 @@ therefore ``[Eq. 1 (2 n_r) | size block (n_r) | centre block (2)]``:
   on. A whole-model part has no centre and uses its largest ball.
 
 The weights were chosen on a validation subset of ``bench.parts`` (see
-:class:`PartConfig`). Most of the gain there comes from the centre ball's size
-relative to the shape (the bench reports that ball-size-only reference too).
+:class:`PartConfig`; measured in ``docs/results.md``, "Part search and matching").
 
 A part identical to another *relative to its shape* (same balls over the same R)
 still has the same vector and scores 1.0; a copy of a subgraph embedded in a shape
