@@ -96,7 +96,9 @@ def summarise(rows: list[dict]) -> dict:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.studies.agreement", description=__doc__.splitlines()[0]
+    )
     ap.add_argument("--per-class", type=int, default=2)
     ap.add_argument("--resolution", type=int, default=64)
     ap.add_argument("--out", type=Path, default=OUT)

@@ -132,7 +132,9 @@ def measure_set(name: str, split: str, n: int, workers: int) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.studies.chaos", description=__doc__.split("\n", 1)[0]
+    )
     ap.add_argument("--n", type=int, default=12, help="models per set")
     ap.add_argument("--split", default="validation")
     ap.add_argument("--sets", nargs="+", default=list(SETS), choices=list(SETS))

@@ -76,7 +76,9 @@ def measure(mesh: list[Balls], pc: list[Balls], labels: np.ndarray, names: list[
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.studies.ties", description=__doc__.splitlines()[0]
+    )
     ap.add_argument("--ties", type=float, nargs="+", default=[0.0, 0.75, 1.5])
     ap.add_argument("--split", default="validation", choices=("validation", "test", "all"))
     ap.add_argument("--datasets", nargs="+", default=["capod", "articulated", "parts"])
