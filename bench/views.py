@@ -1,4 +1,4 @@
-"""Issue 6: the sparse views' spacing (``KernelConfig.view_cells``), chosen on validation.
+"""Issue 6: the sparse views' spacing (``CloudConfig.view_cells``), chosen on validation.
 
 Usage (from the repository root)::
 

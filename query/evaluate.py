@@ -314,7 +314,7 @@ def evaluate(
 
         from shapedb.kernel import weights
 
-        w = weights(db.config.kernel)
+        w = weights(db.config)
         if learned is not None:
             w = w * learned.dim_weights()
         xw = x * w

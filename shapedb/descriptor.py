@@ -45,7 +45,7 @@ macros compute) and scaled so that a typical pair of unrelated shapes is at
 distance ln(10), i.e. has similarity exp(-d) of about 0.1 with ``lam = 1`` (CAPOD
 and the parts: 0.05-0.06 between classes; the jointed figures, all one body plan, 0.33).
 
-Versions (``KernelConfig.descriptor``; a store records the version its features were
+Versions (``DescriptorConfig.version``; a store records the version its features were
 computed with, and refuses to mix them):
 
 * **4** (default): version 3 with the Eq. 1 block's walk averages ``P_1..P_32``
@@ -173,7 +173,7 @@ LAYOUTS: dict[int, Layout] = {
     )
     + (("geodesic", 48, 0.383, 2.0), ("geodesic_mean", 30, 0.0752, 1.0)),
 }
-#: The default version (``KernelConfig().descriptor``).
+#: The default version (``DescriptorConfig().version``).
 VERSION: int = 4
 BLOCKS: Layout = LAYOUTS[VERSION]
 

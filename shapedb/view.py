@@ -8,7 +8,7 @@ into a systematic difference (about 15 % fewer exact contacts; issue 6 and
 alike: on the test splits, clouds against clouds retrieve nearly as well as meshes
 against meshes, clouds against meshes 0.08-0.11 NN worse.
 
-So a store built with ``KernelConfig(view_cells=s)`` keeps, for every shape that is
+So a store built with ``CloudConfig(view_cells=s)`` keeps, for every shape that is
 not itself a sparse cloud, a second feature: that of a cloud drawn uniformly by area
 on its surface (a mesh's faces; for other representations the marching-cubes surface
 of their grid SDF) with one sample per ``s`` grid cells of spacing
@@ -95,7 +95,7 @@ def view_geometry(geometry: Geometry, spacing: float, view_cells: float) -> Geom
     spacing : float
         Grid cell size of ``geometry``'s own decomposition, model units.
     view_cells : float
-        Sample spacing of the view, in grid cells (``KernelConfig.view_cells``).
+        Sample spacing of the view, in grid cells (``CloudConfig.view_cells``).
 
     Returns
     -------

@@ -97,7 +97,8 @@ def ingest(args: argparse.Namespace) -> int:
 
 def info(args: argparse.Namespace) -> int:
     """``shapedb info``."""
-    summary = existing_store(args.db).info()
+    db = existing_store(args.db)
+    summary = db.info()
     if args.json:
         print_json(summary)
         return 0
@@ -107,8 +108,8 @@ def info(args: argparse.Namespace) -> int:
     print(f"labels:   {len(labels)}" + (":" if labels else ""))
     for name, count in labels.items():
         print(f"  {count:6d}  {name}")
-    mdbd, kernel = summary["config"]["mdbd"], summary["config"]["kernel"]
-    print("config:   " + ", ".join(f"{k}={v}" for k, v in {**mdbd, **kernel}.items()))
+    options = db.config.options()
+    print("config:   " + ", ".join(f"{k}={v}" for k, v in options.items()))
     print(f"failures: {len(summary['failures'])}")
     for f in summary["failures"]:
         print(f"  {f['path']}: {f['error']}")
