@@ -8,7 +8,7 @@ minute. The baseline is one worker in this process, measured in the same run.
                            [--no-dask] [--resolution N] [--balls N] [--views CELLS]
 
 Prints a table and writes bench/results/ingest.json. ``--views CELLS`` adds a run
-into a store that keeps sparse views (``KernelConfig.view_cells``): its CPU seconds per
+into a store that keeps sparse views (``CloudConfig.view_cells``): its CPU seconds per
 model against the runs without are the views' cost.
 """
 

@@ -11,7 +11,7 @@ unlearned default; then the other way round (fitted on the larger test split, sc
 on validation), so that a choice that only one split favours shows. Two store layouts: meshes only, and meshes with their sparse
 views (``view_cells = 4``; each mesh's view is one more query during the fit, and a
 pair with a cloud side is as far apart as the nearer of the mesh's own feature and
-view, as ``KernelConfig.view_cells`` compares them). Rows:
+view, as ``CloudConfig.view_cells`` compares them). Rows:
 meshes NN / 1-T / DCG, point-cloud queries (20 % of the vertices) against the mesh
 database, the even mixture, and the mean log margin ``log(d(nearest same class) /
 d(nearest other class))`` of mesh and cloud queries (lower is better). Results go to
@@ -43,7 +43,7 @@ from bench.datasets import Dataset
 from bench.features import complete, kernel_features, l1_matrix, mixture_mask, reconstructions
 from bench.retrieval import build_sets
 from query.metric import LearnedMetric, block_layout, fit_metric
-from shapedb.config import KernelConfig, MDBDConfig
+from shapedb.config import Config, KernelConfig, MDBDConfig
 
 RESULTS = Path(__file__).resolve().parent / "results"
 VIEW_CELLS = 4.0
@@ -139,7 +139,7 @@ def _direction(
 def run(sets: Sequence[Dataset], mdbd: MDBDConfig, workers: int) -> dict[str, Any]:
     """Per set, direction and store layout: fit on one split, score on the other."""
     cfg = KernelConfig()
-    blocks = block_layout(cfg)
+    blocks = block_layout(Config(kernel=cfg))
     out: dict[str, Any] = {}
     for ds in sets:
         feats = {

@@ -92,7 +92,7 @@ def run_tables(
 
     With ``view_cells`` the meshes' sparse views (:mod:`shapedb.view`) are decomposed
     too, and the cloud-query and mixture rows are repeated as a store with
-    ``KernelConfig(view_cells=...)`` compares. Cloud-mesh pairs of shapedb's rows
+    ``CloudConfig(view_cells=...)`` compares. Cloud-mesh pairs of shapedb's rows
     follow the store's rule (``query.engine``): the nearest of the own features, the
     cloud against the mesh's view (views rows) and the cloud's reconstruction against
     the mesh (``shapedb.reconstruct``, variant ``pointcloud_recon``). The paper

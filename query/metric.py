@@ -48,7 +48,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import minimize
 from scipy.spatial.distance import cdist
 
-from shapedb.config import KernelConfig
+from shapedb.config import Config
 from shapedb.errors import ConfigError, LoadError, QueryError
 
 __all__ = ["LearnedMetric", "block_layout", "fit_metric", "fit_store_metric", "as_metric"]
@@ -65,18 +65,20 @@ MAX_SHAPES = 1000
 FORMAT = "shapedb-metric/1"
 
 
-def block_layout(config: KernelConfig) -> tuple[tuple[str, int], ...]:
+def block_layout(config: Config) -> tuple[tuple[str, int], ...]:
     """The blocks of a configuration's feature vector: ``((name, length), ...)``.
 
     Method "mdbd": the blocks of :data:`shapedb.descriptor.LAYOUTS` of its version;
     method "paper": ``p0`` (the representatives' r/r1) and ``walk`` (their walk
     averages), ``n_r`` each.
     """
-    if config.method == "mdbd":
+    if config.kernel.method == "mdbd":
         from shapedb.descriptor import LAYOUTS
 
-        return tuple((name, int(size)) for name, size, _, _ in LAYOUTS[config.descriptor])
-    return (("p0", int(config.n_r)), ("walk", int(config.n_r)))
+        layout = LAYOUTS[config.descriptor.version]
+        return tuple((name, int(size)) for name, size, _, _ in layout)
+    n_r = int(config.kernel.n_r)
+    return (("p0", n_r), ("walk", n_r))
 
 
 @dataclass(frozen=True)
@@ -593,7 +595,7 @@ def _final_weights(pairs: _Pairs, chosen: float | None, temperature: float) -> N
 def fit_store_metric(db: Any, *, label: str = "label", **options: Any) -> LearnedMetric:
     """``db.fit_metric``: :func:`fit_metric` on a store's labelled shapes.
 
-    In a store with sparse views (``KernelConfig.view_cells``) the pairs follow the
+    In a store with sparse views (``CloudConfig.view_cells``) the pairs follow the
     search's rule and each dense shape's view is one more query (see
     :func:`fit_metric`). A store with more than ``max_shapes`` labelled shapes is
     sampled by class before any feature is read. ``options`` go to :func:`fit_metric`
@@ -610,13 +612,13 @@ def fit_store_metric(db: Any, *, label: str = "label", **options: Any) -> Learne
         pick = _sample_by_class(labels, max_shapes, np.random.default_rng(options.get("seed", 0)))
         ids, labels = ids[pick], labels[pick]
     config = db.config
-    views_kept = bool(config.kernel.view_cells)
+    views_kept = bool(config.cloud.view_cells)
     columns = ["id", "feature", "view_feature"] if views_kept else ["id", "feature"]
     table = db.store.shapes(columns, ids=ids.tolist())
     found = table.column("id").to_numpy()
     pos = np.searchsorted(ids, found)  # a commit may have deleted some meanwhile
     labels = labels[pos]
-    w = np.asarray(kernel_weights(config.kernel), np.float64)
+    w = np.asarray(kernel_weights(config), np.float64)
     feats = np.asarray(table.column("feature").to_pylist(), np.float64).reshape(len(found), -1)
     views = sparse = None
     if views_kept:
@@ -635,7 +637,7 @@ def fit_store_metric(db: Any, *, label: str = "label", **options: Any) -> Learne
     return fit_metric(
         feats * w,
         labels,
-        blocks=block_layout(config.kernel),
+        blocks=block_layout(config),
         views=views,
         sparse=sparse,
         fingerprint=config.fingerprint,

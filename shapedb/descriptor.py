@@ -40,7 +40,7 @@ The whole vector is compared with plain L1 (what the faiss index and the SQL
 macros compute) and scaled so that a typical pair of unrelated shapes is at
 distance ln(10), i.e. has similarity exp(-d) of about 0.1 with ``lam = 1``.
 
-Versions (``KernelConfig.descriptor``; a store records the version its features were
+Versions (``DescriptorConfig.version``; a store records the version its features were
 computed with, and refuses to mix them). Weights and typical distances per version
 are :data:`LAYOUTS`:
 
@@ -116,7 +116,7 @@ LAYOUTS: dict[int, Layout] = {
     )
     + (("geodesic", 48, 0.383, 2.0), ("geodesic_mean", 30, 0.0752, 1.0)),
 }
-#: The default version (``KernelConfig().descriptor``).
+#: The default version (``DescriptorConfig().version``).
 VERSION: int = 4
 BLOCKS: Layout = LAYOUTS[VERSION]
 

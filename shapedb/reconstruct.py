@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from shapedb.config import KernelConfig
+from shapedb.config import CloudConfig
 from shapedb.errors import ShapeDBError
 from shapedb.geometry import Geometry
 
@@ -36,8 +36,8 @@ log = logging.getLogger(__name__)
 
 #: Default octree depth of the Poisson solve (2^8 cells along the box at the finest
 #: level; the 20 % clouds have 2,000-5,000 samples); stores record theirs as
-#: ``KernelConfig.reconstruct_depth``.
-DEPTH: int = KernelConfig.reconstruct_depth
+#: ``CloudConfig.reconstruct_depth``.
+DEPTH: int = CloudConfig.reconstruct_depth
 #: Largest ratio between the ball volumes of a cloud's packing and of its
 #: reconstruction's for the reconstruction to count (chosen on the validation
 #: splits; ``docs/results.md``, "Reconstructions").
@@ -107,7 +107,7 @@ def reconstructed(
     config : MDBDConfig
         The decomposition parameters.
     depth : int
-        Octree depth of the Poisson solve (``KernelConfig.reconstruct_depth``).
+        Octree depth of the Poisson solve (``CloudConfig.reconstruct_depth``).
 
     Returns
     -------

@@ -55,7 +55,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
-from shapedb.config import PartConfig, with_options
+from shapedb.config import PartConfig
 from shapedb.errors import ConfigError, InvalidShapeError
 from shapedb.graph import ContactGraph
 
@@ -79,18 +79,26 @@ _CHUNK_NODES = 65_536  # disjoint unions are featurised this many nodes at a tim
 def part_config(config: PartConfig | None = None, **options: Any) -> PartConfig:
     """A :class:`PartConfig`, ``config`` (default ``PartConfig()``) with ``options`` applied.
 
+    Options are :class:`PartConfig` fields or fields of its kernel (``n_r``, ``la``...,
+    :meth:`PartConfig.with_options`); None values are ignored.
+
     Raises
     ------
     ConfigError
         For an unknown option name or an out-of-range value.
     """
     options = {k: v for k, v in options.items() if v is not None}
-    return with_options(PartConfig, config, options, what="part")
+    cfg = config if config is not None else PartConfig()
+    if not isinstance(cfg, PartConfig):
+        raise ConfigError(f"config must be a PartConfig, got {type(cfg).__name__}")
+    return cfg.with_options(**options)
 
 
 def part_dim(cfg: PartConfig) -> int:
     """Length of a part vector: 2 n_r, plus n_r with the size block, plus 2 with the centre."""
-    return 2 * cfg.n_r + (cfg.n_r if cfg.size > 0 else 0) + (2 if cfg.centre > 0 else 0)
+    return (
+        2 * cfg.kernel.n_r + (cfg.kernel.n_r if cfg.size > 0 else 0) + (2 if cfg.centre > 0 else 0)
+    )
 
 
 def part_weights(cfg: PartConfig) -> NDArray[np.float64]:
@@ -99,10 +107,10 @@ def part_weights(cfg: PartConfig) -> NDArray[np.float64]:
     ``[la^1..la^nr, lb^1..lb^nr]`` (Eq. 2), then ``size * la^1..la^nr`` and
     ``[centre, centre]`` when those blocks are on.
     """
-    i = np.arange(1, cfg.n_r + 1, dtype=np.float64)
-    blocks = [cfg.la**i, cfg.lb**i]
+    i = np.arange(1, cfg.kernel.n_r + 1, dtype=np.float64)
+    blocks = [cfg.kernel.la**i, cfg.kernel.lb**i]
     if cfg.size > 0:
-        blocks.append(cfg.size * cfg.la**i)
+        blocks.append(cfg.size * cfg.kernel.la**i)
     if cfg.centre > 0:
         blocks.append(np.full(2, float(cfg.centre)))
     return np.concatenate(blocks)
@@ -171,8 +179,8 @@ def part_vector(
     big = float(np.max(graph.radii))
     r = np.asarray(graph.radii, np.float64)[idx]
     if cfg.size > 0:
-        top = np.zeros(cfg.n_r)
-        srt = np.sort(r)[::-1][: cfg.n_r]
+        top = np.zeros(cfg.kernel.n_r)
+        srt = np.sort(r)[::-1][: cfg.kernel.n_r]
         top[: len(srt)] = srt / big
         blocks.append(top)
     if cfg.centre > 0:
@@ -297,20 +305,20 @@ def _features(
     p = p0.copy()
     acc = np.zeros(nnz)
     wk = 1.0
-    for _ in range(cfg.t):
+    for _ in range(cfg.kernel.t):
         p = step @ p + keep_mass * p
-        wk *= cfg.w
+        wk *= cfg.kernel.w
         acc += wk * p
     order = np.lexsort((cols, -r, rows))  # per subgraph: decreasing radius, ties by node
     rank = np.arange(nnz) - ptr[rows[order]]
-    keep = rank < cfg.n_r
+    keep = rank < cfg.kernel.n_r
     o, k = order[keep], rank[keep]
     out[rows[o], k] = p0[o]
-    out[rows[o], cfg.n_r + k] = acc[o] / cfg.t
-    col = 2 * cfg.n_r
+    out[rows[o], cfg.kernel.n_r + k] = acc[o] / cfg.kernel.t
+    col = 2 * cfg.kernel.n_r
     if cfg.size > 0:  # the part's largest balls relative to the whole shape
         out[rows[o], col + k] = r[o] / big[rows[o]]
-        col += cfg.n_r
+        col += cfg.kernel.n_r
     if cfg.centre > 0:
         out[:, col] = radii / r1
         out[:, col + 1] = radii / big

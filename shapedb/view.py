@@ -8,7 +8,7 @@ sparse clouds of one mesh, on the other hand, decompose alike: clouds against cl
 retrieve nearly as well as meshes against meshes, clouds against meshes worse
 (``docs/results.md``, "Across representations").
 
-So a store built with ``KernelConfig(view_cells=s)`` keeps, for every shape that is
+So a store built with ``CloudConfig(view_cells=s)`` keeps, for every shape that is
 not itself a sparse cloud, a second feature: that of a cloud drawn uniformly by area
 on its surface (a mesh's faces; for other representations the marching-cubes surface
 of their grid SDF) with one sample per ``s`` grid cells of spacing
@@ -92,7 +92,7 @@ def view_geometry(geometry: Geometry, spacing: float, view_cells: float) -> Geom
     spacing : float
         Grid cell size of ``geometry``'s own decomposition, model units.
     view_cells : float
-        Sample spacing of the view, in grid cells (``KernelConfig.view_cells``).
+        Sample spacing of the view, in grid cells (``CloudConfig.view_cells``).
 
     Returns
     -------

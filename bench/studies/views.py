@@ -1,4 +1,4 @@
-"""The sparse views' spacing (``KernelConfig.view_cells``), chosen on validation.
+"""The sparse views' spacing (``CloudConfig.view_cells``), chosen on validation.
 
 Usage (from the repository root)::
 

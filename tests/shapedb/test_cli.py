@@ -86,7 +86,7 @@ def test_ingest_sets_any_option_of_a_new_store(
     capsys.readouterr()
     assert main(["info", "--db", str(db), "--json"]) == 0
     config = _json(capsys)["config"]
-    assert config["mdbd"]["tie_cells"] == 0.0 and config["kernel"]["descriptor"] == 1
+    assert config["mdbd"]["tie_cells"] == 0.0 and config["descriptor"]["version"] == 1
     assert main(["ingest", str(models), "--db", str(db), "--set", "colour=red"]) == 1
     assert "unknown configuration option 'colour'" in capsys.readouterr().err
 
