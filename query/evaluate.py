@@ -349,7 +349,7 @@ def _kernel_distance_rows(
     from shapedb.kernel import weights
 
     n = len(ids)
-    w = weights(db.config.kernel)
+    w = weights(db.config)
     if learned is not None:
         w = w * learned.dim_weights()
     xw = x * w
