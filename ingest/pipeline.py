@@ -134,7 +134,7 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
                 "no ball fits inside: the solid has no volume", source=item.source
             )
         t1 = time.perf_counter()
-        feature = np.asarray(features(decomposition, config.kernel), dtype=np.float32)
+        feature = np.asarray(features(decomposition, config), dtype=np.float32)
         t2 = time.perf_counter()
         view = _view_feature(geometry, decomposition, config)
         timings = dict(decomposition.timings)
@@ -174,14 +174,14 @@ def _view_feature(geometry: Any, decomposition: Any, config: Config) -> NDArray[
     from shapedb.reconstruct import reconstructed
     from shapedb.view import is_sparse, view_geometry
 
-    cells = config.kernel.view_cells
+    cells = config.cloud.view_cells
     sparse = is_sparse(decomposition.sampling, decomposition.spacing)
-    if (sparse and not config.kernel.reconstruct) or not (cells or sparse):
+    if (sparse and not config.cloud.reconstruct) or not (cells or sparse):
         return None
     try:
         if sparse:
             found = reconstructed(
-                geometry, decomposition, config.mdbd, depth=config.kernel.reconstruct_depth
+                geometry, decomposition, config.mdbd, depth=config.cloud.reconstruct_depth
             )
         else:
             view = view_geometry(geometry, decomposition.spacing, cells)
@@ -191,7 +191,7 @@ def _view_feature(geometry: Any, decomposition: Any, config: Config) -> NDArray[
         return None
     if found is None or found.n_balls == 0:
         return None
-    return np.asarray(features(found, config.kernel), dtype=np.float32)
+    return np.asarray(features(found, config), dtype=np.float32)
 
 
 # ---------------------------------------------------------------- driver

@@ -317,7 +317,7 @@ def _repair(root: Path) -> RepairReport:
     replaced = {f for tables in found.values() for _, t in tables for f in _replaces(t)}
     found = {t: [(n, x) for n, x in tables if n not in replaced] for t, tables in found.items()}
     config = _choose_config(manifest, found["shapes"])
-    dim = config.kernel.dim
+    dim = config.dim
     fingerprint = config.to_json()
     shapes_in = []
     for name, t in found["shapes"]:

@@ -70,7 +70,7 @@ def new_manifest(config: Config) -> dict[str, Any]:
         "updated_at": now,
         "config": config.to_dict(),
         "config_fingerprint": config.fingerprint,
-        "dim": config.kernel.dim,
+        "dim": config.dim,
         "tables": {t: [] for t in TABLES},
         "retired": [],
     }

@@ -56,7 +56,7 @@ def make_record(
     return ShapeRecord(
         name=name,
         decomposition=d,
-        feature=rng.random(config.kernel.dim).astype(np.float32),
+        feature=rng.random(config.dim).astype(np.float32),
         config=config,
         content_hash=content or f"hash-{name}",
         representation="mesh",
@@ -470,21 +470,22 @@ def test_two_creators_never_mix_configurations(tmp_path: Path) -> None:
     import shapedb.database as database
     from shapedb.implicit import Sphere
 
+    def create(path: Path, resolution: int, start: threading.Barrier, outcome: dict) -> None:
+        start.wait()
+        try:
+            db = database.connect(path, resolution=resolution, n_balls=16)
+            db.ingest([(f"s{resolution}", Sphere((0.0, 0.0, 0.0), 0.5))], workers=1)
+            outcome[resolution] = "ok"
+        except (ConfigError, StoreError) as exc:
+            outcome[resolution] = type(exc).__name__
+
     for run in range(8):
         path = tmp_path / f"race{run}"
         outcome: dict[int, str] = {}
         start = threading.Barrier(2)
-
-        def create(resolution: int) -> None:
-            start.wait()
-            try:
-                db = database.connect(path, resolution=resolution, n_balls=16)
-                db.ingest([(f"s{resolution}", Sphere((0.0, 0.0, 0.0), 0.5))], workers=1)
-                outcome[resolution] = "ok"
-            except (ConfigError, StoreError) as exc:
-                outcome[resolution] = type(exc).__name__
-
-        threads = [threading.Thread(target=create, args=(r,)) for r in (16, 20)]
+        threads = [
+            threading.Thread(target=create, args=(path, r, start, outcome)) for r in (16, 20)
+        ]
         for t in threads:
             t.start()
         for t in threads:
