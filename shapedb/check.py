@@ -33,7 +33,7 @@ import pyarrow.parquet as pq
 from shapedb._transaction import REPLACES, FileLock, Transaction, file_digest
 from shapedb.config import Config
 from shapedb.errors import StoreError
-from shapedb.manifest import DATA, MANIFEST, new_manifest, read_manifest
+from shapedb.manifest import DATA, new_manifest, read_manifest
 from shapedb.schema import TABLES, schema_for
 
 __all__ = ["check", "repair", "CheckReport", "RepairReport", "LOST_AND_FOUND"]
@@ -97,6 +97,9 @@ class RepairReport:
         The store.
     changed : bool
         False when the store was intact and nothing was written.
+    manifest : str or None
+        What was wrong with the manifest (None when it was valid); the manifest is
+        rebuilt, no data is lost by this alone.
     shapes : int
         Shapes in the repaired store.
     recovered : tuple[str, ...]
@@ -109,6 +112,7 @@ class RepairReport:
 
     path: str
     changed: bool = False
+    manifest: str | None = None
     shapes: int = 0
     recovered: tuple[str, ...] = ()
     lost: tuple[tuple[str, str], ...] = ()
@@ -119,6 +123,7 @@ class RepairReport:
         return {
             "path": self.path,
             "changed": self.changed,
+            "manifest": self.manifest,
             "shapes": self.shapes,
             "recovered": list(self.recovered),
             "lost": [{"what": w, "reason": r} for w, r in self.lost],
@@ -305,11 +310,12 @@ def repair(path: str | os.PathLike[str]) -> RepairReport:
 
 def _repair(root: Path) -> RepairReport:
     lost: list[tuple[str, str]] = []
+    problem = None
     try:
         manifest: dict[str, Any] | None = read_manifest(root)
     except StoreError as exc:
         manifest = None
-        lost.append((MANIFEST, exc.reason.split(";")[0]))
+        problem = exc.reason.split(";")[0]
     if manifest is not None and check(root).ok:
         n = sum(int(s["rows"]) for s in manifest["tables"]["shapes"])
         return RepairReport(path=str(root), changed=False, shapes=n)
@@ -357,6 +363,7 @@ def _repair(root: Path) -> RepairReport:
     return RepairReport(
         path=str(root),
         changed=True,
+        manifest=problem,
         shapes=len(ids),
         recovered=tuple(sorted(set(used) | set(used_b) | set(used_e))),
         lost=tuple(lost),
