@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,7 +29,11 @@ from ingest.loaders import AS_OPTIONS, SUPPORTED, load
 from shapedb.config import Config
 from shapedb.errors import ConfigError, LoadError, MissingDependencyError, ShapeDBError
 from shapedb.geometry import Geometry
+from shapedb.results import IngestReport  # defined there, re-exported here
 from shapedb.schema import Failure, ShapeRecord
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = [
     "ingest",
@@ -71,42 +75,6 @@ COMPANION_SUFFIXES = frozenset(
     }
 )
 """Files skipped silently while walking a folder (materials, textures, docs, tables)."""
-
-
-@dataclass(frozen=True)
-class IngestReport:
-    """What an ingest did.
-
-    Attributes
-    ----------
-    ingested : tuple[int, ...]
-        Ids of the shapes added, in input order.
-    skipped : tuple[str, ...]
-        Inputs already in the store (same content and configuration).
-    failed : tuple[tuple[str, str], ...]
-        ``(input, reason)`` of every input that could not be ingested.
-    seconds : float
-        Wall time.
-    """
-
-    ingested: tuple[int, ...] = ()
-    skipped: tuple[str, ...] = ()
-    failed: tuple[tuple[str, str], ...] = ()
-    seconds: float = 0.0
-
-    def to_dict(self) -> dict[str, Any]:
-        """``{"ingested": n, "skipped": n, "failed": [{"path", "error"}]}`` (the CLI's JSON)."""
-        return {
-            "ingested": len(self.ingested),
-            "skipped": len(self.skipped),
-            "failed": [{"path": p, "error": e} for p, e in self.failed],
-        }
-
-    def __repr__(self) -> str:
-        return (
-            f"IngestReport(ingested={len(self.ingested)}, skipped={len(self.skipped)}, "
-            f"failed={len(self.failed)}, seconds={self.seconds:.1f})"
-        )
 
 
 @dataclass(frozen=True)
@@ -343,7 +311,7 @@ def _wait_any(futures: Iterable[Any], dask: bool) -> set[Any]:
 
 # ---------------------------------------------------------------- driver
 def ingest(
-    db: Any,
+    db: Database,
     inputs: Any,
     *,
     labels: str | os.PathLike[str] | Mapping[str, str] | LabelTable | None = None,

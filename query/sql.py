@@ -23,13 +23,16 @@ from __future__ import annotations
 
 import logging
 import os
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
 from numpy.typing import NDArray
 
 from shapedb.errors import QueryError, StoreError, require
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = ["sql", "connect", "script", "allowed_ids", "macros"]
 
@@ -93,7 +96,7 @@ def _quote(text: str) -> str:
     return "'" + text.replace("'", "''") + "'"
 
 
-def connect(db: Any, metric: Any = None) -> Any:
+def connect(db: Database, metric: Any = None) -> Any:
     """A new in-memory DuckDB connection with the store's views and macros.
 
     Parameters
@@ -127,7 +130,7 @@ def connect(db: Any, metric: Any = None) -> Any:
     return con
 
 
-def _metric(db: Any, metric: Any) -> Any:
+def _metric(db: Database, metric: Any) -> Any:
     from query.metric import as_metric
 
     learned = as_metric(metric)
@@ -136,7 +139,7 @@ def _metric(db: Any, metric: Any) -> Any:
     return learned
 
 
-def script(db: Any, metric: Any = None) -> str:
+def script(db: Database, metric: Any = None) -> str:
     """SQL that sets up a plain ``duckdb`` session like :func:`connect` does.
 
     The views name the files of the store's current version explicitly (absolute
@@ -163,7 +166,7 @@ def script(db: Any, metric: Any = None) -> str:
     return "\n".join(lines) + "\n"
 
 
-def sql(db: Any, statement: str, *, metric: Any = None) -> pa.Table:
+def sql(db: Database, statement: str, *, metric: Any = None) -> pa.Table:
     """Run one SQL statement over the store and return its result.
 
     Parameters
@@ -206,7 +209,7 @@ def _short(statement: str, limit: int = 200) -> str:
 _CONNECTIONS: dict[str, tuple[int, Any]] = {}
 
 
-def allowed_ids(db: Any, where: str) -> NDArray[np.int64]:
+def allowed_ids(db: Database, where: str) -> NDArray[np.int64]:
     """Ids of the shapes satisfying an SQL predicate over ``shapes``.
 
     Parameters

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 if TYPE_CHECKING:
     from shapedb.database import Database
+    from shapedb.results import Hit
 
 __all__ = [
     "Handler",
@@ -100,11 +101,9 @@ class ProgressBar:
             self._bar.close()
 
 
-def hit_row(hit: Any) -> dict[str, Any]:
-    """A search hit as a dict of the :data:`HIT_COLUMNS` (or all its fields)."""
-    if hasattr(hit, "to_dict"):
-        return dict(hit.to_dict())
-    return {k: getattr(hit, k) for k in HIT_COLUMNS}
+def hit_row(hit: Hit) -> dict[str, Any]:
+    """A search hit as a dict of its fields (:data:`HIT_COLUMNS`)."""
+    return hit.to_dict()
 
 
 def jsonable(x: Any) -> Any:
