@@ -123,7 +123,12 @@ def main(argv: list[str] | None = None) -> int:
             }
         )
     if not args.no_dask:
-        from distributed import Client, LocalCluster
+        from shapedb.errors import require
+
+        distributed = require(
+            "distributed", extra="distributed", feature="the Dask rows (--no-dask to skip them)"
+        )
+        Client, LocalCluster = distributed.Client, distributed.LocalCluster
 
         n = max(args.workers)
         print(

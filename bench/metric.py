@@ -31,7 +31,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench import descriptors as desc
 from bench.common import (
     decompose_all,
     format_table,
@@ -41,13 +40,8 @@ from bench.common import (
     write_json,
 )
 from bench.datasets import Dataset
-from bench.retrieval import (
-    _complete,
-    _mixture_mask,
-    build_sets,
-    kernel_features,
-    reconstructions,
-)
+from bench.features import complete, kernel_features, l1_matrix, mixture_mask, reconstructions
+from bench.retrieval import build_sets
 from query.metric import LearnedMetric, block_layout, fit_metric
 from shapedb.config import Config, KernelConfig, MDBDConfig
 
@@ -63,14 +57,14 @@ def _features(
     pc = decompose_all(sub.models, "pointcloud", mdbd, workers=workers)
     view = decompose_all(sub.models, f"view_{VIEW_CELLS:g}", mdbd, workers=workers)
     recon = reconstructions(sub.models, pc, mdbd, workers=workers)
-    sub, (mesh, pc, view, recon) = _complete(sub, mesh, pc, view, recon)
+    sub, (mesh, pc, view, recon) = complete(sub, mesh, pc, view, recon)
     return {
         "mesh": kernel_features(mesh, cfg),
         "pc": kernel_features(pc, cfg),
         "recon": kernel_features(recon, cfg),
         "view": kernel_features(view, cfg),
         "labels": sub.labels,
-        "mix": _mixture_mask([m.name for m in sub.models]),
+        "mix": mixture_mask([m.name for m in sub.models]),
     }
 
 
@@ -78,17 +72,17 @@ def _scores(f: dict[str, Any], w: NDArray[np.float64], views: bool) -> dict[str,
     """Test-split measures with per-dimension weights ``w``."""
     m, p, v, lab = f["mesh"] * w, f["pc"] * w, f["view"] * w, f["labels"]
     r, mix = f["recon"] * w, f["mix"]
-    d_mm = desc.l1_matrix(m, m)
+    d_mm = l1_matrix(m, m)
     # cloud-mesh pairs: the nearest of the store's comparisons (query.engine)
-    d_pm = np.minimum(desc.l1_matrix(p, m), desc.l1_matrix(r, m))
+    d_pm = np.minimum(l1_matrix(p, m), l1_matrix(r, m))
     x = np.where(mix[:, None], p, m)
-    d_xx = desc.l1_matrix(x, x)
+    d_xx = l1_matrix(x, x)
     one = mix[:, None] != mix[None, :]
-    d_rx = desc.l1_matrix(np.where(mix[:, None], r, m), x)
+    d_rx = l1_matrix(np.where(mix[:, None], r, m), x)
     d_xx = np.where(one, np.minimum(d_xx, np.minimum(d_rx, d_rx.T)), d_xx)
     if views:  # and the cloud against the mesh's view
-        d_pm = np.minimum(d_pm, desc.l1_matrix(p, v))
-        d_xy = desc.l1_matrix(x, np.where(mix[:, None], p, v))
+        d_pm = np.minimum(d_pm, l1_matrix(p, v))
+        d_xy = l1_matrix(x, np.where(mix[:, None], p, v))
         d_xx = np.where(one, np.minimum(d_xx, np.minimum(d_xy, d_xy.T)), d_xx)
     s = retrieval_scores(-d_mm, lab)
     return {

@@ -267,9 +267,10 @@ def _executor(workers: int, scheduler: Any) -> tuple[Any, Callable[[], None], st
     if scheduler is not None:
         try:
             from distributed import Client
-        except ImportError as exc:  # pragma: no cover - dask is a dependency
+        except ImportError as exc:
             raise MissingDependencyError(
-                "ingesting on a cluster needs dask[distributed]: pip install 'dask[distributed]'"
+                f"ingesting on the Dask cluster {scheduler!r} needs the optional dependency "
+                "dask[distributed]: install it with  pip install 'shapedb[distributed]'"
             ) from exc
         if isinstance(scheduler, Client):
             return scheduler, lambda: None, f"dask {scheduler.scheduler.address}"

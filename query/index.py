@@ -460,9 +460,9 @@ def _faiss_search(
     """faiss search; a few queries run on one OpenMP thread.
 
     For one query faiss parallelises the flat scan across threads, which on a busy
-    machine costs far more than it saves (16 ms instead of 0.5 ms at 50 000 vectors
-    on 2 loaded cores). ``omp_set_num_threads`` sets the calling thread's own ICV,
-    so other Python threads are unaffected.
+    machine costs far more than it saves (``docs/results.md``, "Index").
+    ``omp_set_num_threads`` sets the calling thread's own ICV, so other Python
+    threads are unaffected.
     """
     faiss = _faiss()
     params = None if ef_search is None else faiss.SearchParametersHNSW(efSearch=ef_search)

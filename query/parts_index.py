@@ -177,9 +177,9 @@ class PartIndex:
         ):
             raise QueryError("shape ids are not unique", source="PartIndex")
         feats, offsets = neighbourhood_features_many(graphs, self.config)
-        from shapedb.subgraph import _arrays
+        from shapedb.subgraph import graph_arrays
 
-        edges = [_arrays(g)[1] for g in graphs]
+        edges = [graph_arrays(g)[1] for g in graphs]
         n_edges = np.array([len(e) for e in edges], np.int64)
         self.features_ = np.concatenate([np.asarray(self.features_), feats.astype(np.float32)])
         self.shapes_ = np.concatenate([self.shapes_, ids_a])
@@ -524,9 +524,11 @@ def _jaccard(a: NDArray[np.int64], b: NDArray[np.int64]) -> float:
 
 
 def _concat_ranges(ptr: NDArray[np.int64], slots: NDArray[np.int64]) -> NDArray[np.int64]:
-    from shapedb.subgraph import _ranges
+    from shapedb.subgraph import concat_aranges
 
-    return _ranges(ptr[slots].astype(np.int64), (ptr[slots + 1] - ptr[slots]).astype(np.int64))
+    return concat_aranges(
+        ptr[slots].astype(np.int64), (ptr[slots + 1] - ptr[slots]).astype(np.int64)
+    )
 
 
 # ------------------------------------------------------------------ store glue

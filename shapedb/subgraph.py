@@ -33,8 +33,7 @@ therefore ``[Eq. 1 (2 n_r) | size block (n_r) | centre block (2)]``:
   on. A whole-model part has no centre and uses its largest ball.
 
 The weights were chosen on a validation subset of ``bench.parts`` (see
-:class:`PartConfig`). Most of the gain there comes from the centre ball's size
-relative to the shape (the bench reports that ball-size-only reference too).
+:class:`PartConfig`; measured in ``docs/results.md``, "Part search and matching").
 
 A part identical to another *relative to its shape* (same balls over the same R)
 still has the same vector and scores 1.0; a copy of a subgraph embedded in a shape
@@ -61,6 +60,8 @@ from shapedb.errors import ConfigError, InvalidShapeError
 from shapedb.graph import ContactGraph
 
 __all__ = [
+    "concat_aranges",
+    "graph_arrays",
     "part_dim",
     "part_weights",
     "part_vector",
@@ -188,7 +189,7 @@ def part_vector(
     return np.concatenate(blocks)
 
 
-def _arrays(x: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+def graph_arrays(x: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """(radii (n,), edges (m, 2)) of a ContactGraph, a Decomposition or a pair."""
     if isinstance(x, ContactGraph):
         return x.radii, x.edges.astype(np.int64)
@@ -246,13 +247,13 @@ def neighbourhoods(x: Any, hops: int = 2) -> sp.csr_matrix:
     (n, n) scipy.sparse.csr_matrix, float32
         Entry (v, u) is 1 when u is within ``hops`` edges of v; indices sorted.
     """
-    r, e = _arrays(x)
+    r, e = graph_arrays(x)
     if hops < 0:
         raise ConfigError(f"hops must be >= 0, got {hops}")
     return _membership(_adjacency(len(r), e), hops)
 
 
-def _ranges(starts: NDArray[np.int64], lengths: NDArray[np.int64]) -> NDArray[np.int64]:
+def concat_aranges(starts: NDArray[np.int64], lengths: NDArray[np.int64]) -> NDArray[np.int64]:
     """Concatenation of ``arange(s, s + l)`` over (s, l) pairs, without a Python loop."""
     total = int(lengths.sum())
     if total == 0:
@@ -285,7 +286,7 @@ def _features(
     aptr, aidx = a.indptr.astype(np.int64), a.indices.astype(np.int64)
     deg = np.diff(aptr)
     src = np.repeat(np.arange(nnz, dtype=np.int64), deg[cols])
-    j = aidx[_ranges(aptr[cols], deg[cols])]
+    j = aidx[concat_aranges(aptr[cols], deg[cols])]
     key = rows[src] * n + j
     slot_keys = rows * n + cols  # ascending: CSR rows, sorted indices
     pos = np.minimum(np.searchsorted(slot_keys, key), nnz - 1)
@@ -343,7 +344,7 @@ def neighbourhood_features(
         ``kernel.features`` of the subgraph, then the size and centre blocks.
     """
     cfg = part_config(config, **options)
-    r, e = _arrays(x)
+    r, e = graph_arrays(x)
     return _features(r, e, cfg)
 
 
@@ -366,7 +367,7 @@ def neighbourhood_features_many(
         Node offsets of the graphs.
     """
     cfg = part_config(config, **options)
-    arrays = [_arrays(g) for g in graphs]
+    arrays = [graph_arrays(g) for g in graphs]
     sizes = np.array([len(r) for r, _ in arrays], dtype=np.int64)
     offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
     out = np.zeros((int(offsets[-1]), part_dim(cfg)))
@@ -413,7 +414,7 @@ def neighbourhood_features_naive(
 
 def node_sets(x: Any, nodes: ArrayLike, hops: int = 2) -> list[NDArray[np.int64]]:
     """N(v, K) of each node v in ``nodes``: a list of sorted int64 arrays."""
-    r, e = _arrays(x)
+    r, e = graph_arrays(x)
     a = _adjacency(len(r), e)
     out = []
     for v in np.asarray(nodes, dtype=np.int64).ravel():
@@ -424,7 +425,7 @@ def node_sets(x: Any, nodes: ArrayLike, hops: int = 2) -> list[NDArray[np.int64]
         frontier = np.array([v])
         for _ in range(int(hops)):
             nb = a.indices[
-                _ranges(
+                concat_aranges(
                     a.indptr[frontier].astype(np.int64),
                     np.diff(a.indptr)[frontier].astype(np.int64),
                 )
