@@ -49,10 +49,25 @@ class Subparsers(Protocol):
 def add_command(
     subparsers: Subparsers, name: str, handler: Handler, *, help: str
 ) -> argparse.ArgumentParser:
-    """Add subcommand ``name`` whose parsed arguments go to ``handler``."""
-    parser = subparsers.add_parser(name, help=help)
+    """Add subcommand ``name`` whose parsed arguments go to ``handler``.
+
+    Every subcommand also takes ``-v`` (as the command itself does before it).
+    """
+    parser = subparsers.add_parser(name, help=help, parents=[_verbose()])
     parser.set_defaults(handler=handler)
     return parser
+
+
+def _verbose() -> argparse.ArgumentParser:
+    parent = argparse.ArgumentParser(add_help=False)
+    parent.add_argument(
+        "-v",
+        "--verbose",
+        action="count",
+        default=argparse.SUPPRESS,
+        help="more log output; tracebacks on errors",
+    )
+    return parent
 
 
 def add_db_argument(parser: argparse.ArgumentParser, *, required: bool = True) -> None:
