@@ -50,7 +50,7 @@ from bench.common import format_table, write_json
 from bench.datasets import CAPOD_ROOT, capod
 from query.selection import CANDIDATES, make_candidate, select_classifier
 from query.training_data import stratified_folds, stratified_split
-from shapedb.config import KernelConfig, MDBDConfig
+from shapedb.config import Config, MDBDConfig
 
 RESULTS = Path(__file__).resolve().parent / "results"
 CONFIGS = {
@@ -97,7 +97,7 @@ def load_set(
     ]
     from shapedb.kernel import features
 
-    cfg = KernelConfig()
+    cfg = Config()
     data["x_mesh"] = np.stack([features(b.decomposition(), cfg) for b in data["mesh"]])
     data["x_points"] = np.stack(
         [

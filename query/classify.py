@@ -20,9 +20,8 @@ import logging
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,6 +32,10 @@ from query.model_file import is_model_file, read_model, write_model
 from query.selection import GRAPH_CANDIDATES, Selection, predict_candidate, select_classifier
 from query.training_data import plot_history, stored_features, stored_graphs, stratified_split
 from shapedb.errors import ConfigError, LoadError, NotFittedError
+from shapedb.results import Classification  # defined there, re-exported here
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = [
     "GraphClassifier",
@@ -202,40 +205,9 @@ class ShapeClassifier:
         return f"ShapeClassifier(kind={self.kind!r}, classes={n})"
 
 
-@dataclass(frozen=True)
-class Classification:
-    """The predicted class of one shape.
-
-    Attributes
-    ----------
-    label : str
-        Most probable class.
-    probability : float
-        Its probability.
-    probabilities : dict[str, float]
-        Every class and its probability, most probable first.
-    source : str or None
-        The classified input (path, shape name or id).
-    """
-
-    label: str
-    probability: float
-    probabilities: dict[str, float] = field(default_factory=dict)
-    source: str | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-serialisable form (for ``shapedb classify --json``)."""
-        return {
-            "source": self.source,
-            "label": self.label,
-            "probability": self.probability,
-            "probabilities": self.probabilities,
-        }
-
-
-def _labelled(db: Any, label: str) -> tuple[list[int], list[str]]:
+def _labelled(db: Database, label: str) -> tuple[list[int], list[str]]:
     """Ids and labels of the stored shapes that have ``label`` (a column or metadata key)."""
-    store = getattr(db, "store", db)
+    store = db.store
     fp = db.config.fingerprint
     t = store.shapes(["id", "label", "metadata", "config_fingerprint"])
     bad = sorted(set(t.column("config_fingerprint").to_pylist()) - {fp})
@@ -253,7 +225,7 @@ def _labelled(db: Any, label: str) -> tuple[list[int], list[str]]:
 
 
 def train_classifier(
-    db: Any,
+    db: Database,
     *,
     label: str = "label",
     methods: Sequence[str] | None = None,
@@ -353,7 +325,7 @@ def train_classifier(
     return result
 
 
-def _shape_inputs(db: Any, shapes: Sequence[Any], graphs: bool) -> tuple[list[Any], Any]:
+def _shape_inputs(db: Database, shapes: Sequence[Any], graphs: bool) -> tuple[list[Any], Any]:
     """Contact graphs (or None entries) and descriptors (n, d) of the shapes to classify."""
     from shapedb.geometry import Geometry
     from shapedb.kernel import features
@@ -361,7 +333,7 @@ def _shape_inputs(db: Any, shapes: Sequence[Any], graphs: bool) -> tuple[list[An
 
     config = db.config
     out_graphs: list[Any] = [None] * len(shapes)
-    x = np.zeros((len(shapes), config.kernel.dim))
+    x = np.zeros((len(shapes), config.dim))
     stored: dict[int, int] = {}
     for k, s in enumerate(shapes):
         if isinstance(s, (str, os.PathLike)) and Path(s).is_file():
@@ -369,7 +341,7 @@ def _shape_inputs(db: Any, shapes: Sequence[Any], graphs: bool) -> tuple[list[An
         elif isinstance(s, Geometry):
             s = decompose(s, config=config.mdbd)
         elif isinstance(s, (int, np.integer, str)):
-            stored[k] = db.store.resolve(s)
+            stored[k] = db.store.resolve(int(s) if isinstance(s, np.integer) else s)
             continue
         fp = fingerprint_of(s)
         if fp is not None and fp != config.fingerprint:
@@ -379,7 +351,7 @@ def _shape_inputs(db: Any, shapes: Sequence[Any], graphs: bool) -> tuple[list[An
                 source=str(getattr(s, "name", k)),
             )
         out_graphs[k] = s
-        x[k] = features(s, config.kernel)
+        x[k] = features(s, config)
     if stored:
         slots, sids = list(stored), list(stored.values())
         x[slots] = stored_features(db, sids)
@@ -390,7 +362,7 @@ def _shape_inputs(db: Any, shapes: Sequence[Any], graphs: bool) -> tuple[list[An
 
 
 def classify(
-    db: Any,
+    db: Database,
     model_or_path: ShapeClassifier | GraphClassifier | str | os.PathLike[str],
     shapes: Any,
 ) -> Classification | list[Classification]:

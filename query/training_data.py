@@ -10,12 +10,15 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from shapedb.config import Config
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = [
     "stratified_split",
@@ -102,7 +105,7 @@ class StoredGraph:
     config: Config
 
 
-def stored_graphs(db: Any, ids: Sequence[int]) -> list[StoredGraph]:
+def stored_graphs(db: Database, ids: Sequence[int]) -> list[StoredGraph]:
     """The contact graphs of stored shapes, read in bulk from the Arrow tables.
 
     Parameters
@@ -114,7 +117,7 @@ def stored_graphs(db: Any, ids: Sequence[int]) -> list[StoredGraph]:
     -------
     list of k :class:`StoredGraph`, in the order of ``ids``
     """
-    store = getattr(db, "store", db)
+    store = db.store
     config = db.config
     ids = [int(i) for i in ids]
     shapes = store.shapes(["id", "name"], ids=ids)
@@ -172,7 +175,7 @@ def plot_history(
     return path
 
 
-def stored_features(db: Any, ids: Sequence[int]) -> NDArray[np.float64]:
+def stored_features(db: Database, ids: Sequence[int]) -> NDArray[np.float64]:
     """The stored descriptors (the store's ``feature`` column) of shapes, in bulk.
 
     Parameters
@@ -184,7 +187,7 @@ def stored_features(db: Any, ids: Sequence[int]) -> NDArray[np.float64]:
     -------
     (k, d) float64, row i the feature of ``ids[i]``; d = ``KernelConfig.dim``.
     """
-    store = getattr(db, "store", db)
+    store = db.store
     all_ids, matrix = store.features()
     order = np.argsort(all_ids, kind="stable")
     want = np.asarray([int(i) for i in ids], dtype=np.int64)

@@ -204,7 +204,7 @@ def _store_db(tmp_path, graphs: list[Decomposition], labels: list[str], config: 
         ShapeRecord(
             name=f"s{k}",
             decomposition=g,
-            feature=features(g, config.kernel).astype(np.float32),
+            feature=features(g, config).astype(np.float32),
             config=config,
             content_hash=f"h{k}",
             representation="implicit",
@@ -238,7 +238,7 @@ def test_train_classifier_on_a_store_and_refuse_another_store(
 
 @pytest.fixture(scope="module")
 def descriptors(tiny: tuple[list, list]) -> np.ndarray:
-    return np.stack([features(g, Config().kernel) for g in tiny[0]])
+    return np.stack([features(g, Config()) for g in tiny[0]])
 
 
 def _skip_without(kind: str) -> None:
