@@ -50,8 +50,9 @@ def write_model(
     text = json.dumps({**manifest, "format": FORMAT}, sort_keys=True)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    members: dict[str, Any] = {_MANIFEST: np.array(text), **arrays}
     with open(path, "wb") as fh:
-        np.savez_compressed(fh, **{_MANIFEST: np.array(text)}, **arrays)
+        np.savez_compressed(fh, **members)
     return path
 
 
