@@ -15,6 +15,7 @@ from shapedb.cli.common import (
     print_json,
     query_arg,
 )
+from shapedb.results import ShapeRef
 
 __all__ = ["register", "train", "classify"]
 
@@ -116,7 +117,7 @@ def train(args: argparse.Namespace) -> int:
 
 def classify(args: argparse.Namespace) -> int:
     """``shapedb classify``: every model with one load of the classifier, in one process."""
-    shapes = [query_arg(m) for m in args.model]
+    shapes: list[ShapeRef] = [query_arg(m) for m in args.model]
     results = existing_store(args.db).classify(args.classifier, shapes)
     for result in results if isinstance(results, list) else [results]:
         if args.json:
