@@ -136,7 +136,9 @@ class _Guard:
             if headers.get("sec-fetch-site") == "cross-site" or (
                 origin is not None and origin != "null" and origin.split("://", 1)[-1] != host
             ):
-                return error_response(403, "cross-origin request refused: use the page this server serves")
+                return error_response(
+                    403, "cross-origin request refused: use the page this server serves"
+                )
         return None
 
 

@@ -257,9 +257,7 @@ def add_routes(app: FastAPI, service: Service) -> None:
         else:
             matches = db.match(model, k=body.k, where=body.where, **options)
         out = [m.to_dict() for m in matches]
-        return json_response(
-            {"query_nodes": out[0]["query_nodes"] if out else [], "matches": out}
-        )
+        return json_response({"query_nodes": out[0]["query_nodes"] if out else [], "matches": out})
 
     # ---------------------------------------------------------------- sql, eval
     @app.post("/api/sql", tags=["sql"])
@@ -278,7 +276,9 @@ def add_routes(app: FastAPI, service: Service) -> None:
         )
 
     @app.get("/api/eval", tags=["sql"])
-    def evaluate(label: Annotated[str, Query(description="class column or metadata key")] = "label") -> Response:
+    def evaluate(
+        label: Annotated[str, Query(description="class column or metadata key")] = "label",
+    ) -> Response:
         """Leave-one-out retrieval scores by class, and the precision-recall curve."""
         key = (db.store.version, label)
         out = service.evals.get(key)
@@ -333,7 +333,6 @@ def add_routes(app: FastAPI, service: Service) -> None:
         if found is None:
             raise HTTPException(404, f"{job}: no such ingest job")
         return json_response(found.to_dict())
-
 
 
 def _remember(service: Service, job: Job) -> None:

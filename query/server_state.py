@@ -245,5 +245,3 @@ def remove_folder(folder: Path) -> None:
 def new_key() -> str:
     """A random key naming an uploaded query or an ingest job."""
     return uuid.uuid4().hex[:16]
-
-

@@ -68,7 +68,7 @@ def draw_thumbnail(record: Any, out: str | os.PathLike[str], *, geometry: Any = 
     with _DRAW:
         fig = Figure(figsize=(SIZE / dpi, SIZE / dpi), dpi=dpi)
         FigureCanvasAgg(fig)
-        ax = fig.add_axes((0.0, 0.0, 1.0, 1.0), projection="3d")
+        ax: Any = fig.add_axes((0.0, 0.0, 1.0, 1.0), projection="3d")
         ax.view_init(20.0, -60.0)
         draw_model(ax, d.centers, d.radii, geometry=geometry, max_balls=256)
         fd, tmp = tempfile.mkstemp(prefix=".thumb-", suffix=".png", dir=out.parent)
