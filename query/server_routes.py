@@ -18,6 +18,7 @@ import pyarrow.compute as pc
 from fastapi import FastAPI, File, Form, Query, Request, UploadFile
 from fastapi.responses import FileResponse, Response
 from pydantic import BaseModel, Field
+from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException
 
 from query.server_state import (
@@ -174,17 +175,24 @@ def add_routes(app: FastAPI, service: Service) -> None:
 
     # ---------------------------------------------------------------- search
     @app.get("/api/search", tags=["search"])
-    def search(
+    async def search(
         request: Request,
         id: Annotated[str, Query(description="stored shape id or name")],
         k: K = 10,
         where: Where = None,
     ) -> Response:
         """The k stored shapes most like a stored one: ``[{id, name, label, similarity}]``."""
+
+        def run() -> Response:
+            hits = db.search(service.resolve_id(id), k=k, where=where)
+            return json_response(hits_json(hits))
+
         if where is not None:
             service.require_token(request, "a where filter")
-        hits = db.search(service.resolve_id(id), k=k, where=where)
-        return json_response(hits_json(hits))
+            return await run_in_threadpool(run)  # SQL: may take a while
+        # an in-memory index lookup of about a millisecond: run on the event loop, as
+        # two thread hops per request cost more than the search on a loaded machine
+        return run()
 
     @app.post("/api/search", tags=["search"])
     def search_file(

@@ -207,16 +207,44 @@ class Service:
         return path
 
     def resolve_id(self, id_or_name: str | int) -> int:
-        """A stored id from an id or a name (never a path on the server)."""
+        """A stored id from an id or a name, as ``Store.resolve`` reads it: a name first,
+        a string of digits that is no shape's name as an id (never a path on the server).
+
+        Names are looked up in a map kept per store version, so a request costs no
+        table scan. An id that is not stored is left to the caller's lookup to refuse.
+
+        Raises
+        ------
+        NotFoundError
+            No shape has this name (and it is not a number).
+        QueryError
+            Empty, or a name several shapes share.
+        """
         text = str(id_or_name).strip()
         if not text:
             raise QueryError("empty shape id or name", source=repr(id_or_name))
-        if text.lstrip("-").isdigit():
-            try:
-                return int(self.db.store.resolve(text))
-            except NotFoundError:
-                return int(self.db.store.resolve(int(text)))
-        return int(self.db.store.resolve(text))
+        ids = self.names().get(text)
+        if ids is not None:
+            if len(ids) > 1:
+                raise QueryError(f"name is ambiguous: shapes {ids} have it; use an id", source=text)
+            return ids[0]
+        if text.isdigit():
+            return int(text)
+        raise NotFoundError("no shape with this name or id", source=text)
+
+    def names(self) -> dict[str, list[int]]:
+        """name -> ids of the shapes of the store's current version."""
+        version = self.db.store.version
+        cached = self.shapes.get(("names", version))
+        if cached is None:
+            t = self.db.shapes(["id", "name"])
+            cached = {}
+            for sid, name in zip(
+                t.column("id").to_pylist(), t.column("name").to_pylist(), strict=True
+            ):
+                cached.setdefault(name, []).append(int(sid))
+            self.shapes.put(("names", version), cached)
+        return cached  # type: ignore[no-any-return]
 
 
 def safe_name(filename: str) -> str:

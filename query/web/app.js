@@ -48,7 +48,7 @@ state.queryView = queryView;
 state.shapeView = shapeView;
 for (const box of document.querySelectorAll(".toggles")) {
   const view = box.dataset.for === "query-view" ? queryView : shapeView;
-  box.addEventListener("change", (e) => view.setLayer(e.target.dataset.layer, e.target.checked));
+  box.addEventListener("change", (e) => { if (e.target.dataset.layer) view.setLayer(e.target.dataset.layer, e.target.checked); });
 }
 
 function card(hit, onClick) {
@@ -134,7 +134,7 @@ async function searchFile(file) {
 
 async function matchPart(node, point) {
   if (!state.query || !state.results.length) return;
-  const body = { query: state.query.ref, targets: state.results.map((h) => h.id) };
+  const body = { query: state.query.ref, targets: state.results.map((h) => h.id), hops: Number($("#hops").value) };
   if (node !== null) body.node = node; else body.point = point;
   status("matching the part…");
   try {
