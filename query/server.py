@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import ipaddress
 import logging
+import socket
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -286,10 +287,37 @@ def serve(
         app, host=host, port=int(port), log_level=log_level, access_log=False, lifespan="off"
     )
     server = uvicorn.Server(config)
+    sock = _bind(host, int(port))  # bound here: the real port is known, errors come first
     if on_ready is not None:
         shown = f"[{host}]" if ":" in host else host
-        on_ready(f"http://{shown}:{port}/")
-    server.run()
+        on_ready(f"http://{shown}:{sock.getsockname()[1]}/")
+    try:
+        server.run(sockets=[sock])
+    finally:
+        sock.close()
+
+
+def _bind(host: str, port: int) -> socket.socket:
+    """A listening TCP socket on ``host:port`` (port 0: a free one).
+
+    Raises
+    ------
+    ConfigError
+        The address cannot be bound (in use, or not this machine's).
+    """
+    family = socket.AF_INET6 if ":" in host.strip("[]") else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host.strip("[]"), port))
+    except OSError as exc:
+        sock.close()
+        raise ConfigError(
+            f"cannot listen there: {exc.strerror or exc}", source=f"{host}:{port}"
+        ) from exc
+    sock.listen(2048)
+    sock.set_inheritable(True)
+    return sock
 
 
 def warm(db: Any) -> None:

@@ -79,15 +79,19 @@ export function buildShape(shape, surface, { highlight = null, faint = false } =
 function lights(scene) {
   scene.add(new THREE.HemisphereLight(0xffffff, 0x888888, 1.6));
   const sun = new THREE.DirectionalLight(0xffffff, 1.6);
-  sun.position.set(1, 2, 1.5);
+  sun.position.set(1, -1.5, 2);
   scene.add(sun);
 }
+
+// The camera of the thumbnails (matplotlib's elevation 20, azimuth -60, z up).
+const VIEW = new THREE.Vector3(0.47, -0.814, 0.342);
 
 function frame(camera, shape) {
   const { centre, size } = boundsOf(shape);
   camera.near = size / 100;
   camera.far = size * 100;
-  camera.position.copy(centre).add(new THREE.Vector3(1.1, 0.8, 1.4).multiplyScalar(size));
+  camera.up.set(0, 0, 1);
+  camera.position.copy(centre).add(VIEW.clone().multiplyScalar(2.3 * size));
   camera.lookAt(centre);
   camera.updateProjectionMatrix();
   return centre;
@@ -112,6 +116,7 @@ export class Viewer {
     this.scene.background = new THREE.Color(0xffffff);
     lights(this.scene);
     this.camera = new THREE.PerspectiveCamera(35, 1, 0.01, 100);
+    this.camera.up.set(0, 0, 1); // z up, as in the thumbnails (before the controls read it)
     this.controls = new OrbitControls(this.camera, this.renderer.domElement);
     this.controls.addEventListener("change", () => this.render());
     this.raycaster = new THREE.Raycaster();
