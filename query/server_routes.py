@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import logging
 import threading
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -32,7 +33,13 @@ from query.server_state import (
     status_of,
     upload_folder,
 )
-from query.viewer import decomposition_payload, record_payload, stored_surface, surface_payload
+from query.viewer import (
+    decomposition_payload,
+    record_payload,
+    stored_record,
+    stored_surface,
+    surface_payload,
+)
 from shapedb.errors import NotFoundError, QueryError, ShapeDBError
 
 __all__ = ["add_routes", "MatchRequest", "SQLRequest"]
@@ -89,6 +96,14 @@ def add_routes(app: FastAPI, service: Service) -> None:
     """Register the API routes on ``app``."""
     db = service.db
 
+    def record(sid: int) -> Any:
+        key = ("record", sid, db.store.version)
+        found = service.shapes.get(key)
+        if found is None:
+            found = stored_record(db, sid)
+            service.shapes.put(key, found)
+        return found
+
     def table() -> Any:
         version = db.store.version
         cached = service.shapes.get(("table", version))
@@ -141,22 +156,16 @@ def add_routes(app: FastAPI, service: Service) -> None:
     @app.get("/api/shapes/{id}", tags=["store"])
     def shape(id: str) -> Response:
         """One stored shape: its record, balls (centres, radii) and contact edges."""
-        sid = service.resolve_id(id)
-        key = ("shape", sid, db.store.version)
-        payload = service.shapes.get(key)
-        if payload is None:
-            payload = record_payload(db.get(sid))
-            service.shapes.put(key, payload)
-        return json_response(payload)
+        return json_response(record_payload(record(service.resolve_id(id))))
 
     @app.get("/api/shapes/{id}/surface", tags=["store"])
     def surface(id: str) -> Response:
         """The mesh or point cloud of a shape's source file, when that file is still there."""
-        record = db.get(service.resolve_id(id))
-        key = (record.id, record.content_hash)
+        found = record(service.resolve_id(id))
+        key = (found.id, found.content_hash)
         payload = service.surfaces.get(key)
         if payload is None:
-            payload = stored_surface(db, record)
+            payload = stored_surface(db, found)
             service.surfaces.put(key, payload)
         return json_response(payload)
 
@@ -252,7 +261,7 @@ def add_routes(app: FastAPI, service: Service) -> None:
                 raise HTTPException(404, f"{body.query}: no such uploaded query (they expire)")
             model = q.decomposition
         else:
-            model = db.get(service.resolve_id(body.query)).decomposition
+            model = record(service.resolve_id(body.query)).decomposition
         n = len(model.radii)
         if body.node is not None and body.node >= n:
             raise NotFoundError(f"the query has {n} balls", source=f"node {body.node}")
@@ -260,8 +269,11 @@ def add_routes(app: FastAPI, service: Service) -> None:
         if body.targets is not None:
             matches = []
             for target in body.targets:
-                found = db.match(model, target, top=1, **options)
-                matches.extend(found[:1])
+                other = record(service.resolve_id(target))
+                found = db.match(model, other.decomposition, top=1, **options)
+                matches.extend(
+                    replace(m, id=other.id, name=other.name, label=other.label) for m in found[:1]
+                )
         else:
             matches = db.match(model, k=body.k, where=body.where, **options)
         out = [m.to_dict() for m in matches]

@@ -102,7 +102,10 @@ def thumbnail(db: Any, id_or_name: int | str, *, surface: bool = True) -> Path:
     NotFoundError
         No such shape.
     """
-    record = db.get(id_or_name)
+    from query.viewer import stored_record
+
+    sid = id_or_name if isinstance(id_or_name, int) else db.store.resolve(id_or_name)
+    record = stored_record(db, sid)
     path = thumbnail_path(db.path, record)
     if path.is_file():
         return path

@@ -17,15 +17,73 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from shapedb.errors import ShapeDBError
+from shapedb.errors import NotFoundError, ShapeDBError
 
-__all__ = ["decomposition_payload", "record_payload", "surface_payload", "stored_surface"]
+__all__ = [
+    "decomposition_payload",
+    "record_payload",
+    "stored_record",
+    "stored_surface",
+    "surface_payload",
+]
 
 log = logging.getLogger(__name__)
 
 MAX_FACES = 40_000
 MAX_POINTS = 30_000
 _IMPLICIT_RESOLUTION = 48
+
+
+#: The columns of ``shapes`` a record is rebuilt from here: all but the feature vectors,
+#: which are most of a row and which the page never shows.
+_RECORD_COLUMNS = [
+    "id",
+    "name",
+    "label",
+    "metadata",
+    "representation",
+    "source",
+    "content_hash",
+    "config",
+    "n_balls",
+    "n_edges",
+    "spacing",
+    "bounds",
+    "frame",
+    "sampling",
+    "timings",
+    "build_seconds",
+    "created_at",
+]
+
+
+def stored_record(db: Any, sid: int) -> Any:
+    """A stored shape as ``db.get`` returns it, but read without its feature vectors.
+
+    Parameters
+    ----------
+    db : shapedb.Database
+    sid : int
+        Stored shape id.
+
+    Returns
+    -------
+    ShapeRecord
+        With its decomposition; ``feature`` is empty and ``view_feature`` None.
+
+    Raises
+    ------
+    NotFoundError
+        No shape with this id.
+    """
+    from shapedb.schema import record_from_rows
+
+    table = db.store.shapes(_RECORD_COLUMNS, ids=[int(sid)])
+    if table.num_rows == 0:
+        raise NotFoundError("no shape with this id", source=sid)
+    row = table.to_pylist()[0]
+    row["feature"], row["view_feature"] = (), None
+    return record_from_rows(row, db.store.balls(ids=[int(sid)]), db.store.edges(ids=[int(sid)]))
 
 
 def _rounded(a: NDArray[Any]) -> list[Any]:

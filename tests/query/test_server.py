@@ -286,3 +286,26 @@ def test_ingest_by_upload_and_a_new_version_from_another_process(tmp_path, priva
     hits = api.get("/api/search", params={"id": "cylinder1", "k": 1}).json()
     assert hits[0]["name"] == "cylinder1"
     assert api.get("/api/ingest/unknown").status_code == 404
+
+
+def test_stored_record_is_db_get_without_features(store):
+    import numpy as np
+
+    from query.viewer import stored_record
+
+    db, _ = store
+    sid = int(db.store.resolve("cylinder0"))
+    full, light = db.get(sid), stored_record(db, sid)
+    assert (light.id, light.name, light.label, light.source) == (
+        sid,
+        "cylinder0",
+        "cylinder",
+        full.source,
+    )
+    assert light.content_hash == full.content_hash and light.created_at == full.created_at
+    for a in ("centers", "radii", "edges", "bounds", "frame"):
+        np.testing.assert_array_equal(
+            getattr(light.decomposition, a), getattr(full.decomposition, a)
+        )
+    assert light.decomposition.spacing == full.decomposition.spacing
+    assert len(light.feature) == 0 and light.view_feature is None
