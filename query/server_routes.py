@@ -267,7 +267,7 @@ def add_routes(app: FastAPI, service: Service) -> None:
             raise NotFoundError(f"the query has {n} balls", source=f"node {body.node}")
         options: dict[str, Any] = {"node": body.node, "point": body.point, "hops": body.hops}
         if body.targets is not None:
-            matches = []
+            matches: list[Any] = []
             for target in body.targets:
                 other = record(service.resolve_id(target))
                 found = db.match(model, other.decomposition, top=1, **options)
