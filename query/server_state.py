@@ -62,6 +62,8 @@ class TooLarge(Exception):
 
 
 def status_of(exc: ShapeDBError) -> int:
+    """The HTTP status of a shapedb error: 404 unknown, 409 locked, 501 missing extra,
+    500 damaged store, 400 any other bad input."""
     if isinstance(exc, NotFoundError):
         return 404
     if isinstance(exc, StoreLockedError):
@@ -74,15 +76,18 @@ def status_of(exc: ShapeDBError) -> int:
 
 
 def one_line(text: str) -> str:
+    """``text`` with its whitespace runs (newlines included) made single spaces."""
     return " ".join(str(text).split())
 
 
 def error_response(status: int, message: str, headers: dict[str, str] | None = None) -> Response:
+    """``{"error": message, "status": status}`` with that status."""
     body = json.dumps({"error": one_line(message), "status": status})
     return Response(body, status_code=status, media_type="application/json", headers=headers)
 
 
 def jsonable(x: Any) -> Any:
+    """``x`` as plain JSON values: arrays as lists, non-finite floats as null, dates ISO."""
     if isinstance(x, dict):
         return {str(k): jsonable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
@@ -99,6 +104,7 @@ def jsonable(x: Any) -> Any:
 
 
 def json_response(data: Any, status: int = 200, headers: dict[str, str] | None = None) -> Response:
+    """``data`` (see :func:`jsonable`) as a compact JSON response."""
     body = json.dumps(jsonable(data), separators=(",", ":"), allow_nan=False)
     return Response(body, status_code=status, media_type="application/json", headers=headers)
 
