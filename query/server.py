@@ -50,6 +50,7 @@ from shapedb.errors import ConfigError, MissingDependencyError, ShapeDBError
 try:
     from fastapi import FastAPI, Request
     from fastapi.exceptions import RequestValidationError
+    from fastapi.openapi.docs import get_swagger_ui_html
     from fastapi.responses import HTMLResponse, Response
     from fastapi.staticfiles import StaticFiles
     from starlette.exceptions import HTTPException
@@ -184,7 +185,7 @@ def create_app(
         title="shapedb",
         summary="3-D shape retrieval with maximal disjoint ball decompositions",
         version="1",
-        docs_url="/docs",
+        docs_url=None,  # served below from the vendored Swagger UI, not from a CDN
         redoc_url=None,
     )
     app.state.service = service
@@ -195,6 +196,16 @@ def create_app(
     @app.get("/", include_in_schema=False)
     def page() -> HTMLResponse:
         return HTMLResponse((WEB / "index.html").read_text(encoding="utf-8"))
+
+    @app.get("/docs", include_in_schema=False)
+    def docs() -> HTMLResponse:
+        return get_swagger_ui_html(
+            openapi_url="/openapi.json",
+            title="shapedb API",
+            swagger_js_url="/static/vendor/swagger-ui/swagger-ui-bundle.js",
+            swagger_css_url="/static/vendor/swagger-ui/swagger-ui.css",
+            swagger_favicon_url="data:,",
+        )
 
     app.add_middleware(_Guard, limit=service.max_upload_bytes, hosts=allowed_hosts)
     return app

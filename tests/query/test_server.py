@@ -309,3 +309,13 @@ def test_stored_record_is_db_get_without_features(store):
         )
     assert light.decomposition.spacing == full.decomposition.spacing
     assert len(light.feature) == 0 and light.view_feature is None
+
+
+def test_the_openapi_page_needs_no_cdn(api):
+    page = api.get("/docs")
+    assert page.status_code == 200 and "cdn" not in page.text
+    assert api.get("/static/vendor/swagger-ui/swagger-ui-bundle.js").status_code == 200
+    paths = api.get("/openapi.json").json()["paths"]
+    for path in ("/api/info", "/api/search", "/api/shapes", "/api/shapes/{id}", "/api/match"):
+        assert path in paths
+    assert {"get", "post"} <= set(paths["/api/search"])

@@ -233,3 +233,13 @@ def test_browser_facets_and_evaluation(searched, shots):
     assert searched.find_element(By.ID, "eval-status").text == "6 queries"
     assert searched.find_elements(By.CSS_SELECTOR, "#pr-curve polyline")
     _shot(searched, shots, "06-evaluate")
+
+
+def test_the_openapi_page_renders(browser, site, shots):
+    from selenium.webdriver.common.by import By
+
+    url, _, _ = site
+    browser.get(url + "/docs")
+    _wait(browser, lambda d: len(d.find_elements(By.CSS_SELECTOR, ".opblock")) >= 14)
+    assert "/api/search" in browser.find_element(By.TAG_NAME, "body").text
+    _shot(browser, shots, "07-openapi")
