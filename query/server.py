@@ -41,6 +41,7 @@ from __future__ import annotations
 import ipaddress
 import logging
 import socket
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -83,7 +84,11 @@ def is_loopback(host: str) -> bool:
 
 # ------------------------------------------------------------------ middleware
 class _Guard:
-    """Pure ASGI middleware: body size limit, host check and cross-origin writes refused."""
+    """Pure ASGI middleware: body size limit, host check and cross-origin writes refused.
+
+    Every response carries ``Server-Timing: app;dur=MS``, the milliseconds from the
+    request's arrival to its response headers (the server's own share of a request).
+    """
 
     def __init__(self, app: Any, *, limit: int, hosts: Sequence[str] | None) -> None:
         self.app = app
@@ -102,6 +107,7 @@ class _Guard:
             return
         seen = 0
         started = False
+        t0 = time.perf_counter()
 
         async def limited() -> Any:
             nonlocal seen
@@ -116,6 +122,11 @@ class _Guard:
             nonlocal started
             if message["type"] == "http.response.start":
                 started = True
+                took = f"app;dur={1e3 * (time.perf_counter() - t0):.3f}".encode()
+                message = {
+                    **message,
+                    "headers": [*message.get("headers", []), (b"server-timing", took)],
+                }
             await send(message)
 
         try:

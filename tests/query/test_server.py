@@ -46,6 +46,7 @@ def test_info_is_the_stores(api, store):
     assert r.status_code == 200
     assert r.json() == json.loads(json.dumps(db.info()))
     assert r.json()["labels"] == {"box": 2, "capsule": 2, "cylinder": 2}
+    assert float(r.headers["server-timing"].removeprefix("app;dur=")) > 0
 
 
 def test_search_by_id_and_by_name(api, store):
