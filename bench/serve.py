@@ -65,7 +65,7 @@ def synthetic_store(root: Path, n: int) -> Any:
     from shapedb.schema import ShapeRecord
 
     config = Config()
-    x = synthetic_vectors(n, config.kernel, 7)
+    x = synthetic_vectors(n, config, 7)
     one = Decomposition(
         centers=np.zeros((1, 3)),
         radii=np.ones(1),

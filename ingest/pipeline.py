@@ -219,7 +219,7 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
                 "no ball fits inside: the solid has no volume", source=item.source
             )
         t1 = time.perf_counter()
-        feature = np.asarray(features(decomposition, config.kernel), dtype=np.float32)
+        feature = np.asarray(features(decomposition, config), dtype=np.float32)
         t2 = time.perf_counter()
         view = _view_feature(geometry, decomposition, config)
         timings = dict(decomposition.timings)
@@ -259,14 +259,14 @@ def _view_feature(geometry: Any, decomposition: Any, config: Config) -> NDArray[
     from shapedb.reconstruct import reconstructed
     from shapedb.view import is_sparse, view_geometry
 
-    cells = config.kernel.view_cells
+    cells = config.cloud.view_cells
     sparse = is_sparse(decomposition.sampling, decomposition.spacing)
-    if (sparse and not config.kernel.reconstruct) or not (cells or sparse):
+    if (sparse and not config.cloud.reconstruct) or not (cells or sparse):
         return None
     try:
         if sparse:
             found = reconstructed(
-                geometry, decomposition, config.mdbd, depth=config.kernel.reconstruct_depth
+                geometry, decomposition, config.mdbd, depth=config.cloud.reconstruct_depth
             )
         else:
             view = view_geometry(geometry, decomposition.spacing, cells)
@@ -276,7 +276,7 @@ def _view_feature(geometry: Any, decomposition: Any, config: Config) -> NDArray[
         return None
     if found is None or found.n_balls == 0:
         return None
-    return np.asarray(features(found, config.kernel), dtype=np.float32)
+    return np.asarray(features(found, config), dtype=np.float32)
 
 
 class _Serial:
@@ -299,9 +299,10 @@ def _executor(workers: int, scheduler: Any) -> tuple[Any, Callable[[], None], st
     if scheduler is not None:
         try:
             from distributed import Client
-        except ImportError as exc:  # pragma: no cover - dask is a dependency
+        except ImportError as exc:
             raise MissingDependencyError(
-                "ingesting on a cluster needs dask[distributed]: pip install 'dask[distributed]'"
+                f"ingesting on the Dask cluster {scheduler!r} needs the optional dependency "
+                "dask[distributed]: install it with  pip install 'shapedb[distributed]'"
             ) from exc
         if isinstance(scheduler, Client):
             return scheduler, lambda: None, f"dask {scheduler.scheduler.address}"

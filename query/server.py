@@ -348,5 +348,5 @@ def warm(db: Any) -> None:
 
     if len(db):
         open_index(db)
-        if db.config.kernel.view_cells:
+        if db.config.cloud.view_cells:
             open_index(db, view=True)

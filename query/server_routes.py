@@ -225,7 +225,7 @@ def add_routes(app: FastAPI, service: Service) -> None:
             d = decompose(geometry, config=db.config.mdbd)
             # the decomposition stands for the geometry exactly when the search needs
             # nothing else of it: a dense query in a store without sparse views
-            exact = not is_sparse(d.sampling, d.spacing) and not db.config.kernel.view_cells
+            exact = not is_sparse(d.sampling, d.spacing) and not db.config.cloud.view_cells
             hits = db.search(d if exact else geometry, k=k, where=where)
         except ShapeDBError as exc:
             raise _scrub(exc, folder, {str(folder / Path(name).name): name}) from exc

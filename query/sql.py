@@ -43,8 +43,8 @@ def macros(config: Any, metric: Any = None) -> list[str]:
 
     Parameters
     ----------
-    config : shapedb.config.KernelConfig
-        Supplies n_r, la, lb and lam.
+    config : shapedb.config.Config
+        The store's: its kernel supplies n_r, la, lb and lam, its descriptor the length.
     metric : LearnedMetric, optional
         Multiplies the weights by the metric's (:mod:`query.metric`).
 
@@ -65,7 +65,7 @@ def macros(config: Any, metric: Any = None) -> list[str]:
         w = w * metric.dim_weights()
     d = len(w)
     wl = "[" + ", ".join(repr(float(x)) for x in w) + "]::DOUBLE[]"
-    lam = repr(float(config.lam))
+    lam = repr(float(config.kernel.lam))
     return [
         f"CREATE OR REPLACE MACRO mdbd_weights() AS {wl}",
         "CREATE OR REPLACE MACRO mdbd_distance(a, b) AS ("
@@ -112,7 +112,7 @@ def connect(db: Any, metric: Any = None) -> Any:
     store = db.store
     learned = _metric(db, metric)
     con = duckdb.connect(":memory:")
-    for stmt in macros(db.config.kernel, learned):
+    for stmt in macros(db.config, learned):
         con.execute(stmt)
     for table, paths in _files(store).items():
         if paths:
@@ -121,7 +121,7 @@ def connect(db: Any, metric: Any = None) -> Any:
                 f"CREATE VIEW {table} AS SELECT * FROM read_parquet([{listing}], union_by_name = true)"
             )
         else:  # no committed file yet: an empty view with the table's schema
-            empty = schema_for(table, int(db.config.kernel.dim)).empty_table()
+            empty = schema_for(table, int(db.config.dim)).empty_table()
             con.register(f"_empty_{table}", empty)
             con.execute(f"CREATE VIEW {table} AS SELECT * FROM _empty_{table}")
     return con
@@ -153,7 +153,7 @@ def script(db: Any, metric: Any = None) -> str:
     str
         ``CREATE MACRO`` and ``CREATE VIEW`` statements, one per line.
     """
-    lines = [stmt + ";" for stmt in macros(db.config.kernel, _metric(db, metric))]
+    lines = [stmt + ";" for stmt in macros(db.config, _metric(db, metric))]
     for table, paths in _files(db.store).items():
         if paths:
             listing = ", ".join(_quote(p) for p in paths)

@@ -45,6 +45,7 @@ _PROVIDERS = {
     "render_matches": "query",
     "train_classifier": "query",
     "classify": "query",
+    "serve": "query",
 }
 
 
@@ -101,8 +102,8 @@ def connect(
     lock_timeout : float
         Seconds a write waits for another writer to finish.
     **options
-        :class:`Config` field names (``resolution``, ``n_balls``, ``n_r``...) applied on
-        top of ``config``. For an existing store they must agree with its config.
+        Flat configuration options (``resolution``, ``n_balls``, ``n_r``, ``descriptor``...,
+        :data:`shapedb.config.OPTIONS`) applied on top of ``config``. For an existing store they must agree with its config.
 
     Returns
     -------
@@ -133,14 +134,8 @@ def connect(
 
 
 def _diff(have: Config, want: Config) -> str:
-    a, b = have.to_dict(), want.to_dict()
-    parts = [
-        f"{k}: store {a[s][k]!r}, requested {b[s][k]!r}"
-        for s in a
-        for k in a[s]
-        if a[s][k] != b[s][k]
-    ]
-    return "; ".join(parts)
+    a, b = have.options(), want.options()
+    return "; ".join(f"{k}: store {a[k]!r}, requested {b[k]!r}" for k in a if a[k] != b[k])
 
 
 class Database:

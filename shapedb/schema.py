@@ -56,7 +56,7 @@ _TS = pa.timestamp("us", tz="UTC")
 
 
 def shapes_schema(dim: int) -> pa.Schema:
-    """Schema of the ``shapes`` table for features of length ``dim`` (``KernelConfig.dim``).
+    """Schema of the ``shapes`` table for features of length ``dim`` (``Config.dim``).
 
     Parameters
     ----------
@@ -146,7 +146,7 @@ class ShapeRecord:
         User-facing name (by default the file stem).
     decomposition : Decomposition
         The balls and contact graph.
-    feature : (config.kernel.dim,) float32
+    feature : (config.dim,) float32
         The Eq. 1 vector.
     config : Config
         Configuration the record was built with.
@@ -166,9 +166,9 @@ class ShapeRecord:
         UTC time the record was built.
     id : int or None
         Assigned by the store when the record is committed.
-    view_feature : (config.kernel.dim,) float32 or None
+    view_feature : (config.dim,) float32 or None
         Feature of the shape's sparse view (:mod:`shapedb.view`), when the store
-        keeps views (``KernelConfig.view_cells > 0``) and the shape is not itself a
+        keeps views (``CloudConfig.view_cells > 0``) and the shape is not itself a
         sparse point cloud; None otherwise.
     """
 

@@ -190,7 +190,7 @@ class Store:
             "updated_at": now,
             "config": config.to_dict(),
             "config_fingerprint": config.fingerprint,
-            "dim": config.kernel.dim,
+            "dim": config.dim,
             "tables": {t: [] for t in TABLES},
             "retired": [],
         }
@@ -212,7 +212,7 @@ class Store:
 
     @property
     def dim(self) -> int:
-        """Length of the stored feature vectors (``config.kernel.dim``)."""
+        """Length of the stored feature vectors (``config.dim``)."""
         return self._dim
 
     @property
@@ -334,7 +334,7 @@ class Store:
         ids : (n,) int64
             Shape ids, ascending.
         matrix : (n, d) float32
-            Row k is the feature of ``ids[k]``; d = ``KernelConfig.dim``.
+            Row k is the feature of ``ids[k]``; d = ``Config.dim``.
         """
         t = self.shapes(["id", "feature", "view_feature"] if view else ["id", "feature"])
         ids = t.column("id").to_numpy()

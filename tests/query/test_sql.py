@@ -70,7 +70,7 @@ def test_empty_store(tmp_path):
     db = database.connect(tmp_path / "empty", config=CONFIG)
     for table in ("shapes", "balls", "edges", "failures"):
         assert sql(db, f"SELECT * FROM {table}").num_rows == 0
-    assert search(db, np.zeros(CONFIG.kernel.dim)) == []
+    assert search(db, np.zeros(CONFIG.dim)) == []
 
 
 def test_errors(tmp_db):
@@ -79,7 +79,7 @@ def test_errors(tmp_db):
     assert "SELEC name FROM shapes" in str(info.value)
     with pytest.raises(QueryError, match="nosuchtable"):
         sql(tmp_db, "SELECT * FROM nosuchtable")
-    with pytest.raises(QueryError, match=f"length {CONFIG.kernel.dim}"):
+    with pytest.raises(QueryError, match=f"length {CONFIG.dim}"):
         sql(tmp_db, "SELECT mdbd_distance([1.0, 2.0], feature) FROM shapes")
     with pytest.raises(QueryError, match="empty"):
         sql(tmp_db, "   ")
@@ -121,7 +121,7 @@ def test_macros_weigh_by_a_learned_metric(tmp_db, tmp_path):
     from query.metric import LearnedMetric, block_layout
     from query.sql import script
 
-    blocks = block_layout(tmp_db.config.kernel)
+    blocks = block_layout(tmp_db.config)
     metric = LearnedMetric(
         blocks=blocks,
         weights=tuple(float(i % 3 + 1) for i in range(len(blocks))),

@@ -86,7 +86,7 @@ def test_ingest_sets_any_option_of_a_new_store(
     capsys.readouterr()
     assert main(["info", "--db", str(db), "--json"]) == 0
     config = _json(capsys)["config"]
-    assert config["mdbd"]["tie_cells"] == 0.0 and config["kernel"]["descriptor"] == 1
+    assert config["mdbd"]["tie_cells"] == 0.0 and config["descriptor"]["version"] == 1
     assert main(["ingest", str(models), "--db", str(db), "--set", "colour=red"]) == 1
     assert "unknown configuration option 'colour'" in capsys.readouterr().err
 
@@ -187,6 +187,7 @@ def test_demo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["demo", "--db", str(tmp_path / "demo"), "--workers", "1"]) == 0
     out = capsys.readouterr().out
     assert "ingested 20" in out and "shapes most like" in out
+    assert f"shapedb serve --db {tmp_path / 'demo'}" in out
 
 
 def test_show_and_match(tmp_path: Path, models: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -56,7 +56,7 @@ def make_record(
     return ShapeRecord(
         name=name,
         decomposition=d,
-        feature=rng.random(config.kernel.dim).astype(np.float32),
+        feature=rng.random(config.dim).astype(np.float32),
         config=config,
         content_hash=content or f"hash-{name}",
         representation="mesh",
