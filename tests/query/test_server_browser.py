@@ -243,3 +243,37 @@ def test_the_openapi_page_renders(browser, site, shots):
     _wait(browser, lambda d: len(d.find_elements(By.CSS_SELECTOR, ".opblock")) >= 14)
     assert "/api/search" in browser.find_element(By.TAG_NAME, "body").text
     _shot(browser, shots, "07-openapi")
+
+
+def test_ingest_by_upload_with_progress(searched, site, shots, tmp_path_factory):
+    import trimesh
+    from selenium.webdriver.common.by import By
+
+    path = tmp_path_factory.mktemp("upload") / "slab.obj"
+    trimesh.creation.box((3, 2, 0.3)).export(path)
+    searched.get(site[0] + "/")  # back from the OpenAPI page
+    _wait(searched, lambda d: d.execute_script("return !!(window.shapedb && window.shapedb.ready)"))
+    searched.find_element(By.CSS_SELECTOR, ".tab[data-tab='browse']").click()
+    searched.find_element(By.ID, "ingest-files").send_keys(str(path))
+    searched.find_element(By.ID, "ingest-label").send_keys("slab")
+    searched.find_element(By.CSS_SELECTOR, "#ingest-form button").click()
+    _wait(searched, lambda d: "ingested 1" in d.find_element(By.ID, "ingest-status").text)
+    _wait(searched, lambda d: "slab\n1" in d.find_element(By.ID, "facets").text)
+    assert searched.find_element(By.ID, "store-summary").text.startswith("7 shapes")
+    assert site[1].store.resolve("slab") > 0
+    _shot(searched, shots, "08-ingested")
+
+
+def test_picking_a_stored_shape_searches_it(searched, shots):
+    from selenium.webdriver.common.by import By
+
+    searched.find_element(By.CSS_SELECTOR, ".tab[data-tab='search']").click()
+    box = searched.find_element(By.ID, "pick-name")
+    box.clear()
+    box.send_keys("box1")
+    searched.find_element(By.CSS_SELECTOR, "#pick button").click()
+    _wait(searched, lambda d: d.find_element(By.ID, "results-title").text == "Nearest to box1")
+    first = searched.find_elements(By.CSS_SELECTOR, "#results .card .name")[0].text
+    assert first == "box1"
+    _wait(searched, lambda d: d.execute_script(PIXELS, _canvas(d, "query-view"), "ink") > 2000)
+    _shot(searched, shots, "09-stored-query")
