@@ -20,9 +20,8 @@ import logging
 import math
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,6 +29,10 @@ from numpy.typing import NDArray
 from query.gnn import plot_history, stored_graphs, stratified_split
 from shapedb.config import Config, MDBDConfig
 from shapedb.errors import ConfigError, InvalidShapeError, LoadError, NotFittedError
+from shapedb.results import Classification  # defined there, re-exported here
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = [
     "GraphClassifier",
@@ -410,40 +413,9 @@ class GraphClassifier:
 
 
 # ------------------------------------------------------------------ Database extensions
-@dataclass(frozen=True)
-class Classification:
-    """The predicted class of one shape.
-
-    Attributes
-    ----------
-    label : str
-        Most probable class.
-    probability : float
-        Its probability.
-    probabilities : dict[str, float]
-        Every class and its probability, most probable first.
-    source : str or None
-        The classified input (path, shape name or id).
-    """
-
-    label: str
-    probability: float
-    probabilities: dict[str, float] = field(default_factory=dict)
-    source: str | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-serialisable form (for ``shapedb classify --json``)."""
-        return {
-            "source": self.source,
-            "label": self.label,
-            "probability": self.probability,
-            "probabilities": self.probabilities,
-        }
-
-
-def _labelled(db: Any, label: str) -> tuple[list[int], list[str]]:
+def _labelled(db: Database, label: str) -> tuple[list[int], list[str]]:
     """Ids and labels of the stored shapes that have ``label`` (a column or metadata key)."""
-    store = getattr(db, "store", db)
+    store = db.store
     fp = db.config.fingerprint
     t = store.shapes(["id", "label", "metadata", "config_fingerprint"])
     bad = sorted(set(t.column("config_fingerprint").to_pylist()) - {fp})
@@ -461,7 +433,7 @@ def _labelled(db: Any, label: str) -> tuple[list[int], list[str]]:
 
 
 def train_classifier(
-    db: Any,
+    db: Database,
     *,
     label: str = "label",
     conv: str = "tag",
@@ -540,7 +512,7 @@ def train_classifier(
 
 
 def classify(
-    db: Any,
+    db: Database,
     model_or_path: GraphClassifier | str | os.PathLike[str],
     geometry_or_path: Any,
 ) -> Classification:
@@ -575,7 +547,7 @@ def classify(
     if isinstance(source, (str, os.PathLike)) and Path(source).is_file():
         graph = _decompose(db, db.load(source))
     elif isinstance(source, (int, np.integer, str)):
-        graph = db.get(source).decomposition
+        graph = db.get(int(source) if isinstance(source, np.integer) else source).decomposition
     elif hasattr(source, "centers"):
         graph = source
     else:
@@ -590,7 +562,7 @@ def classify(
     )
 
 
-def _decompose(db: Any, geometry: Any) -> Any:
+def _decompose(db: Database, geometry: Any) -> Any:
     from shapedb.mdbd import decompose
 
     return decompose(geometry, config=db.config.mdbd)

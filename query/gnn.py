@@ -39,6 +39,9 @@ from numpy.typing import NDArray
 from shapedb.config import Config
 from shapedb.errors import ConfigError, InvalidShapeError, require
 
+if TYPE_CHECKING:
+    from shapedb.database import Database
+
 if TYPE_CHECKING:  # pragma: no cover
     import torch
 
@@ -527,7 +530,7 @@ class StoredGraph:
     config: Config
 
 
-def stored_graphs(db: Any, ids: Sequence[int]) -> list[StoredGraph]:
+def stored_graphs(db: Database, ids: Sequence[int]) -> list[StoredGraph]:
     """The contact graphs of stored shapes, read in bulk from the Arrow tables.
 
     Parameters
@@ -539,7 +542,7 @@ def stored_graphs(db: Any, ids: Sequence[int]) -> list[StoredGraph]:
     -------
     list of k :class:`StoredGraph`, in the order of ``ids``
     """
-    store = getattr(db, "store", db)
+    store = db.store
     config = db.config
     ids = [int(i) for i in ids]
     shapes = store.shapes(["id", "name"], ids=ids)

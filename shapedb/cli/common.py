@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 if TYPE_CHECKING:
     from shapedb.database import Database
+    from shapedb.results import Hit
 
 __all__ = [
     "Handler",
@@ -48,10 +49,25 @@ class Subparsers(Protocol):
 def add_command(
     subparsers: Subparsers, name: str, handler: Handler, *, help: str
 ) -> argparse.ArgumentParser:
-    """Add subcommand ``name`` whose parsed arguments go to ``handler``."""
-    parser = subparsers.add_parser(name, help=help)
+    """Add subcommand ``name`` whose parsed arguments go to ``handler``.
+
+    Every subcommand also takes ``-v`` (as the command itself does before it).
+    """
+    parser = subparsers.add_parser(name, help=help, parents=[_verbose()])
     parser.set_defaults(handler=handler)
     return parser
+
+
+def _verbose() -> argparse.ArgumentParser:
+    parent = argparse.ArgumentParser(add_help=False)
+    parent.add_argument(
+        "-v",
+        "--verbose",
+        action="count",
+        default=argparse.SUPPRESS,
+        help="more log output; tracebacks on errors",
+    )
+    return parent
 
 
 def add_db_argument(parser: argparse.ArgumentParser, *, required: bool = True) -> None:
@@ -69,6 +85,28 @@ def open_store(path: str, **options: Any) -> Database:
 def existing_store(path: str) -> Database:
     """The store at ``path``; raises :class:`~shapedb.errors.StoreError` when there is none."""
     return open_store(path, create=False)
+
+
+def positive_int(text: str) -> int:
+    """An argparse type: an integer >= 1 (a usage error otherwise)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} is invalid: must be >= 1")
+    return value
+
+
+def seconds(text: str) -> float:
+    """An argparse type: a finite number of seconds >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not (0.0 <= value < float("inf")):
+        raise argparse.ArgumentTypeError(f"{value} is invalid: must be >= 0 seconds")
+    return value
 
 
 def query_arg(text: str) -> str | int:
@@ -100,11 +138,9 @@ class ProgressBar:
             self._bar.close()
 
 
-def hit_row(hit: Any) -> dict[str, Any]:
-    """A search hit as a dict of the :data:`HIT_COLUMNS` (or all its fields)."""
-    if hasattr(hit, "to_dict"):
-        return dict(hit.to_dict())
-    return {k: getattr(hit, k) for k in HIT_COLUMNS}
+def hit_row(hit: Hit) -> dict[str, Any]:
+    """A search hit as a dict of its fields (:data:`HIT_COLUMNS`)."""
+    return hit.to_dict()
 
 
 def jsonable(x: Any) -> Any:

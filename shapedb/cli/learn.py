@@ -67,12 +67,8 @@ def train(args: argparse.Namespace) -> int:
         )
     finally:
         bar.close()
-    classes = [str(c) for c in getattr(model, "classes_", [])]
-    result = {
-        "model": str(args.out),
-        "classes": classes,
-        "test_accuracy": getattr(model, "test_accuracy_", None),
-    }
+    classes = [str(c) for c in model.classes_]
+    result = {"model": str(args.out), "classes": classes, "test_accuracy": model.test_accuracy_}
     if args.json:
         print_json(result)
     else:
@@ -83,9 +79,8 @@ def train(args: argparse.Namespace) -> int:
 def classify(args: argparse.Namespace) -> int:
     """``shapedb classify``."""
     result = existing_store(args.db).classify(args.classifier, query_arg(args.model))
-    out = result.to_dict() if hasattr(result, "to_dict") else {"label": str(result)}
     if args.json:
-        print_json(out)
+        print_json(result.to_dict())
     else:
-        print(f"{out.get('label')}  (p = {out.get('probability', math.nan):.3f})")
+        print(f"{result.label}  (p = {result.probability:.3f})")
     return 0

@@ -92,6 +92,8 @@ def test_verbose_shows_the_traceback(
     assert err.splitlines()[-1] == "shapedb: error: no shapedb store at x"
     assert main(["info", "--db", str(tmp_path)]) == 1
     assert capsys.readouterr().err == "shapedb: error: no shapedb store at x\n"
+    assert main(["info", "--db", str(tmp_path), "-v"]) == 1  # -v after the subcommand too
+    assert "Traceback" in capsys.readouterr().err
 
 
 def test_console_script_is_main() -> None:
