@@ -320,3 +320,17 @@ def test_the_openapi_page_needs_no_cdn(api):
     for path in ("/api/info", "/api/search", "/api/shapes", "/api/shapes/{id}", "/api/match"):
         assert path in paths
     assert {"get", "post"} <= set(paths["/api/search"])
+
+
+@pytest.mark.parametrize(
+    "statement",
+    ["SELECT * FROM read_csv('/etc/passwd')", "SELECT 1; SELECT 2", "COPY shapes TO 'x.csv'"],
+)
+def test_sql_is_the_stores_sandbox(api, statement):
+    r = api.post("/api/sql", json={"sql": statement})
+    assert r.status_code == 400 and "root:" not in r.text
+
+
+def test_where_cannot_escape_its_predicate(api):
+    r = api.get("/api/search", params={"id": "box0", "where": "true) UNION SELECT 42 --"})
+    assert r.status_code == 400 and "where=" in r.json()["error"]
