@@ -552,11 +552,13 @@ class Database:
         self,
         *,
         label: str = "label",
-        conv: str = "tag",
+        methods: Sequence[str] | None = None,
+        conv: str | None = None,
         out: str | os.PathLike[str] | None = None,
         plot: str | os.PathLike[str] | None = None,
         test: float = 0.15,
-        validation: float = 0.15,
+        validation: float = 0.2,
+        folds: int | str = "auto",
         callback: Callable[[int, int, dict[str, float]], None] | None = None,
         epochs: int | None = None,
         rotate: bool | None = None,
@@ -569,20 +571,26 @@ class Database:
         weight_decay: float | None = None,
         warmup: int | None = None,
     ) -> Classifier:
-        """Train a graph-CNN classifier on the stored contact graphs (``shapedb[learn]``).
+        """Train the classifier that validates best on the stored shapes (``shapedb[learn]``).
 
-        Implemented by ``query.classify.train_classifier``.
+        Implemented by ``query.classify.train_classifier``: nearest neighbours on the
+        descriptor, a linear model, boosting and the graph CNNs are scored on
+        validation data from the training shapes only; never worse than 1-NN there.
 
         Parameters
         ----------
         label : str
             The ``label`` column, or a metadata key holding the class.
-        conv : {"tag", "arma", "spline"}
-            Graph convolution.
+        methods : sequence of str, optional
+            Candidates (``query.selection.CANDIDATES``); default all.
+        conv : {"tag", "arma", "spline"}, optional
+            With no ``methods``: compare 1-NN with this graph CNN only.
         out, plot : path, optional
-            Where to save the model and its training curve.
+            Where to save the model and a graph CNN's training curve.
         test, validation : float
-            Fractions held out for testing and for model selection.
+            Fractions held out for testing and (holdout protocol) for validation.
+        folds : int or "auto"
+            Validation folds; "auto" cross-validates when a class has under 20 shapes.
         callback : callable, optional
             ``callback(epoch, epochs, metrics)`` after every epoch.
         epochs, rotate, seed, device, lr, batch_size, hidden, dropout, weight_decay, warmup
@@ -609,21 +617,25 @@ class Database:
         model = _extension("train_classifier")(
             self,
             label=label,
+            methods=methods,
             conv=conv,
             out=out,
             plot=plot,
             test=test,
             validation=validation,
+            folds=folds,
             callback=callback,
             **options,
         )
         return cast(Classifier, model)
 
     def classify(
-        self, model: Classifier | str | os.PathLike[str], shape: ShapeRef
-    ) -> Classification:
-        """Label ``shape`` with a trained ``model`` (or the file it was saved to)."""
-        return cast(Classification, _extension("classify")(self, model, shape))
+        self, model: Classifier | str | os.PathLike[str], shape: ShapeRef | list[ShapeRef]
+    ) -> Classification | list[Classification]:
+        """Label ``shape`` (or each of a list, one load) with a trained ``model`` or its file."""
+        return cast(
+            "Classification | list[Classification]", _extension("classify")(self, model, shape)
+        )
 
     def load(self, path: str | os.PathLike[str], *, as_: str | None = None) -> Geometry:
         """Read a file into a Geometry with the ``ingest`` loaders."""

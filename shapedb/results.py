@@ -17,7 +17,7 @@ network); the facade types them by what a caller may rely on:
 
 * :class:`Metric`: what ``db.fit_metric`` returns (``query.metric.LearnedMetric``).
 * :class:`Classifier`: what ``db.train_classifier`` returns
-  (``query.classify.GraphClassifier``).
+  (``query.classify.ShapeClassifier``).
 
 The type aliases :data:`ShapeRef`, :data:`SearchQuery`, :data:`PartQuery`,
 :data:`ModelInput` and :data:`IngestInputs` name what the facade's methods accept.
@@ -365,13 +365,11 @@ class Metric(Protocol):
 
 @runtime_checkable
 class Classifier(Protocol):
-    """A trained graph-CNN classifier (``query.classify.GraphClassifier``)."""
+    """A trained classifier (``query.classify.ShapeClassifier``: k-NN, linear, boosting or a
+    graph CNN, chosen on validation)."""
 
     classes_: list[str]
     test_accuracy_: float
 
     def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write the weights and settings; returns the path."""
-
-    def predict(self, graphs: Sequence[Any]) -> list[str]:
-        """The most probable class of each graph."""
+        """Write the model and its settings; returns the path."""
