@@ -47,7 +47,7 @@ from shapedb.results import Hit  # defined there, re-exported here
 if TYPE_CHECKING:
     from shapedb.database import Database
 
-__all__ = ["Hit", "search", "search_batch", "query_features"]
+__all__ = ["Hit", "search", "search_batch", "query_features", "checked_k", "MAX_K"]
 
 log = logging.getLogger(__name__)
 
@@ -122,14 +122,14 @@ def search_batch(
             raise QueryError(
                 "search_batch expects a sequence of queries", source=type(queries).__name__
             )
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
-        raise QueryError("k must be a positive integer", source=f"k={k!r}")
+    k = checked_k(k)
     learned = as_metric(metric)
     if learned is not None:
         learned.check(db.config)
     if not len(queries):
         return []
     index = open_index(db, metric=learned)
+    k = min(k, max(len(index.ids_), 1))  # never more rows than the store holds
     resolved = [_resolve(db, q, index) for q in queries]
     allowed = None
     if where is not None:
@@ -159,6 +159,26 @@ def search_batch(
             hits.append(Hit(int(i), entry[0], entry[1], float(np.exp(-lam * d)), float(d)))
         out.append(hits)
     return out
+
+
+MAX_K = 1_000_000_000
+"""Largest ``k`` a search accepts (k above the store's size is capped at it)."""
+
+
+def checked_k(k: Any) -> int:
+    """``k`` as an int, or :class:`QueryError` when it is not an integer in [1, MAX_K].
+
+    Callers then cap it at the number of stored shapes, so a large ``k`` never
+    allocates more than the store's size.
+    """
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+        raise QueryError("k must be a positive integer", source=f"k={k!r}")
+    if k > MAX_K:
+        raise QueryError(
+            f"k is too large: at most {MAX_K:,} (results are capped at the store's size anyway)",
+            source=f"k={k!r}",
+        )
+    return int(k)
 
 
 def query_features(db: Database, query: Any, *, index: Any = None) -> NDArray[np.float64]:

@@ -146,7 +146,13 @@ def connect(
                 source=str(root),
             )
     elif create:
-        store = Store.create(root, requested, lock_timeout=lock_timeout)
+        try:
+            store = Store.create(root, requested, lock_timeout=lock_timeout)
+        except StoreError:
+            if not Store.exists(root):
+                raise
+            # another process created it first: open it (and compare configurations)
+            return connect(root, create=False, config=config, lock_timeout=lock_timeout, **options)
     else:
         raise StoreError("no shapedb store here", source=str(root))
     return Database(store)
@@ -228,6 +234,8 @@ class Database:
         progress: bool | Callable[[int, int], None] = False,
         batch_size: int = 32,
         commit_seconds: float = 30.0,
+        max_bytes: int | None = None,
+        max_faces: int | None = None,
     ) -> IngestReport:
         """Decompose files, folders or in-memory shapes and store them.
 
@@ -256,6 +264,9 @@ class Database:
             Results per atomic commit.
         commit_seconds : float
             Commit a partial batch when this much time passed since the last commit.
+        max_bytes, max_faces : int, optional
+            Refuse (as a failure row) any file larger than this many bytes, or any mesh
+            with more faces, so one giant file cannot take the machine's memory.
 
         Returns
         -------
@@ -276,6 +287,8 @@ class Database:
             progress=progress,
             batch_size=batch_size,
             commit_seconds=commit_seconds,
+            max_bytes=max_bytes,
+            max_faces=max_faces,
         )
         return cast(IngestReport, report)
 

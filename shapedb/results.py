@@ -92,19 +92,27 @@ class IngestReport:
         ``(input, reason)`` of every input that could not be ingested.
     seconds : float
         Wall time.
+    notes : tuple[tuple[str, str], ...]
+        ``(input, note)`` of inputs stored with a caveat, e.g. a mesh file with
+        vertices and no faces, stored as a point cloud.
+
+    Every path in a report is valid text: bytes of a file name that are not UTF-8
+    appear as ``\\xNN`` escapes.
     """
 
     ingested: tuple[int, ...] = ()
     skipped: tuple[str, ...] = ()
     failed: tuple[tuple[str, str], ...] = ()
     seconds: float = 0.0
+    notes: tuple[tuple[str, str], ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
-        """``{"ingested": n, "skipped": n, "failed": [{"path", "error"}]}`` (the CLI's JSON)."""
+        """``{"ingested": n, "skipped": n, "failed": [{"path", "error"}], "notes": [...]}``."""
         return {
             "ingested": len(self.ingested),
             "skipped": len(self.skipped),
             "failed": [{"path": p, "error": e} for p, e in self.failed],
+            "notes": [{"path": p, "note": n} for p, n in self.notes],
         }
 
     def __repr__(self) -> str:

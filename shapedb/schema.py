@@ -45,6 +45,7 @@ __all__ = [
     "edges_table",
     "failures_table",
     "record_from_rows",
+    "safe_text",
 ]
 
 SCHEMA_VERSION = 1
@@ -130,6 +131,28 @@ def schema_for(table: str, dim: int) -> pa.Schema:
     if table == "shapes":
         return shapes_schema(dim)
     return {"balls": BALLS_SCHEMA, "edges": EDGES_SCHEMA, "failures": FAILURES_SCHEMA}[table]
+
+
+def safe_text(text: str) -> str:
+    """``text`` as valid Unicode: undecodable bytes of a file name become ``\\xNN``.
+
+    Python decodes file names that are not UTF-8 with surrogate escapes, which
+    Parquet (and a UTF-8 terminal) cannot store; every string column goes through
+    this function.
+    """
+    try:
+        text.encode("utf-8")
+        return text
+    except UnicodeEncodeError:
+        pass
+    try:
+        return text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+    except UnicodeEncodeError:
+        return text.encode("utf-8", "backslashreplace").decode("utf-8")
+
+
+def _text(value: str | None) -> str | None:
+    return None if value is None else safe_text(str(value))
 
 
 def _now() -> datetime:
@@ -263,11 +286,14 @@ def shapes_table(records: Sequence[ShapeRecord], dim: int) -> pa.Table:
     ).reshape(-1)
     cols: dict[str, Any] = {
         "id": ids,
-        "name": [r.name for r in records],
-        "label": [r.label for r in records],
-        "metadata": [sorted((str(k), str(v)) for k, v in r.metadata.items()) for r in records],
+        "name": [safe_text(r.name) for r in records],
+        "label": [_text(r.label) for r in records],
+        "metadata": [
+            sorted((safe_text(str(k)), safe_text(str(v))) for k, v in r.metadata.items())
+            for r in records
+        ],
         "representation": [r.representation for r in records],
-        "source": [r.source for r in records],
+        "source": [_text(r.source) for r in records],
         "content_hash": [r.content_hash for r in records],
         "config": [r.config.to_json() for r in records],
         "config_fingerprint": [r.config.fingerprint for r in records],
@@ -352,7 +378,12 @@ def failures_table(failures: Sequence[Failure]) -> pa.Table:
     """Rows of the ``failures`` table."""
     return pa.Table.from_pylist(
         [
-            {"source": f.source, "error": f.error, "message": f.message, "time": f.time}
+            {
+                "source": safe_text(f.source),
+                "error": safe_text(f.error),
+                "message": safe_text(f.message),
+                "time": f.time,
+            }
             for f in failures
         ],
         schema=FAILURES_SCHEMA,

@@ -4,9 +4,12 @@
 
     shapedb ingest PATH... --db DIR [--labels CSV] [--label-from-folder] [--as pointcloud|smooth_voxels]
                    [--resolution N] [--balls N] [--set KEY=VALUE]... [--workers N]
-                   [--scheduler ADDR] [--force] [--json]
+                   [--scheduler ADDR] [--force] [--lock-timeout S] [--max-bytes N]
+                   [--max-faces N] [--json]
     shapedb info --db DIR [--json]
-    shapedb delete ID_OR_NAME... --db DIR
+    shapedb delete ID_OR_NAME... --db DIR [--lock-timeout S]
+    shapedb check --db DIR [--json]
+    shapedb repair --db DIR [--json]
     shapedb search QUERY --db DIR [-k 10] [--where SQL] [--metric JSON] [--json]
     shapedb sql "SELECT ..." --db DIR [--metric JSON] [--json | --csv]
     shapedb show MODEL --out PNG [--db DIR] [--complement]
@@ -39,13 +42,13 @@ import sys
 import traceback
 from collections.abc import Sequence
 
-from shapedb.cli import demo, evaluate, learn, search, store
+from shapedb.cli import check, demo, evaluate, learn, search, store
 from shapedb.errors import ShapeDBError
 
 __all__ = ["main", "build_parser", "GROUPS"]
 
 #: The modules of subcommands, in the order ``shapedb --help`` lists them.
-GROUPS = (store, search, evaluate, learn, demo)
+GROUPS = (store, check, search, evaluate, learn, demo)
 
 
 def build_parser() -> argparse.ArgumentParser:

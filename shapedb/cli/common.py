@@ -87,6 +87,28 @@ def existing_store(path: str) -> Database:
     return open_store(path, create=False)
 
 
+def positive_int(text: str) -> int:
+    """An argparse type: an integer >= 1 (a usage error otherwise)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} is invalid: must be >= 1")
+    return value
+
+
+def seconds(text: str) -> float:
+    """An argparse type: a finite number of seconds >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not (0.0 <= value < float("inf")):
+        raise argparse.ArgumentTypeError(f"{value} is invalid: must be >= 0 seconds")
+    return value
+
+
 def query_arg(text: str) -> str | int:
     """A path when such a file exists, an int id for digits, else a name."""
     if os.path.exists(text):

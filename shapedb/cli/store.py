@@ -12,7 +12,9 @@ from shapedb.cli.common import (
     add_db_argument,
     existing_store,
     open_store,
+    positive_int,
     print_json,
+    seconds,
 )
 
 __all__ = ["register", "ingest", "info", "delete"]
@@ -41,10 +43,21 @@ def register(subparsers: Subparsers) -> None:
         metavar="KEY=VALUE",
         help="any configuration option of a new store, e.g. --set tie_cells=0 (repeatable)",
     )
-    s.add_argument("--workers", type=int, metavar="N", help="worker processes (default: all cores)")
+    s.add_argument(
+        "--workers", type=positive_int, metavar="N", help="worker processes (default: all cores)"
+    )
     s.add_argument("--scheduler", metavar="ADDR", help="Dask scheduler address, e.g. tcp://h:8786")
-    s.add_argument("--batch-size", type=int, default=32, metavar="N", help="shapes per commit")
+    s.add_argument(
+        "--batch-size", type=positive_int, default=32, metavar="N", help="shapes per commit"
+    )
     s.add_argument("--force", action="store_true", help="rebuild shapes already stored")
+    _lock_timeout(s)
+    s.add_argument(
+        "--max-bytes", type=positive_int, metavar="N", help="refuse files larger than N bytes"
+    )
+    s.add_argument(
+        "--max-faces", type=positive_int, metavar="N", help="refuse meshes of more than N faces"
+    )
     s.add_argument("--json", action="store_true", help="print the report as JSON")
 
     s = add_command(
@@ -56,6 +69,17 @@ def register(subparsers: Subparsers) -> None:
     s = add_command(subparsers, "delete", delete, help="remove shapes by id or name")
     s.add_argument("targets", nargs="+", metavar="ID_OR_NAME")
     add_db_argument(s)
+    _lock_timeout(s)
+
+
+def _lock_timeout(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--lock-timeout",
+        type=seconds,
+        default=10.0,
+        metavar="S",
+        help="seconds to wait for another writer to finish (default 10)",
+    )
 
 
 def ingest(args: argparse.Namespace) -> int:
@@ -67,7 +91,7 @@ def ingest(args: argparse.Namespace) -> int:
         options["resolution"] = args.resolution
     if args.balls is not None:
         options["n_balls"] = args.balls
-    db = open_store(args.db, **options)
+    db = open_store(args.db, lock_timeout=args.lock_timeout, **options)
     bar = ProgressBar(enabled=not args.json)
     try:
         report = db.ingest(
@@ -80,6 +104,8 @@ def ingest(args: argparse.Namespace) -> int:
             force=args.force,
             progress=bar,
             batch_size=args.batch_size,
+            max_bytes=args.max_bytes,
+            max_faces=args.max_faces,
         )
     finally:
         bar.close()
@@ -92,6 +118,8 @@ def ingest(args: argparse.Namespace) -> int:
         )
         for path, error in report.failed:
             print(f"  failed: {path}: {error}")
+        for path, note in report.notes:
+            print(f"  note: {path}: {note}")
     return 1 if report.failed else 0
 
 
@@ -118,6 +146,6 @@ def info(args: argparse.Namespace) -> int:
 
 def delete(args: argparse.Namespace) -> int:
     """``shapedb delete``."""
-    n = existing_store(args.db).delete(args.targets)
+    n = open_store(args.db, create=False, lock_timeout=args.lock_timeout).delete(args.targets)
     print(f"deleted {n} shape(s)")
     return 0
