@@ -44,7 +44,7 @@ import socket
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from shapedb.errors import ConfigError, MissingDependencyError, ShapeDBError
 
@@ -61,6 +61,9 @@ except ImportError as _exc:  # pragma: no cover - exercised without the extra on
     ) from _exc
 
 from query.server_state import Service, TooLarge, error_response, status_of
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = ["create_app", "serve", "DEFAULT_MAX_UPLOAD_BYTES", "is_loopback"]
 
@@ -161,7 +164,7 @@ def _too_large(limit: int) -> Response:
 
 # ------------------------------------------------------------------ the app
 def create_app(
-    db: Any,
+    db: Database,
     *,
     token: str | None = None,
     max_upload_bytes: int = DEFAULT_MAX_UPLOAD_BYTES,
@@ -257,7 +260,7 @@ def _add_error_handlers(app: FastAPI) -> None:
 
 # ------------------------------------------------------------------ running
 def serve(
-    db: Any,
+    db: Database,
     *,
     host: str = "127.0.0.1",
     port: int = 8000,
@@ -344,7 +347,7 @@ def _bind(host: str, port: int) -> socket.socket:
     return sock
 
 
-def warm(db: Any) -> None:
+def warm(db: Database) -> None:
     """Load the store's feature index (and build it if missing) before the first request."""
     from query.index import open_index
 

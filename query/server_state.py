@@ -21,7 +21,7 @@ from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fastapi import Request, UploadFile
 from fastapi.responses import Response
@@ -35,6 +35,9 @@ from shapedb.errors import (
     StoreError,
     StoreLockedError,
 )
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = [
     "Job",
@@ -173,7 +176,7 @@ class Uploaded:
 class Service:
     """The server's state: the database, its settings and small caches."""
 
-    def __init__(self, db: Any, *, token: str | None, max_upload_bytes: int) -> None:
+    def __init__(self, db: Database, *, token: str | None, max_upload_bytes: int) -> None:
         self.db = db
         self.token = token
         self.max_upload_bytes = int(max_upload_bytes)

@@ -18,9 +18,12 @@ import os
 import tempfile
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from shapedb.errors import require
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = ["THUMBNAIL_DIR", "thumbnail", "thumbnail_path", "draw_thumbnail"]
 
@@ -82,7 +85,7 @@ def draw_thumbnail(record: Any, out: str | os.PathLike[str], *, geometry: Any = 
     return out
 
 
-def thumbnail(db: Any, id_or_name: int | str, *, surface: bool = True) -> Path:
+def thumbnail(db: Database, id_or_name: int | str, *, surface: bool = True) -> Path:
     """The thumbnail of a stored shape, drawn now if it is not cached yet.
 
     Parameters

@@ -12,12 +12,15 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from shapedb.errors import NotFoundError, ShapeDBError
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = [
     "decomposition_payload",
@@ -57,7 +60,7 @@ _RECORD_COLUMNS = [
 ]
 
 
-def stored_record(db: Any, sid: int) -> Any:
+def stored_record(db: Database, sid: int) -> Any:
     """A stored shape as ``db.get`` returns it, but read without its feature vectors.
 
     Parameters
@@ -207,7 +210,7 @@ def surface_payload(
     return {"kind": "none"}
 
 
-def stored_surface(db: Any, record: Any) -> dict[str, Any]:
+def stored_surface(db: Database, record: Any) -> dict[str, Any]:
     """The surface of a stored shape, read again from its source file if it is still there.
 
     Parameters
