@@ -372,7 +372,7 @@ class _Committer:
     """Collects results and commits them in batches (the store's lock held by the caller)."""
 
     def __init__(
-        self, db: Any, present: dict[str, int], batch_size: int, commit_seconds: float
+        self, db: Database, present: dict[str, int], batch_size: int, commit_seconds: float
     ) -> None:
         self.db = db
         self.present = present
@@ -415,6 +415,7 @@ class _Committer:
             records.append(rec)
         _, committed = self.db.commit(records, failures=self.failures, delete=replace_ids)
         for (index, _), rec in zip(self.pending, committed, strict=True):
+            assert rec.id is not None  # the store numbers every record it commits
             self.ingested[index] = int(rec.id)
         self.pending, self.failures = [], []
         self.last_commit = time.monotonic()

@@ -253,7 +253,7 @@ def sql(db: Database, statement: str, *, metric: Any = None) -> pa.Table:
         con.close()
 
 
-def _error(db: Any, exc: Exception, source: str) -> ShapeDBError:
+def _error(db: Database, exc: Exception, source: str) -> ShapeDBError:
     """QueryError, or StoreError when DuckDB could not read one of the store's own files."""
     import duckdb
 

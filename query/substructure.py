@@ -497,10 +497,10 @@ def _corpus(
     per_shape: int,
     overlap: float | None,
 ) -> list[PartMatch]:
+    from query.engine import checked_k
     from query.parts_index import open_parts_index
 
-    if isinstance(k, bool) or int(k) < 1:
-        raise QueryError("k must be a positive integer", source=f"k={k!r}")
+    k = checked_k(k)  # an integer in [1, MAX_K]; the index returns at most what it holds
     index = open_parts_index(db, cfg)
     allowed = None
     if where is not None:

@@ -65,6 +65,7 @@ _PROVIDERS = {
     "render_matches": "query",
     "train_classifier": "query",
     "classify": "query",
+    "serve": "query",
 }
 
 

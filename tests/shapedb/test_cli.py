@@ -187,6 +187,7 @@ def test_demo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["demo", "--db", str(tmp_path / "demo"), "--workers", "1"]) == 0
     out = capsys.readouterr().out
     assert "ingested 20" in out and "shapes most like" in out
+    assert f"shapedb serve --db {tmp_path / 'demo'}" in out
 
 
 def test_show_and_match(tmp_path: Path, models: Path, capsys: pytest.CaptureFixture[str]) -> None:
