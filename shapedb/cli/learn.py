@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from shapedb.cli.common import (
     Subparsers,
@@ -15,6 +15,9 @@ from shapedb.cli.common import (
     print_json,
     query_arg,
 )
+
+if TYPE_CHECKING:
+    from shapedb.results import ShapeRef
 
 __all__ = ["register", "train", "classify"]
 
@@ -116,7 +119,7 @@ def train(args: argparse.Namespace) -> int:
 
 def classify(args: argparse.Namespace) -> int:
     """``shapedb classify``: every model with one load of the classifier, in one process."""
-    shapes = [query_arg(m) for m in args.model]
+    shapes: list[ShapeRef] = [query_arg(m) for m in args.model]
     results = existing_store(args.db).classify(args.classifier, shapes)
     for result in results if isinstance(results, list) else [results]:
         if args.json:
