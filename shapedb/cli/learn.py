@@ -15,7 +15,6 @@ from shapedb.cli.common import (
     print_json,
     query_arg,
 )
-from shapedb.results import ShapeRef
 
 if TYPE_CHECKING:
     from shapedb.results import ShapeRef
