@@ -15,6 +15,7 @@ from shapedb.cli.common import (
     print_json,
     query_arg,
 )
+from shapedb.results import ShapeRef
 
 __all__ = ["register", "train", "classify"]
 
