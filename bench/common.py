@@ -386,7 +386,7 @@ def cache_path(model: Model, variant: str, config: MDBDConfig) -> Path:
     del params["contact_tol_cells"]
     key = [_source_key(model), variant, params, engine_version(variant)]
     if variant.startswith(("pointcloud_noisy", "pointcloud_partial")):
-        key.append(people_version())  # bench.people makes these clouds
+        key.append(people_version("scans"))  # bench.people makes these clouds
     text = json.dumps(key, sort_keys=True)
     digest = hashlib.sha256(text.encode()).hexdigest()[:20]
     return CACHE_DIR / "dec" / f"{digest}.npz"

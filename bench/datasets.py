@@ -29,6 +29,7 @@ the paper's 20 % of their ~7,000 vertices: :func:`min_cloud_points`).
 from __future__ import annotations
 
 import csv
+import functools
 import inspect
 import os
 import zlib
@@ -304,11 +305,24 @@ def mesh_arrays(
     return v, f
 
 
-def people_version() -> str:
-    """sha256 (8 hex) of the people generator's source: part of its meshes' cache keys."""
+@functools.lru_cache(maxsize=2)
+def people_version(part: str = "mesh") -> str:
+    """sha256 (8 hex) of the people generator's code: part of the cache keys.
+
+    ``part`` ``"mesh"``: what a person's mesh depends on; ``"scans"``: what the
+    noisy and partial clouds of any mesh depend on.
+    """
     import hashlib
 
-    return hashlib.sha256((REPO / "bench" / "people.py").read_bytes()).hexdigest()[:8]
+    from bench import people as p
+
+    if part == "mesh":
+        code = [p.proportions, p.angles, p._segments, p._cone, p.person, p.person_mesh]
+        consts = [p._BASE, p._JOINTS, p._RANGES, p.MESH_RESOLUTION, p.MESH_VERTICES, p.BLEND]
+    else:
+        code, consts = [p.noisy_cloud, p.partial_cloud], [p.NOISE_SIGMA]
+    text = "".join(inspect.getsource(f) for f in code) + repr(consts)
+    return hashlib.sha256(text.encode()).hexdigest()[:8]
 
 
 def min_cloud_points(model: Model) -> int:
