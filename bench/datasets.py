@@ -60,8 +60,21 @@ __all__ = [
 ]
 
 REPO = Path(__file__).resolve().parents[1]
-#: The real data set (outside the repository; never copied into it).
-CAPOD_ROOT = REPO.parent / "shared" / "data" / "capod"
+#: The real data set (outside the repository; never copied into it): ``SHAPEDB_CAPOD``,
+#: else ``../shared/data/capod`` beside the checkout or beside the worktrees' folder.
+CAPOD_ROOT = Path(
+    os.environ.get(
+        "SHAPEDB_CAPOD",
+        next(
+            (
+                p / "shared" / "data" / "capod"
+                for p in (REPO.parent, REPO.parent.parent)
+                if (p / "shared" / "data" / "capod").is_dir()
+            ),
+            REPO.parent / "shared" / "data" / "capod",
+        ),
+    )
+)
 #: Decompositions and generated meshes (git-ignored); ``SHAPEDB_BENCH_CACHE`` overrides it.
 CACHE_DIR = Path(os.environ.get("SHAPEDB_BENCH_CACHE", REPO / "bench" / "results" / "cache"))
 
