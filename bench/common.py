@@ -457,13 +457,13 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
         from bench.people import noisy_cloud, partial_cloud
         from shapedb.pointcloud import PointCloud
 
-        base = point_cloud(
+        paper = point_cloud(
             v, f, seed=stable_seed(model.name, "pointcloud"), min_points=min_cloud_points(model)
         )
         seed = stable_seed(model.name, variant)
         if variant == "pointcloud_noisy":
-            return PointCloud(noisy_cloud(base, v, seed=seed))
-        return PointCloud(partial_cloud(base, v, f, seed=seed))
+            return PointCloud(noisy_cloud(paper, v, seed=seed))
+        return PointCloud(partial_cloud(paper, v, f, seed=seed))
     if variant == "pointcloud_dense":
         from bench.baselines import sample_surface
         from shapedb.pointcloud import PointCloud
