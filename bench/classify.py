@@ -50,7 +50,7 @@ from numpy.typing import NDArray
 
 from bench.common import decompose_all, format_table, write_json
 from bench.datasets import Dataset, Model, capod, split_by_model
-from shapedb.config import KernelConfig, MDBDConfig
+from shapedb.config import Config, MDBDConfig
 
 RESULTS = Path(__file__).resolve().parent / "results"
 COLUMNS = (
@@ -196,7 +196,7 @@ def knn_baseline(data: dict[str, Any], splits: list[Split]) -> dict[str, Any]:
     """
     from shapedb.kernel import features, kernel
 
-    cfg = KernelConfig()
+    cfg = Config()
     t0 = time.perf_counter()
     feat = lambda b: None if b is None else features(b.decomposition(), cfg)  # noqa: E731
     fm = np.stack([features(b.decomposition(), cfg) for b in data["mesh"]])
@@ -222,7 +222,7 @@ def knn_baseline(data: dict[str, Any], splits: list[Split]) -> dict[str, Any]:
             acc.setdefault(name, []).append(float(np.mean(pred == y[idx])))
     return {
         "network": "1-NN, Eq. 3 kernel",
-        "descriptor": cfg.descriptor,
+        "descriptor": cfg.descriptor.version,
         "rotations": "-",
         "accuracy": acc,
         "n_test": [len(s["test"]) for s in splits],

@@ -8,7 +8,7 @@ minute. The baseline is one worker in this process, measured in the same run.
                            [--no-dask] [--resolution N] [--balls N] [--views CELLS]
 
 Prints a table and writes bench/results/ingest.json. ``--views CELLS`` adds a run
-into a store that keeps sparse views (``KernelConfig.view_cells``): its CPU seconds per
+into a store that keeps sparse views (``CloudConfig.view_cells``): its CPU seconds per
 model against the runs without are the views' cost.
 """
 
@@ -123,7 +123,12 @@ def main(argv: list[str] | None = None) -> int:
             }
         )
     if not args.no_dask:
-        from distributed import Client, LocalCluster
+        from shapedb.errors import require
+
+        distributed = require(
+            "distributed", extra="distributed", feature="the Dask rows (--no-dask to skip them)"
+        )
+        Client, LocalCluster = distributed.Client, distributed.LocalCluster
 
         n = max(args.workers)
         print(

@@ -297,7 +297,7 @@ def grid(base: PartConfig) -> list[PartConfig]:
         for n_r in (5, 10, 20):
             for size in (0.0, 1.0, 4.0):
                 for centre in (0.0, 1.0, 4.0, 8.0):
-                    cfg = replace(base, hops=hops, n_r=n_r, size=size, centre=centre)
+                    cfg = base.with_options(hops=hops, n_r=n_r, size=size, centre=centre)
                     if cfg not in out:
                         out.append(cfg)
     return out
@@ -392,7 +392,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         selection = sweep(grid(PartConfig()), mdbd, args.workers)
         selection.sort(key=lambda r: -r["score"])
         paper_k = [
-            r for r in selection if (r["config"]["hops"], r["config"]["n_r"]) == (2, 10)
+            r for r in selection if (r["config"]["hops"], r["config"]["kernel"]["n_r"]) == (2, 10)
         ]  # the paper's K and n_r, and the API's default hops=2
         chosen = paper_k[0]["config"]
         logger.info("validation choice at K=2, n_r=10: %s", chosen)
@@ -407,7 +407,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 [
                     [
                         r["config"]["hops"],
-                        r["config"]["n_r"],
+                        r["config"]["kernel"]["n_r"],
                         r["config"]["size"],
                         r["config"]["centre"],
                         r["figures_mean"],
@@ -440,7 +440,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "\n%s",
         format_table(
             f"Part matching, figures ({len(sets['implicit'])} models: {args.subjects} subjects x "
-            f"{args.poses} poses; res {args.resolution}, K={after.hops}, n_r={after.n_r}): "
+            f"{args.poses} poses; res {args.resolution}, K={after.hops}, n_r={after.kernel.n_r}): "
             "best match on the same part; before = paper's vector, after = PartConfig()",
             ["setting", *LABELS, "mean", "chance", "queries"],
             _fig_rows("before", report["before"]["figures"])

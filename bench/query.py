@@ -40,7 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from query.index import FeatureIndex
-from shapedb.config import Config, KernelConfig
+from shapedb.config import CloudConfig, Config, KernelConfig
 from shapedb.kernel import weights
 
 log = logging.getLogger("bench.query")
@@ -119,11 +119,15 @@ def synthetic_descriptors(
     return out
 
 
-def synthetic_vectors(n: int, config: KernelConfig, seed: int) -> NDArray[np.float32]:
-    """Synthetic feature vectors of ``config``'s method and length, (n, config.dim)."""
-    if config.method == "paper":
-        return synthetic_features(n, config.n_r, seed)
-    return synthetic_descriptors(n, config.descriptor, seed)
+def synthetic_vectors(n: int, config: Config | KernelConfig, seed: int) -> NDArray[np.float32]:
+    """Synthetic feature vectors of ``config``'s method and length, (n, Config.dim).
+
+    A :class:`KernelConfig` alone stands for ``Config(kernel=config)`` (today's descriptor).
+    """
+    full = config if isinstance(config, Config) else Config(kernel=config)
+    if full.kernel.method == "paper":
+        return synthetic_features(n, full.kernel.n_r, seed)
+    return synthetic_descriptors(n, full.descriptor.version, seed)
 
 
 def _rss_mb() -> float:
@@ -281,7 +285,7 @@ def run_store(
         t0 = time.perf_counter()
         fitted = db.fit_metric(label="label")
         fit_s = time.perf_counter() - t0
-        blocks = block_layout(config.kernel)
+        blocks = block_layout(config)
         metric = LearnedMetric(
             blocks=blocks,
             weights=tuple(1.0 + (i % 3) for i in range(len(blocks))),
@@ -326,15 +330,13 @@ def _views_store(
     both indexes (own features and views) and merges them, a dense one also reaches
     the sparse shapes through its view (``query.engine``).
     """
-    import dataclasses
-
     import shapedb.database as database
     from query.engine import search
     from query.index import open_index
     from shapedb.mdbd import Decomposition
     from shapedb.schema import ShapeRecord
 
-    config = Config(kernel=dataclasses.replace(kernel, view_cells=4.0))
+    config = Config(kernel=kernel, cloud=CloudConfig(view_cells=4.0))
     rng = np.random.default_rng(3)
     views = (x * rng.uniform(0.9, 1.1, x.shape)).astype(np.float32)
     sparse = np.arange(n) % 10 == 0
@@ -449,7 +451,11 @@ def main(argv: list[str] | None = None) -> int:
             "load_average_start": load_start,
             "load_average_end": os.getloadavg(),
         },
-        "kernel": {"method": kernel.method, "descriptor": kernel.descriptor, "dim": kernel.dim},
+        "kernel": {
+            "method": kernel.method,
+            "descriptor": Config(kernel=kernel).descriptor.version,
+            "dim": Config(kernel=kernel).dim,
+        },
         "index": rows,
         "store_search": stores,
         "total_seconds": time.perf_counter() - started,

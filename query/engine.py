@@ -17,7 +17,7 @@ Accepted queries, tried in this order:
 
 A sparse point cloud (a sample every 2 grid cells or more) also has the feature of its
 reconstruction (:mod:`shapedb.reconstruct`), and in a store with sparse views
-(``KernelConfig.view_cells > 0``, :mod:`shapedb.view`) every dense shape that of its
+(``CloudConfig.view_cells > 0``, :mod:`shapedb.view`) every dense shape that of its
 view. A pair of a sparse cloud and a dense shape is as far apart as the nearest of the
 cloud's own feature and the dense shape's own feature or view, and the cloud's
 reconstruction and the dense shape's own feature. A sparse geometry or file query
@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 
 from shapedb.errors import ConfigError, NotFoundError, QueryError, ShapeDBError
 
-__all__ = ["Hit", "search", "search_batch", "query_features"]
+__all__ = ["Hit", "search", "search_batch", "query_features", "checked_k", "MAX_K"]
 
 log = logging.getLogger(__name__)
 
@@ -147,14 +147,14 @@ def search_batch(
             raise QueryError(
                 "search_batch expects a sequence of queries", source=type(queries).__name__
             )
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
-        raise QueryError("k must be a positive integer", source=f"k={k!r}")
+    k = checked_k(k)
     learned = as_metric(metric)
     if learned is not None:
         learned.check(db.config)
     if not len(queries):
         return []
     index = open_index(db, metric=learned)
+    k = min(k, max(len(index.ids_), 1))  # never more rows than the store holds
     resolved = [_resolve(db, q, index) for q in queries]
     allowed = None
     if where is not None:
@@ -162,7 +162,7 @@ def search_batch(
 
         allowed = allowed_ids(db, where)
     if (
-        db.config.kernel.view_cells
+        db.config.cloud.view_cells
         or any(q.sparse for q in resolved)
         or len(_catalog(db, index.version_).sparse)
     ):
@@ -184,6 +184,26 @@ def search_batch(
             hits.append(Hit(int(i), entry[0], entry[1], float(np.exp(-lam * d)), float(d)))
         out.append(hits)
     return out
+
+
+MAX_K = 1_000_000_000
+"""Largest ``k`` a search accepts (k above the store's size is capped at it)."""
+
+
+def checked_k(k: Any) -> int:
+    """``k`` as an int, or :class:`QueryError` when it is not an integer in [1, MAX_K].
+
+    Callers then cap it at the number of stored shapes, so a large ``k`` never
+    allocates more than the store's size.
+    """
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+        raise QueryError("k must be a positive integer", source=f"k={k!r}")
+    if k > MAX_K:
+        raise QueryError(
+            f"k is too large: at most {MAX_K:,} (results are capped at the store's size anyway)",
+            source=f"k={k!r}",
+        )
+    return int(k)
 
 
 def query_features(db: Any, query: Any, *, index: Any = None) -> NDArray[np.float64]:
@@ -230,7 +250,7 @@ def _resolve(db: Any, query: Any, index: Any) -> _Query:
     from shapedb.view import is_sparse
 
     config = db.config
-    dim = config.kernel.dim
+    dim = config.dim
     if isinstance(query, bool):
         raise QueryError("a boolean is not a query", source=repr(query))
     if isinstance(query, (int, np.integer)):
@@ -299,7 +319,7 @@ def _stored(db: Any, sid: int, index: Any) -> _Query:
         catalog = _catalog(db, index.version_)
         pos = min(int(np.searchsorted(catalog.sparse, sid)), max(len(catalog.sparse) - 1, 0))
         sparse = bool(len(catalog.sparse) and catalog.sparse[pos] == sid)
-        if not (sparse or db.config.kernel.view_cells):
+        if not (sparse or db.config.cloud.view_cells):
             return _Query(v)  # a dense shape's second feature is a view: none here
         view = open_index(db, view=True).features_of(sid)  # own feature where none
         return _Query(v, sparse, None if view is None or np.array_equal(view, v) else view)
@@ -320,7 +340,7 @@ def _stored(db: Any, sid: int, index: Any) -> _Query:
 def _featurise(decomposition: Any, config: Any) -> NDArray[np.float64]:
     from shapedb.kernel import features
 
-    return np.asarray(features(decomposition, config.kernel), dtype=np.float64)
+    return np.asarray(features(decomposition, config), dtype=np.float64)
 
 
 def _from_geometry(db: Any, geometry: Any) -> _Query:
@@ -334,8 +354,8 @@ def _from_geometry(db: Any, geometry: Any) -> _Query:
         from shapedb.reconstruct import reconstructed
 
         found = (
-            reconstructed(geometry, d, config.mdbd, depth=config.kernel.reconstruct_depth)
-            if config.kernel.reconstruct
+            reconstructed(geometry, d, config.mdbd, depth=config.cloud.reconstruct_depth)
+            if config.cloud.reconstruct
             else None
         )
         recon = None if found is None else _featurise(found, config)
@@ -343,14 +363,14 @@ def _from_geometry(db: Any, geometry: Any) -> _Query:
 
     def view() -> NDArray[np.float64] | None:
         try:
-            g = view_geometry(geometry, d.spacing, config.kernel.view_cells)
+            g = view_geometry(geometry, d.spacing, config.cloud.view_cells)
             found = None if g is None else decompose(g, config=config.mdbd)
         except ShapeDBError as exc:  # compare by its own feature instead
             log.warning("query has no sparse view: %s", exc)
             return None
         return _featurise(found, config) if found is not None and found.n_balls else None
 
-    return _Query(_featurise(d, config), False, view if config.kernel.view_cells else None)
+    return _Query(_featurise(d, config), False, view if config.cloud.view_cells else None)
 
 
 def _from_file(db: Any, path: Path) -> _Query:
@@ -386,7 +406,7 @@ def _search_with_views(
     out_d = np.full((len(queries), k), np.inf)
     sparse_ids = _catalog(db, index.version_).sparse
     views = None
-    with_views = bool(db.config.kernel.view_cells)
+    with_views = bool(db.config.cloud.view_cells)
     for row, q in enumerate(queries):
         lists = [index.search(q.feature[None], k, allowed=allowed)]
         if q.sparse:  # against the dense shapes: everything but the sparse ids

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from query.labelled import stored_labels
 from shapedb.errors import QueryError, require
 
 __all__ = ["RetrievalScores", "retrieval_scores", "evaluate", "MEASURES", "E_MEASURE_K"]
@@ -239,24 +240,6 @@ def _score(
     )
 
 
-def _labels(db: Any, label: str) -> tuple[NDArray[np.int64], NDArray[Any]]:
-    """(ids, labels) of the stored shapes; ``label`` is a column or a metadata key."""
-    try:
-        t = db.store.shapes(["id", label])
-        values = t.column(label).to_pylist()
-    except QueryError:  # not a column: a metadata key
-        t = db.store.shapes(["id", "metadata"])
-        meta = [dict(m) if m is not None else {} for m in t.column("metadata").to_pylist()]
-        if not any(label in m for m in meta):
-            raise QueryError(
-                "neither a column of shapes nor a metadata key of any shape",
-                source=f"label={label!r}",
-            ) from None
-        values = [m.get(label) for m in meta]
-    labels = np.asarray([None if v is None else str(v) for v in values], dtype=object)
-    return t.column("id").to_numpy(), labels
-
-
 def evaluate(
     db: Any,
     *,
@@ -290,56 +273,10 @@ def evaluate(
     -------
     RetrievalScores
     """
-    from query.metric import as_metric
-
-    learned = as_metric(metric)
-    if learned is not None:
-        learned.check(db.config)
-        if callable(method):
-            raise QueryError(
-                "a metric weighs the kernel: not with a callable method", source="metric"
-            )
-    ids_all, labels_all = _labels(db, label)
-    fid, feats = db.store.features()
-    if not np.array_equal(fid, ids_all):  # a commit happened in between: align on ids
-        common, a, b = np.intersect1d(ids_all, fid, return_indices=True)
-        ids_all, labels_all, fid, feats = common, labels_all[a], fid[b], feats[b]
-    keep = np.array([x is not None for x in labels_all], bool)
-    if not keep.all():
-        log.info("evaluate: %d unlabelled shapes left out", int((~keep).sum()))
-    ids, labels, x = ids_all[keep], labels_all[keep], np.asarray(feats[keep], np.float64)
-    n = len(ids)
+    learned = _checked_metric(db, metric, method)
+    ids, labels, x = _labelled_features(db, label)
     if method is None or method == "kernel":
-        from scipy.spatial.distance import cdist
-
-        from shapedb.kernel import weights
-
-        w = weights(db.config.kernel)
-        if learned is not None:
-            w = w * learned.dim_weights()
-        xw = x * w
-        sparse = np.isin(ids, db.store.sparse_ids())
-        vw = None
-        if sparse.any():  # the search's rule (query.engine): a sparse-dense pair is as far
-            # apart as the nearest of own-own and either side's second feature (its view
-            # or reconstruction; its own feature where it has none) against the other's own
-            vid, views = db.store.features(view=True)
-            pos = np.searchsorted(vid, ids)
-            vw = np.asarray(views[pos], np.float64) * w
-
-        def rows() -> Iterator[tuple[NDArray[np.intp], NDArray[np.float64]]]:
-            step = max(1, _CHUNK_CELLS // max(n, 1))
-            for lo in range(0, n, step):
-                idx = np.arange(lo, min(lo + step, n))
-                d = cdist(xw[idx], xw, "cityblock")
-                if vw is not None:
-                    one = sparse[idx, None] != sparse[None, :]
-                    near = np.minimum(
-                        cdist(xw[idx], vw, "cityblock"), cdist(vw[idx], xw, "cityblock")
-                    )
-                    d = np.where(one, np.minimum(d, near), d)
-                yield idx, d
-
+        rows = _kernel_distance_rows(db, ids, x, learned)
         scores = _score(rows, labels, ids=ids, distance=True, recall_levels=RECALL_LEVELS)
     elif callable(method):
         sim = np.asarray(method(x), dtype=np.float64)
@@ -358,3 +295,80 @@ def evaluate(
     if plot is not None:
         scores.plot(plot)
     return scores
+
+
+def _checked_metric(db: Any, metric: Any, method: Any) -> Any:
+    """The learned metric to rank by (None for the default), checked against the store.
+
+    Raises :class:`QueryError` when a metric comes with a callable ``method``.
+    """
+    from query.metric import as_metric
+
+    learned = as_metric(metric)
+    if learned is not None:
+        learned.check(db.config)
+        if callable(method):
+            raise QueryError(
+                "a metric weighs the kernel: not with a callable method", source="metric"
+            )
+    return learned
+
+
+def _labelled_features(
+    db: Any, label: str
+) -> tuple[NDArray[np.int64], NDArray[Any], NDArray[np.float64]]:
+    """Ids (n,), labels (n,) and stored features (n, d) of the labelled shapes.
+
+    Ids and features are aligned on ids (a commit may happen between the two reads);
+    unlabelled shapes are left out.
+    """
+    ids_all, labels_all = stored_labels(db, label)
+    fid, feats = db.store.features()
+    if not np.array_equal(fid, ids_all):  # a commit happened in between: align on ids
+        common, a, b = np.intersect1d(ids_all, fid, return_indices=True)
+        ids_all, labels_all, fid, feats = common, labels_all[a], fid[b], feats[b]
+    keep = np.array([x is not None for x in labels_all], bool)
+    if not keep.all():
+        log.info("evaluate: %d unlabelled shapes left out", int((~keep).sum()))
+    return ids_all[keep], labels_all[keep], np.asarray(feats[keep], np.float64)
+
+
+def _kernel_distance_rows(
+    db: Any, ids: NDArray[np.int64], x: NDArray[np.float64], learned: Any
+) -> Callable[[], Iterator[tuple[NDArray[np.intp], NDArray[np.float64]]]]:
+    """Chunks of rows of the Eq. 2 distance matrix between the shapes ``ids``, as search ranks.
+
+    The features ``x`` (n, d) are weighed by the kernel's weights (times the learned
+    metric's); a pair of a sparse cloud and a dense shape is as far apart as the
+    nearest of own-own and either side's second feature (its view or reconstruction;
+    its own feature where it has none) against the other's own (:mod:`query.engine`).
+    Each call of the returned function yields ``(row indices, (rows, n) distances)``.
+    """
+    from scipy.spatial.distance import cdist
+
+    from shapedb.kernel import weights
+
+    n = len(ids)
+    w = weights(db.config)
+    if learned is not None:
+        w = w * learned.dim_weights()
+    xw = x * w
+    sparse = np.isin(ids, db.store.sparse_ids())
+    vw = None
+    if sparse.any():
+        vid, views = db.store.features(view=True)
+        pos = np.searchsorted(vid, ids)
+        vw = np.asarray(views[pos], np.float64) * w
+
+    def rows() -> Iterator[tuple[NDArray[np.intp], NDArray[np.float64]]]:
+        step = max(1, _CHUNK_CELLS // max(n, 1))
+        for lo in range(0, n, step):
+            idx = np.arange(lo, min(lo + step, n))
+            d = cdist(xw[idx], xw, "cityblock")
+            if vw is not None:
+                one = sparse[idx, None] != sparse[None, :]
+                near = np.minimum(cdist(xw[idx], vw, "cityblock"), cdist(vw[idx], xw, "cityblock"))
+                d = np.where(one, np.minimum(d, near), d)
+            yield idx, d
+
+    return rows

@@ -40,7 +40,7 @@ from shapedb.errors import ConfigError, NotFittedError, QueryError, StoreError, 
 
 if TYPE_CHECKING:
     from query.metric import LearnedMetric
-    from shapedb.config import KernelConfig
+    from shapedb.config import Config
 
 __all__ = ["FeatureIndex", "open_index", "build_index", "on_commit", "INDEX_DIR"]
 
@@ -459,9 +459,9 @@ def _faiss_search(
     """faiss search; a few queries run on one OpenMP thread.
 
     For one query faiss parallelises the flat scan across threads, which on a busy
-    machine costs far more than it saves (16 ms instead of 0.5 ms at 50 000 vectors
-    on 2 loaded cores). ``omp_set_num_threads`` sets the calling thread's own ICV,
-    so other Python threads are unaffected.
+    machine costs far more than it saves (``docs/results.md``, "Index").
+    ``omp_set_num_threads`` sets the calling thread's own ICV, so other Python
+    threads are unaffected.
     """
     faiss = _faiss()
     params = None if ef_search is None else faiss.SearchParametersHNSW(efSearch=ef_search)
@@ -492,7 +492,7 @@ def _check_rows(
 
 
 # ------------------------------------------------------------------ store glue
-_CACHE: dict[str, tuple[KernelConfig, FeatureIndex]] = {}
+_CACHE: dict[str, tuple[Config, FeatureIndex]] = {}
 _LOCK = threading.Lock()
 
 
@@ -515,7 +515,7 @@ def open_index(
     ----------
     db : shapedb.Database
         Uses ``db.store`` (``path``, ``version``, ``features()``) and
-        ``db.config.kernel``.
+        ``db.config``.
     kind : {"auto", "flat", "hnsw"}, optional
         Force an index type (rebuilding if the current one differs).
     rebuild : bool
@@ -538,7 +538,7 @@ def open_index(
     """
     store = db.store
     root = Path(_store_key(db))
-    config = db.config.kernel
+    config = db.config
     from shapedb.kernel import weights
 
     w = np.asarray(weights(config), dtype=np.float64)

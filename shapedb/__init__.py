@@ -15,7 +15,14 @@ import importlib
 from typing import Any
 
 from shapedb import kernel  # the module: shapedb.kernel.kernel is Eq. 3
-from shapedb.config import Config, KernelConfig, MDBDConfig, PartConfig
+from shapedb.config import (
+    CloudConfig,
+    Config,
+    DescriptorConfig,
+    KernelConfig,
+    MDBDConfig,
+    PartConfig,
+)
 from shapedb.errors import (
     ConfigError,
     DegenerateGeometryError,
@@ -66,6 +73,8 @@ __all__ = [
     "Config",
     "MDBDConfig",
     "KernelConfig",
+    "DescriptorConfig",
+    "CloudConfig",
     "PartConfig",
     "ShapeDBError",
     "InvalidShapeError",

@@ -101,8 +101,8 @@ def connect(
     lock_timeout : float
         Seconds a write waits for another writer to finish.
     **options
-        :class:`Config` field names (``resolution``, ``n_balls``, ``n_r``...) applied on
-        top of ``config``. For an existing store they must agree with its config.
+        Flat configuration options (``resolution``, ``n_balls``, ``n_r``, ``descriptor``...,
+        :data:`shapedb.config.OPTIONS`) applied on top of ``config``. For an existing store they must agree with its config.
 
     Returns
     -------
@@ -126,21 +126,21 @@ def connect(
                 source=str(root),
             )
     elif create:
-        store = Store.create(root, requested, lock_timeout=lock_timeout)
+        try:
+            store = Store.create(root, requested, lock_timeout=lock_timeout)
+        except StoreError:
+            if not Store.exists(root):
+                raise
+            # another process created it first: open it (and compare configurations)
+            return connect(root, create=False, config=config, lock_timeout=lock_timeout, **options)
     else:
         raise StoreError("no shapedb store here", source=str(root))
     return Database(store)
 
 
 def _diff(have: Config, want: Config) -> str:
-    a, b = have.to_dict(), want.to_dict()
-    parts = [
-        f"{k}: store {a[s][k]!r}, requested {b[s][k]!r}"
-        for s in a
-        for k in a[s]
-        if a[s][k] != b[s][k]
-    ]
-    return "; ".join(parts)
+    a, b = have.options(), want.options()
+    return "; ".join(f"{k}: store {a[k]!r}, requested {b[k]!r}" for k in a if a[k] != b[k])
 
 
 class Database:

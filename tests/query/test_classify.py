@@ -200,7 +200,7 @@ def _store_db(tmp_path, graphs: list[Decomposition], labels: list[str], config: 
         ShapeRecord(
             name=f"s{k}",
             decomposition=g,
-            feature=np.zeros(config.kernel.dim, np.float32),
+            feature=np.zeros(config.dim, np.float32),
             config=config,
             content_hash=f"h{k}",
             representation="implicit",

@@ -57,7 +57,7 @@ def test_ingest_info_delete(
     assert report["ingested"] == 6 and report["skipped"] == 0
     assert [Path(f["path"]).name for f in report["failed"]] == ["broken.stl"]
     assert "truncated" in report["failed"][0]["error"]
-    assert set(report) == {"ingested", "skipped", "failed"}
+    assert set(report) == {"ingested", "skipped", "failed", "notes"}
 
     assert main(["info", "--db", str(db), "--json"]) == 0
     info = _json(capsys)
@@ -68,7 +68,7 @@ def test_ingest_info_delete(
 
     (models / "broken.stl").unlink()
     assert _ingest(models, db, "--json") == 0  # idempotent
-    assert _json(capsys) == {"ingested": 0, "skipped": 6, "failed": []}
+    assert _json(capsys) == {"ingested": 0, "skipped": 6, "failed": [], "notes": []}
 
     assert main(["delete", "boxes0", "2", "--db", str(db)]) == 0
     assert "deleted 2" in capsys.readouterr().out
@@ -86,7 +86,7 @@ def test_ingest_sets_any_option_of_a_new_store(
     capsys.readouterr()
     assert main(["info", "--db", str(db), "--json"]) == 0
     config = _json(capsys)["config"]
-    assert config["mdbd"]["tie_cells"] == 0.0 and config["kernel"]["descriptor"] == 1
+    assert config["mdbd"]["tie_cells"] == 0.0 and config["descriptor"]["version"] == 1
     assert main(["ingest", str(models), "--db", str(db), "--set", "colour=red"]) == 1
     assert "unknown configuration option 'colour'" in capsys.readouterr().err
 
@@ -256,4 +256,4 @@ def test_ingest_voxels_as_smooth_solids(tmp_path: Path, capsys: pytest.CaptureFi
     # the same file read as a smooth solid is another shape (another solid)
     assert main(["ingest", str(folder), "--db", str(db), "--as", "smooth_voxels",
                  "--workers", "1", "--json"]) == 0  # fmt: skip
-    assert _json(capsys) == {"ingested": 1, "skipped": 0, "failed": []}
+    assert _json(capsys) == {"ingested": 1, "skipped": 0, "failed": [], "notes": []}

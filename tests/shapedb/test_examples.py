@@ -70,7 +70,7 @@ def test_public_api_is_pinned_and_resolves() -> None:
     import shapedb
 
     expected = {
-        "Config", "MDBDConfig", "KernelConfig", "PartConfig", "Geometry", "Grid", "Implicit", "Sphere", "Box",
+        "Config", "MDBDConfig", "KernelConfig", "DescriptorConfig", "CloudConfig", "PartConfig", "Geometry", "Grid", "Implicit", "Sphere", "Box",
         "Capsule", "Cylinder", "Torus", "Union", "Intersection", "Difference", "TriangleMesh",
         "PointCloud", "VoxelGrid", "decompose", "Decomposition", "ContactGraph", "contact_edges",
         "features", "features_batch", "weights", "distance", "kernel", "connect", "Database",

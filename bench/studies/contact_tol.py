@@ -1,8 +1,8 @@
-"""Issue 6: the default descriptor at other contact tolerances, on cached decompositions.
+"""The default descriptor at other contact tolerances, on cached decompositions.
 
 Usage (from the repository root)::
 
-    python -m bench.contact_tol [--tols 0.25 0.5 1 2] [--workers 2]
+    python -m bench.studies.contact_tol [--tols 0.25 0.5 1 2] [--workers 2]
 
 The balls of a decomposition do not depend on ``MDBDConfig.contact_tol_cells``; only
 its contact graph does. So this script takes the default decompositions (meshes and
@@ -11,7 +11,7 @@ sets), rebuilds each contact graph at every tolerance (in grid cells) and report
 the default descriptor's retrieval: meshes NN / 1-T / DCG, NN of cloud queries
 against the mesh database, their mean log margin ``log(d(nearest same class) /
 d(nearest other class))`` (lower is better; far less noisy than NN) and
-``bench/select_descriptors.py``'s objective, (NN + 1-T + DCG) / 3 + 0.25 NN of cloud
+``bench/studies/select_descriptors.py``'s objective, (NN + 1-T + DCG) / 3 + 0.25 NN of cloud
 queries, averaged over the sets.
 
 A second table asks the stability question of ``python -m bench.retrieval
@@ -20,12 +20,12 @@ point cloud of a test model (the same ~30 probes per set) find their own model f
 among the test meshes? Besides that count it reports the mean
 ``log(d(own model) / d(nearest other model))``, lower is better, which is far less
 noisy than a first-place count over 30 probes. Results go to
-bench/results/contact_tol.json.
+bench/results/studies/contact_tol.json.
 
 The descriptor's weights were chosen at 0.5 cells, the default until this bench
 showed that 1 cell (today's default) widens every set's cloud-query margin on both
 splits: a sparse cloud's packing has about 15 % fewer exact contacts than its mesh's
-(``bench/calibrate_sampling.py``) and a wider tolerance recovers the near misses. The
+(``bench/studies/calibrate_sampling.py``) and a wider tolerance recovers the near misses. The
 decomposition cache holds balls only; ``bench.common.decompose_all`` rebuilds the
 contacts at the requested tolerance, so this bench decomposes nothing new.
 """
@@ -43,12 +43,12 @@ from numpy.typing import NDArray
 
 from bench.common import Balls, decompose_all, format_table, retrieval_scores, write_json
 from bench.datasets import Dataset
-from bench.descriptors import l1_matrix
+from bench.features import l1_matrix
 from bench.retrieval import build_sets
 from shapedb.config import MDBDConfig
 from shapedb.descriptor import describe
 
-OUT = Path(__file__).resolve().parent / "results" / "contact_tol.json"
+OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "contact_tol.json"
 
 
 def _features(balls: list[Balls], tol_cells: float) -> NDArray[np.float64]:
@@ -78,7 +78,7 @@ def _own_copy(
 ) -> list[list[Any]]:
     """Rows (set, variant, copies, tol, own first, mean log margin) for the test probes.
 
-    The probes are those of ``bench.issue6.run_stability``: every
+    The probes are those of ``bench.studies.descriptor_prototypes.run_stability``: every
     ``len(test) // probes``-th decomposable test model.
     """
     test = ds.split("test")
@@ -108,7 +108,7 @@ def _own_copy(
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
     ap = argparse.ArgumentParser(
-        prog="python -m bench.contact_tol", description=__doc__.split("\n")[0]
+        prog="python -m bench.studies.contact_tol", description=__doc__.split("\n")[0]
     )
     ap.add_argument("--datasets", nargs="+", default=["capod", "articulated", "parts"])
     ap.add_argument("--tols", nargs="+", type=float, default=[0.25, 0.5, 1.0, 2.0])

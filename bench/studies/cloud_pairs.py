@@ -1,8 +1,8 @@
-"""Issue 6: other ways to compare a sparse cloud with a mesh, measured and not kept.
+"""Other ways to compare a sparse cloud with a mesh, measured and not kept.
 
 Usage (from the repository root)::
 
-    python -m bench.cloud_pairs [--splits validation test] [--workers 2]
+    python -m bench.studies.cloud_pairs [--splits validation test] [--workers 2]
 
 A store compares a sparse cloud and a mesh by the nearer of the cloud's own feature
 and its reconstruction's (:mod:`shapedb.reconstruct`, :mod:`query.engine`). Each
@@ -24,7 +24,7 @@ better; far less noisy than NN) and, where it changes, NN of the even mixture:
 * **mixture scale 0.9 / 1.1**: cloud-mesh distances multiplied by a constant
   against mesh-mesh and cloud-cloud ones (the mixture only).
 
-Results go to bench/results/cloud_pairs.json. Decompositions come from the bench
+Results go to bench/results/studies/cloud_pairs.json. Decompositions come from the bench
 cache (:func:`bench.common.decompose_all`).
 """
 
@@ -47,12 +47,12 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.descriptors import l1_matrix
-from bench.retrieval import _complete, _mixture_mask, build_sets, kernel_features, reconstructions
+from bench.features import complete, kernel_features, l1_matrix, mixture_mask, reconstructions
+from bench.retrieval import build_sets
 from shapedb.config import KernelConfig, MDBDConfig
 from shapedb.descriptor import LAYOUTS, VERSION
 
-OUT = Path(__file__).resolve().parent / "results" / "cloud_pairs.json"
+OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "cloud_pairs.json"
 TURNS = ("pointcloud_turn_0", "pointcloud_turn_1", "pointcloud_turn_2")
 DEPTHS = {"depth 7": "pointcloud_recon_d7", "depth 6": "pointcloud_recon_d6"}
 #: Multipliers tried per block by the cross-weight search, and the margin cap.
@@ -76,12 +76,12 @@ def _features(ds: Any, split: str, mdbd: MDBDConfig, workers: int) -> Features:
     raw = decompose_all(sub.models, "pointcloud_recon", mdbd, workers=workers)
     seconds["now"] = float(np.median([b.seconds for b in raw if b is not None]))
     turns = [decompose_all(sub.models, v, mdbd, workers=workers) for v in TURNS]
-    sub, lists = _complete(sub, mesh, pc, *recon.values(), *turns)
+    sub, lists = complete(sub, mesh, pc, *recon.values(), *turns)
     feats = [kernel_features(lst, cfg) for lst in lists]
     names = ["mesh", "pc", *(f"recon {k}" for k in recon), *TURNS]
     out: Features = dict(zip(names, feats, strict=True))
     out["labels"] = np.asarray(sub.labels)
-    out["mix"] = _mixture_mask([m.name for m in sub.models])
+    out["mix"] = mixture_mask([m.name for m in sub.models])
     out["seconds"] = seconds
     return out
 
@@ -172,7 +172,7 @@ def rows(f: Features, cross_w: NDArray[np.float64]) -> list[list[Any]]:
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
     ap = argparse.ArgumentParser(
-        prog="python -m bench.cloud_pairs", description=__doc__.split("\n")[0]
+        prog="python -m bench.studies.cloud_pairs", description=__doc__.split("\n")[0]
     )
     ap.add_argument("--datasets", nargs="+", default=["capod", "articulated", "parts"])
     ap.add_argument("--splits", nargs="+", default=["validation", "test"])

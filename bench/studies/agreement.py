@@ -15,7 +15,7 @@ class, plus the median:
     median, over cells inside both, of cloud SDF / mesh SDF (the distance bias of
     the cloud: ball radii scale with it, ball volumes with its cube).
 
-Usage: ``python -m bench.agreement [--per-class 2] [--resolution 64] [--out PATH]``.
+Usage: ``python -m bench.studies.agreement [--per-class 2] [--resolution 64] [--out PATH]``.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ import numpy as np
 
 from bench.datasets import capod, mesh_arrays, point_cloud, stable_seed
 
-OUT = Path(__file__).resolve().parent / "results" / "agreement.json"
+OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "agreement.json"
 
 
 def _watertight(vertices: np.ndarray, faces: np.ndarray) -> bool:
@@ -96,7 +96,9 @@ def summarise(rows: list[dict]) -> dict:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.studies.agreement", description=__doc__.splitlines()[0]
+    )
     ap.add_argument("--per-class", type=int, default=2)
     ap.add_argument("--resolution", type=int, default=64)
     ap.add_argument("--out", type=Path, default=OUT)

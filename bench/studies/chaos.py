@@ -28,7 +28,7 @@ shapes sit near ln 10 = 2.3), its ratio to the median distance from a model to i
 nearest same-class neighbour in the split, the per-block medians, and how often the
 perturbed copy is still nearer to its original than to every other model of the split.
 
-Usage: ``python -m bench.chaos [--n 12] [--split validation] [--workers 2] [--out PATH]``.
+Usage: ``python -m bench.studies.chaos [--n 12] [--split validation] [--workers 2] [--out PATH]``.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ from bench.common import Balls, decompose_all, format_table, mdbd_config, write_
 from bench.datasets import articulated, capod, parts
 from shapedb.descriptor import LAYOUTS, VERSION, describe
 
-OUT = Path(__file__).resolve().parent / "results" / "chaos.json"
+OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "chaos.json"
 SETS = {"capod": capod, "articulated": articulated, "parts": parts}
 TURNS = ("0.01", "0.5", "2")
 BLOCKS = tuple(b[0] for b in LAYOUTS[VERSION])
@@ -132,7 +132,9 @@ def measure_set(name: str, split: str, n: int, workers: int) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.studies.chaos", description=__doc__.split("\n", 1)[0]
+    )
     ap.add_argument("--n", type=int, default=12, help="models per set")
     ap.add_argument("--split", default="validation")
     ap.add_argument("--sets", nargs="+", default=list(SETS), choices=list(SETS))

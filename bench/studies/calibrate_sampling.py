@@ -1,8 +1,8 @@
-"""Issue 6: would a fitted correction of sparse clouds' systematic bias help? (No.)
+"""Would a fitted correction of sparse clouds' systematic bias help? (No.)
 
 Usage (from the repository root)::
 
-    python -m bench.calibrate_sampling [--workers 2] [--no-dense]
+    python -m bench.studies.calibrate_sampling [--workers 2] [--no-dense]
 
 A point cloud of a fifth of a mesh's vertices (the paper's query; 2,000-4,500 points
 here, a sample every 3.8-4.8 grid cells at 128 cells, ``Decomposition.sampling``) is
@@ -19,7 +19,7 @@ against the mesh database, NN of the even mixture, how often a cloud's own mesh 
 first, the mean log margin ``log(d(nearest same class) / d(nearest other class))`` of
 the cloud queries (lower is better, and far less noisy than NN), and NN of dense
 clouds (validation) as a control, for alpha = 0, 0.5, 1. Results go to
-bench/results/calibrate_sampling.json.
+bench/results/studies/calibrate_sampling.json.
 
 Finding: the jointed figures gain (test cloud-query NN 0.867 -> 0.933 at alpha = 1)
 but CAPOD and the parts lose margin at every alpha, and on the validation splits the
@@ -39,12 +39,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common import Balls, decompose_all, format_table, retrieval_scores, write_json
-from bench.descriptors import l1_matrix
-from bench.retrieval import _mixture_mask, build_sets
+from bench.features import l1_matrix, mixture_mask
+from bench.retrieval import build_sets
 from shapedb.config import MDBDConfig
 from shapedb.descriptor import describe
 
-RESULTS = Path(__file__).resolve().parent / "results"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 X0 = 2.0  # clouds sampled at most this many cells apart are not corrected
 X_MAX = 6.0  # nor extrapolated beyond this spacing
 ALPHAS = (0.0, 0.5, 1.0)
@@ -83,7 +83,7 @@ def _scores(data: dict[str, Any], beta: NDArray[np.float64] | None) -> dict[str,
     fm = _describe(data["mesh"], None)
     fp = _describe(data["pointcloud"], beta)
     lab = data["labels"]
-    mix = _mixture_mask(data["names"])
+    mix = mixture_mask(data["names"])
     fx = np.where(mix[:, None], fp, fm)
     d = l1_matrix(fp, fm)
     same = lab[:, None] == lab[None, :]
@@ -118,7 +118,7 @@ def fit(validation: Sequence[dict[str, Any]]) -> NDArray[np.float64]:
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
     ap = argparse.ArgumentParser(
-        prog="python -m bench.calibrate_sampling", description=__doc__.split("\n")[0]
+        prog="python -m bench.studies.calibrate_sampling", description=__doc__.split("\n")[0]
     )
     ap.add_argument("--datasets", nargs="+", default=["capod", "articulated", "parts"])
     ap.add_argument("--workers", type=int, default=2)

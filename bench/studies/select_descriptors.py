@@ -1,23 +1,23 @@
-"""Issue 6: choose one descriptor combination for all sets together, on validation only.
+"""Choose one descriptor combination for all sets together, on validation only.
 
 Usage (from the repository root)::
 
-    python -m bench.select_descriptors [--quick] [--no-refine] [--geodesic] [--subjects 15 --poses 20]
+    python -m bench.studies.select_descriptors [--quick] [--no-refine] [--geodesic] [--subjects 15 --poses 20]
 
-Every subset of up to five blocks of :mod:`bench.descriptors` (and a double weight on
+Every subset of up to five blocks of :mod:`bench.studies.descriptors` (and a double weight on
 ``inertia``) is scored on the validation split of each set with
 ``(NN + 1-T + DCG) / 3 + 0.25 * NN(point-cloud queries -> mesh database)``; the
 subset with the best mean over the sets wins. It is then reported on the test splits
 next to the paper's kernel with its published weights and with flat weights
 (la = lb = 1, n_r = 32, t = 20, w = 0.7, the best of the kernel study), and next to
 the winner plus that flat-weight kernel. Results go to
-bench/results/descriptor_selection.json.
+bench/results/studies/descriptor_selection.json.
 
 ``--geodesic`` instead re-weighs the library's own blocks (:mod:`shapedb.descriptor`,
 version 3 layout): version 2's blocks and weights fixed, the two inner-distance
 blocks ``geodesic`` and ``geodesic_mean`` at every weight pair of {0, 1, 2, 4}, the
 same objective on the validation splits; the grid and the test-split figures of the
-best go to bench/results/descriptor_geodesic.json. That is how version 3 was chosen.
+best go to bench/results/studies/descriptor_geodesic.json. That is how version 3 was chosen.
 """
 
 from __future__ import annotations
@@ -32,15 +32,14 @@ from typing import Any
 
 import numpy as np
 
-from bench import descriptors as desc
 from bench.common import decompose_all, format_table, log_margin, retrieval_scores, write_json
 from bench.datasets import Dataset
-from bench.issue6 import _scales
 from bench.retrieval import build_sets
+from bench.studies import descriptors as desc
 from shapedb.config import MDBDConfig
 
 POOL = ("radius", "d2c", "d2c_mean", "d1c", "inertia", "degree", "wwl", "walk")
-RESULTS = Path(__file__).resolve().parent / "results"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 
 
 def _paper_flat(b: Any) -> np.ndarray:
@@ -71,7 +70,7 @@ def select(sets: Sequence[Dataset], mdbd: MDBDConfig, workers: int) -> dict[str,
     """Validation-only choice of a block combination; test-split report."""
     desc.BLOCKS.setdefault("paper_flat", _paper_flat)
     val = {ds.name: _blocks(ds, "validation", mdbd, workers) for ds in sets}
-    scales = {n: _scales(v[0]) for n, v in val.items()}
+    scales = {n: desc.block_scales(v[0]) for n, v in val.items()}
     trials = []
     for k in range(1, 6):
         for combo in itertools.combinations(POOL, k):
@@ -266,7 +265,7 @@ def select_sorted(sets: Sequence[Dataset], mdbd: MDBDConfig, workers: int) -> di
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
-    ap = argparse.ArgumentParser(prog="python -m bench.select_descriptors")
+    ap = argparse.ArgumentParser(prog="python -m bench.studies.select_descriptors")
     ap.add_argument("--datasets", nargs="+", default=["capod", "articulated", "parts"])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--no-refine", action="store_true")

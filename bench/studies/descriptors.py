@@ -1,4 +1,4 @@
-"""Prototype descriptors computed only from MDBD balls and their contact graph (issue 6).
+"""Prototype descriptors computed only from MDBD balls and their contact graph.
 
 Everything here is a bench prototype: the winner moves into the library afterwards.
 Each *block* maps a decomposition (:class:`bench.common.Balls`) to a fixed-length
@@ -36,8 +36,17 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from bench.common import Balls
+from bench.features import l1_matrix
 
-__all__ = ["BLOCKS", "block", "paper_features", "describe", "combined_distance"]
+__all__ = [
+    "BLOCKS",
+    "block",
+    "block_scales",
+    "paper_features",
+    "describe",
+    "combined_distance",
+    "l1_matrix",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -214,11 +223,13 @@ def describe(balls: Sequence[Balls], names: Sequence[str] = tuple(BLOCKS)) -> di
     return {n: np.stack([block(n, b) for b in balls]) for n in names}
 
 
-def l1_matrix(a: FloatArray, b: FloatArray) -> FloatArray:
-    """(len(a), len(b)) L1 distances between rows."""
-    out = np.empty((len(a), len(b)))
-    for i in range(len(a)):
-        out[i] = np.abs(b - a[i]).sum(axis=1)
+def block_scales(blocks: Mapping[str, FloatArray]) -> dict[str, float]:
+    """Typical distance of each block: the median L1 distance over pairs of models."""
+    out = {}
+    for name, x in blocks.items():
+        d = l1_matrix(x, x)
+        iu = np.triu_indices(len(x), 1)
+        out[name] = float(np.median(d[iu])) or 1.0
     return out
 
 

@@ -1,8 +1,8 @@
-"""Issue 6: the sparse views' spacing (``KernelConfig.view_cells``), chosen on validation.
+"""The sparse views' spacing (``CloudConfig.view_cells``), chosen on validation.
 
 Usage (from the repository root)::
 
-    python -m bench.views [--cells 3 4 5] [--split validation] [--workers 2]
+    python -m bench.studies.views [--cells 3 4 5] [--split validation] [--workers 2]
 
 For each spacing (grid cells between view samples) the meshes of the split are
 decomposed as sparse views (:func:`shapedb.view.view_geometry`, cached like every
@@ -12,7 +12,7 @@ mesh database, with the meshes' own features (no views) and with views; the mean
 log margin ``log(d(nearest same class) / d(nearest other class))`` of those queries
 (lower is better; far less noisy than NN); and NN of the even mixture. The mesh
 retrieval the cloud queries are held against is in the first column. Results go to
-bench/results/views.json.
+bench/results/studies/views.json.
 """
 
 from __future__ import annotations
@@ -34,12 +34,12 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.descriptors import l1_matrix
-from bench.retrieval import _mixture_mask, build_sets, reconstructions
+from bench.features import l1_matrix, mixture_mask, reconstructions
+from bench.retrieval import build_sets
 from shapedb.config import MDBDConfig
 from shapedb.descriptor import describe
 
-OUT = Path(__file__).resolve().parent / "results" / "views.json"
+OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "views.json"
 
 
 def _features(balls: Sequence[Balls]) -> NDArray[np.float64]:
@@ -48,7 +48,9 @@ def _features(balls: Sequence[Balls]) -> NDArray[np.float64]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
-    ap = argparse.ArgumentParser(prog="python -m bench.views", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.studies.views", description=__doc__.split("\n")[0]
+    )
     ap.add_argument("--datasets", nargs="+", default=["capod", "articulated", "parts"])
     ap.add_argument("--cells", nargs="+", type=float, default=[3.0, 4.0, 5.0])
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
@@ -79,7 +81,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         fm = _features([m[i] for i in keep])  # type: ignore[misc]
         fp = _features([p[i] for i in keep])  # type: ignore[misc]
         fr = _features([r[i] for i in keep])  # type: ignore[misc]
-        mix = _mixture_mask(names)
+        mix = mixture_mask(names)
         d_mm = l1_matrix(fm, fm)
         mesh_nn = retrieval_scores(-d_mm, labels)["nn"]
         settings: list[tuple[str, NDArray[np.float64]]] = [("none", fm)]

@@ -1,7 +1,14 @@
-"""Issue 6 measurements: descriptor prototypes and stability, beside the paper's kernel and D2.
+"""Descriptor prototypes and stability, beside the paper's kernel and D2.
+
+Run through the retrieval bench, whose data sets and options they share (it imports
+this module; this module never imports it)::
+
+    python -m bench.retrieval --descriptors     # run_descriptors
+    python -m bench.retrieval --stability       # run_stability
+    python -m bench.retrieval --refine-shift    # run_refine_shift
 
 ``run_descriptors``
-    Every block of :mod:`bench.descriptors` alone and in combinations, on the
+    Every block of :mod:`bench.studies.descriptors` alone and in combinations, on the
     validation split (mesh vs mesh retrieval and point-cloud queries against the mesh
     database); a greedy forward selection of blocks on validation; then the chosen
     combinations, the paper's kernel and D2 on the test split.
@@ -20,13 +27,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench import descriptors as desc
 from bench.baselines import D2Config, d2_descriptor, l1_similarity
 from bench.common import Balls, decompose_all, format_table, retrieval_scores
 from bench.datasets import Dataset, families, mesh_arrays
+from bench.features import kernel_features, reconstructions
+from bench.studies import descriptors as desc
 from shapedb.config import KernelConfig, MDBDConfig
 
-__all__ = ["CANDIDATES", "run_descriptors", "run_stability"]
+__all__ = ["CANDIDATES", "run_descriptors", "run_refine_shift", "run_stability"]
 
 #: Hand-made combinations (equal weights after scaling each block by its median distance).
 CANDIDATES: dict[str, tuple[str, ...]] = {
@@ -39,15 +47,6 @@ CANDIDATES: dict[str, tuple[str, ...]] = {
     # Chosen on the validation splits of all three sets together (best mean objective).
     "chosen": ("radius", "d2c", "d2c_mean", "inertia", "walk"),
 }
-
-
-def _scales(blocks: Mapping[str, NDArray[np.float64]]) -> dict[str, float]:
-    out = {}
-    for name, x in blocks.items():
-        d = desc.l1_matrix(x, x)
-        iu = np.triu_indices(len(x), 1)
-        out[name] = float(np.median(d[iu])) or 1.0
-    return out
 
 
 def _eval(
@@ -78,7 +77,7 @@ def run_descriptors(ds: Dataset, mdbd: MDBDConfig, *, workers: int = 2) -> dict[
     val, vm, vp = _both(ds.split("validation"), mdbd, workers)
     labels = val.labels
     bm, bp = desc.describe(vm), desc.describe(vp)
-    scales = _scales(bm)
+    scales = desc.block_scales(bm)
     ms_per_model = {}
     for name in desc.BLOCKS:
         t0 = time.perf_counter()
@@ -186,8 +185,7 @@ def run_stability(
     step = max(1, len(test) // probes)
     probe = list(range(0, len(test), step))
     db = desc.describe(mesh)  # type: ignore[arg-type]
-    scales = _scales(db)
-    from bench.retrieval import kernel_features, reconstructions
+    scales = desc.block_scales(db)
 
     shapedb_db = kernel_features(mesh, kcfg)  # type: ignore[arg-type]
     fam = families(test.models)
@@ -306,7 +304,7 @@ def run_refine_shift(
             "k_model_vs_shifted": float(np.diag(k_os).mean()),
             "k_same_class": float(k_os[same].mean()) if same.any() else float("nan"),
         }
-        scales = _scales(o)
+        scales = desc.block_scales(o)
         for name, names in methods.items():
             d = desc.combined_distance(s, o, dict.fromkeys(names, 1.0), scales)
             res[name] = float(np.mean(np.argmin(d, axis=1) == np.arange(len(keep))))

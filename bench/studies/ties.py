@@ -15,7 +15,7 @@ the default descriptor: mesh-mesh NN / 1-T / DCG, cloud queries against the mesh
 database (own mesh left out) and the even mixture, their gaps to mesh-mesh, and the
 mean kernel between a mesh and its own cloud.
 
-Usage: ``python -m bench.ties [--ties 0 0.5 1 2] [--split validation] [--workers 2]``.
+Usage: ``python -m bench.studies.ties [--ties 0 0.5 1 2] [--split validation] [--workers 2]``.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from bench.common import Balls, decompose_all, format_table, retrieval_scores, w
 from bench.datasets import articulated, capod, parts, stable_seed
 from shapedb.config import KernelConfig, MDBDConfig
 
-OUT = Path(__file__).resolve().parent / "results" / "ties.json"
+OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "ties.json"
 COLUMNS = (
     "set", "tie_cells", "mesh NN", "mesh 1-T", "mesh DCG", "pc->mesh NN", "mixture NN",
     "worst gap", "k(mesh, own pc)", "s/model",
@@ -76,7 +76,9 @@ def measure(mesh: list[Balls], pc: list[Balls], labels: np.ndarray, names: list[
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.studies.ties", description=__doc__.splitlines()[0]
+    )
     ap.add_argument("--ties", type=float, nargs="+", default=[0.0, 0.75, 1.5])
     ap.add_argument("--split", default="validation", choices=("validation", "test", "all"))
     ap.add_argument("--datasets", nargs="+", default=["capod", "articulated", "parts"])
