@@ -33,7 +33,9 @@ from numpy.typing import NDArray
 from scipy.optimize import minimize
 
 from bench.common import decompose_all, format_table, log_margin, mdbd_config, retrieval_scores
-from bench.representations import build, l1, load_set, weighted_features
+from bench.features import kernel_features as weighted_features
+from bench.features import l1_matrix as l1
+from bench.representations import build, load_set
 from shapedb.config import KernelConfig
 
 Correction = Callable[[NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.float64]]]
@@ -137,9 +139,9 @@ def main(argv: list[str] | None = None) -> None:
     args = ap.parse_args(argv)
     cfg = KernelConfig()
     mdbd = mdbd_config()
-    from shapedb.descriptor import LAYOUTS
+    from shapedb.descriptor import LAYOUTS, VERSION
 
-    blocks = [int(s) for _, s, _, _ in LAYOUTS[cfg.descriptor]]
+    blocks = [int(s) for _, s, _, _ in LAYOUTS[VERSION]]
     for ds in build(args.sets, args.split):
         data = load_set(ds, mdbd, ["cloud"], args.workers)
         train = decompose_all(data.ds.models, "pointcloud_b", mdbd, workers=args.workers)

@@ -63,7 +63,8 @@ from bench.common import (
     variant_geometry,
     write_json,
 )
-from bench.datasets import Dataset, articulated, capod, mesh_arrays, parts, people, stable_seed
+from bench.datasets import Dataset, articulated, capod, mesh_arrays, parts, people
+from bench.features import kernel_features, l1_matrix, mixture_mask
 from shapedb.config import KernelConfig, MDBDConfig
 
 OUT = Path(__file__).resolve().parent / "results" / "representations.json"
@@ -162,25 +163,9 @@ class Distances:
     query: dict[str, NDArray[np.float64]]
 
 
-def l1(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(len(a), len(b)) L1 distances between rows."""
-    out = np.empty((len(a), len(b)))
-    for i in range(len(a)):
-        out[i] = np.abs(b - a[i]).sum(axis=1)
-    return out
-
-
-def weighted_features(balls: Sequence[Balls], config: KernelConfig) -> NDArray[np.float64]:
-    """Kernel features times the kernel weights, (n, d): plain L1 is the distance."""
-    from shapedb.kernel import features, weights
-
-    w = np.asarray(weights(config))
-    return np.stack([np.asarray(features(b.decomposition(), config)) * w for b in balls])
-
-
 def _feature_seconds(balls: Sequence[Balls], config: KernelConfig) -> float:
     t0 = time.perf_counter()
-    weighted_features(balls[: min(8, len(balls))], config)
+    kernel_features(balls[: min(8, len(balls))], config)
     return (time.perf_counter() - t0) / min(8, len(balls))
 
 
@@ -191,26 +176,30 @@ def cost(balls: Balls) -> float:
 
 def store_rule(data: SetData, config: KernelConfig, *, reconstruct: bool = True) -> Distances:
     """Distances as a store with ``config`` compares: nearest of own and reconstruction."""
-    fm = weighted_features(data.mesh, config)
+    fm = kernel_features(data.mesh, config)
     per = _feature_seconds(data.mesh, config)
     cloud, query = {}, {}
     for k, balls in data.clouds.items():
-        fc = weighted_features(balls, config)
-        d = l1(fc, fm)
+        fc = kernel_features(balls, config)
+        d = l1_matrix(fc, fm)
         secs = np.array([cost(b) + per for b in balls])
         if reconstruct:
             rec = data.recons[k]
             idx = [i for i, r in enumerate(rec) if r is not None]
             if idx:
-                fr = weighted_features([rec[i] for i in idx], config)  # type: ignore[misc]
-                d[idx] = np.minimum(d[idx], l1(fr, fm))
+                fr = kernel_features([rec[i] for i in idx], config)  # type: ignore[misc]
+                d[idx] = np.minimum(d[idx], l1_matrix(fr, fm))
             # every sparse cloud pays its reconstruction, kept or not
             # (the Poisson solve included: a reconstruction's input is made at query time)
             secs = secs + np.array([r.seconds + per if r is not None else 0.0 for r in rec])
         cloud[k], query[k] = d, secs
-    fc = weighted_features(data.clouds["cloud"], config) if "cloud" in data.clouds else fm
+    fc = kernel_features(data.clouds["cloud"], config) if "cloud" in data.clouds else fm
     return Distances(
-        l1(fm, fm), cloud, l1(fc, fc), np.array([cost(b) + per for b in data.mesh]), query
+        l1_matrix(fm, fm),
+        cloud,
+        l1_matrix(fc, fc),
+        np.array([cost(b) + per for b in data.mesh]),
+        query,
     )
 
 
@@ -251,12 +240,12 @@ def d2_method(data: SetData) -> Distances:
                 for m in data.ds.models
             ]
         )
-        cloud[k] = l1(fc, fm)
+        cloud[k] = l1_matrix(fc, fm)
         query[k] = np.full(len(fc), (time.perf_counter() - t0) / len(fc))
         if k == "cloud":
             fcc = fc
-    cc = l1(fcc, fcc) if "cloud" in data.clouds else l1(fm, fm)
-    return Distances(l1(fm, fm), cloud, cc, np.full(len(fm), per_mesh), query)
+    cc = l1_matrix(fcc, fcc) if "cloud" in data.clouds else l1_matrix(fm, fm)
+    return Distances(l1_matrix(fm, fm), cloud, cc, np.full(len(fm), per_mesh), query)
 
 
 #: Methods by name; candidates register here.
@@ -272,15 +261,8 @@ METHODS: dict[str, Callable[[SetData], Distances]] = {
 # --------------------------------------------------------------------------------------
 
 
-def mixture_mask(n: int) -> NDArray[np.bool_]:
-    """An even, seeded split of n models into clouds (True) and meshes."""
-    mask = np.zeros(n, dtype=bool)
-    mask[np.random.default_rng(stable_seed("mixture", n)).permutation(n)[: n // 2]] = True
-    return mask
-
-
 def score_rows(name: str, dist: Distances, labels: NDArray[Any]) -> list[list[Any]]:
-    """Table rows of one method: one per query kind, then the mixture."""
+    """Table rows of one method: one per query kind, then the mixture (labels (n,))."""
 
     def scores(d: NDArray[np.float64]) -> list[float]:
         s = retrieval_scores(-d, labels)
@@ -292,7 +274,7 @@ def score_rows(name: str, dist: Distances, labels: NDArray[Any]) -> list[list[An
         own = float(np.mean(np.argmin(d, axis=1) == np.arange(n)))
         rows.append([name, f"{k}->mesh", *scores(d), own, float(np.median(dist.query[k]))])
     if "cloud" in dist.cloud:
-        pc = mixture_mask(n)
+        pc = mixture_mask([str(i) for i in range(n)])  # only the count matters
         mix = np.where(
             pc[:, None] & pc[None, :],
             dist.cloud_cloud,
