@@ -36,7 +36,7 @@ reconstruction's, Poisson solve included, when the method uses it), and their ra
 to ``default``; wall clock on a shared machine, so compare ratios within one run.
 
 Usage: ``python -m bench.representations [--sets people capod figures parts]
-[--split test] [--kinds cloud noisy partial] [--workers 2] [--out PATH]``.
+[--split test] [--kinds cloud noisy partial] [--workers 2] [--cached] [--out PATH]``.
 Decompositions come from :func:`bench.common.decompose_all` (cached).
 """
 
@@ -56,14 +56,16 @@ from numpy.typing import NDArray
 from bench.baselines import D2Config, d2_descriptor
 from bench.common import (
     Balls,
+    cache_path,
     decompose_all,
     format_table,
+    load_balls,
     mdbd_config,
     retrieval_scores,
     variant_geometry,
     write_json,
 )
-from bench.datasets import Dataset, articulated, capod, mesh_arrays, parts, people
+from bench.datasets import Dataset, Model, articulated, capod, mesh_arrays, parts, people
 from bench.features import kernel_features, l1_matrix, mixture_mask
 from shapedb.config import KernelConfig, MDBDConfig
 
@@ -98,16 +100,31 @@ class SetData:
         return self.ds.labels
 
 
-def load_set(ds: Dataset, mdbd: MDBDConfig, kinds: Sequence[str], workers: int) -> SetData:
+def cached_only(models: Sequence[Model], variant: str, mdbd: MDBDConfig) -> list[Balls | None]:
+    """The cached decompositions of ``models`` in ``variant``; None where none is cached."""
+    paths = [cache_path(m, variant, mdbd) for m in models]
+    return [load_balls(p, mdbd.contact_tol_cells) if p.exists() else None for p in paths]
+
+
+def load_set(
+    ds: Dataset, mdbd: MDBDConfig, kinds: Sequence[str], workers: int, *, cached: bool = False
+) -> SetData:
     """Decompose (or read from the cache) every variant the requested ``kinds`` need.
 
-    Models whose mesh or cloud decomposition failed are left out of every row.
+    Models whose mesh or cloud decomposition failed (``cached``: is not in the cache)
+    are left out of every row; with ``cached`` a reconstruction not in the cache
+    counts as not kept.
     """
     from shapedb.reconstruct import volumes_agree
     from shapedb.view import is_sparse
 
-    mesh = decompose_all(ds.models, "mesh", mdbd, workers=workers)
-    raw = {k: decompose_all(ds.models, KINDS[k][0], mdbd, workers=workers) for k in kinds}
+    def get(models: Sequence[Model], variant: str) -> list[Balls | None]:
+        if cached:
+            return cached_only(models, variant, mdbd)
+        return decompose_all(models, variant, mdbd, workers=workers)
+
+    mesh = get(ds.models, "mesh")
+    raw = {k: get(ds.models, KINDS[k][0]) for k in kinds}
     keep = [
         i
         for i in range(len(ds))
@@ -123,7 +140,7 @@ def load_set(ds: Dataset, mdbd: MDBDConfig, kinds: Sequence[str], workers: int) 
         found = dict(
             zip(
                 [m.name for m in todo],
-                decompose_all(todo, KINDS[k][1], mdbd, workers=workers),
+                get(todo, KINDS[k][1]),
                 strict=True,
             )
         )
@@ -305,12 +322,13 @@ def run(
     *,
     mdbd: MDBDConfig,
     workers: int,
+    cached: bool = False,
 ) -> dict[str, Any]:
     """Every set's table (printed) and the JSON-ready results."""
     out: dict[str, Any] = {}
     columns = ("method", "query", "NN", "1-T", "DCG", "own-first", "cost s", "x default")
     for ds in datasets:
-        data = load_set(ds, mdbd, kinds, workers)
+        data = load_set(ds, mdbd, kinds, workers, cached=cached)
         rows: list[list[Any]] = []
         base: dict[str, float] = {}
         for name in methods:
@@ -340,13 +358,21 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--methods", nargs="+", default=["default", "paper", "D2"])
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=OUT)
+    ap.add_argument(
+        "--cached", action="store_true", help="decompose nothing: use what is in the cache"
+    )
     args = ap.parse_args(argv)
     unknown = [m for m in args.methods if m not in METHODS]
     if unknown:
         raise SystemExit(f"unknown method(s) {unknown}: choose from {sorted(METHODS)}")
     mdbd = mdbd_config()
     results = run(
-        build(args.sets, args.split), args.methods, args.kinds, mdbd=mdbd, workers=args.workers
+        build(args.sets, args.split),
+        args.methods,
+        args.kinds,
+        mdbd=mdbd,
+        workers=args.workers,
+        cached=args.cached,
     )
     write_json(
         args.out,

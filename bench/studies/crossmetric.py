@@ -19,24 +19,35 @@ those pairs alone, per descriptor dimension d:
 Scored on the query clouds (variant ``pointcloud``, the bench's 20 % draw) against
 the meshes, leaving the query's own mesh out (NN, 1-T), and own-first; the
 reconstruction rule of the store (nearest of own and reconstruction) applied after
-the correction. Usage: ``python -m bench.crossmetric --sets people --split validation``.
+the correction. Usage: ``python -m bench.studies.crossmetric --sets people --split
+validation [--pairs K]``; results go to bench/results/studies/crossmetric.json.
 """
 
 from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize
 
-from bench.common import decompose_all, format_table, log_margin, mdbd_config, retrieval_scores
+from bench.common import (
+    decompose_all,
+    format_table,
+    log_margin,
+    mdbd_config,
+    retrieval_scores,
+    write_json,
+)
 from bench.features import kernel_features as weighted_features
 from bench.features import l1_matrix as l1
 from bench.representations import build, load_set
 from shapedb.config import KernelConfig
+
+OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "crossmetric.json"
 
 Correction = Callable[[NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.float64]]]
 
@@ -131,7 +142,9 @@ def fit_nca(
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.studies.crossmetric", description=__doc__.splitlines()[0]
+    )
     ap.add_argument("--sets", nargs="+", default=["people"])
     ap.add_argument("--split", default="validation")
     ap.add_argument("--workers", type=int, default=2)
@@ -142,6 +155,8 @@ def main(argv: list[str] | None = None) -> None:
     from shapedb.descriptor import LAYOUTS, VERSION
 
     blocks = [int(s) for _, s, _, _ in LAYOUTS[VERSION]]
+    results: dict[str, Any] = {}
+    columns = ("correction", "NN", "1-T", "own-first", "margin", "mesh NN (weighted)")
     for ds in build(args.sets, args.split):
         data = load_set(ds, mdbd, ["cloud"], args.workers)
         train = decompose_all(data.ds.models, "pointcloud_b", mdbd, workers=args.workers)
@@ -197,10 +212,13 @@ def main(argv: list[str] | None = None) -> None:
             format_table(
                 f"{ds.name} {args.split} ({n} models): cloud->mesh; mesh->mesh NN "
                 f"{mm['nn']:.3f} 1-T {mm['first_tier']:.3f}",
-                ("correction", "NN", "1-T", "own-first", "margin", "mesh NN (weighted)"),
+                columns,
                 rows,
             )
         )
+        results[ds.name] = {"n": n, "mesh_mesh": mm, "columns": list(columns), "table": rows}
+    write_json(OUT, {"split": args.split, "pairs": args.pairs, "sets": results})
+    print(f"wrote {OUT}")
 
 
 if __name__ == "__main__":
