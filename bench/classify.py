@@ -5,6 +5,10 @@ Usage (from the repository root)::
     python -m bench.classify --quick      # small sets, few epochs: well under 30 min
     python -m bench.classify              # the full run (about an hour on 2 shared cores)
 
+Learning curves of every classifier ``shapedb train`` chooses among (k-NN, linear,
+boosting, graph CNNs) and the held-out check of the chosen one are in
+:mod:`bench.classify_curves`.
+
 Evaluation. ``capod`` (15 classes x 12 meshes) uses k-fold cross-validation
 stratified by class; inside every fold 15 % of the training models are held out to
 choose the epoch (never the test fold). The ``generated`` set (12 classes x 100) uses

@@ -16,7 +16,7 @@ import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,7 +28,11 @@ from ingest.workers import executor, result, wait_any
 from shapedb.config import Config
 from shapedb.errors import ConfigError, LoadError, ShapeDBError
 from shapedb.geometry import Geometry
+from shapedb.results import IngestReport  # defined there, re-exported here
 from shapedb.schema import Failure, ShapeRecord, safe_text
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = [
     "ingest",
@@ -41,50 +45,6 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class IngestReport:
-    """What an ingest did.
-
-    Attributes
-    ----------
-    ingested : tuple[int, ...]
-        Ids of the shapes added, in input order.
-    skipped : tuple[str, ...]
-        Inputs already in the store (same content and configuration).
-    failed : tuple[tuple[str, str], ...]
-        ``(input, reason)`` of every input that could not be ingested.
-    seconds : float
-        Wall time.
-    notes : tuple[tuple[str, str], ...]
-        ``(input, note)`` of inputs stored with a caveat, e.g. a mesh file with
-        vertices and no faces, stored as a point cloud.
-
-    Every path in a report is valid text: bytes of a file name that are not UTF-8
-    appear as ``\\xNN`` escapes.
-    """
-
-    ingested: tuple[int, ...] = ()
-    skipped: tuple[str, ...] = ()
-    failed: tuple[tuple[str, str], ...] = ()
-    seconds: float = 0.0
-    notes: tuple[tuple[str, str], ...] = ()
-
-    def to_dict(self) -> dict[str, Any]:
-        """``{"ingested": n, "skipped": n, "failed": [{"path", "error"}], "notes": [...]}``."""
-        return {
-            "ingested": len(self.ingested),
-            "skipped": len(self.skipped),
-            "failed": [{"path": p, "error": e} for p, e in self.failed],
-            "notes": [{"path": p, "note": n} for p, n in self.notes],
-        }
-
-    def __repr__(self) -> str:
-        return (
-            f"IngestReport(ingested={len(self.ingested)}, skipped={len(self.skipped)}, "
-            f"failed={len(self.failed)}, seconds={self.seconds:.1f})"
-        )
 
 
 @dataclass(frozen=True)
@@ -196,7 +156,7 @@ def _view_feature(geometry: Any, decomposition: Any, config: Config) -> NDArray[
 
 # ---------------------------------------------------------------- driver
 def ingest(
-    db: Any,
+    db: Database,
     inputs: Any,
     *,
     labels: str | os.PathLike[str] | Mapping[str, str] | LabelTable | None = None,
@@ -412,7 +372,7 @@ class _Committer:
     """Collects results and commits them in batches (the store's lock held by the caller)."""
 
     def __init__(
-        self, db: Any, present: dict[str, int], batch_size: int, commit_seconds: float
+        self, db: Database, present: dict[str, int], batch_size: int, commit_seconds: float
     ) -> None:
         self.db = db
         self.present = present
@@ -455,6 +415,7 @@ class _Committer:
             records.append(rec)
         _, committed = self.db.commit(records, failures=self.failures, delete=replace_ids)
         for (index, _), rec in zip(self.pending, committed, strict=True):
+            assert rec.id is not None  # the store numbers every record it commits
             self.ingested[index] = int(rec.id)
         self.pending, self.failures = [], []
         self.last_commit = time.monotonic()

@@ -34,51 +34,26 @@ from __future__ import annotations
 import logging
 import os
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from shapedb.errors import ConfigError, NotFoundError, QueryError, ShapeDBError
+from shapedb.results import Hit  # defined there, re-exported here
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = ["Hit", "search", "search_batch", "query_features", "checked_k", "MAX_K"]
 
 log = logging.getLogger(__name__)
 
 
-@dataclass(frozen=True)
-class Hit:
-    """One search result.
-
-    Attributes
-    ----------
-    id : int
-        Stored shape id.
-    name : str
-        Stored shape name.
-    label : str or None
-        Class label, if any.
-    similarity : float
-        Eq. 3 kernel value ``exp(-lam * distance)``, in (0, 1].
-    distance : float
-        Eq. 2 weighted L1 distance between the query's and the shape's features.
-    """
-
-    id: int
-    name: str
-    label: str | None
-    similarity: float
-    distance: float
-
-    def to_dict(self) -> dict[str, Any]:
-        """``{"id", "name", "label", "similarity", "distance"}``, JSON-ready."""
-        return asdict(self)
-
-
 def search(
-    db: Any, query: Any, *, k: int = 10, where: str | None = None, metric: Any = None
+    db: Database, query: Any, *, k: int = 10, where: str | None = None, metric: Any = None
 ) -> list[Hit]:
     """The k stored shapes most similar to ``query``, best first.
 
@@ -114,7 +89,7 @@ def search(
 
 
 def search_batch(
-    db: Any,
+    db: Database,
     queries: Sequence[Any],
     *,
     k: int = 10,
@@ -206,7 +181,7 @@ def checked_k(k: Any) -> int:
     return int(k)
 
 
-def query_features(db: Any, query: Any, *, index: Any = None) -> NDArray[np.float64]:
+def query_features(db: Database, query: Any, *, index: Any = None) -> NDArray[np.float64]:
     """The feature vector of a query, computed with the store's configuration.
 
     Parameters
@@ -243,7 +218,7 @@ class _Query:
         return self.view
 
 
-def _resolve(db: Any, query: Any, index: Any) -> _Query:
+def _resolve(db: Database, query: Any, index: Any) -> _Query:
     from shapedb.geometry import Geometry
     from shapedb.mdbd import Decomposition
     from shapedb.schema import ShapeRecord
@@ -310,7 +285,7 @@ def _vector(value: Any, dim: int, *, source: str) -> NDArray[np.float64]:
     return v
 
 
-def _stored(db: Any, sid: int, index: Any) -> _Query:
+def _stored(db: Database, sid: int, index: Any) -> _Query:
     from query.index import open_index
     from shapedb.view import is_sparse
 
@@ -343,7 +318,7 @@ def _featurise(decomposition: Any, config: Any) -> NDArray[np.float64]:
     return np.asarray(features(decomposition, config), dtype=np.float64)
 
 
-def _from_geometry(db: Any, geometry: Any) -> _Query:
+def _from_geometry(db: Database, geometry: Any) -> _Query:
     from shapedb.mdbd import decompose
     from shapedb.view import is_sparse, view_geometry
 
@@ -373,7 +348,7 @@ def _from_geometry(db: Any, geometry: Any) -> _Query:
     return _Query(_featurise(d, config), False, view if config.cloud.view_cells else None)
 
 
-def _from_file(db: Any, path: Path) -> _Query:
+def _from_file(db: Database, path: Path) -> _Query:
     import ingest  # the public API only: ingest.load(path) -> Geometry
 
     geometry = ingest.load(path)
@@ -382,7 +357,7 @@ def _from_file(db: Any, path: Path) -> _Query:
 
 
 def _search_with_views(
-    db: Any,
+    db: Database,
     index: Any,
     queries: list[_Query],
     k: int,
@@ -526,7 +501,7 @@ class _Catalog:
 _CATALOGS: dict[str, tuple[int | None, _Catalog]] = {}
 
 
-def _catalog(db: Any, version: int | None) -> _Catalog:
+def _catalog(db: Database, version: int | None) -> _Catalog:
     key = os.fspath(db.store.path)
     cached = _CATALOGS.get(key)
     if cached is not None and cached[0] == version and version is not None:

@@ -26,81 +26,25 @@ from __future__ import annotations
 import logging
 import os
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from query.labelled import stored_labels
-from shapedb.errors import QueryError, require
+from shapedb.errors import QueryError
+from shapedb.results import MEASURES, RetrievalScores  # defined there, re-exported here
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = ["RetrievalScores", "retrieval_scores", "evaluate", "MEASURES", "E_MEASURE_K"]
 
 log = logging.getLogger(__name__)
 
-MEASURES = ("nn", "first_tier", "second_tier", "e_measure", "dcg")
 E_MEASURE_K = 32
 RECALL_LEVELS = np.linspace(0.0, 1.0, 11)
 _CHUNK_CELLS = 8_000_000  # rows per chunk = this / n
-
-
-@dataclass(frozen=True)
-class RetrievalScores:
-    """PSB measures of a leave-one-out retrieval run.
-
-    Attributes
-    ----------
-    queries : int
-        Number of queries scored (labelled shapes in classes of two or more).
-    nn, first_tier, second_tier, e_measure, dcg : float
-        Means over the queries.
-    per_class : dict[str, dict[str, float]]
-        For each class: ``{"queries", "nn", "first_tier", "second_tier",
-        "e_measure", "dcg"}``.
-    recall : (L,) float64
-        Standard recall levels.
-    precision : (L,) float64
-        Mean interpolated precision at each level.
-    per_query : dict[str, (q,) ndarray]
-        Row index of each scored query (``"index"``) and its value of each measure.
-    """
-
-    queries: int
-    nn: float
-    first_tier: float
-    second_tier: float
-    e_measure: float
-    dcg: float
-    per_class: dict[str, dict[str, float]]
-    recall: NDArray[np.float64] = field(repr=False)
-    precision: NDArray[np.float64] = field(repr=False)
-    per_query: dict[str, NDArray[Any]] = field(repr=False, default_factory=dict)
-
-    def to_dict(self) -> dict[str, Any]:
-        """``{"queries", "nn", "first_tier", "second_tier", "e_measure", "dcg", "per_class"}``."""
-        out: dict[str, Any] = {"queries": self.queries}
-        out.update({m: float(getattr(self, m)) for m in MEASURES})
-        out["per_class"] = {c: dict(v) for c, v in self.per_class.items()}
-        return out
-
-    def plot(self, path: str | os.PathLike[str], *, title: str | None = None) -> Path:
-        """Save the precision-recall curve as a PNG (matplotlib, Agg backend)."""
-        require("matplotlib", extra="plot", feature="the precision-recall plot")
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-
-        fig = Figure(figsize=(5, 4), dpi=120)  # no pyplot: no global backend, thread-safe
-        FigureCanvasAgg(fig)
-        ax = fig.add_subplot()
-        ax.plot(self.recall, self.precision, marker="o")
-        ax.set(xlabel="recall", ylabel="precision", xlim=(0, 1), ylim=(0, 1.02))
-        ax.set_title(title or f"precision-recall ({self.queries} queries)")
-        ax.grid(True, alpha=0.3)
-        out = Path(path)
-        fig.savefig(out, format="png", bbox_inches="tight")
-        return out
 
 
 def retrieval_scores(
@@ -241,7 +185,7 @@ def _score(
 
 
 def evaluate(
-    db: Any,
+    db: Database,
     *,
     label: str = "label",
     method: str | Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
@@ -297,7 +241,7 @@ def evaluate(
     return scores
 
 
-def _checked_metric(db: Any, metric: Any, method: Any) -> Any:
+def _checked_metric(db: Database, metric: Any, method: Any) -> Any:
     """The learned metric to rank by (None for the default), checked against the store.
 
     Raises :class:`QueryError` when a metric comes with a callable ``method``.
@@ -315,7 +259,7 @@ def _checked_metric(db: Any, metric: Any, method: Any) -> Any:
 
 
 def _labelled_features(
-    db: Any, label: str
+    db: Database, label: str
 ) -> tuple[NDArray[np.int64], NDArray[Any], NDArray[np.float64]]:
     """Ids (n,), labels (n,) and stored features (n, d) of the labelled shapes.
 
@@ -334,7 +278,7 @@ def _labelled_features(
 
 
 def _kernel_distance_rows(
-    db: Any, ids: NDArray[np.int64], x: NDArray[np.float64], learned: Any
+    db: Database, ids: NDArray[np.int64], x: NDArray[np.float64], learned: Any
 ) -> Callable[[], Iterator[tuple[NDArray[np.intp], NDArray[np.float64]]]]:
     """Chunks of rows of the Eq. 2 distance matrix between the shapes ``ids``, as search ranks.
 

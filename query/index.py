@@ -41,6 +41,7 @@ from shapedb.errors import ConfigError, NotFittedError, QueryError, StoreError, 
 if TYPE_CHECKING:
     from query.metric import LearnedMetric
     from shapedb.config import Config
+    from shapedb.database import Database
 
 __all__ = ["FeatureIndex", "open_index", "build_index", "on_commit", "INDEX_DIR"]
 
@@ -496,12 +497,12 @@ _CACHE: dict[str, tuple[Config, FeatureIndex]] = {}
 _LOCK = threading.Lock()
 
 
-def _store_key(db: Any) -> str:
+def _store_key(db: Database) -> str:
     return os.fspath(db.store.path)
 
 
 def open_index(
-    db: Any,
+    db: Database,
     *,
     kind: str | None = None,
     rebuild: bool = False,
@@ -593,12 +594,12 @@ def _load(root: Path) -> FeatureIndex | None:
         return None
 
 
-def build_index(db: Any, *, kind: str = "auto", **params: Any) -> FeatureIndex:
+def build_index(db: Database, *, kind: str = "auto", **params: Any) -> FeatureIndex:
     """Rebuild the store's index from scratch with the given settings."""
     return open_index(db, kind=kind, rebuild=True, **params)
 
 
-def on_commit(db: Any, *args: Any, **kwargs: Any) -> None:
+def on_commit(db: Database, *args: Any, **kwargs: Any) -> None:
     """Store commit hook (entry point ``on_commit``): update an existing index.
 
     Only an index that was already built is updated (incrementally when possible);
@@ -611,7 +612,7 @@ def on_commit(db: Any, *args: Any, **kwargs: Any) -> None:
             open_index(db, view=view)
 
 
-def _forget(db: Any) -> None:  # drop a store's in-process cache entries (tests)
+def _forget(db: Database) -> None:  # drop a store's in-process cache entries (tests)
     root = _store_key(db)
     for key in [k for k in _CACHE if k == root or k.startswith(root + "#")]:
         _CACHE.pop(key, None)

@@ -2,17 +2,20 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from shapedb.errors import QueryError
 
+if TYPE_CHECKING:
+    from shapedb.database import Database
+
 __all__ = ["stored_labels"]
 
 
-def stored_labels(db: Any, label: str) -> tuple[NDArray[np.int64], NDArray[Any]]:
+def stored_labels(db: Database, label: str) -> tuple[NDArray[np.int64], NDArray[Any]]:
     """Ids and labels of every stored shape.
 
     Parameters

@@ -41,7 +41,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -50,6 +50,9 @@ from scipy.spatial.distance import cdist
 
 from shapedb.config import Config
 from shapedb.errors import ConfigError, LoadError, QueryError
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = ["LearnedMetric", "block_layout", "fit_metric", "fit_store_metric", "as_metric"]
 
@@ -592,7 +595,7 @@ def _final_weights(pairs: _Pairs, chosen: float | None, temperature: float) -> N
     return weights
 
 
-def fit_store_metric(db: Any, *, label: str = "label", **options: Any) -> LearnedMetric:
+def fit_store_metric(db: Database, *, label: str = "label", **options: Any) -> LearnedMetric:
     """``db.fit_metric``: :func:`fit_metric` on a store's labelled shapes.
 
     In a store with sparse views (``CloudConfig.view_cells``) the pairs follow the

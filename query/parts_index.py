@@ -41,7 +41,7 @@ import logging
 import os
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -50,6 +50,9 @@ from query._versioned import POINTER, current, save_version
 from shapedb.config import PartConfig
 from shapedb.errors import NotFittedError, QueryError, StoreError, require
 from shapedb.subgraph import neighbourhood_features_many, part_dim, part_weights
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = ["PartIndex", "open_parts_index", "on_commit", "read_part_config", "PARTS_DIR"]
 
@@ -533,7 +536,9 @@ _CACHE: dict[tuple[str, str], PartIndex] = {}
 _LOCK = threading.Lock()
 
 
-def _graphs_from_store(db: Any, ids: NDArray[np.int64], cfg: PartConfig) -> list[tuple[Any, Any]]:
+def _graphs_from_store(
+    db: Database, ids: NDArray[np.int64], cfg: PartConfig
+) -> list[tuple[Any, Any]]:
     """(radii, edges) of each stored shape ``ids`` (ascending), read in one go.
 
     The edges are the stored contact graph's when ``cfg.contact_tol_cells`` is 0, and
@@ -564,7 +569,7 @@ def _graphs_from_store(db: Any, ids: NDArray[np.int64], cfg: PartConfig) -> list
 
 
 def open_parts_index(
-    db: Any, config: PartConfig | None = None, *, rebuild: bool = False, **params: Any
+    db: Database, config: PartConfig | None = None, *, rebuild: bool = False, **params: Any
 ) -> PartIndex:
     """The store's part index for ``config``, loaded, brought up to date, or built.
 
@@ -620,7 +625,7 @@ def open_parts_index(
         return index
 
 
-def on_commit(db: Any, *args: Any, **kwargs: Any) -> None:
+def on_commit(db: Database, *args: Any, **kwargs: Any) -> None:
     """Commit hook: bring every part index already built for this store up to date."""
     base = Path(os.fspath(db.store.path)) / PARTS_DIR
     if not base.is_dir():
@@ -635,7 +640,7 @@ def on_commit(db: Any, *args: Any, **kwargs: Any) -> None:
             open_parts_index(db, cfg)
 
 
-def _forget(db: Any) -> None:  # drop a store's in-process cache entries (tests)
+def _forget(db: Database) -> None:  # drop a store's in-process cache entries (tests)
     path = os.fspath(db.store.path)
     for key in [k for k in _CACHE if k[0] == path]:
         _CACHE.pop(key, None)

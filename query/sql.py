@@ -32,7 +32,7 @@ from __future__ import annotations
 import json
 import logging
 import os
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
@@ -40,6 +40,9 @@ from numpy.typing import NDArray
 
 from shapedb.errors import QueryError, ShapeDBError, StoreError, require
 from shapedb.manifest import repair_hint
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = ["sql", "connect", "script", "allowed_ids", "macros"]
 
@@ -103,7 +106,7 @@ def _quote(text: str) -> str:
     return "'" + text.replace("'", "''") + "'"
 
 
-def connect(db: Any, metric: Any = None) -> Any:
+def connect(db: Database, metric: Any = None) -> Any:
     """A new in-memory DuckDB connection with the store's views and macros.
 
     Parameters
@@ -174,7 +177,7 @@ def _one_select(statement: str, source: str) -> None:
         )
 
 
-def _metric(db: Any, metric: Any) -> Any:
+def _metric(db: Database, metric: Any) -> Any:
     from query.metric import as_metric
 
     learned = as_metric(metric)
@@ -183,7 +186,7 @@ def _metric(db: Any, metric: Any) -> Any:
     return learned
 
 
-def script(db: Any, metric: Any = None) -> str:
+def script(db: Database, metric: Any = None) -> str:
     """SQL that sets up a plain ``duckdb`` session like :func:`connect` does.
 
     The views name the files of the store's current version explicitly (absolute
@@ -210,7 +213,7 @@ def script(db: Any, metric: Any = None) -> str:
     return "\n".join(lines) + "\n"
 
 
-def sql(db: Any, statement: str, *, metric: Any = None) -> pa.Table:
+def sql(db: Database, statement: str, *, metric: Any = None) -> pa.Table:
     """Run one SQL statement over the store and return its result.
 
     Parameters
@@ -250,7 +253,7 @@ def sql(db: Any, statement: str, *, metric: Any = None) -> pa.Table:
         con.close()
 
 
-def _error(db: Any, exc: Exception, source: str) -> ShapeDBError:
+def _error(db: Database, exc: Exception, source: str) -> ShapeDBError:
     """QueryError, or StoreError when DuckDB could not read one of the store's own files."""
     import duckdb
 
@@ -275,7 +278,7 @@ def _short(statement: str, limit: int = 200) -> str:
 _CONNECTIONS: dict[str, tuple[int, Any]] = {}
 
 
-def allowed_ids(db: Any, where: str) -> NDArray[np.int64]:
+def allowed_ids(db: Database, where: str) -> NDArray[np.int64]:
     """Ids of the shapes satisfying an SQL predicate over ``shapes``.
 
     Parameters

@@ -53,6 +53,16 @@ from shapedb.implicit import (
     Union,
 )
 from shapedb.kernel import distance, features, features_batch, weights
+from shapedb.results import (
+    Classification,
+    Classifier,
+    Hit,
+    IngestReport,
+    Metric,
+    PartMatch,
+    RetrievalScores,
+    StoreInfo,
+)
 
 __version__ = "0.1.0"
 
@@ -115,9 +125,17 @@ __all__ = [
     "weights",
     "distance",
     "kernel",  # the module shapedb.kernel (Eq. 1-3); the function is shapedb.kernel.kernel
-    # database and examples
+    # database, its results, and examples
     "connect",
     "Database",
+    "IngestReport",
+    "StoreInfo",
+    "Hit",
+    "PartMatch",
+    "RetrievalScores",
+    "Classification",
+    "Metric",
+    "Classifier",
     "examples",
     "__version__",
 ]

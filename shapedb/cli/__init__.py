@@ -18,6 +18,7 @@
     shapedb fit-metric --db DIR [--label label] --out metric.json [--json]
     shapedb train --db DIR [--label label] [--conv tag|arma|spline] [--epochs N] --out model.pt
     shapedb classify MODEL --db DIR --model model.pt [--json]
+    shapedb serve --db DIR [--host 127.0.0.1] [--port 8000] [--token TOKEN] [--max-upload-mb 64]
     shapedb demo [--db DIR]
 
 Layout: each module of this package holds one group of subcommands and exposes
@@ -42,13 +43,13 @@ import sys
 import traceback
 from collections.abc import Sequence
 
-from shapedb.cli import check, demo, evaluate, learn, search, store
+from shapedb.cli import check, demo, evaluate, learn, search, serve, store
 from shapedb.errors import ShapeDBError
 
 __all__ = ["main", "build_parser", "GROUPS"]
 
 #: The modules of subcommands, in the order ``shapedb --help`` lists them.
-GROUPS = (store, check, search, evaluate, learn, demo)
+GROUPS = (store, check, search, evaluate, learn, serve, demo)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 if TYPE_CHECKING:
     from shapedb.database import Database
+    from shapedb.results import Hit
 
 __all__ = [
     "Handler",
@@ -48,10 +49,25 @@ class Subparsers(Protocol):
 def add_command(
     subparsers: Subparsers, name: str, handler: Handler, *, help: str
 ) -> argparse.ArgumentParser:
-    """Add subcommand ``name`` whose parsed arguments go to ``handler``."""
-    parser = subparsers.add_parser(name, help=help)
+    """Add subcommand ``name`` whose parsed arguments go to ``handler``.
+
+    Every subcommand also takes ``-v`` (as the command itself does before it).
+    """
+    parser = subparsers.add_parser(name, help=help, parents=[_verbose()])
     parser.set_defaults(handler=handler)
     return parser
+
+
+def _verbose() -> argparse.ArgumentParser:
+    parent = argparse.ArgumentParser(add_help=False)
+    parent.add_argument(
+        "-v",
+        "--verbose",
+        action="count",
+        default=argparse.SUPPRESS,
+        help="more log output; tracebacks on errors",
+    )
+    return parent
 
 
 def add_db_argument(parser: argparse.ArgumentParser, *, required: bool = True) -> None:
@@ -122,11 +138,9 @@ class ProgressBar:
             self._bar.close()
 
 
-def hit_row(hit: Any) -> dict[str, Any]:
-    """A search hit as a dict of the :data:`HIT_COLUMNS` (or all its fields)."""
-    if hasattr(hit, "to_dict"):
-        return dict(hit.to_dict())
-    return {k: getattr(hit, k) for k in HIT_COLUMNS}
+def hit_row(hit: Hit) -> dict[str, Any]:
+    """A search hit as a dict of its fields (:data:`HIT_COLUMNS`)."""
+    return hit.to_dict()
 
 
 def jsonable(x: Any) -> Any:

@@ -60,4 +60,5 @@ def demo(args: argparse.Namespace) -> int:
     picture = db.show(int(query["id"]), Path(path) / "demo.png")
     print(f"{query['name']} and its balls: {picture}")
     print(f'\ntry:  shapedb sql "SELECT label, count(*) FROM shapes GROUP BY label" --db {path}')
+    print(f"\nbrowse it:  shapedb serve --db {path}    (then open http://127.0.0.1:8000/)")
     return 0

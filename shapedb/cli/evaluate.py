@@ -40,7 +40,7 @@ def evaluate(args: argparse.Namespace) -> int:
     """``shapedb eval``."""
     db = existing_store(args.db)
     scores = db.evaluate(label=args.label, plot=args.plot, metric=args.metric)
-    out = scores.to_dict() if hasattr(scores, "to_dict") else dict(vars(scores))
+    out = scores.to_dict()
     if args.json:
         print_json(out)
         return 0

@@ -84,7 +84,7 @@ def _fuzz(
     name = data.draw(_NAME, label="name")
     if name in (b".", b".."):
         name = b"dot"
-    keep_ext = data.draw(st.booleans(), label="keep extension")
+    keep_ext = data.draw(st.sampled_from([True, True, True, True, False]), label="extension")
     fname = name + (b"." + ext.encode() if keep_ext else b"")
     case = Path(tempfile.mkdtemp(dir=folder))
     path = os.path.join(os.fsencode(case), fname)
@@ -125,8 +125,8 @@ def test_store_checks_clean_after_fuzzing(fuzz_db) -> None:
     db, _ = fuzz_db
     report = check(db.store.path)
     assert report.ok, report.damaged
-    n = len(db.store) + len(db.store.failures())
-    assert n >= 1
+    # the mutations are neither all harmless nor all fatal: both outcomes occur
+    assert len(db.store) > 1 and len(db.store.failures()) > 0
 
 
 @pytest.mark.slow

@@ -102,3 +102,22 @@ def test_repair_rebuilds_a_manifest_missing_a_key(three: Store) -> None:
         Store.open(three.path)
     assert repair(three.path).shapes == 3
     assert _names(Store.open(three.path)) == ["a", "c", "d"]
+
+
+def test_a_store_written_before_checksums_checks_and_takes_new_rows(tmp_path: Path) -> None:
+    """The store written by cf19ee1 (tests/data/store_layout1): no checksums, no store id."""
+    import shutil
+
+    old = Path(__file__).resolve().parents[1] / "data" / "store_layout1"
+    root = tmp_path / "old"
+    shutil.copytree(old, root)
+    (root / "README.md").unlink()
+    report = check(root)
+    assert report.ok and report.checked == 0 and len(report.unverified) == 3
+    assert not repair(root).changed
+    store = Store.open(root)
+    n = len(store)
+    store.add([make_record("new", config=store.config)])
+    assert len(store) == n + 1
+    report = check(root)
+    assert report.ok and report.checked >= 1 and len(report.unverified) == 3

@@ -187,6 +187,7 @@ def test_demo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["demo", "--db", str(tmp_path / "demo"), "--workers", "1"]) == 0
     out = capsys.readouterr().out
     assert "ingested 20" in out and "shapes most like" in out
+    assert f"shapedb serve --db {tmp_path / 'demo'}" in out
 
 
 def test_show_and_match(tmp_path: Path, models: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -229,14 +230,25 @@ def test_train_and_classify(
     capsys.readouterr()
     model = tmp_path / "m.pt"
     argv = ["train", "--db", str(db), "--epochs", "2", "--out", str(model), "--json"]
+    argv += ["--methods", "1-nn", "linear", "tag", "--test", "0"]
     assert main(argv) == 0
     trained = _json(capsys)
     assert trained["classes"] == ["boxes", "rods"] and model.exists()
+    scores = trained["selection"]["scores"]
+    assert [s["name"] for s in scores] == ["1-nn", "linear", "tag"]
+    chosen = max(scores, key=lambda s: s["correct"])  # the first of ties: the simplest
+    assert trained["kind"] == trained["selection"]["chosen"] == chosen["name"]
     query = str(models / "rods" / "rods0.obj")
     assert main(["classify", query, "--db", str(db), "--model", str(model), "--json"]) == 0
     result = _json(capsys)
     assert result["label"] in {"boxes", "rods"}
     assert sum(result["probabilities"].values()) == pytest.approx(1.0)
+    # many models, one process and one load: one JSON line each, in order
+    argv = ["classify", query, "boxes0", "rods1", "--db", str(db), "--model", str(model)]
+    assert main([*argv, "--json"]) == 0
+    lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [r["source"] for r in lines] == [query, "boxes0", "rods1"]
+    assert all(r["label"] in {"boxes", "rods"} for r in lines)
     assert main(["classify", query, "--db", str(db), "--model", str(tmp_path / "none.pt")]) == 1
     assert capsys.readouterr().err.startswith("shapedb: error: ")
 
