@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from shapedb.cli.common import (
     Subparsers,
@@ -16,9 +16,6 @@ from shapedb.cli.common import (
     query_arg,
 )
 from shapedb.results import ShapeRef
-
-if TYPE_CHECKING:
-    from shapedb.results import ShapeRef
 
 __all__ = ["register", "train", "classify"]
 
