@@ -15,6 +15,10 @@ validation, the rest to test; parameter studies see only the validation split):
 ``parts``
     Machined parts from :func:`shapedb.examples.part` (the class is the kind,
     seeds vary the dimensions and features).
+``generic``
+    Web-like man-made and natural models from :mod:`bench.generic_shapes` (boxes,
+    zero-thickness sheets, open and interpenetrating parts; the class is the kind),
+    used as the triangle soups they are generated as.
 
 Point-cloud versions follow the paper: a random 20 % of the mesh vertices, seeded by
 the model name; meshes so coarse that this gives fewer than ``min_points`` points are
@@ -44,6 +48,7 @@ __all__ = [
     "capod",
     "articulated",
     "parts",
+    "generic",
     "load_dataset",
     "mesh_arrays",
     "families",
@@ -52,7 +57,19 @@ __all__ = [
 
 REPO = Path(__file__).resolve().parents[1]
 #: The real data set (outside the repository; never copied into it).
-CAPOD_ROOT = REPO.parent / "shared" / "data" / "capod"
+#: ``SHAPEDB_CAPOD`` overrides it; else the first ``shared/data/capod`` above the repository
+#: (a git worktree sits one level deeper than the main checkout).
+CAPOD_ROOT = Path(
+    os.environ.get("SHAPEDB_CAPOD")
+    or next(
+        (
+            p / "shared" / "data" / "capod"
+            for p in REPO.parents
+            if (p / "shared" / "data" / "capod").is_dir()
+        ),
+        REPO.parent / "shared" / "data" / "capod",
+    )
+)
 #: Decompositions and generated meshes (git-ignored); ``SHAPEDB_BENCH_CACHE`` overrides it.
 CACHE_DIR = Path(os.environ.get("SHAPEDB_BENCH_CACHE", REPO / "bench" / "results" / "cache"))
 
@@ -212,9 +229,22 @@ def parts(per_kind: int = 12, kinds: Sequence[str] | None = None) -> Dataset:
     return Dataset("parts", split_by_model(models))
 
 
+def generic(per_kind: int = 20, kinds: Sequence[str] | None = None) -> Dataset:
+    """Generated web-like models: one class per kind of :mod:`bench.generic_shapes`."""
+    from bench.generic_shapes import KINDS
+
+    kinds = tuple(kinds) if kinds else KINDS
+    models = [
+        Model(name=f"{k}_{i:02d}", label=k, source=f"generic:{k}:{i}")
+        for k in kinds
+        for i in range(per_kind)
+    ]
+    return Dataset("generic", split_by_model(models))
+
+
 def load_dataset(name: str) -> Dataset:
-    """One of ``capod``, ``articulated``, ``parts`` with its default size."""
-    makers = {"capod": capod, "articulated": articulated, "parts": parts}
+    """One of ``capod``, ``articulated``, ``parts``, ``generic`` with its default size."""
+    makers = {"capod": capod, "articulated": articulated, "parts": parts, "generic": generic}
     if name not in makers:
         raise ValueError(f"unknown data set {name!r}: choose from {sorted(makers)}")
     return makers[name]()
@@ -253,6 +283,11 @@ def mesh_arrays(
     CAPOD meshes are read as they are (triangle soups included); generated shapes
     are meshed at :data:`GENERATED_MESH_RESOLUTION` and cached as npz.
     """
+    if model.source.startswith("generic:"):
+        from bench.generic_shapes import generic_mesh
+
+        _, kind, seed = model.source.split(":")
+        return generic_mesh(kind, int(seed))
     if not model.source.startswith(("figure:", "part:")):
         import trimesh
 
@@ -289,7 +324,7 @@ def families(models: Sequence[Model]) -> NDArray[np.str_]:
     for m in models:
         if m.source.startswith("figure:"):
             keys.append(m.source.rsplit(":", 1)[0])
-        elif m.source.startswith("part:"):
+        elif m.source.startswith(("part:", "generic:")):
             keys.append(m.source)
         else:
             faces = np.ascontiguousarray(mesh_arrays(m)[1], dtype=np.int64)

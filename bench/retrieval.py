@@ -49,7 +49,15 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.datasets import Dataset, articulated, capod, mesh_arrays, parts, stable_seed
+from bench.datasets import (
+    Dataset,
+    articulated,
+    capod,
+    generic,
+    mesh_arrays,
+    parts,
+    stable_seed,
+)
 from shapedb.config import KernelConfig, MDBDConfig
 from shapedb.reconstruct import volumes_agree
 
@@ -358,6 +366,9 @@ def build_sets(
                 out.append(parts(4) if quick else parts(per_kind))
             except (ImportError, AttributeError, RuntimeError) as exc:
                 print(f"parts set unavailable: {exc}")
+        elif name == "generic":
+            ds = generic()
+            out.append(ds.head(per_class=6) if quick else ds)
         else:
             raise SystemExit(f"unknown data set {name!r}")
     return out
