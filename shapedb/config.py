@@ -252,10 +252,10 @@ class KernelConfig:
         _check(0.0 < self.lb <= 1.0, "lb", self.lb, "must be in (0, 1]")
         _check(self.lam > 0.0, "lam", self.lam, "must be > 0")
         _check(
-            self.descriptor in (1, 2, 3, 4),
+            self.descriptor in (1, 2, 3, 4, 5),
             "descriptor",
             self.descriptor,
-            "must be 1, 2, 3 or 4 (see shapedb.descriptor)",
+            "must be 1, 2, 3, 4 or 5 (see shapedb.descriptor)",
         )
         _check(
             isinstance(self.view_cells, (int, float))

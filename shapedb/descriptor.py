@@ -32,6 +32,8 @@ block              dim   content
 ``paper_sorted``   64    the same with its walk averages sorted (version 4, instead of ``paper``)
 ``geodesic``       48    CDF of geodesic centre-pair distances / s (see below)
 ``geodesic_mean``  30    CDF of geodesic centre-pair distances / their weighted mean
+``union``          128   spherical-harmonic energies of the ball union (version 5;
+                         :mod:`shapedb.union`: 16 shells x degrees 0-7)
 =================  ====  ======================================================
 
 Geodesic distances run along the contact graph, each edge as long as the distance
@@ -48,6 +50,11 @@ and the parts: 0.05-0.06 between classes; the jointed figures, all one body plan
 Versions (``KernelConfig.descriptor``; a store records the version its features were
 computed with, and refuses to mix them):
 
+* **5**: version 4 plus the ``union`` block (:mod:`shapedb.union`): where the balls'
+  volume lies around its centroid, at the scale of the parts, so that shapes built of
+  boxes and sheets (a table's top over its legs, a house's walls under its roof) are
+  told apart. Its weight was chosen on the validation splits of the generic, CAPOD,
+  figures and parts sets (``python -m bench.union_select``; docs/results.md).
 * **4** (default): version 3 with the Eq. 1 block's walk averages ``P_1..P_32``
   sorted in decreasing order (``paper_sorted``, weight 6, typical distance measured
   like the others'). The packing often lists two balls of (nearly) one radius in
@@ -116,6 +123,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from shapedb.graph import ContactGraph
+from shapedb.union import BANDS, SHELLS, union_features
 
 __all__ = ["describe", "dim", "DIM", "BLOCKS", "LAYOUTS", "VERSION"]
 
@@ -173,6 +181,10 @@ LAYOUTS: dict[int, Layout] = {
     )
     + (("geodesic", 48, 0.383, 2.0), ("geodesic_mean", 30, 0.0752, 1.0)),
 }
+#: Typical distance and weight of version 5's ``union`` block (:mod:`shapedb.union`).
+UNION_TYPICAL = 5.069
+UNION_WEIGHT = 4.0
+LAYOUTS[5] = LAYOUTS[4] + (("union", SHELLS * BANDS, UNION_TYPICAL, UNION_WEIGHT),)
 #: The default version (``KernelConfig().descriptor``).
 VERSION: int = 4
 BLOCKS: Layout = LAYOUTS[VERSION]
@@ -307,6 +319,9 @@ def describe(g: ContactGraph, version: int = VERSION) -> FloatArray:
         blocks["geodesic"] = _cdf(gd / s, w, _GEO_BINS)
         gmean = float((gd * w).sum() / max(w.sum(), 1e-300))
         blocks["geodesic_mean"] = _cdf(gd / max(gmean, 1e-300), w, _GEO_MEAN_BINS)
+
+    if "union" in names:
+        blocks["union"] = union_features(c, r)
 
     calibration = np.log(10.0) / sum(b[3] for b in layout)
     at = 0
