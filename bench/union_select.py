@@ -4,6 +4,7 @@ Usage (from the repository root)::
 
     python -m bench.union_select                         # all four sets, validation
     python -m bench.union_select --split test --weights 0 8   # report two weights on test
+    python -m bench.union_select --cost 8      # CPU per model: decomposition, v4, v5
 
 For each set's split (generic, capod, articulated, parts; meshes), the version-4
 descriptor of :mod:`shapedb.descriptor` and the ball-union block of
@@ -64,6 +65,35 @@ def set_matrices(ds: Dataset, mdbd: MDBDConfig, workers: int) -> dict[str, Any]:
     return {"labels": labels, "d4": _l1(v4) / cal4, "du": _l1(u), "union_cpu_s": sec}
 
 
+def cost(per_set: int = 8) -> dict[str, dict[str, float]]:
+    """Median CPU seconds per model: decomposition, descriptor v4 and v5 (CAPOD, generic)."""
+    from bench.datasets import mesh_arrays
+    from shapedb.descriptor import describe
+    from shapedb.graph import ContactGraph
+    from shapedb.mdbd import decompose
+    from shapedb.mesh import TriangleMesh
+
+    out = {}
+    for ds in (capod().split("validation"), generic().split("validation")):
+        rows = []
+        for m in ds.head(per_class=1).models[:per_set]:
+            t = time.process_time()
+            d = decompose(TriangleMesh(*mesh_arrays(m)))
+            td = time.process_time() - t
+            g = ContactGraph(d.centers, d.radii, d.edges)
+            t = time.process_time()
+            describe(g, 4)
+            t4 = time.process_time() - t
+            t = time.process_time()
+            describe(g, 5)
+            rows.append((td, t4, time.process_time() - t))
+        td, t4, t5 = np.median(np.asarray(rows), axis=0)
+        out[ds.name] = {"decompose": td, "v4": t4, "v5": t5, "extra": (t5 - t4) / (td + t4)}
+        print(f"{ds.name}: median CPU s decompose {td:.3f}, v4 {t4:.4f}, v5 {t5:.4f}, "
+              f"extra {(t5 - t4) / (td + t4):.1%}")  # fmt: skip
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
     ap = argparse.ArgumentParser(
@@ -77,7 +107,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--cost", type=int, default=0, help="only time N models per set")
     args = ap.parse_args(argv)
+    if args.cost:
+        write_json(RESULTS / "union_cost.json", cost(args.cost))
+        return 0
     makers = {"generic": generic, "capod": capod, "articulated": articulated, "parts": parts}
     mats = {}
     for name in args.datasets:
