@@ -5,6 +5,10 @@ Usage (from the repository root)::
     python -m bench.classify --quick      # small sets, few epochs: well under 30 min
     python -m bench.classify              # the full run (about an hour on 2 shared cores)
 
+Learning curves of every classifier ``shapedb train`` chooses among (k-NN, linear,
+boosting, graph CNNs) and the held-out check of the chosen one are in
+:mod:`bench.classify_curves`.
+
 Evaluation. ``capod`` (15 classes x 12 meshes) uses k-fold cross-validation
 stratified by class; inside every fold 15 % of the training models are held out to
 choose the epoch (never the test fold). The ``generated`` set (12 classes x 100) uses
@@ -50,7 +54,7 @@ from numpy.typing import NDArray
 
 from bench.common import decompose_all, format_table, write_json
 from bench.datasets import Dataset, Model, capod, split_by_model
-from shapedb.config import KernelConfig, MDBDConfig
+from shapedb.config import Config, MDBDConfig
 
 RESULTS = Path(__file__).resolve().parent / "results"
 COLUMNS = (
@@ -196,7 +200,7 @@ def knn_baseline(data: dict[str, Any], splits: list[Split]) -> dict[str, Any]:
     """
     from shapedb.kernel import features, kernel
 
-    cfg = KernelConfig()
+    cfg = Config()
     t0 = time.perf_counter()
     feat = lambda b: None if b is None else features(b.decomposition(), cfg)  # noqa: E731
     fm = np.stack([features(b.decomposition(), cfg) for b in data["mesh"]])
@@ -222,7 +226,7 @@ def knn_baseline(data: dict[str, Any], splits: list[Split]) -> dict[str, Any]:
             acc.setdefault(name, []).append(float(np.mean(pred == y[idx])))
     return {
         "network": "1-NN, Eq. 3 kernel",
-        "descriptor": cfg.descriptor,
+        "descriptor": cfg.descriptor.version,
         "rotations": "-",
         "accuracy": acc,
         "n_test": [len(s["test"]) for s in splits],

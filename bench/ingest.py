@@ -8,7 +8,7 @@ minute. The baseline is one worker in this process, measured in the same run.
                            [--no-dask] [--resolution N] [--balls N] [--views CELLS]
 
 Prints a table and writes bench/results/ingest.json. ``--views CELLS`` adds a run
-into a store that keeps sparse views (``KernelConfig.view_cells``): its CPU seconds per
+into a store that keeps sparse views (``CloudConfig.view_cells``): its CPU seconds per
 model against the runs without are the views' cost.
 """
 
@@ -72,7 +72,7 @@ def _run(
         shutil.rmtree(root, ignore_errors=True)
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data", type=Path, default=DEFAULT_DATA)
     p.add_argument("--limit", type=int, default=None, help="use a subset of N models")
@@ -87,7 +87,59 @@ def main(argv: list[str] | None = None) -> int:
         help="also ingest into a store with sparse views every VIEWS grid cells (view_cells)",
     )
     p.add_argument("--out", type=Path, default=HERE / "results" / "ingest.json")
-    args = p.parse_args(argv)
+    return p
+
+
+def _dask_row(files: list[Path], options: dict[str, Any], n: int) -> dict[str, Any]:
+    """The ingest of ``files`` on a Dask LocalCluster of ``n`` single-threaded processes."""
+    from shapedb.errors import require
+
+    distributed = require(
+        "distributed", extra="distributed", feature="the Dask rows (--no-dask to skip them)"
+    )
+    Client, LocalCluster = distributed.Client, distributed.LocalCluster
+    print(
+        f"ingesting {len(files)} models on a Dask LocalCluster ({n} processes)...",
+        file=sys.stderr,
+    )
+    with (
+        LocalCluster(
+            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0"
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        return {
+            "setting": f"dask LocalCluster {n}x1",
+            "workers": n,
+            **_run(files, options, scheduler=client),
+        }
+
+
+def _print_table(rows: list[dict[str, Any]]) -> None:
+    """The rows, with speed-ups against the first, and the CPU-bound ceiling of 2 cores."""
+    base = rows[0]["models_per_minute"]
+    cpu = rows[0]["mean_cpu_seconds"]
+    print()
+    print(
+        f"{'setting':28s} {'models':>6s} {'failed':>6s} {'seconds':>8s} {'models/min':>10s} "
+        f"{'speed-up':>8s} {'build s':>8s} {'cpu s':>6s} {'load':>5s}"
+    )
+    for r in rows:
+        print(
+            f"{r['setting']:28s} {r['models']:6d} {r['failed']:6d} {r['seconds']:8.1f} "
+            f"{r['models_per_minute']:10.1f} {r['models_per_minute'] / base:8.2f} "
+            f"{r['mean_build_seconds']:8.2f} {r['mean_cpu_seconds']:6.2f} "
+            f"{r['load_average_1min']:5.1f}"
+        )
+    ceiling = 2 * 60.0 / cpu if cpu > 0 else float("nan")
+    print(
+        f"CPU-bound ceiling on 2 idle cores: {ceiling:.1f} models/min "
+        f"({cpu:.2f} CPU s per model; target 120)"
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
 
     from shapedb.config import Config
 
@@ -123,46 +175,10 @@ def main(argv: list[str] | None = None) -> int:
             }
         )
     if not args.no_dask:
-        from distributed import Client, LocalCluster
+        rows.append(_dask_row(files, options, max(args.workers)))
 
-        n = max(args.workers)
-        print(
-            f"ingesting {len(files)} models on a Dask LocalCluster ({n} processes)...",
-            file=sys.stderr,
-        )
-        with (
-            LocalCluster(
-                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0"
-            ) as cluster,
-            Client(cluster) as client,
-        ):
-            rows.append(
-                {
-                    "setting": f"dask LocalCluster {n}x1",
-                    "workers": n,
-                    **_run(files, options, scheduler=client),
-                }
-            )
-
-    base = rows[0]["models_per_minute"]
+    _print_table(rows)
     cpu = rows[0]["mean_cpu_seconds"]
-    print()
-    print(
-        f"{'setting':28s} {'models':>6s} {'failed':>6s} {'seconds':>8s} {'models/min':>10s} "
-        f"{'speed-up':>8s} {'build s':>8s} {'cpu s':>6s} {'load':>5s}"
-    )
-    for r in rows:
-        print(
-            f"{r['setting']:28s} {r['models']:6d} {r['failed']:6d} {r['seconds']:8.1f} "
-            f"{r['models_per_minute']:10.1f} {r['models_per_minute'] / base:8.2f} "
-            f"{r['mean_build_seconds']:8.2f} {r['mean_cpu_seconds']:6.2f} "
-            f"{r['load_average_1min']:5.1f}"
-        )
-    ceiling = 2 * 60.0 / cpu if cpu > 0 else float("nan")
-    print(
-        f"CPU-bound ceiling on 2 idle cores: {ceiling:.1f} models/min "
-        f"({cpu:.2f} CPU s per model; target 120)"
-    )
     out = {
         "benchmark": "ingest",
         "data": str(args.data),

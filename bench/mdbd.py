@@ -45,7 +45,7 @@ from shapedb.config import MDBDConfig  # noqa: E402
 from shapedb.geometry import Geometry  # noqa: E402
 from shapedb.graph import contact_edges  # noqa: E402
 from shapedb.kernel import features  # noqa: E402
-from shapedb.mdbd import _loop, _prepare, decompose  # noqa: E402
+from shapedb.mdbd import decompose, pack_balls, prepare_field  # noqa: E402
 
 logger = logging.getLogger("bench.mdbd")
 CAPOD = Path("/work/shared/data/capod")
@@ -78,7 +78,7 @@ def models(quick: bool) -> list[tuple[str, Geometry, int]]:
 
 def run_one(name: str, g: Geometry, res: int, n_balls: int, naive_limit: int) -> dict[str, Any]:
     cfg = MDBDConfig(resolution=res, n_balls=n_balls)
-    prep = _prepare(g, cfg)
+    prep = prepare_field(g, cfg)
     grid, F = prep.grid, prep.F
     row: dict[str, Any] = {"model": name, "resolution": res, "cells": grid.size}
     row["frame"] = prep.timings.get("frame", 0.0)
@@ -86,7 +86,7 @@ def run_one(name: str, g: Geometry, res: int, n_balls: int, naive_limit: int) ->
     for label, refine in (("grid_loop", False), ("refined_loop", True)):
         stats: dict[str, float] = {}
         t0 = time.perf_counter()
-        c, r = _loop(
+        c, r = pack_balls(
             prep.local,
             grid,
             F.copy(),
@@ -111,7 +111,7 @@ def run_one(name: str, g: Geometry, res: int, n_balls: int, naive_limit: int) ->
     row["features"] = time.perf_counter() - t0
     if res <= naive_limit:
         t0 = time.perf_counter()
-        _loop(
+        pack_balls(
             prep.local,
             grid,
             F.copy(),
@@ -153,10 +153,10 @@ def profile_one(path: Path) -> dict[str, Any]:
     F = np.ascontiguousarray(local.grid_sdf(grid), dtype=np.float32)
     row["sdf"] = cpu() - c0
     c0 = cpu()
-    _loop(local, grid, F.copy(), MDBDConfig(refine=False), naive=False)
+    pack_balls(local, grid, F.copy(), MDBDConfig(refine=False), naive=False)
     row["grid_loop"] = cpu() - c0
     c0 = cpu()
-    centers, radii = _loop(local, grid, F, cfg, naive=False)
+    centers, radii = pack_balls(local, grid, F, cfg, naive=False)
     row["refine"] = max(cpu() - c0 - row["grid_loop"], 0.0)
     order = np.argsort(-radii, kind="stable")
     centers, radii = centers[order], radii[order]

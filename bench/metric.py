@@ -11,7 +11,7 @@ unlearned default; then the other way round (fitted on the larger test split, sc
 on validation), so that a choice that only one split favours shows. Two store layouts: meshes only, and meshes with their sparse
 views (``view_cells = 4``; each mesh's view is one more query during the fit, and a
 pair with a cloud side is as far apart as the nearer of the mesh's own feature and
-view, as ``KernelConfig.view_cells`` compares them). Rows:
+view, as ``CloudConfig.view_cells`` compares them). Rows:
 meshes NN / 1-T / DCG, point-cloud queries (20 % of the vertices) against the mesh
 database, the even mixture, and the mean log margin ``log(d(nearest same class) /
 d(nearest other class))`` of mesh and cloud queries (lower is better). Results go to
@@ -31,7 +31,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench import descriptors as desc
 from bench.common import (
     decompose_all,
     format_table,
@@ -41,15 +40,10 @@ from bench.common import (
     write_json,
 )
 from bench.datasets import Dataset
-from bench.retrieval import (
-    _complete,
-    _mixture_mask,
-    build_sets,
-    kernel_features,
-    reconstructions,
-)
+from bench.features import complete, kernel_features, l1_matrix, mixture_mask, reconstructions
+from bench.retrieval import build_sets
 from query.metric import LearnedMetric, block_layout, fit_metric
-from shapedb.config import KernelConfig, MDBDConfig
+from shapedb.config import Config, KernelConfig, MDBDConfig
 
 RESULTS = Path(__file__).resolve().parent / "results"
 VIEW_CELLS = 4.0
@@ -63,14 +57,14 @@ def _features(
     pc = decompose_all(sub.models, "pointcloud", mdbd, workers=workers)
     view = decompose_all(sub.models, f"view_{VIEW_CELLS:g}", mdbd, workers=workers)
     recon = reconstructions(sub.models, pc, mdbd, workers=workers)
-    sub, (mesh, pc, view, recon) = _complete(sub, mesh, pc, view, recon)
+    sub, (mesh, pc, view, recon) = complete(sub, mesh, pc, view, recon)
     return {
         "mesh": kernel_features(mesh, cfg),
         "pc": kernel_features(pc, cfg),
         "recon": kernel_features(recon, cfg),
         "view": kernel_features(view, cfg),
         "labels": sub.labels,
-        "mix": _mixture_mask([m.name for m in sub.models]),
+        "mix": mixture_mask([m.name for m in sub.models]),
     }
 
 
@@ -78,17 +72,17 @@ def _scores(f: dict[str, Any], w: NDArray[np.float64], views: bool) -> dict[str,
     """Test-split measures with per-dimension weights ``w``."""
     m, p, v, lab = f["mesh"] * w, f["pc"] * w, f["view"] * w, f["labels"]
     r, mix = f["recon"] * w, f["mix"]
-    d_mm = desc.l1_matrix(m, m)
+    d_mm = l1_matrix(m, m)
     # cloud-mesh pairs: the nearest of the store's comparisons (query.engine)
-    d_pm = np.minimum(desc.l1_matrix(p, m), desc.l1_matrix(r, m))
+    d_pm = np.minimum(l1_matrix(p, m), l1_matrix(r, m))
     x = np.where(mix[:, None], p, m)
-    d_xx = desc.l1_matrix(x, x)
+    d_xx = l1_matrix(x, x)
     one = mix[:, None] != mix[None, :]
-    d_rx = desc.l1_matrix(np.where(mix[:, None], r, m), x)
+    d_rx = l1_matrix(np.where(mix[:, None], r, m), x)
     d_xx = np.where(one, np.minimum(d_xx, np.minimum(d_rx, d_rx.T)), d_xx)
     if views:  # and the cloud against the mesh's view
-        d_pm = np.minimum(d_pm, desc.l1_matrix(p, v))
-        d_xy = desc.l1_matrix(x, np.where(mix[:, None], p, v))
+        d_pm = np.minimum(d_pm, l1_matrix(p, v))
+        d_xy = l1_matrix(x, np.where(mix[:, None], p, v))
         d_xx = np.where(one, np.minimum(d_xx, np.minimum(d_xy, d_xy.T)), d_xx)
     s = retrieval_scores(-d_mm, lab)
     return {
@@ -145,7 +139,7 @@ def _direction(
 def run(sets: Sequence[Dataset], mdbd: MDBDConfig, workers: int) -> dict[str, Any]:
     """Per set, direction and store layout: fit on one split, score on the other."""
     cfg = KernelConfig()
-    blocks = block_layout(cfg)
+    blocks = block_layout(Config(kernel=cfg))
     out: dict[str, Any] = {}
     for ds in sets:
         feats = {

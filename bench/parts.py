@@ -297,7 +297,7 @@ def grid(base: PartConfig) -> list[PartConfig]:
         for n_r in (5, 10, 20):
             for size in (0.0, 1.0, 4.0):
                 for centre in (0.0, 1.0, 4.0, 8.0):
-                    cfg = replace(base, hops=hops, n_r=n_r, size=size, centre=centre)
+                    cfg = base.with_options(hops=hops, n_r=n_r, size=size, centre=centre)
                     if cfg not in out:
                         out.append(cfg)
     return out
@@ -351,7 +351,7 @@ def _hole_rows(tag: str, hole: dict[str, Any]) -> list[list[Any]]:
     return rows
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--subjects", type=int, default=2)
     ap.add_argument("--poses", type=int, default=8)
@@ -377,48 +377,97 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--no-sweep", action="store_true", help="skip the validation sweep")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=RESULTS / "parts.json")
-    args = ap.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    return ap
+
+
+def _mdbd(args: argparse.Namespace) -> MDBDConfig:
+    """The decomposition settings of the command line."""
     mdbd = MDBDConfig(resolution=args.resolution, n_balls=args.n_balls)
     if args.tie_cells is not None:
         mdbd = replace(mdbd, tie_cells=args.tie_cells)
     if args.contact_tol is not None:
         mdbd = replace(mdbd, contact_tol_cells=args.contact_tol)
-    after = PartConfig() if args.hops is None else PartConfig(hops=args.hops)
-    before = replace(BEFORE, hops=after.hops)
-    selection = None
-    if not args.no_sweep:
-        t0 = time.perf_counter()
-        selection = sweep(grid(PartConfig()), mdbd, args.workers)
-        selection.sort(key=lambda r: -r["score"])
-        paper_k = [
-            r for r in selection if (r["config"]["hops"], r["config"]["n_r"]) == (2, 10)
-        ]  # the paper's K and n_r, and the API's default hops=2
-        chosen = paper_k[0]["config"]
-        logger.info("validation choice at K=2, n_r=10: %s", chosen)
-        if (chosen["size"], chosen["centre"]) != (after.size, after.centre):
-            logger.warning("PartConfig() defaults differ from the validation choice")
+    return mdbd
+
+
+def _validation(after: PartConfig, mdbd: MDBDConfig, workers: int) -> list[dict[str, Any]]:
+    """The validation sweep of :func:`grid`, best first; logs its table and the choice."""
+    t0 = time.perf_counter()
+    selection = sweep(grid(PartConfig()), mdbd, workers)
+    selection.sort(key=lambda r: -r["score"])
+    paper_k = [
+        r for r in selection if (r["config"]["hops"], r["config"]["kernel"]["n_r"]) == (2, 10)
+    ]  # the paper's K and n_r, and the API's default hops=2
+    chosen = paper_k[0]["config"]
+    logger.info("validation choice at K=2, n_r=10: %s", chosen)
+    if (chosen["size"], chosen["centre"]) != (after.size, after.centre):
+        logger.warning("PartConfig() defaults differ from the validation choice")
+    logger.info(
+        "\n%s",
+        format_table(
+            f"Validation sweep (subjects 2-3 x poses 8-15, plates 8-15; "
+            f"{time.perf_counter() - t0:.0f} s): best 15 of {len(selection)}",
+            ["hops", "n_r", "size", "centre", "figures", "hole", "slot", "score"],
+            [
+                [
+                    r["config"]["hops"],
+                    r["config"]["kernel"]["n_r"],
+                    r["config"]["size"],
+                    r["config"]["centre"],
+                    r["figures_mean"],
+                    r["hole"],
+                    r["slot"],
+                    r["score"],
+                ]
+                for r in selection[:15]
+            ],
+        ),
+    )
+    return selection
+
+
+def _log_report(
+    report: dict[str, Any], args: argparse.Namespace, after: PartConfig, n_figures: int, n_more: int
+) -> None:
+    """Log the tables of the reported sets (figures, plates, more plates)."""
+    tags = (("before", "before"), ("after", "after"), ("r/R only", "ball_size_only"))
+    logger.info(
+        "\n%s",
+        format_table(
+            f"Part matching, figures ({n_figures} models: {args.subjects} subjects x "
+            f"{args.poses} poses; res {args.resolution}, K={after.hops}, n_r={after.kernel.n_r}): "
+            "best match on the same part; before = paper's vector, after = PartConfig()",
+            ["setting", *LABELS, "mean", "chance", "queries"],
+            [row for name, tag in tags for row in _fig_rows(name, report[tag]["figures"])],
+        ),
+    )
+    logger.info(
+        "\n%s",
+        format_table(
+            f"Holes through the complement ({args.plates} plates, res {args.resolution})",
+            ["query", "accuracy", "chance"],
+            [row for name, tag in tags for row in _hole_rows(name, report[tag]["holes"])],
+        ),
+    )
+    if n_more:
         logger.info(
             "\n%s",
             format_table(
-                f"Validation sweep (subjects 2-3 x poses 8-15, plates 8-15; "
-                f"{time.perf_counter() - t0:.0f} s): best 15 of {len(selection)}",
-                ["hops", "n_r", "size", "centre", "figures", "hole", "slot", "score"],
-                [
-                    [
-                        r["config"]["hops"],
-                        r["config"]["n_r"],
-                        r["config"]["size"],
-                        r["config"]["centre"],
-                        r["figures_mean"],
-                        r["hole"],
-                        r["slot"],
-                        r["score"],
-                    ]
-                    for r in selection[:15]
-                ],
+                f"Holes through the complement, {n_more} more held-out plates "
+                f"(seeds 16-{15 + n_more})",
+                ["query", "accuracy", "chance"],
+                [row for name, tag in tags for row in _hole_rows(name, report[tag]["holes_more"])],
             ),
         )
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    mdbd = _mdbd(args)
+    after = PartConfig() if args.hops is None else PartConfig(hops=args.hops)
+    before = replace(BEFORE, hops=after.hops)
+    selection = None if args.no_sweep else _validation(after, mdbd, args.workers)
     subjects, poses = range(args.subjects), range(args.poses)
     sets = figure_models(subjects, poses, mdbd, args.workers)
     plates = plate_models(range(args.plates), mdbd)
@@ -436,40 +485,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "holes": holes(plates, cfg),
             "holes_more": holes(more, cfg) if more else None,
         }
-    logger.info(
-        "\n%s",
-        format_table(
-            f"Part matching, figures ({len(sets['implicit'])} models: {args.subjects} subjects x "
-            f"{args.poses} poses; res {args.resolution}, K={after.hops}, n_r={after.n_r}): "
-            "best match on the same part; before = paper's vector, after = PartConfig()",
-            ["setting", *LABELS, "mean", "chance", "queries"],
-            _fig_rows("before", report["before"]["figures"])
-            + _fig_rows("after", report["after"]["figures"])
-            + _fig_rows("r/R only", report["ball_size_only"]["figures"]),
-        ),
-    )
-    logger.info(
-        "\n%s",
-        format_table(
-            f"Holes through the complement ({args.plates} plates, res {args.resolution})",
-            ["query", "accuracy", "chance"],
-            _hole_rows("before", report["before"]["holes"])
-            + _hole_rows("after", report["after"]["holes"])
-            + _hole_rows("r/R only", report["ball_size_only"]["holes"]),
-        ),
-    )
-    if more:
-        logger.info(
-            "\n%s",
-            format_table(
-                f"Holes through the complement, {len(more)} more held-out plates "
-                f"(seeds 16-{15 + len(more)})",
-                ["query", "accuracy", "chance"],
-                _hole_rows("before", report["before"]["holes_more"])
-                + _hole_rows("after", report["after"]["holes_more"])
-                + _hole_rows("r/R only", report["ball_size_only"]["holes_more"]),
-            ),
-        )
+    _log_report(report, args, after, len(sets["implicit"]), len(more))
     write_json(
         args.out,
         {

@@ -40,7 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from query.index import FeatureIndex
-from shapedb.config import Config, KernelConfig
+from shapedb.config import CloudConfig, Config, KernelConfig
 from shapedb.kernel import weights
 
 log = logging.getLogger("bench.query")
@@ -119,11 +119,15 @@ def synthetic_descriptors(
     return out
 
 
-def synthetic_vectors(n: int, config: KernelConfig, seed: int) -> NDArray[np.float32]:
-    """Synthetic feature vectors of ``config``'s method and length, (n, config.dim)."""
-    if config.method == "paper":
-        return synthetic_features(n, config.n_r, seed)
-    return synthetic_descriptors(n, config.descriptor, seed)
+def synthetic_vectors(n: int, config: Config | KernelConfig, seed: int) -> NDArray[np.float32]:
+    """Synthetic feature vectors of ``config``'s method and length, (n, Config.dim).
+
+    A :class:`KernelConfig` alone stands for ``Config(kernel=config)`` (today's descriptor).
+    """
+    full = config if isinstance(config, Config) else Config(kernel=config)
+    if full.kernel.method == "paper":
+        return synthetic_features(n, full.kernel.n_r, seed)
+    return synthetic_descriptors(n, full.descriptor.version, seed)
 
 
 def _rss_mb() -> float:
@@ -281,7 +285,7 @@ def run_store(
         t0 = time.perf_counter()
         fitted = db.fit_metric(label="label")
         fit_s = time.perf_counter() - t0
-        blocks = block_layout(config.kernel)
+        blocks = block_layout(config)
         metric = LearnedMetric(
             blocks=blocks,
             weights=tuple(1.0 + (i % 3) for i in range(len(blocks))),
@@ -326,15 +330,13 @@ def _views_store(
     both indexes (own features and views) and merges them, a dense one also reaches
     the sparse shapes through its view (``query.engine``).
     """
-    import dataclasses
-
     import shapedb.database as database
     from query.engine import search
     from query.index import open_index
     from shapedb.mdbd import Decomposition
     from shapedb.schema import ShapeRecord
 
-    config = Config(kernel=dataclasses.replace(kernel, view_cells=4.0))
+    config = Config(kernel=kernel, cloud=CloudConfig(view_cells=4.0))
     rng = np.random.default_rng(3)
     views = (x * rng.uniform(0.9, 1.1, x.shape)).astype(np.float32)
     sparse = np.arange(n) % 10 == 0
@@ -405,7 +407,7 @@ def format_table(rows: list[dict[str, Any]], columns: list[tuple[str, str, str]]
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000, 1_000_000])
     parser.add_argument("--store-sizes", type=int, nargs="*", default=[10_000])
@@ -419,43 +421,26 @@ def main(argv: list[str] | None = None) -> int:
         help="feature vectors: the default descriptor (mdbd) or the paper's Eq. 1 (paper)",
     )
     parser.add_argument("--out", type=Path, default=RESULTS)
-    args = parser.parse_args(argv)
-    kernel = KernelConfig(method=args.method)
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
-    logging.getLogger("faiss.loader").setLevel(logging.WARNING)
-    load_start = os.getloadavg()
+    return parser
 
-    started = time.perf_counter()
-    rows = [
-        run_size(
-            n,
-            n_queries=args.queries,
-            n_latency=args.latency_queries,
-            n_baseline=args.baseline_queries,
-            config=kernel,
-        )
-        for n in args.sizes
-    ]
-    stores = [run_store(n, kernel=kernel) for n in args.store_sizes]
+
+def _machine(load_start: tuple[float, float, float]) -> dict[str, Any]:
+    """CPUs, faiss build and threads, and the load average at the start and now."""
     import faiss
 
-    result = {
-        "machine": {
-            "cpus": os.cpu_count(),
-            "faiss_threads": faiss.omp_get_max_threads(),
-            "python": platform.python_version(),
-            "faiss": faiss.__version__,
-            "faiss_simd": faiss.get_compile_options(),
-            "load_average_start": load_start,
-            "load_average_end": os.getloadavg(),
-        },
-        "kernel": {"method": kernel.method, "descriptor": kernel.descriptor, "dim": kernel.dim},
-        "index": rows,
-        "store_search": stores,
-        "total_seconds": time.perf_counter() - started,
+    return {
+        "cpus": os.cpu_count(),
+        "faiss_threads": faiss.omp_get_max_threads(),
+        "python": platform.python_version(),
+        "faiss": faiss.__version__,
+        "faiss_simd": faiss.get_compile_options(),
+        "load_average_start": load_start,
+        "load_average_end": os.getloadavg(),
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=1))
+
+
+def _print_tables(rows: list[dict[str, Any]], stores: list[dict[str, Any]]) -> None:
+    """The index rows against the numpy baseline, then the store rows (plain and with views)."""
     print("Feature index (faiss candidates + exact Eq. 2 re-rank) vs numpy brute force, k=10")
     print(
         format_table(
@@ -474,41 +459,75 @@ def main(argv: list[str] | None = None) -> int:
             ],
         )
     )
-    if stores:
-        print("\nEnd-to-end search(db, id, k=10) on a real store")
-        print(
-            format_table(
-                stores,
-                [
-                    ("n", "shapes", "{:,}"),
-                    ("search_p50_ms", "p50 ms", "{:.2f}"),
-                    ("search_p99_ms", "p99 ms", "{:.2f}"),
-                    ("filtered_search_p50_ms", "where p50 ms", "{:.2f}"),
-                    ("filtered_search_p99_ms", "where p99 ms", "{:.2f}"),
-                    ("index_build_s", "index build s", "{:.2f}"),
-                    ("metric_search_p50_ms", "metric p50 ms", "{:.2f}"),
-                    ("metric_search_p99_ms", "metric p99 ms", "{:.2f}"),
-                    ("metric_index_build_s", "metric index s", "{:.2f}"),
-                    ("metric_fit_s", "fit_metric s", "{:.1f}"),
-                ],
-            )
+    if not stores:
+        return
+    print("\nEnd-to-end search(db, id, k=10) on a real store")
+    print(
+        format_table(
+            stores,
+            [
+                ("n", "shapes", "{:,}"),
+                ("search_p50_ms", "p50 ms", "{:.2f}"),
+                ("search_p99_ms", "p99 ms", "{:.2f}"),
+                ("filtered_search_p50_ms", "where p50 ms", "{:.2f}"),
+                ("filtered_search_p99_ms", "where p99 ms", "{:.2f}"),
+                ("index_build_s", "index build s", "{:.2f}"),
+                ("metric_search_p50_ms", "metric p50 ms", "{:.2f}"),
+                ("metric_search_p99_ms", "metric p99 ms", "{:.2f}"),
+                ("metric_index_build_s", "metric index s", "{:.2f}"),
+                ("metric_fit_s", "fit_metric s", "{:.1f}"),
+            ],
         )
-        print(
-            "\nThe same in a store with sparse views (view_cells=4, a tenth of the shapes sparse)"
+    )
+    print("\nThe same in a store with sparse views (view_cells=4, a tenth of the shapes sparse)")
+    print(
+        format_table(
+            stores,
+            [
+                ("n", "shapes", "{:,}"),
+                ("views_sparse_search_p50_ms", "sparse query p50 ms", "{:.2f}"),
+                ("views_sparse_search_p99_ms", "p99 ms", "{:.2f}"),
+                ("views_dense_search_p50_ms", "dense query p50 ms", "{:.2f}"),
+                ("views_dense_search_p99_ms", "p99 ms", "{:.2f}"),
+                ("views_index_build_s", "both indexes s", "{:.2f}"),
+            ],
         )
-        print(
-            format_table(
-                stores,
-                [
-                    ("n", "shapes", "{:,}"),
-                    ("views_sparse_search_p50_ms", "sparse query p50 ms", "{:.2f}"),
-                    ("views_sparse_search_p99_ms", "p99 ms", "{:.2f}"),
-                    ("views_dense_search_p50_ms", "dense query p50 ms", "{:.2f}"),
-                    ("views_dense_search_p99_ms", "p99 ms", "{:.2f}"),
-                    ("views_index_build_s", "both indexes s", "{:.2f}"),
-                ],
-            )
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    kernel = KernelConfig(method=args.method)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
+    logging.getLogger("faiss.loader").setLevel(logging.WARNING)
+    load_start = os.getloadavg()
+
+    started = time.perf_counter()
+    rows = [
+        run_size(
+            n,
+            n_queries=args.queries,
+            n_latency=args.latency_queries,
+            n_baseline=args.baseline_queries,
+            config=kernel,
         )
+        for n in args.sizes
+    ]
+    stores = [run_store(n, kernel=kernel) for n in args.store_sizes]
+    result = {
+        "machine": _machine(load_start),
+        "kernel": {
+            "method": kernel.method,
+            "descriptor": Config(kernel=kernel).descriptor.version,
+            "dim": Config(kernel=kernel).dim,
+        },
+        "index": rows,
+        "store_search": stores,
+        "total_seconds": time.perf_counter() - started,
+    }
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=1))
+    _print_tables(rows, stores)
     print(f"\n{result['total_seconds']:.0f} s in all; written to {args.out}")
     return 0
 

@@ -16,9 +16,9 @@ between the mesh and the point cloud of the same model (paper: 0.996), beside th
 same-class and other-class means. Everything is written to bench/results/retrieval.json.
 
 ``--study`` varies the kernel and decomposition parameters one at a time on the
-validation split; ``--descriptors``, ``--stability`` and ``--refine-shift`` run the issue 6
-measurements of :mod:`bench.issue6`; :mod:`bench.select_descriptors` chooses one
-descriptor combination for all sets on their validation splits.
+validation split; ``--descriptors``, ``--stability`` and ``--refine-shift`` run the
+studies of :mod:`bench.studies.descriptor_prototypes`; :mod:`bench.studies.select_descriptors`
+chooses one descriptor combination for all sets on their validation splits.
 
 Decompositions are cached (bench/results/cache/, git-ignored) by source, representation
 variant and :class:`~shapedb.config.MDBDConfig`; ``--no-refine`` turns off off-grid
@@ -38,7 +38,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench import descriptors as desc
 from bench.baselines import (
     D2Config,
     SHConfig,
@@ -57,17 +56,9 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.datasets import (
-    Dataset,
-    articulated,
-    capod,
-    generic,
-    mesh_arrays,
-    parts,
-    stable_seed,
-)
-from shapedb.config import KernelConfig, MDBDConfig
-from shapedb.reconstruct import volumes_agree
+from bench.datasets import Dataset, articulated, capod, generic, mesh_arrays, parts
+from bench.features import complete, kernel_features, l1_matrix, mixture_mask, reconstructions
+from shapedb.config import Config, DescriptorConfig, KernelConfig, MDBDConfig
 
 RESULTS = Path(__file__).resolve().parent / "results"
 COLUMNS = ("method", "NN", "1-T", "2-T", "E", "DCG", "seconds")
@@ -78,68 +69,16 @@ COLUMNS = ("method", "NN", "1-T", "2-T", "E", "DCG", "seconds")
 # --------------------------------------------------------------------------------------
 
 
-def kernel_features(balls: Sequence[Balls], config: KernelConfig) -> NDArray[np.float64]:
-    """Eq. 1 vectors pre-multiplied by the Eq. 2 weights: (n, 2 n_r).
-
-    Uses :func:`shapedb.kernel.features` and :func:`shapedb.kernel.weights`; falls
-    back to :func:`bench.descriptors.paper_features` while the library lacks them.
-    """
-    try:
-        from shapedb import kernel
-    except ImportError:
-        kernel = None
-    if kernel is None:
-        kw = {k: getattr(config, k) for k in ("n_r", "t", "w", "la", "lb")}
-        return np.stack([desc.paper_features(b, **kw) for b in balls])
-    w = np.asarray(kernel.weights(config))
-    return np.stack([np.asarray(kernel.features(b.decomposition(), config)) * w for b in balls])
-
-
 def kernel_matrix(
     fa: NDArray[np.float64], fb: NDArray[np.float64], lam: float
 ) -> NDArray[np.float64]:
     """Eq. 3, k = exp(-lam * d), between weighted feature rows."""
-    return np.exp(-lam * desc.l1_matrix(fa, fb))
+    return np.exp(-lam * l1_matrix(fa, fb))
 
 
 def _row(name: str, sim: NDArray[np.float64], labels: NDArray[Any], seconds: float) -> list[Any]:
     s = retrieval_scores(sim, labels)
     return [name, *(s[m] for m in MEASURES), seconds]
-
-
-def _mixture_mask(names: Sequence[str]) -> NDArray[np.bool_]:
-    """An even, seeded split of the models into point clouds (True) and meshes."""
-    n = len(names)
-    mask = np.zeros(n, dtype=bool)
-    mask[np.random.default_rng(stable_seed("mixture", n)).permutation(n)[: n // 2]] = True
-    return mask
-
-
-def reconstructions(
-    models: Sequence[Any],
-    clouds: list[Balls | None],
-    mdbd: MDBDConfig,
-    *,
-    workers: int = 2,
-    variant: str = "pointcloud_recon",
-) -> list[Balls | None]:
-    """Each cloud's kept reconstruction (:mod:`shapedb.reconstruct`), else the cloud itself.
-
-    The cloud itself adds no comparison to the nearest-of rule (``query.engine``).
-    """
-    found = decompose_all(models, variant, mdbd, workers=workers)
-    return [
-        r if r is not None and c is not None and volumes_agree(c.radii, r.radii) else c
-        for r, c in zip(found, clouds, strict=True)
-    ]
-
-
-def _complete(ds: Dataset, *lists: list[Balls | None]) -> tuple[Dataset, list[list[Balls]]]:
-    keep = [i for i in range(len(ds)) if all(lst[i] is not None for lst in lists)]
-    if len(keep) < len(ds):
-        print(f"  {len(ds) - len(keep)} model(s) left out (a decomposition failed)")
-    sub = Dataset(ds.name, tuple(ds.models[i] for i in keep))
-    return sub, [[lst[i] for i in keep] for lst in lists]  # type: ignore[misc]
 
 
 # --------------------------------------------------------------------------------------
@@ -162,7 +101,7 @@ def run_tables(
 
     With ``view_cells`` the meshes' sparse views (:mod:`shapedb.view`) are decomposed
     too, and the cloud-query and mixture rows are repeated as a store with
-    ``KernelConfig(view_cells=...)`` compares. Cloud-mesh pairs of shapedb's rows
+    ``CloudConfig(view_cells=...)`` compares. Cloud-mesh pairs of shapedb's rows
     follow the store's rule (``query.engine``): the nearest of the own features, the
     cloud against the mesh's view (views rows) and the cloud's reconstruction against
     the mesh (``shapedb.reconstruct``, variant ``pointcloud_recon``). The paper
@@ -183,28 +122,30 @@ def run_tables(
     if view_cells and have_pc:
         view = decompose_all(ds.models, f"view_{view_cells:g}", mdbd, workers=workers)
     recon = reconstructions(ds.models, pc, mdbd, workers=workers) if have_pc else pc
-    ds, (mesh, pc, view, recon) = _complete(ds, mesh, pc, view, recon)
+    ds, (mesh, pc, view, recon) = complete(ds, mesh, pc, view, recon)
     labels = ds.labels
     names = [m.name for m in ds.models]
     rows: list[list[Any]] = []
 
     same = labels[:, None] == labels[None, :]
     off = ~np.eye(len(labels), dtype=bool)
-    mix = _mixture_mask(names)
+    mix = mixture_mask(names)
     calib: dict[str, dict[str, float]] = {}
     feat_s: dict[str, float] = {}
     # shapedb's default descriptor and the paper's kernel, side by side
-    other = 4 if kcfg.descriptor == 5 else 5
+    version = DescriptorConfig().version
+    other = 4 if version == 5 else 5
     methods = [
-        (f"shapedb v{kcfg.descriptor}", kcfg),
-        (f"shapedb v{other}", dataclasses.replace(kcfg, descriptor=other)),
-        ("paper kernel", dataclasses.replace(kcfg, method="paper")),
+        (f"shapedb v{version}", Config(kernel=kcfg)),
+        (f"shapedb v{other}", Config(kernel=kcfg, descriptor=DescriptorConfig(version=other))),
+        ("paper kernel", Config(kernel=dataclasses.replace(kcfg, method="paper"))),
     ]
     default_label = methods[0][0]
-    for label, cfg in methods:
+    for label, full in methods:
+        cfg = full.kernel
         t = time.perf_counter()
-        fm = kernel_features(mesh, cfg)
-        fp = kernel_features(pc, cfg)
+        fm = kernel_features(mesh, full)
+        fp = kernel_features(pc, full)
         feat_s[label] = (time.perf_counter() - t) / 2
         k_mm = kernel_matrix(fm, fm, cfg.lam)
         k_pp = kernel_matrix(fp, fp, cfg.lam)
@@ -213,7 +154,7 @@ def run_tables(
         k_xx = kernel_matrix(fx, fx, cfg.lam)
         one = mix[:, None] != mix[None, :]  # cloud-mesh pairs of the mixture
         if have_pc and label == default_label:  # the store's rule (query.engine)
-            fr = kernel_features(recon, cfg)
+            fr = kernel_features(recon, full)
             k_pm = np.maximum(k_pm, kernel_matrix(fr, fm, cfg.lam))
             k_rx = kernel_matrix(np.where(mix[:, None], fr, fm), fx, cfg.lam)
             k_xx = np.where(one, np.maximum(k_xx, np.maximum(k_rx, k_rx.T)), k_xx)
@@ -223,7 +164,7 @@ def run_tables(
             rows.append(_row(f"{label}, even mixture", k_xx, labels, feat_s[label]))
             rows.append(_row(f"{label}, pc query -> mesh db", k_pm, labels, feat_s[label]))
             if view is not mesh and label == default_label:
-                fv = kernel_features(view, cfg)
+                fv = kernel_features(view, full)
                 k_pv = np.maximum(kernel_matrix(fp, fv, cfg.lam), k_pm)  # the nearest
                 fy = np.where(mix[:, None], fp, fv)  # clouds, and the meshes' views
                 k_xy = kernel_matrix(fx, fy, cfg.lam)  # own features against views
@@ -326,7 +267,7 @@ def run_study(
     val = ds.split("validation")
     mesh = decompose_all(val.models, "mesh", mdbd, workers=workers)
     pc = decompose_all(val.models, "pointcloud", mdbd, workers=workers)
-    val, (mesh, pc) = _complete(val, mesh, pc)
+    val, (mesh, pc) = complete(val, mesh, pc)
     labels = val.labels
     out: list[dict[str, Any]] = []
 
@@ -454,11 +395,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                 res = args.study_resolutions
             entry["study"] = run_study(ds, mdbd, kcfg, workers=args.workers, resolutions=res)
         if args.refine_shift:
-            from bench.issue6 import run_refine_shift
+            from bench.studies.descriptor_prototypes import run_refine_shift
 
             entry["refine_shift"] = run_refine_shift(ds, mdbd, kcfg, workers=args.workers)
         if args.descriptors or args.stability:
-            from bench.issue6 import run_descriptors, run_stability
+            from bench.studies.descriptor_prototypes import run_descriptors, run_stability
 
             if args.descriptors:
                 entry["descriptors"] = run_descriptors(ds, mdbd, workers=args.workers)

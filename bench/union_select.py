@@ -32,7 +32,7 @@ import numpy as np
 
 from bench.common import decompose_all, format_table, retrieval_scores, write_json
 from bench.datasets import Dataset, articulated, capod, generic, parts
-from shapedb.config import KernelConfig, MDBDConfig
+from shapedb.config import Config, DescriptorConfig, MDBDConfig
 from shapedb.descriptor import LAYOUTS
 from shapedb.union import union_features
 
@@ -57,7 +57,7 @@ def set_matrices(ds: Dataset, mdbd: MDBDConfig, workers: int) -> dict[str, Any]:
         print(f"  {ds.name}: {len(ds) - len(keep)} model(s) left out (decomposition failed)")
     bs = [balls[i] for i in keep]
     labels = ds.labels[keep]
-    v4 = kernel_features(bs, KernelConfig(descriptor=4))  # type: ignore[arg-type]
+    v4 = kernel_features(bs, Config(descriptor=DescriptorConfig(version=4)))  # type: ignore[arg-type]
     cal4 = np.log(10.0) / sum(b[3] for b in LAYOUTS[4])
     t0 = time.process_time()
     u = np.stack([union_features(b.centers, b.radii) for b in bs])  # type: ignore[union-attr]

@@ -47,7 +47,7 @@ def warm() -> None:
             log.debug("voxel warm-up skipped", exc_info=True)
         config = Config().with_options(resolution=16, n_balls=8)
         for g in shapes:
-            features(decompose(g, config=config.mdbd), config.kernel)
+            features(decompose(g, config=config.mdbd), config)
         import trimesh.exchange.load  # noqa: F401 - trimesh's loaders import lazily
     except Exception:  # pragma: no cover - a warm-up must never break the pool
         log.debug("worker warm-up failed", exc_info=True)

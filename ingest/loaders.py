@@ -26,9 +26,11 @@ and whose message says why (empty, truncated, junk, NaN, zero volume, unsupporte
 
 from __future__ import annotations
 
+import io
 import logging
 import os
 import struct
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -44,6 +46,7 @@ from shapedb.errors import (
     UnsupportedFormatError,
 )
 from shapedb.geometry import Geometry
+from shapedb.schema import safe_text
 
 __all__ = [
     "load",
@@ -122,7 +125,13 @@ def _sniff(head: bytes) -> str | None:
     return None
 
 
-def load(path: str | os.PathLike[str], *, as_: str | None = None) -> Geometry:
+def load(
+    path: str | os.PathLike[str],
+    *,
+    as_: str | None = None,
+    max_bytes: int | None = None,
+    max_faces: int | None = None,
+) -> Geometry:
     """Read a model file into a Geometry.
 
     Parameters
@@ -135,6 +144,11 @@ def load(path: str | os.PathLike[str], *, as_: str | None = None) -> Geometry:
         ``"smooth_voxels"`` reads an occupancy grid with ``surface="smooth"`` (its
         marching-cubes boundary, for grids that sample a smooth solid; see
         :mod:`shapedb.voxels`) and refuses other files.
+    max_bytes : int, optional
+        Refuse files larger than this (checked before reading).
+    max_faces : int, optional
+        Refuse meshes with more faces (checked from the header of OFF and binary STL
+        files before reading them, after reading otherwise).
 
     Returns
     -------
@@ -144,7 +158,9 @@ def load(path: str | os.PathLike[str], *, as_: str | None = None) -> Geometry:
     Raises
     ------
     LoadError
-        Missing, empty, truncated or unparsable file.
+        Missing, empty, truncated or unparsable file; an OFF whose header counts
+        disagree with its body; faces naming vertices the file does not have; a file
+        above ``max_bytes`` or ``max_faces``.
     UnsupportedFormatError
         No loader for this file type.
     InvalidShapeError
@@ -163,13 +179,18 @@ def load(path: str | os.PathLike[str], *, as_: str | None = None) -> Geometry:
     size = p.stat().st_size
     if size == 0:
         raise LoadError("file is empty (0 bytes)", source=src)
+    if max_bytes is not None and size > max_bytes:
+        raise LoadError(f"file has {size} bytes, above the cap max_bytes={max_bytes}", source=src)
     with open(p, "rb") as fh:
         head = fh.read(4096)
     fmt = detect_format(p, head)
     if fmt in _TEXT_FORMATS and b"\x00" in head:
         raise LoadError(f"binary junk in what should be a text {fmt.upper()} file", source=src)
     try:
+        if fmt in ("obj", "off"):
+            _check_faces(p, fmt, max_faces)
         geometry = _LOADERS[fmt](p, head, size)
+        _check_cap(geometry, max_faces)
         return _convert(geometry, as_, src)
     except ShapeDBError as exc:
         if exc.source is None:  # name the file
@@ -181,6 +202,96 @@ def load(path: str | os.PathLike[str], *, as_: str | None = None) -> Geometry:
         raise LoadError(
             f"cannot parse as {fmt.upper()}: {type(exc).__name__}: {exc}", source=src
         ) from exc
+
+
+# ---------------------------------------------------------------- text mesh checks
+def _check_cap(geometry: Geometry, max_faces: int | None) -> None:
+    faces = getattr(geometry, "faces", None)
+    if max_faces is not None and faces is not None and len(faces) > max_faces:
+        raise LoadError(f"mesh has {len(faces)} faces, above the cap max_faces={max_faces}")
+
+
+def _check_faces(p: Path, fmt: str, max_faces: int | None) -> None:
+    """OBJ / OFF: every face names existing vertices, and an OFF body matches its header.
+
+    Trimesh would otherwise drop such faces, or read a file cut short as a point
+    cloud of its vertices, without a word.
+    """
+    with open(p, "rb") as fh:
+        if fmt == "off":
+            _check_off(fh, max_faces)
+        else:
+            _check_obj(fh, max_faces)
+
+
+def _data_lines(fh: Any) -> Iterator[tuple[int, list[bytes]]]:
+    for k, line in enumerate(fh, 1):
+        tokens = line.split(b"#", 1)[0].split()
+        if tokens:
+            yield k, tokens
+
+
+def _check_off(fh: Any, max_faces: int | None) -> None:
+    lines = _data_lines(fh)
+    k, tokens = next(lines, (0, []))
+    if not tokens or not tokens[0].endswith(b"OFF"):
+        raise LoadError("no OFF header")
+    counts = tokens[1:] or next(lines, (0, []))[1]
+    try:
+        nv, nf = int(counts[0]), int(counts[1])
+    except (IndexError, ValueError):
+        raise LoadError("the OFF header has no vertex and face counts") from None
+    if nv < 0 or nf < 0:
+        raise LoadError(f"the OFF header announces {nv} vertices and {nf} faces")
+    if max_faces is not None and nf > max_faces:
+        raise LoadError(f"the OFF header announces {nf} faces, above the cap max_faces={max_faces}")
+    seen_v = seen_f = 0
+    for k, tokens in lines:
+        if seen_v < nv:
+            if len(tokens) < 3:
+                raise LoadError(f"line {k}: a vertex needs 3 coordinates, got {len(tokens)}")
+            seen_v += 1
+            continue
+        if seen_f >= nf:
+            break
+        try:
+            n = int(tokens[0])
+            idx = [int(t) for t in tokens[1 : n + 1]]
+        except ValueError:
+            raise LoadError(f"line {k}: a face must be integers") from None
+        if len(idx) != n or any(i < 0 or i >= nv for i in idx):
+            raise LoadError(
+                f"line {k}: face names vertices {idx[:6]} but the file has {nv} vertices (0-based)"
+            )
+        seen_f += 1
+    if seen_v < nv or seen_f < nf:
+        raise LoadError(
+            f"truncated: the header announces {nv} vertices and {nf} faces, "
+            f"the file has {seen_v} and {seen_f}"
+        )
+
+
+def _check_obj(fh: Any, max_faces: int | None) -> None:
+    nv = nf = 0
+    top, top_line = 0, 0  # largest positive vertex index, and where
+    for k, tokens in _data_lines(fh):
+        if tokens[0] == b"v":
+            nv += 1
+        elif tokens[0] == b"f":
+            nf += 1
+            if max_faces is not None and nf > max_faces:
+                raise LoadError(f"more than max_faces={max_faces} faces")
+            for t in tokens[1:]:
+                try:
+                    i = int(t.split(b"/", 1)[0])
+                except ValueError:
+                    raise LoadError(f"line {k}: face index {t[:20]!r} is not an integer") from None
+                if i == 0 or -i > nv:  # 0 is no index; negative ones count back from here
+                    raise LoadError(f"line {k}: face names vertex {i}, which does not exist")
+                if i > top:
+                    top, top_line = i, k
+    if top > nv:
+        raise LoadError(f"line {top_line}: face names vertex {top} but the file has {nv} vertices")
 
 
 # ---------------------------------------------------------------- constructors
@@ -234,7 +345,10 @@ def _load_trimesh(p: Path, head: bytes, size: int) -> Geometry:
     src = str(p)
     if fmt == "stl":
         _check_stl(head, size, src)
-    scene = trimesh.load_scene(str(p), file_type=fmt, process=False)
+    if safe_text(src) == src:
+        scene = trimesh.load_scene(src, file_type=fmt, process=False)
+    else:  # trimesh cannot take a file name that is not UTF-8: hand it the bytes
+        scene = trimesh.load_scene(io.BytesIO(p.read_bytes()), file_type=fmt, process=False)
     parts = scene.dump()
     meshes = [g for g in parts if isinstance(g, trimesh.Trimesh) and len(g.faces)]
     clouds = [g for g in parts if isinstance(g, trimesh.PointCloud)]

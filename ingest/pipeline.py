@@ -10,26 +10,29 @@ Failures never stop the run: they are recorded in the store and in the report.
 
 from __future__ import annotations
 
-import concurrent.futures as cf
-import hashlib
 import logging
-import multiprocessing
 import os
 import time
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ingest.inputs import COMPANION_SUFFIXES, content_hash, expand, geometry_hash
 from ingest.labels import LabelEntry, LabelTable, folder_label, read_labels
 from ingest.loaders import AS_OPTIONS, SUPPORTED, load
+from ingest.workers import executor, result, wait_any
 from shapedb.config import Config
-from shapedb.errors import ConfigError, LoadError, MissingDependencyError, ShapeDBError
+from shapedb.errors import ConfigError, LoadError, ShapeDBError
 from shapedb.geometry import Geometry
-from shapedb.schema import Failure, ShapeRecord
+from shapedb.results import IngestReport  # defined there, re-exported here
+from shapedb.schema import Failure, ShapeRecord, safe_text
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = [
     "ingest",
@@ -42,71 +45,6 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
-
-COMPANION_SUFFIXES = frozenset(
-    {
-        ".mtl",
-        ".png",
-        ".jpg",
-        ".jpeg",
-        ".bmp",
-        ".tga",
-        ".tif",
-        ".tiff",
-        ".gif",
-        ".bin",
-        ".txt",
-        ".md",
-        ".csv",
-        ".json",
-        ".cla",
-        ".pdf",
-        ".html",
-        ".log",
-        ".ini",
-        ".yaml",
-        ".yml",
-        ".db",
-        ".parquet",
-    }
-)
-"""Files skipped silently while walking a folder (materials, textures, docs, tables)."""
-
-
-@dataclass(frozen=True)
-class IngestReport:
-    """What an ingest did.
-
-    Attributes
-    ----------
-    ingested : tuple[int, ...]
-        Ids of the shapes added, in input order.
-    skipped : tuple[str, ...]
-        Inputs already in the store (same content and configuration).
-    failed : tuple[tuple[str, str], ...]
-        ``(input, reason)`` of every input that could not be ingested.
-    seconds : float
-        Wall time.
-    """
-
-    ingested: tuple[int, ...] = ()
-    skipped: tuple[str, ...] = ()
-    failed: tuple[tuple[str, str], ...] = ()
-    seconds: float = 0.0
-
-    def to_dict(self) -> dict[str, Any]:
-        """``{"ingested": n, "skipped": n, "failed": [{"path", "error"}]}`` (the CLI's JSON)."""
-        return {
-            "ingested": len(self.ingested),
-            "skipped": len(self.skipped),
-            "failed": [{"path": p, "error": e} for p, e in self.failed],
-        }
-
-    def __repr__(self) -> str:
-        return (
-            f"IngestReport(ingested={len(self.ingested)}, skipped={len(self.skipped)}, "
-            f"failed={len(self.failed)}, seconds={self.seconds:.1f})"
-        )
 
 
 @dataclass(frozen=True)
@@ -122,80 +60,8 @@ class _Item:
     as_: str | None = None
     label: str | None = None
     metadata: Mapping[str, str] = field(default_factory=dict)
-
-
-# ---------------------------------------------------------------- hashing
-def content_hash(path: str | os.PathLike[str], *, as_: str | None = None) -> str:
-    """sha256 of a file's bytes (followed by ``\\0as=<as_>`` when a representation is forced)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    if as_ is not None:
-        h.update(f"\0as={as_}".encode())
-    return h.hexdigest()
-
-
-def geometry_hash(geometry: Geometry) -> str:
-    """sha256 of an in-memory shape: its arrays, or its distance on a fixed lattice."""
-    from shapedb.pointcloud import PointCloud
-
-    h = hashlib.sha256(type(geometry).__qualname__.encode())
-    # a cloud's given normals only: asking for ``normals`` would estimate them here, in
-    # the model's frame, and its decomposition would then reuse them (PointCloud.transformed)
-    normals = "_given_normals" if isinstance(geometry, PointCloud) else "normals"
-    arrays = [
-        getattr(geometry, a, None)
-        for a in ("vertices", "faces", "points", normals, "occupancy", "origin", "pitch")
-    ]
-    arrays = [a for a in arrays if a is not None]
-    if arrays:
-        for a in arrays:
-            arr = np.ascontiguousarray(np.asarray(a))
-            h.update(str((arr.dtype.str, arr.shape)).encode())
-            h.update(arr.tobytes())
-    else:  # implicit and other functional shapes: sample the distance
-        b = np.asarray(geometry.bounds, dtype=np.float64)
-        h.update(b.tobytes())
-        t = np.linspace(0.0, 1.0, 9)
-        g = np.stack(np.meshgrid(t, t, t, indexing="ij"), -1).reshape(-1, 3)
-        pts = b[0] + g * (b[1] - b[0])
-        h.update(np.round(np.asarray(geometry.signed_distance(pts)), 9).tobytes())
-    return h.hexdigest()
-
-
-# ---------------------------------------------------------------- inputs
-def expand(inputs: Any) -> Iterator[tuple[str, Path | Geometry, bool, str | None]]:
-    """Yield ``(source, path_or_geometry, explicit, label)`` for files, folders and shapes.
-
-    Inputs are paths, Geometry objects, ``(name, geometry)`` or
-    ``(name, label, geometry)`` tuples, or a ``{name: geometry}`` mapping. Folders are
-    walked recursively in sorted order; hidden files and companion files
-    (:data:`COMPANION_SUFFIXES`) found there are skipped. ``explicit`` is False for
-    files found by walking; ``label`` is set only by ``(name, label, geometry)``.
-    """
-    if isinstance(inputs, (str, os.PathLike, Geometry)):
-        inputs = [inputs]
-    elif isinstance(inputs, Mapping):  # {name: geometry}
-        inputs = list(inputs.items())
-    for entry in inputs:
-        if isinstance(entry, Geometry):
-            yield (getattr(entry, "name", None) or "", entry, True, None)
-        elif isinstance(entry, tuple) and entry and isinstance(entry[-1], Geometry):
-            label = str(entry[1]) if len(entry) == 3 and entry[1] is not None else None
-            yield (str(entry[0]), entry[-1], True, label)
-        else:
-            p = Path(entry).absolute()
-            if p.is_dir():
-                for root, dirs, files in os.walk(p):
-                    dirs[:] = sorted(d for d in dirs if not d.startswith("."))
-                    for f in sorted(files):
-                        q = Path(root) / f
-                        if f.startswith(".") or q.suffix.lower() in COMPANION_SUFFIXES:
-                            continue
-                        yield (str(q), q, False, None)
-            else:
-                yield (str(p), p, True, None)
+    max_bytes: int | None = None
+    max_faces: int | None = None
 
 
 # ---------------------------------------------------------------- the work
@@ -209,7 +75,16 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
 
     t0, c0 = time.perf_counter(), time.process_time()
     try:
-        geometry = item.geometry if item.geometry is not None else load(item.path, as_=item.as_)  # type: ignore[arg-type]
+        geometry = (
+            item.geometry
+            if item.geometry is not None
+            else load(
+                item.path,  # type: ignore[arg-type]
+                as_=item.as_,
+                max_bytes=item.max_bytes,
+                max_faces=item.max_faces,
+            )
+        )
         t_load = time.perf_counter() - t0
         decomposition = decompose(geometry, config=config.mdbd)
         if decomposition.n_balls == 0:
@@ -219,7 +94,7 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
                 "no ball fits inside: the solid has no volume", source=item.source
             )
         t1 = time.perf_counter()
-        feature = np.asarray(features(decomposition, config.kernel), dtype=np.float32)
+        feature = np.asarray(features(decomposition, config), dtype=np.float32)
         t2 = time.perf_counter()
         view = _view_feature(geometry, decomposition, config)
         timings = dict(decomposition.timings)
@@ -242,7 +117,7 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
         representation=decomposition.representation,
         label=item.label,
         metadata=dict(item.metadata),
-        source=item.path,
+        source=item.source if item.path is not None else None,
         build_seconds=time.perf_counter() - t0,
         view_feature=view,
     )
@@ -259,14 +134,14 @@ def _view_feature(geometry: Any, decomposition: Any, config: Config) -> NDArray[
     from shapedb.reconstruct import reconstructed
     from shapedb.view import is_sparse, view_geometry
 
-    cells = config.kernel.view_cells
+    cells = config.cloud.view_cells
     sparse = is_sparse(decomposition.sampling, decomposition.spacing)
-    if (sparse and not config.kernel.reconstruct) or not (cells or sparse):
+    if (sparse and not config.cloud.reconstruct) or not (cells or sparse):
         return None
     try:
         if sparse:
             found = reconstructed(
-                geometry, decomposition, config.mdbd, depth=config.kernel.reconstruct_depth
+                geometry, decomposition, config.mdbd, depth=config.cloud.reconstruct_depth
             )
         else:
             view = view_geometry(geometry, decomposition.spacing, cells)
@@ -276,74 +151,12 @@ def _view_feature(geometry: Any, decomposition: Any, config: Config) -> NDArray[
         return None
     if found is None or found.n_balls == 0:
         return None
-    return np.asarray(features(found, config.kernel), dtype=np.float32)
-
-
-class _Serial:
-    """A stand-in executor that runs each task in the calling process."""
-
-    def submit(self, fn: Callable[..., Any], *args: Any) -> cf.Future[Any]:
-        fut: cf.Future[Any] = cf.Future()
-        try:
-            fut.set_result(fn(*args))
-        except BaseException as exc:  # noqa: BLE001 - handed to the caller
-            fut.set_exception(exc)
-        return fut
-
-    def shutdown(self) -> None:
-        pass
-
-
-def _executor(workers: int, scheduler: Any) -> tuple[Any, Callable[[], None], str]:
-    """(submit-able executor, close function, description)."""
-    if scheduler is not None:
-        try:
-            from distributed import Client
-        except ImportError as exc:  # pragma: no cover - dask is a dependency
-            raise MissingDependencyError(
-                "ingesting on a cluster needs dask[distributed]: pip install 'dask[distributed]'"
-            ) from exc
-        if isinstance(scheduler, Client):
-            return scheduler, lambda: None, f"dask {scheduler.scheduler.address}"
-        client = Client(scheduler)
-        return client, client.close, f"dask {scheduler}"
-    if workers <= 1:
-        return _Serial(), lambda: None, "serial"
-    # forkserver, not fork: the caller may run threads (progress bars, Dask). Workers
-    # fork from a server that imported and warmed everything once (ingest._warmup).
-    ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload(["__main__", "ingest.pipeline", "ingest._warmup"])
-    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_watch_parent)
-    return pool, lambda: pool.shutdown(wait=True, cancel_futures=True), f"{workers} processes"
-
-
-def _watch_parent() -> None:
-    """Worker initializer: exit when the ingesting process dies (even by SIGKILL)."""
-    import threading
-
-    parent = multiprocessing.parent_process()
-    if parent is None:  # pragma: no cover
-        return
-
-    def watch() -> None:
-        parent.join()
-        os._exit(70)
-
-    threading.Thread(target=watch, name="shapedb-parent-watch", daemon=True).start()
-
-
-def _wait_any(futures: Iterable[Any], dask: bool) -> set[Any]:
-    if dask:
-        from distributed import wait
-
-        return set(wait(list(futures), return_when="FIRST_COMPLETED").done)
-    done, _ = cf.wait(list(futures), return_when=cf.FIRST_COMPLETED)
-    return done
+    return np.asarray(features(found, config), dtype=np.float32)
 
 
 # ---------------------------------------------------------------- driver
 def ingest(
-    db: Any,
+    db: Database,
     inputs: Any,
     *,
     labels: str | os.PathLike[str] | Mapping[str, str] | LabelTable | None = None,
@@ -356,16 +169,21 @@ def ingest(
     progress: bool | Callable[[int, int], None] = False,
     batch_size: int = 32,
     commit_seconds: float = 30.0,
+    max_bytes: int | None = None,
+    max_faces: int | None = None,
 ) -> IngestReport:
     """Add files, folders and in-memory shapes to ``db``.
+
+    Every input ends as a stored shape, a skipped duplicate or a failure row: one bad
+    file (unreadable, junk, a name that is not valid UTF-8...) never stops the others.
 
     Parameters
     ----------
     db : shapedb.Database
         Target database; its configuration is used for every shape.
     inputs : path, Geometry, or a sequence / mapping of them
-        Files, folders (walked recursively), Geometry objects, ``(name, geometry)``
-        pairs or a ``{name: geometry}`` mapping.
+        Files, folders (walked recursively, symlinked folders followed once),
+        Geometry objects, ``(name, geometry)`` pairs or a ``{name: geometry}`` mapping.
     labels : path, mapping or LabelTable, optional
         A labels CSV (``path,label,...``; extra columns become metadata), or
         ``{path: label}``.
@@ -376,7 +194,7 @@ def ingest(
     names : sequence of str, optional
         Names of the inputs, one per input (not for folders); default: the file stem.
     workers : int, optional
-        Worker processes; default ``os.cpu_count()``; 1 runs in this process.
+        Worker processes, >= 1; default ``os.cpu_count()``; 1 runs in this process.
     scheduler : str or distributed.Client, optional
         Run on a Dask cluster instead (its address, e.g. ``"tcp://host:8786"``).
     force : bool
@@ -387,130 +205,239 @@ def ingest(
         Results per atomic commit.
     commit_seconds : float
         Commit a partial batch when this much time passed since the last commit.
+    max_bytes, max_faces : int, optional
+        Refuse (as a failure row) files larger than this many bytes, or meshes with
+        more faces, so one giant file cannot take the machine's memory.
 
     Returns
     -------
     IngestReport
+
+    Raises
+    ------
+    ConfigError
+        An argument is out of range (``workers`` < 1, ``batch_size`` < 1, ...).
     """
     t_start = time.perf_counter()
-    if as_ not in AS_OPTIONS:
-        raise ConfigError(f"as_={as_!r} is invalid: must be one of {list(AS_OPTIONS)}")
-    if batch_size < 1:
-        raise ConfigError(f"batch_size={batch_size!r} is invalid: must be >= 1")
-    config: Config = db.config
+    _check_arguments(as_, batch_size, workers, max_bytes, max_faces)
     store = db.store
-    table = _label_table(labels)
     entries = list(expand(inputs))
-    if names is not None:
-        if len(names) != len(entries):
-            raise ConfigError(
-                f"names has {len(names)} entries but the inputs expand to "
-                f"{len(entries)}; give one name per input file or shape"
-            )
-    report_failed: list[tuple[str, str]] = []
-    failures: list[Failure] = []
-    items: list[_Item] = []
-    seen: dict[str, str] = {}
-    skipped: list[str] = []
+    if names is not None and len(names) != len(entries):
+        raise ConfigError(
+            f"names has {len(names)} entries but the inputs expand to "
+            f"{len(entries)}; give one name per input file or shape"
+        )
+    limits = {"as_": as_, "max_bytes": max_bytes, "max_faces": max_faces}
     with store.writer():
-        present = store.hashes()
-        for k, (source, obj, explicit, given_label) in enumerate(entries):
-            try:
-                item = _make_item(
-                    k,
-                    source,
-                    obj,
-                    explicit,
-                    given_label,
-                    as_=as_,
-                    table=table,
-                    label_from_folder=label_from_folder,
-                    name=names[k] if names is not None else None,
-                )
-            except (ShapeDBError, OSError) as exc:
-                f = Failure.from_exception(source, exc)
-                failures.append(f)
-                report_failed.append((source, f"{f.error}: {f.message}"))
-                continue
-            if item.content_hash in seen or (item.content_hash in present and not force):
-                skipped.append(source)
-                continue
-            seen[item.content_hash] = source
-            items.append(item)
-        n_workers = max(1, int(workers or os.cpu_count() or 1))
-        n_workers = min(n_workers, max(len(items), 1))
-        total = len(entries)
-        done = len(entries) - len(items)
+        plan = _plan(
+            entries,
+            store.hashes(),
+            table=_label_table(labels),
+            label_from_folder=label_from_folder,
+            names=names,
+            force=force,
+            limits=limits,
+        )
+        n_workers = min(int(workers or os.cpu_count() or 1), max(len(plan.items), 1))
+        committer = _Committer(db, plan.present, batch_size, commit_seconds)
+        committer.failures.extend(plan.failures)
         notify = _progress(progress)
-        notify(done, total)
-        ingested: dict[int, int] = {}
-        pending: list[tuple[int, ShapeRecord]] = []
-        last_commit = time.monotonic()
-
-        def flush() -> None:
-            nonlocal last_commit, pending, failures
-            if not pending and not failures:
-                return
-            pending.sort(key=lambda t: t[0])
-            records = []
-            replace_ids = []
-            for _, rec in pending:
-                old = present.get(rec.content_hash)
-                if old is not None:  # force: rebuild in place, keeping the id
-                    rec = _with_id(rec, old)
-                    replace_ids.append(old)
-                records.append(rec)
-            _, committed = db.commit(records, failures=failures, delete=replace_ids)
-            for (index, _), rec in zip(pending, committed, strict=True):
-                ingested[index] = int(rec.id)  # type: ignore[arg-type]
-            pending, failures = [], []
-            last_commit = time.monotonic()
-
-        if items:
-            executor, close, how = _executor(n_workers, scheduler)
-            log.info("ingesting %d input(s) with %s (%d skipped)", len(items), how, len(skipped))
-            is_dask = scheduler is not None
-            try:
-                queue = iter(items)
-                inflight: dict[Any, _Item] = {}
-                window = max(2 * n_workers, 4) if not is_dask else 256
-                while True:
-                    while len(inflight) < window:
-                        it = next(queue, None)
-                        if it is None:
-                            break
-                        inflight[_submit(executor, it, config, is_dask)] = it
-                    if not inflight:
-                        break
-                    finished = _wait_any(inflight, is_dask)
-                    # in input order: with one worker, batches are prefixes of the input
-                    for fut in sorted(finished, key=lambda f: inflight[f].index):
-                        it = inflight.pop(fut)
-                        result = _result(fut, it)
-                        if isinstance(result, Failure):
-                            failures.append(result)
-                            report_failed.append((it.source, f"{result.error}: {result.message}"))
-                        else:
-                            pending.append((it.index, result))
-                        done += 1
-                        notify(done, total)
-                        if (
-                            len(pending) + len(failures) >= batch_size
-                            or time.monotonic() - last_commit > commit_seconds
-                        ):
-                            flush()
-            finally:
-                close()
-        flush()
-    order = [ingested[k] for k in sorted(ingested)]
+        done = len(entries) - len(plan.items)
+        notify(done, len(entries))
+        for item, result in _dispatch(
+            plan.items, db.config, n_workers, scheduler, len(plan.skipped)
+        ):
+            committer.add(item, result)
+            done += 1
+            notify(done, len(entries))
+        committer.flush()
     report = IngestReport(
-        ingested=tuple(order),
-        skipped=tuple(skipped),
-        failed=tuple(report_failed),
+        ingested=tuple(committer.ingested[k] for k in sorted(committer.ingested)),
+        skipped=tuple(plan.skipped),
+        failed=tuple(plan.report_failed + committer.report_failed),
         seconds=time.perf_counter() - t_start,
+        notes=tuple(committer.notes),
     )
     log.info("ingest done: %r", report)
     return report
+
+
+def _check_arguments(
+    as_: str | None,
+    batch_size: int,
+    workers: int | None,
+    max_bytes: int | None,
+    max_faces: int | None,
+) -> None:
+    if as_ not in AS_OPTIONS:
+        raise ConfigError(f"as_={as_!r} is invalid: must be one of {list(AS_OPTIONS)}")
+    for name, value, required in (
+        ("batch_size", batch_size, True),
+        ("workers", workers, False),
+        ("max_bytes", max_bytes, False),
+        ("max_faces", max_faces, False),
+    ):
+        if value is None and not required:
+            continue
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ConfigError(f"{name}={value!r} is invalid: must be an integer >= 1")
+
+
+@dataclass
+class _Plan:
+    """What to build: items for the workers, and what was skipped or failed already."""
+
+    present: dict[str, int]
+    items: list[_Item] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    failures: list[Failure] = field(default_factory=list)
+    report_failed: list[tuple[str, str]] = field(default_factory=list)
+
+
+def _plan(
+    entries: list[tuple[str, Path | Geometry, bool, str | None]],
+    present: dict[str, int],
+    *,
+    table: LabelTable | None,
+    label_from_folder: bool,
+    names: Sequence[str] | None,
+    force: bool,
+    limits: Mapping[str, Any],
+) -> _Plan:
+    """Hash every input, skip what the store holds, turn unreadable inputs into failures."""
+    plan = _Plan(present=present)
+    seen: set[str] = set()
+    for k, (source, obj, explicit, given_label) in enumerate(entries):
+        try:
+            item = _make_item(
+                k,
+                source,
+                obj,
+                explicit,
+                given_label,
+                table=table,
+                label_from_folder=label_from_folder,
+                name=names[k] if names is not None else None,
+                limits=limits,
+            )
+        except Exception as exc:  # any bad input becomes a failure row, never a crash
+            if not isinstance(exc, (ShapeDBError, OSError)):
+                log.debug("unexpected error reading %s", safe_text(source), exc_info=True)
+            f = Failure.from_exception(safe_text(source), exc)
+            plan.failures.append(f)
+            plan.report_failed.append((f.source, f"{f.error}: {safe_text(f.message)}"))
+            continue
+        if item.content_hash in seen or (item.content_hash in present and not force):
+            plan.skipped.append(item.source)
+            continue
+        seen.add(item.content_hash)
+        plan.items.append(item)
+    return plan
+
+
+def _dispatch(
+    items: list[_Item], config: Config, n_workers: int, scheduler: Any, n_skipped: int
+) -> Iterator[tuple[_Item, ShapeRecord | Failure]]:
+    """Build the items on workers; yield ``(item, record or failure)`` as they finish.
+
+    Results of one wait are yielded in input order, so with one worker the batches
+    are prefixes of the input.
+    """
+    if not items:
+        return
+    pool, close, how = executor(n_workers, scheduler)
+    log.info("ingesting %d input(s) with %s (%d skipped)", len(items), how, n_skipped)
+    is_dask = scheduler is not None
+    try:
+        queue = iter(items)
+        inflight: dict[Any, _Item] = {}
+        window = max(2 * n_workers, 4) if not is_dask else 256
+        while True:
+            while len(inflight) < window:
+                it = next(queue, None)
+                if it is None:
+                    break
+                inflight[_submit(pool, it, config, is_dask)] = it
+            if not inflight:
+                break
+            finished = wait_any(inflight, is_dask)
+            for fut in sorted(finished, key=lambda f: inflight[f].index):
+                it = inflight.pop(fut)
+                yield it, result(fut, it)
+    finally:
+        close()
+
+
+class _Committer:
+    """Collects results and commits them in batches (the store's lock held by the caller)."""
+
+    def __init__(
+        self, db: Database, present: dict[str, int], batch_size: int, commit_seconds: float
+    ) -> None:
+        self.db = db
+        self.present = present
+        self.batch_size = batch_size
+        self.commit_seconds = commit_seconds
+        self.pending: list[tuple[int, ShapeRecord]] = []
+        self.failures: list[Failure] = []
+        self.report_failed: list[tuple[str, str]] = []
+        self.notes: list[tuple[str, str]] = []
+        self.ingested: dict[int, int] = {}
+        self.last_commit = time.monotonic()
+
+    def add(self, item: _Item, result: ShapeRecord | Failure) -> None:
+        """Queue one result; commit when the batch is full or old enough."""
+        if isinstance(result, Failure):
+            self.failures.append(result)
+            self.report_failed.append((item.source, f"{result.error}: {result.message}"))
+        else:
+            self.pending.append((item.index, result))
+            note = _note(item, result)
+            if note:
+                self.notes.append((item.source, note))
+        if (
+            len(self.pending) + len(self.failures) >= self.batch_size
+            or time.monotonic() - self.last_commit > self.commit_seconds
+        ):
+            self.flush()
+
+    def flush(self) -> None:
+        """Commit what is queued, as one atomic commit."""
+        if not self.pending and not self.failures:
+            return
+        self.pending.sort(key=lambda t: t[0])
+        records, replace_ids = [], []
+        for _, rec in self.pending:
+            old = self.present.get(rec.content_hash)
+            if old is not None:  # force: rebuild in place, keeping the id
+                rec = _with_id(rec, old)
+                replace_ids.append(old)
+            records.append(rec)
+        _, committed = self.db.commit(records, failures=self.failures, delete=replace_ids)
+        for (index, _), rec in zip(self.pending, committed, strict=True):
+            assert rec.id is not None  # the store numbers every record it commits
+            self.ingested[index] = int(rec.id)
+        self.pending, self.failures = [], []
+        self.last_commit = time.monotonic()
+
+
+_FACED = frozenset({".obj", ".off", ".stl", ".glb", ".gltf"})
+
+
+def _note(item: _Item, record: ShapeRecord) -> str | None:
+    """What the report should say about a stored shape, beyond "stored"."""
+    if (
+        item.path is not None
+        and item.as_ is None
+        and record.representation == "pointcloud"
+        and Path(item.path).suffix.lower() in _FACED
+    ):
+        suffix = Path(item.path).suffix.upper()[1:]
+        return (
+            f"the {suffix} file has vertices and no faces (cut short?): "
+            "stored as a point cloud of its vertices"
+        )
+    return None
 
 
 def _with_id(rec: ShapeRecord, sid: int) -> ShapeRecord:
@@ -521,19 +448,6 @@ def _submit(executor: Any, item: _Item, config: Config, dask: bool) -> Any:
     if dask:
         return executor.submit(build_record, item, config, pure=False)
     return executor.submit(build_record, item, config)
-
-
-def _result(fut: Any, item: _Item) -> ShapeRecord | Failure:
-    try:
-        return fut.result()  # type: ignore[no-any-return]
-    except cf.process.BrokenProcessPool as exc:
-        raise ShapeDBError(
-            f"a worker process died while ingesting {item.source}; "
-            "the batches committed so far are kept: re-run to continue"
-        ) from exc
-    except Exception as exc:  # an unexpected error inside the worker
-        log.warning("ingesting %s failed unexpectedly", item.source, exc_info=True)
-        return Failure.from_exception(item.source, exc)
 
 
 def _progress(progress: bool | Callable[[int, int], None]) -> Callable[[int, int], None]:
@@ -559,14 +473,14 @@ def _make_item(
     explicit: bool,
     given_label: str | None,
     *,
-    as_: str | None,
     table: LabelTable | None,
     label_from_folder: bool,
     name: str | None,
+    limits: Mapping[str, Any],
 ) -> _Item:
     if isinstance(obj, Geometry):
         h = geometry_hash(obj)
-        nm = name or source or f"shape-{h[:8]}"
+        nm = safe_text(name or source or f"shape-{h[:8]}")
         found = table.lookup(nm) if table is not None else None
         return _Item(
             index=index,
@@ -578,25 +492,33 @@ def _make_item(
             metadata=dict(found.metadata) if found else {},
         )
     path = Path(obj)
+    src = safe_text(str(path))
     if not path.is_file():
-        raise LoadError(
-            "no such file" if not path.exists() else "not a regular file", source=str(path)
-        )
+        raise LoadError("no such file" if not path.exists() else "not a regular file", source=src)
     if not explicit and path.suffix.lower() not in SUPPORTED:
         from ingest.loaders import detect_format
 
         detect_format(path)  # raises UnsupportedFormatError unless the content tells
+    max_bytes = limits.get("max_bytes")
+    if max_bytes is not None and path.stat().st_size > max_bytes:
+        raise LoadError(
+            f"file has {path.stat().st_size} bytes, above the cap max_bytes={max_bytes}",
+            source=src,
+        )
     entry: LabelEntry | None = table.lookup(path) if table is not None else None
     label = entry.label if entry is not None else None
     if label is None and label_from_folder:
         label = folder_label(path)
+    as_ = limits.get("as_")
     return _Item(
         index=index,
-        source=str(path),
-        name=name or path.stem,
+        source=src,
+        name=safe_text(name or path.stem),
         content_hash=content_hash(path, as_=as_),
         path=str(path),
         as_=as_,
-        label=label,
+        label=None if label is None else safe_text(label),
         metadata=dict(entry.metadata) if entry else {},
+        max_bytes=max_bytes,
+        max_faces=limits.get("max_faces"),
     )

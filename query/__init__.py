@@ -13,12 +13,17 @@ modules.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from query.engine import Hit, query_features, search, search_batch
 from query.evaluate import RetrievalScores, retrieval_scores
 from query.index import FeatureIndex, build_index, open_index
 from query.metric import LearnedMetric, fit_metric
 from query.parts_index import PartIndex, open_parts_index
 from query.substructure import PartGeometry, PartMatch, match_pairs, part_geometry
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = [
     "FeatureIndex",
@@ -42,7 +47,7 @@ __all__ = [
 ]
 
 
-def on_commit(db: object, *args: object, **kwargs: object) -> None:
+def on_commit(db: Database, *args: object, **kwargs: object) -> None:
     """Store commit hook (entry point ``on_commit``): bring every built index up to date.
 
     Whole-shape and part indexes that were already built are updated; a store never

@@ -58,7 +58,11 @@ def save_version(
     ptmp.write_text(json.dumps({**meta, "dir": name}, indent=1))
     os.replace(ptmp, root / POINTER)
     for old in root.iterdir():  # superseded versions, and temp dirs of dead writers
-        stale = old.name.startswith(".tmp-") and time.time() - old.stat().st_mtime > _STALE_SECONDS
+        try:
+            age = time.time() - old.stat().st_mtime
+        except FileNotFoundError:  # another process renamed or removed it meanwhile
+            continue
+        stale = old.name.startswith(".tmp-") and age > _STALE_SECONDS
         if old.is_dir() and old.name != name and (old.name.startswith("v") or stale):
             shutil.rmtree(old, ignore_errors=True)
     return root / name

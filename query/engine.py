@@ -17,7 +17,7 @@ Accepted queries, tried in this order:
 
 A sparse point cloud (a sample every 2 grid cells or more) also has the feature of its
 reconstruction (:mod:`shapedb.reconstruct`), and in a store with sparse views
-(``KernelConfig.view_cells > 0``, :mod:`shapedb.view`) every dense shape that of its
+(``CloudConfig.view_cells > 0``, :mod:`shapedb.view`) every dense shape that of its
 view. A pair of a sparse cloud and a dense shape is as far apart as the nearest of the
 cloud's own feature and the dense shape's own feature or view, and the cloud's
 reconstruction and the dense shape's own feature. A sparse geometry or file query
@@ -34,51 +34,26 @@ from __future__ import annotations
 import logging
 import os
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from shapedb.errors import ConfigError, NotFoundError, QueryError, ShapeDBError
+from shapedb.results import Hit  # defined there, re-exported here
 
-__all__ = ["Hit", "search", "search_batch", "query_features"]
+if TYPE_CHECKING:
+    from shapedb.database import Database
+
+__all__ = ["Hit", "search", "search_batch", "query_features", "checked_k", "MAX_K"]
 
 log = logging.getLogger(__name__)
 
 
-@dataclass(frozen=True)
-class Hit:
-    """One search result.
-
-    Attributes
-    ----------
-    id : int
-        Stored shape id.
-    name : str
-        Stored shape name.
-    label : str or None
-        Class label, if any.
-    similarity : float
-        Eq. 3 kernel value ``exp(-lam * distance)``, in (0, 1].
-    distance : float
-        Eq. 2 weighted L1 distance between the query's and the shape's features.
-    """
-
-    id: int
-    name: str
-    label: str | None
-    similarity: float
-    distance: float
-
-    def to_dict(self) -> dict[str, Any]:
-        """``{"id", "name", "label", "similarity", "distance"}``, JSON-ready."""
-        return asdict(self)
-
-
 def search(
-    db: Any, query: Any, *, k: int = 10, where: str | None = None, metric: Any = None
+    db: Database, query: Any, *, k: int = 10, where: str | None = None, metric: Any = None
 ) -> list[Hit]:
     """The k stored shapes most similar to ``query``, best first.
 
@@ -114,7 +89,7 @@ def search(
 
 
 def search_batch(
-    db: Any,
+    db: Database,
     queries: Sequence[Any],
     *,
     k: int = 10,
@@ -147,14 +122,14 @@ def search_batch(
             raise QueryError(
                 "search_batch expects a sequence of queries", source=type(queries).__name__
             )
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
-        raise QueryError("k must be a positive integer", source=f"k={k!r}")
+    k = checked_k(k)
     learned = as_metric(metric)
     if learned is not None:
         learned.check(db.config)
     if not len(queries):
         return []
     index = open_index(db, metric=learned)
+    k = min(k, max(len(index.ids_), 1))  # never more rows than the store holds
     resolved = [_resolve(db, q, index) for q in queries]
     allowed = None
     if where is not None:
@@ -162,7 +137,7 @@ def search_batch(
 
         allowed = allowed_ids(db, where)
     if (
-        db.config.kernel.view_cells
+        db.config.cloud.view_cells
         or any(q.sparse for q in resolved)
         or len(_catalog(db, index.version_).sparse)
     ):
@@ -186,7 +161,27 @@ def search_batch(
     return out
 
 
-def query_features(db: Any, query: Any, *, index: Any = None) -> NDArray[np.float64]:
+MAX_K = 1_000_000_000
+"""Largest ``k`` a search accepts (k above the store's size is capped at it)."""
+
+
+def checked_k(k: Any) -> int:
+    """``k`` as an int, or :class:`QueryError` when it is not an integer in [1, MAX_K].
+
+    Callers then cap it at the number of stored shapes, so a large ``k`` never
+    allocates more than the store's size.
+    """
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+        raise QueryError("k must be a positive integer", source=f"k={k!r}")
+    if k > MAX_K:
+        raise QueryError(
+            f"k is too large: at most {MAX_K:,} (results are capped at the store's size anyway)",
+            source=f"k={k!r}",
+        )
+    return int(k)
+
+
+def query_features(db: Database, query: Any, *, index: Any = None) -> NDArray[np.float64]:
     """The feature vector of a query, computed with the store's configuration.
 
     Parameters
@@ -223,14 +218,14 @@ class _Query:
         return self.view
 
 
-def _resolve(db: Any, query: Any, index: Any) -> _Query:
+def _resolve(db: Database, query: Any, index: Any) -> _Query:
     from shapedb.geometry import Geometry
     from shapedb.mdbd import Decomposition
     from shapedb.schema import ShapeRecord
     from shapedb.view import is_sparse
 
     config = db.config
-    dim = config.kernel.dim
+    dim = config.dim
     if isinstance(query, bool):
         raise QueryError("a boolean is not a query", source=repr(query))
     if isinstance(query, (int, np.integer)):
@@ -290,7 +285,7 @@ def _vector(value: Any, dim: int, *, source: str) -> NDArray[np.float64]:
     return v
 
 
-def _stored(db: Any, sid: int, index: Any) -> _Query:
+def _stored(db: Database, sid: int, index: Any) -> _Query:
     from query.index import open_index
     from shapedb.view import is_sparse
 
@@ -299,7 +294,7 @@ def _stored(db: Any, sid: int, index: Any) -> _Query:
         catalog = _catalog(db, index.version_)
         pos = min(int(np.searchsorted(catalog.sparse, sid)), max(len(catalog.sparse) - 1, 0))
         sparse = bool(len(catalog.sparse) and catalog.sparse[pos] == sid)
-        if not (sparse or db.config.kernel.view_cells):
+        if not (sparse or db.config.cloud.view_cells):
             return _Query(v)  # a dense shape's second feature is a view: none here
         view = open_index(db, view=True).features_of(sid)  # own feature where none
         return _Query(v, sparse, None if view is None or np.array_equal(view, v) else view)
@@ -320,10 +315,10 @@ def _stored(db: Any, sid: int, index: Any) -> _Query:
 def _featurise(decomposition: Any, config: Any) -> NDArray[np.float64]:
     from shapedb.kernel import features
 
-    return np.asarray(features(decomposition, config.kernel), dtype=np.float64)
+    return np.asarray(features(decomposition, config), dtype=np.float64)
 
 
-def _from_geometry(db: Any, geometry: Any) -> _Query:
+def _from_geometry(db: Database, geometry: Any) -> _Query:
     from shapedb.mdbd import decompose
     from shapedb.view import is_sparse, view_geometry
 
@@ -334,8 +329,8 @@ def _from_geometry(db: Any, geometry: Any) -> _Query:
         from shapedb.reconstruct import reconstructed
 
         found = (
-            reconstructed(geometry, d, config.mdbd, depth=config.kernel.reconstruct_depth)
-            if config.kernel.reconstruct
+            reconstructed(geometry, d, config.mdbd, depth=config.cloud.reconstruct_depth)
+            if config.cloud.reconstruct
             else None
         )
         recon = None if found is None else _featurise(found, config)
@@ -343,17 +338,17 @@ def _from_geometry(db: Any, geometry: Any) -> _Query:
 
     def view() -> NDArray[np.float64] | None:
         try:
-            g = view_geometry(geometry, d.spacing, config.kernel.view_cells)
+            g = view_geometry(geometry, d.spacing, config.cloud.view_cells)
             found = None if g is None else decompose(g, config=config.mdbd)
         except ShapeDBError as exc:  # compare by its own feature instead
             log.warning("query has no sparse view: %s", exc)
             return None
         return _featurise(found, config) if found is not None and found.n_balls else None
 
-    return _Query(_featurise(d, config), False, view if config.kernel.view_cells else None)
+    return _Query(_featurise(d, config), False, view if config.cloud.view_cells else None)
 
 
-def _from_file(db: Any, path: Path) -> _Query:
+def _from_file(db: Database, path: Path) -> _Query:
     import ingest  # the public API only: ingest.load(path) -> Geometry
 
     geometry = ingest.load(path)
@@ -362,7 +357,7 @@ def _from_file(db: Any, path: Path) -> _Query:
 
 
 def _search_with_views(
-    db: Any,
+    db: Database,
     index: Any,
     queries: list[_Query],
     k: int,
@@ -386,7 +381,7 @@ def _search_with_views(
     out_d = np.full((len(queries), k), np.inf)
     sparse_ids = _catalog(db, index.version_).sparse
     views = None
-    with_views = bool(db.config.kernel.view_cells)
+    with_views = bool(db.config.cloud.view_cells)
     for row, q in enumerate(queries):
         lists = [index.search(q.feature[None], k, allowed=allowed)]
         if q.sparse:  # against the dense shapes: everything but the sparse ids
@@ -506,7 +501,7 @@ class _Catalog:
 _CATALOGS: dict[str, tuple[int | None, _Catalog]] = {}
 
 
-def _catalog(db: Any, version: int | None) -> _Catalog:
+def _catalog(db: Database, version: int | None) -> _Catalog:
     key = os.fspath(db.store.path)
     cached = _CATALOGS.get(key)
     if cached is not None and cached[0] == version and version is not None:

@@ -26,80 +26,25 @@ from __future__ import annotations
 import logging
 import os
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from shapedb.errors import QueryError, require
+from query.labelled import stored_labels
+from shapedb.errors import QueryError
+from shapedb.results import MEASURES, RetrievalScores  # defined there, re-exported here
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = ["RetrievalScores", "retrieval_scores", "evaluate", "MEASURES", "E_MEASURE_K"]
 
 log = logging.getLogger(__name__)
 
-MEASURES = ("nn", "first_tier", "second_tier", "e_measure", "dcg")
 E_MEASURE_K = 32
 RECALL_LEVELS = np.linspace(0.0, 1.0, 11)
 _CHUNK_CELLS = 8_000_000  # rows per chunk = this / n
-
-
-@dataclass(frozen=True)
-class RetrievalScores:
-    """PSB measures of a leave-one-out retrieval run.
-
-    Attributes
-    ----------
-    queries : int
-        Number of queries scored (labelled shapes in classes of two or more).
-    nn, first_tier, second_tier, e_measure, dcg : float
-        Means over the queries.
-    per_class : dict[str, dict[str, float]]
-        For each class: ``{"queries", "nn", "first_tier", "second_tier",
-        "e_measure", "dcg"}``.
-    recall : (L,) float64
-        Standard recall levels.
-    precision : (L,) float64
-        Mean interpolated precision at each level.
-    per_query : dict[str, (q,) ndarray]
-        Row index of each scored query (``"index"``) and its value of each measure.
-    """
-
-    queries: int
-    nn: float
-    first_tier: float
-    second_tier: float
-    e_measure: float
-    dcg: float
-    per_class: dict[str, dict[str, float]]
-    recall: NDArray[np.float64] = field(repr=False)
-    precision: NDArray[np.float64] = field(repr=False)
-    per_query: dict[str, NDArray[Any]] = field(repr=False, default_factory=dict)
-
-    def to_dict(self) -> dict[str, Any]:
-        """``{"queries", "nn", "first_tier", "second_tier", "e_measure", "dcg", "per_class"}``."""
-        out: dict[str, Any] = {"queries": self.queries}
-        out.update({m: float(getattr(self, m)) for m in MEASURES})
-        out["per_class"] = {c: dict(v) for c, v in self.per_class.items()}
-        return out
-
-    def plot(self, path: str | os.PathLike[str], *, title: str | None = None) -> Path:
-        """Save the precision-recall curve as a PNG (matplotlib, Agg backend)."""
-        require("matplotlib", extra="plot", feature="the precision-recall plot")
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-
-        fig = Figure(figsize=(5, 4), dpi=120)  # no pyplot: no global backend, thread-safe
-        FigureCanvasAgg(fig)
-        ax = fig.add_subplot()
-        ax.plot(self.recall, self.precision, marker="o")
-        ax.set(xlabel="recall", ylabel="precision", xlim=(0, 1), ylim=(0, 1.02))
-        ax.set_title(title or f"precision-recall ({self.queries} queries)")
-        ax.grid(True, alpha=0.3)
-        out = Path(path)
-        fig.savefig(out, format="png", bbox_inches="tight")
-        return out
 
 
 def retrieval_scores(
@@ -239,26 +184,8 @@ def _score(
     )
 
 
-def _labels(db: Any, label: str) -> tuple[NDArray[np.int64], NDArray[Any]]:
-    """(ids, labels) of the stored shapes; ``label`` is a column or a metadata key."""
-    try:
-        t = db.store.shapes(["id", label])
-        values = t.column(label).to_pylist()
-    except QueryError:  # not a column: a metadata key
-        t = db.store.shapes(["id", "metadata"])
-        meta = [dict(m) if m is not None else {} for m in t.column("metadata").to_pylist()]
-        if not any(label in m for m in meta):
-            raise QueryError(
-                "neither a column of shapes nor a metadata key of any shape",
-                source=f"label={label!r}",
-            ) from None
-        values = [m.get(label) for m in meta]
-    labels = np.asarray([None if v is None else str(v) for v in values], dtype=object)
-    return t.column("id").to_numpy(), labels
-
-
 def evaluate(
-    db: Any,
+    db: Database,
     *,
     label: str = "label",
     method: str | Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
@@ -290,56 +217,10 @@ def evaluate(
     -------
     RetrievalScores
     """
-    from query.metric import as_metric
-
-    learned = as_metric(metric)
-    if learned is not None:
-        learned.check(db.config)
-        if callable(method):
-            raise QueryError(
-                "a metric weighs the kernel: not with a callable method", source="metric"
-            )
-    ids_all, labels_all = _labels(db, label)
-    fid, feats = db.store.features()
-    if not np.array_equal(fid, ids_all):  # a commit happened in between: align on ids
-        common, a, b = np.intersect1d(ids_all, fid, return_indices=True)
-        ids_all, labels_all, fid, feats = common, labels_all[a], fid[b], feats[b]
-    keep = np.array([x is not None for x in labels_all], bool)
-    if not keep.all():
-        log.info("evaluate: %d unlabelled shapes left out", int((~keep).sum()))
-    ids, labels, x = ids_all[keep], labels_all[keep], np.asarray(feats[keep], np.float64)
-    n = len(ids)
+    learned = _checked_metric(db, metric, method)
+    ids, labels, x = _labelled_features(db, label)
     if method is None or method == "kernel":
-        from scipy.spatial.distance import cdist
-
-        from shapedb.kernel import weights
-
-        w = weights(db.config.kernel)
-        if learned is not None:
-            w = w * learned.dim_weights()
-        xw = x * w
-        sparse = np.isin(ids, db.store.sparse_ids())
-        vw = None
-        if sparse.any():  # the search's rule (query.engine): a sparse-dense pair is as far
-            # apart as the nearest of own-own and either side's second feature (its view
-            # or reconstruction; its own feature where it has none) against the other's own
-            vid, views = db.store.features(view=True)
-            pos = np.searchsorted(vid, ids)
-            vw = np.asarray(views[pos], np.float64) * w
-
-        def rows() -> Iterator[tuple[NDArray[np.intp], NDArray[np.float64]]]:
-            step = max(1, _CHUNK_CELLS // max(n, 1))
-            for lo in range(0, n, step):
-                idx = np.arange(lo, min(lo + step, n))
-                d = cdist(xw[idx], xw, "cityblock")
-                if vw is not None:
-                    one = sparse[idx, None] != sparse[None, :]
-                    near = np.minimum(
-                        cdist(xw[idx], vw, "cityblock"), cdist(vw[idx], xw, "cityblock")
-                    )
-                    d = np.where(one, np.minimum(d, near), d)
-                yield idx, d
-
+        rows = _kernel_distance_rows(db, ids, x, learned)
         scores = _score(rows, labels, ids=ids, distance=True, recall_levels=RECALL_LEVELS)
     elif callable(method):
         sim = np.asarray(method(x), dtype=np.float64)
@@ -358,3 +239,80 @@ def evaluate(
     if plot is not None:
         scores.plot(plot)
     return scores
+
+
+def _checked_metric(db: Database, metric: Any, method: Any) -> Any:
+    """The learned metric to rank by (None for the default), checked against the store.
+
+    Raises :class:`QueryError` when a metric comes with a callable ``method``.
+    """
+    from query.metric import as_metric
+
+    learned = as_metric(metric)
+    if learned is not None:
+        learned.check(db.config)
+        if callable(method):
+            raise QueryError(
+                "a metric weighs the kernel: not with a callable method", source="metric"
+            )
+    return learned
+
+
+def _labelled_features(
+    db: Database, label: str
+) -> tuple[NDArray[np.int64], NDArray[Any], NDArray[np.float64]]:
+    """Ids (n,), labels (n,) and stored features (n, d) of the labelled shapes.
+
+    Ids and features are aligned on ids (a commit may happen between the two reads);
+    unlabelled shapes are left out.
+    """
+    ids_all, labels_all = stored_labels(db, label)
+    fid, feats = db.store.features()
+    if not np.array_equal(fid, ids_all):  # a commit happened in between: align on ids
+        common, a, b = np.intersect1d(ids_all, fid, return_indices=True)
+        ids_all, labels_all, fid, feats = common, labels_all[a], fid[b], feats[b]
+    keep = np.array([x is not None for x in labels_all], bool)
+    if not keep.all():
+        log.info("evaluate: %d unlabelled shapes left out", int((~keep).sum()))
+    return ids_all[keep], labels_all[keep], np.asarray(feats[keep], np.float64)
+
+
+def _kernel_distance_rows(
+    db: Database, ids: NDArray[np.int64], x: NDArray[np.float64], learned: Any
+) -> Callable[[], Iterator[tuple[NDArray[np.intp], NDArray[np.float64]]]]:
+    """Chunks of rows of the Eq. 2 distance matrix between the shapes ``ids``, as search ranks.
+
+    The features ``x`` (n, d) are weighed by the kernel's weights (times the learned
+    metric's); a pair of a sparse cloud and a dense shape is as far apart as the
+    nearest of own-own and either side's second feature (its view or reconstruction;
+    its own feature where it has none) against the other's own (:mod:`query.engine`).
+    Each call of the returned function yields ``(row indices, (rows, n) distances)``.
+    """
+    from scipy.spatial.distance import cdist
+
+    from shapedb.kernel import weights
+
+    n = len(ids)
+    w = weights(db.config)
+    if learned is not None:
+        w = w * learned.dim_weights()
+    xw = x * w
+    sparse = np.isin(ids, db.store.sparse_ids())
+    vw = None
+    if sparse.any():
+        vid, views = db.store.features(view=True)
+        pos = np.searchsorted(vid, ids)
+        vw = np.asarray(views[pos], np.float64) * w
+
+    def rows() -> Iterator[tuple[NDArray[np.intp], NDArray[np.float64]]]:
+        step = max(1, _CHUNK_CELLS // max(n, 1))
+        for lo in range(0, n, step):
+            idx = np.arange(lo, min(lo + step, n))
+            d = cdist(xw[idx], xw, "cityblock")
+            if vw is not None:
+                one = sparse[idx, None] != sparse[None, :]
+                near = np.minimum(cdist(xw[idx], vw, "cityblock"), cdist(vw[idx], xw, "cityblock"))
+                d = np.where(one, np.minimum(d, near), d)
+            yield idx, d
+
+    return rows

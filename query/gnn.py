@@ -1,8 +1,9 @@
 """The paper's Figure 3 graph CNN and the conversion of contact graphs into its input.
 
-Also the torch-free helpers of :mod:`query.classify` (stratified split, graphs read
-back from a store, training-curve plot). Building, converting and training need the
-``learn`` extra (torch, torch_geometric), imported inside the functions only.
+The torch-free helpers (stratified split, graphs read back from a store,
+training-curve plot) live in :mod:`query.training_data` and are re-exported here.
+Building, converting and training need the ``learn`` extra (torch,
+torch_geometric), imported inside the functions only.
 
 Network (Fig. 3 of the paper, 4 input channels)::
 
@@ -10,6 +11,10 @@ Network (Fig. 3 of the paper, 4 input channels)::
                │                                                   ├─ cat (n, 256)
                └──────────────── conv2 (h1: 128 -> 128) ── BN ── ReLU ── h2 (n, 128) ─┘
     cat ── MLP (256 -> 256) ── global max pool (B, 256) ── FC (256 -> 128) ── FC (128 -> classes)
+
+With ``graph_features = d > 0`` the network also reads a graph-level input ``u``
+(B, d) (the shape descriptor, standardised), concatenated to the pooled vector
+before the first fully connected layer (256 + d -> 128).
 
 The two convolutions are stacked (the second reads the first's output) and both
 outputs are concatenated, as in the paper's figure. ``conv`` picks the operator:
@@ -26,17 +31,14 @@ outputs are concatenated, as in the paper's figure. ``conv`` picks the operator:
 from __future__ import annotations
 
 import math
-import os
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from shapedb.config import Config
+from query.training_data import StoredGraph, plot_history, stored_graphs, stratified_split
 from shapedb.errors import ConfigError, InvalidShapeError, require
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -143,7 +145,7 @@ def edge_arrays(
     return np.ascontiguousarray(index), attr
 
 
-def to_data(graph: Any, y: int | None = None) -> Any:
+def to_data(graph: Any, y: int | None = None, u: NDArray[np.floating] | None = None) -> Any:
     """Convert a Decomposition or ContactGraph into a :class:`torch_geometric.data.Data`.
 
     Parameters
@@ -151,12 +153,15 @@ def to_data(graph: Any, y: int | None = None) -> Any:
     graph : Decomposition or ContactGraph (anything with centers, radii, edges)
     y : int, optional
         Class index.
+    u : (d,) float, optional
+        Graph-level input (the standardised descriptor).
 
     Returns
     -------
     torch_geometric.data.Data
         ``x`` (n, 4) float32 [c normalised, r/r1]; ``edge_index`` (2, 2m) int64;
-        ``edge_attr`` (2m, 1) float32 = 1/deg(source); ``y`` (1,) int64 if given.
+        ``edge_attr`` (2m, 1) float32 = 1/deg(source); ``y`` (1,) int64 and
+        ``u`` (1, d) float32 if given.
     """
     torch, pyg = import_torch()
     x = node_features(graph.centers, graph.radii)
@@ -168,6 +173,8 @@ def to_data(graph: Any, y: int | None = None) -> Any:
     )
     if y is not None:
         data.y = torch.tensor([int(y)], dtype=torch.long)
+    if u is not None:
+        data.u = torch.as_tensor(np.asarray(u, dtype=np.float32).reshape(1, -1))
     return data
 
 
@@ -269,6 +276,7 @@ def build_network(
     hidden: int = 128,
     dropout: float = 0.5,
     in_channels: int = 4,
+    graph_features: int = 0,
 ) -> Any:
     """The Figure 3 network as a :class:`torch.nn.Module`.
 
@@ -283,6 +291,9 @@ def build_network(
         Dropout before each fully connected layer.
     in_channels : int
         Node attributes (4: [c, r/r1]).
+    graph_features : int
+        Length d of the graph-level input ``data.u`` (B, d) read beside the pooled
+        vector; 0 for the paper's network.
 
     Returns
     -------
@@ -311,6 +322,7 @@ def build_network(
         def __init__(self) -> None:
             super().__init__()
             self.conv_name = conv
+            self.graph_features = graph_features
             self.conv1 = make(in_channels, hidden)
             self.bn1 = nn.BatchNorm1d(hidden)
             self.conv2 = make(hidden, hidden)
@@ -320,7 +332,7 @@ def build_network(
             )
             self.head = nn.Sequential(
                 nn.Dropout(dropout),
-                nn.Linear(2 * hidden, hidden),
+                nn.Linear(2 * hidden + graph_features, hidden),
                 nn.BatchNorm1d(hidden),
                 nn.ReLU(),
                 nn.Dropout(dropout),
@@ -347,7 +359,10 @@ def build_network(
             return gnn.global_max_pool(h, data.batch)
 
         def forward(self, data: Any) -> torch.Tensor:
-            return self.head(self.embed(data))
+            h = self.embed(data)
+            if self.graph_features:
+                h = torch.cat([h, data.u.reshape(h.shape[0], -1)], dim=1)
+            return self.head(h)
 
     return MDBDNet()
 
@@ -472,126 +487,3 @@ def train_network(
         model.load_state_dict(best_state)
     model.eval()
     return hist, best_epoch
-
-
-def stratified_split(
-    labels: Sequence[Any] | NDArray[Any], fractions: Sequence[float], *, seed: int = 0
-) -> list[NDArray[np.int64]]:
-    """Split indices into parts with the given fractions, class by class.
-
-    Parameters
-    ----------
-    labels : (n,) sequence
-    fractions : sequence of float summing to 1, e.g. (0.7, 0.15, 0.15)
-    seed : int
-
-    Returns
-    -------
-    list of (n_k,) int64 index arrays, one per fraction (every class with at least
-    ``len(fractions)`` members has at least one member in each part).
-    """
-    y = np.asarray(labels)
-    rng = np.random.default_rng(seed)
-    parts: list[list[int]] = [[] for _ in fractions]
-    cum = np.cumsum(fractions) / float(np.sum(fractions))
-    for c in sorted(set(y.tolist()), key=str):
-        idx = rng.permutation(np.flatnonzero(y == c))
-        n = len(idx)
-        cuts = [int(round(f * n)) for f in cum[:-1]]
-        if n >= len(fractions):  # keep each part non-empty
-            for k in range(len(cuts)):
-                cuts[k] = min(max(cuts[k], k + 1), n - (len(cuts) - k))
-        bounds = [0, *cuts, n]
-        for k in range(len(fractions)):
-            parts[k].extend(idx[bounds[k] : bounds[k + 1]].tolist())
-    return [np.sort(np.asarray(p, dtype=np.int64)) for p in parts]
-
-
-@dataclass(frozen=True, eq=False)
-class StoredGraph:
-    """A contact graph read back from the store's ``balls`` and ``edges`` tables.
-
-    Attributes
-    ----------
-    centers : (n, 3) float64
-    radii : (n,) float64
-    edges : (m, 2) int32
-    name : str
-    config : Config
-    """
-
-    centers: NDArray[np.float64]
-    radii: NDArray[np.float64]
-    edges: NDArray[np.int32]
-    name: str
-    config: Config
-
-
-def stored_graphs(db: Any, ids: Sequence[int]) -> list[StoredGraph]:
-    """The contact graphs of stored shapes, read in bulk from the Arrow tables.
-
-    Parameters
-    ----------
-    db : Database
-    ids : sequence of int, length k
-
-    Returns
-    -------
-    list of k :class:`StoredGraph`, in the order of ``ids``
-    """
-    store = getattr(db, "store", db)
-    config = db.config
-    ids = [int(i) for i in ids]
-    shapes = store.shapes(["id", "name"], ids=ids)
-    names = dict(
-        zip(shapes.column("id").to_pylist(), shapes.column("name").to_pylist(), strict=True)
-    )
-    balls, edges = store.balls(ids), store.edges(ids)  # sorted by shape id
-    b_id = balls.column("shape_id").to_numpy()
-    xyzr = np.column_stack([balls.column(c).to_numpy() for c in ("x", "y", "z", "r")])
-    e_id = edges.column("shape_id").to_numpy()
-    ij = np.column_stack([edges.column("i").to_numpy(), edges.column("j").to_numpy()])
-    out = []
-    for sid in ids:
-        b0, b1 = np.searchsorted(b_id, [sid, sid + 1])
-        e0, e1 = np.searchsorted(e_id, [sid, sid + 1])
-        out.append(
-            StoredGraph(
-                centers=xyzr[b0:b1, :3].astype(np.float64),
-                radii=xyzr[b0:b1, 3].astype(np.float64),
-                edges=ij[e0:e1].astype(np.int32),
-                name=str(names.get(sid, sid)),
-                config=config,
-            )
-        )
-    return out
-
-
-def plot_history(
-    history: dict[str, list[float]], path: str | os.PathLike[str], *, title: str = ""
-) -> Path:
-    """Training curve (loss and accuracy, train and validation) as a PNG."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    epochs = np.arange(1, len(history["loss"]) + 1)
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
-    ax1.plot(epochs, history["loss"], label="train")
-    ax1.plot(epochs, history["val_loss"], label="validation")
-    ax1.set(xlabel="epoch", ylabel="cross-entropy", title="loss")
-    ax2.plot(epochs, history["accuracy"], label="train")
-    ax2.plot(epochs, history["val_accuracy"], label="validation")
-    ax2.set(xlabel="epoch", ylabel="accuracy", title="accuracy", ylim=(0, 1.02))
-    for ax in (ax1, ax2):
-        ax.legend()
-        ax.grid(alpha=0.3)
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path

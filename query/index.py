@@ -40,7 +40,8 @@ from shapedb.errors import ConfigError, NotFittedError, QueryError, StoreError, 
 
 if TYPE_CHECKING:
     from query.metric import LearnedMetric
-    from shapedb.config import KernelConfig
+    from shapedb.config import Config
+    from shapedb.database import Database
 
 __all__ = ["FeatureIndex", "open_index", "build_index", "on_commit", "INDEX_DIR"]
 
@@ -459,9 +460,9 @@ def _faiss_search(
     """faiss search; a few queries run on one OpenMP thread.
 
     For one query faiss parallelises the flat scan across threads, which on a busy
-    machine costs far more than it saves (16 ms instead of 0.5 ms at 50 000 vectors
-    on 2 loaded cores). ``omp_set_num_threads`` sets the calling thread's own ICV,
-    so other Python threads are unaffected.
+    machine costs far more than it saves (``docs/results.md``, "Index").
+    ``omp_set_num_threads`` sets the calling thread's own ICV, so other Python
+    threads are unaffected.
     """
     faiss = _faiss()
     params = None if ef_search is None else faiss.SearchParametersHNSW(efSearch=ef_search)
@@ -492,16 +493,16 @@ def _check_rows(
 
 
 # ------------------------------------------------------------------ store glue
-_CACHE: dict[str, tuple[KernelConfig, FeatureIndex]] = {}
+_CACHE: dict[str, tuple[Config, FeatureIndex]] = {}
 _LOCK = threading.Lock()
 
 
-def _store_key(db: Any) -> str:
+def _store_key(db: Database) -> str:
     return os.fspath(db.store.path)
 
 
 def open_index(
-    db: Any,
+    db: Database,
     *,
     kind: str | None = None,
     rebuild: bool = False,
@@ -515,7 +516,7 @@ def open_index(
     ----------
     db : shapedb.Database
         Uses ``db.store`` (``path``, ``version``, ``features()``) and
-        ``db.config.kernel``.
+        ``db.config``.
     kind : {"auto", "flat", "hnsw"}, optional
         Force an index type (rebuilding if the current one differs).
     rebuild : bool
@@ -538,7 +539,7 @@ def open_index(
     """
     store = db.store
     root = Path(_store_key(db))
-    config = db.config.kernel
+    config = db.config
     from shapedb.kernel import weights
 
     w = np.asarray(weights(config), dtype=np.float64)
@@ -593,12 +594,12 @@ def _load(root: Path) -> FeatureIndex | None:
         return None
 
 
-def build_index(db: Any, *, kind: str = "auto", **params: Any) -> FeatureIndex:
+def build_index(db: Database, *, kind: str = "auto", **params: Any) -> FeatureIndex:
     """Rebuild the store's index from scratch with the given settings."""
     return open_index(db, kind=kind, rebuild=True, **params)
 
 
-def on_commit(db: Any, *args: Any, **kwargs: Any) -> None:
+def on_commit(db: Database, *args: Any, **kwargs: Any) -> None:
     """Store commit hook (entry point ``on_commit``): update an existing index.
 
     Only an index that was already built is updated (incrementally when possible);
@@ -611,7 +612,7 @@ def on_commit(db: Any, *args: Any, **kwargs: Any) -> None:
             open_index(db, view=view)
 
 
-def _forget(db: Any) -> None:  # drop a store's in-process cache entries (tests)
+def _forget(db: Database) -> None:  # drop a store's in-process cache entries (tests)
     root = _store_key(db)
     for key in [k for k in _CACHE if k == root or k.startswith(root + "#")]:
         _CACHE.pop(key, None)

@@ -28,12 +28,8 @@ and among those the most regularised one within one standard error of the best i
 chosen. When nothing passes, the metric is the identity and says so (``learned``
 False): on a store whose classes the default already separates, fitting is harmless.
 
-Measured in ``bench/metric.py`` (fitted on one split, scored on the other, both ways
-round): the articulated figures (classes are subjects, every pose one body plan)
-gain most (test split NN / 1-T / DCG 0.979 / 0.803 / 0.948 -> 1.000 / 0.944 /
-0.991; cloud queries against a store with views 0.928 -> 0.985); the parts gain first
-tier and margins; CAPOD keeps the default (fitted on validation) or takes a mild
-weighting that moves no NN (fitted on test). See README.
+What a fit gains on the labelled sets is measured by ``python -m bench.metric``
+(``docs/results.md``, "Learned metric").
 """
 
 from __future__ import annotations
@@ -45,15 +41,18 @@ import os
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import minimize
 from scipy.spatial.distance import cdist
 
-from shapedb.config import KernelConfig
+from shapedb.config import Config
 from shapedb.errors import ConfigError, LoadError, QueryError
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = ["LearnedMetric", "block_layout", "fit_metric", "fit_store_metric", "as_metric"]
 
@@ -69,18 +68,20 @@ MAX_SHAPES = 1000
 FORMAT = "shapedb-metric/1"
 
 
-def block_layout(config: KernelConfig) -> tuple[tuple[str, int], ...]:
+def block_layout(config: Config) -> tuple[tuple[str, int], ...]:
     """The blocks of a configuration's feature vector: ``((name, length), ...)``.
 
     Method "mdbd": the blocks of :data:`shapedb.descriptor.LAYOUTS` of its version;
     method "paper": ``p0`` (the representatives' r/r1) and ``walk`` (their walk
     averages), ``n_r`` each.
     """
-    if config.method == "mdbd":
+    if config.kernel.method == "mdbd":
         from shapedb.descriptor import LAYOUTS
 
-        return tuple((name, int(size)) for name, size, _, _ in LAYOUTS[config.descriptor])
-    return (("p0", int(config.n_r)), ("walk", int(config.n_r)))
+        layout = LAYOUTS[config.descriptor.version]
+        return tuple((name, int(size)) for name, size, _, _ in layout)
+    n_r = int(config.kernel.n_r)
+    return (("p0", n_r), ("walk", n_r))
 
 
 @dataclass(frozen=True)
@@ -386,9 +387,54 @@ def fit_metric(
     -------
     LearnedMetric
     """
+    sizes = [int(n) for _, n in blocks]
+    x, y, v, sp = _checked_inputs(features, labels, views, sparse, sizes, label=label)
+    if folds < 2:
+        raise ConfigError("must be at least 2", source=f"folds={folds}")
+    rng = np.random.default_rng(seed)
+    if len(x) > max_shapes:
+        keep = _sample_by_class(y, max_shapes, rng)
+        x, v, y, sp = x[keep], v[keep], y[keep], sp[keep]
+    pairs = _pairs(x, v, y, sp, sizes)
+    chosen, cv = _cross_validate(pairs, y, rng, folds=folds, regs=regs, temperature=temperature)
+    weights = _final_weights(pairs, chosen, temperature)
+    log.info(
+        "fit_metric: %d shapes, %d classes, %d view queries; reg %s, weights %s",
+        len(x),
+        len(np.unique(y)),
+        pairs.n_extra,
+        chosen,
+        np.round(weights, 3).tolist(),
+    )
+    return LearnedMetric(
+        blocks=tuple((str(name), int(s)) for name, s in blocks),
+        weights=tuple(float(w) for w in weights),
+        fingerprint=fingerprint,
+        reg=chosen,
+        cv=cv,
+        n_shapes=len(x),
+        n_classes=int(len(np.unique(y))),
+        n_extra=pairs.n_extra,
+        label=label,
+    )
+
+
+def _checked_inputs(
+    features: ArrayLike,
+    labels: ArrayLike,
+    views: ArrayLike | None,
+    sparse: ArrayLike | None,
+    sizes: Sequence[int],
+    *,
+    label: str,
+) -> tuple[NDArray[np.float64], NDArray[Any], NDArray[np.float64], NDArray[np.bool_]]:
+    """Features (n, d), labels (n,), views (n, d) and sparse flags (n,) as arrays.
+
+    Raises :class:`QueryError` on shapes that do not match the blocks, non-finite
+    entries, or fewer than two classes of two shapes or more.
+    """
     x = np.asarray(features, dtype=np.float64)
     y = np.asarray(labels, dtype=object)
-    sizes = [int(n) for _, n in blocks]
     if x.ndim != 2 or x.shape[1] != sum(sizes) or len(y) != len(x):
         raise QueryError(
             f"expected ({len(y)}, {sum(sizes)}) features and one label per row",
@@ -408,14 +454,37 @@ def fit_metric(
             "a metric needs at least two classes with two or more shapes each",
             source=f"label={label!r}",
         )
-    if folds < 2:
-        raise ConfigError("must be at least 2", source=f"folds={folds}")
-    rng = np.random.default_rng(seed)
-    if len(x) > max_shapes:
-        keep = _sample_by_class(y, max_shapes, rng)
-        x, v, y, sp = x[keep], v[keep], y[keep], sp[keep]
+    return x, y, v, sp
+
+
+@dataclass(frozen=True)
+class _Pairs:
+    """Per-block distances of every (query, shape) pair of a fit.
+
+    ``bd`` (q, n, b): the queries' own features against the shapes' own;
+    ``alts``: the same with either side's second feature where a pair mixes a
+    sparse and a dense side (empty when no pair does); ``same`` / ``exclude``
+    (q, n): same class / the query's own shape; ``owner`` (q,): the shape each
+    query belongs to (every shape, then the views of dense shapes).
+    """
+
+    bd: NDArray[np.float64]
+    alts: tuple[NDArray[np.float64], ...]
+    same: NDArray[np.bool_]
+    exclude: NDArray[np.bool_]
+    owner: NDArray[np.intp]
+    n_extra: int
+
+
+def _pairs(
+    x: NDArray[np.float64],
+    v: NDArray[np.float64],
+    y: NDArray[Any],
+    sp: NDArray[np.bool_],
+    sizes: Sequence[int],
+) -> _Pairs:
+    """The queries (every shape, then the view of every dense shape that has one) and pairs."""
     n = len(x)
-    # queries: every shape, then the view of every dense shape that has one
     extra = np.flatnonzero(~sp & np.any(v != x, axis=1))
     owner = np.concatenate([np.arange(n), extra])
     q_sparse = np.concatenate([sp, np.ones(len(extra), bool)])
@@ -433,30 +502,56 @@ def fit_metric(
         )
     same = y[owner][:, None] == y[None, :]
     exclude = owner[:, None] == np.arange(n)[None, :]
+    return _Pairs(bd, alts, same, exclude, owner, len(extra))
 
+
+def _cross_validate(
+    pairs: _Pairs,
+    y: NDArray[Any],
+    rng: np.random.Generator,
+    *,
+    folds: int,
+    regs: Sequence[float],
+    temperature: float,
+) -> tuple[float | None, dict[str, dict[str, float]]]:
+    """The regularisation chosen by class-stratified k-fold cross-validation, and the table.
+
+    Each strength's held-out log margins are compared with the default's (paired over
+    queries); a strength passes when it beats the default by two standard errors, and
+    the most regularised one within one standard error of the best passing one is
+    chosen. None when nothing passes. The table maps "default" and each strength to
+    its mean held-out ``margin``, its ``gain`` over the default and that gain's ``se``.
+    """
+    n_blocks = pairs.bd.shape[2]
     fold = _folds(y, folds, rng)
-    qfold = fold[owner]
+    qfold = fold[pairs.owner]
     held: dict[float | None, list[NDArray[np.float64]]] = {r: [] for r in (None, *regs)}
     for k in range(folds):
         train = fold != k
         tq = qfold != k
         hq = qfold == k
-        sub = bd[tq][:, train]
+        sub = pairs.bd[tq][:, train]
         for r in held:
             w = (
-                np.ones(len(sizes))
+                np.ones(n_blocks)
                 if r is None
                 else _nca_weights(
                     sub,
-                    same[tq][:, train],
-                    exclude[tq][:, train],
+                    pairs.same[tq][:, train],
+                    pairs.exclude[tq][:, train],
                     r,
                     temperature,
-                    tuple(alt[tq][:, train] for alt in alts),
+                    tuple(alt[tq][:, train] for alt in pairs.alts),
                 )
             )
             held[r].append(
-                _log_margins(bd[hq], w, same[hq], exclude[hq], tuple(alt[hq] for alt in alts))
+                _log_margins(
+                    pairs.bd[hq],
+                    w,
+                    pairs.same[hq],
+                    pairs.exclude[hq],
+                    tuple(alt[hq] for alt in pairs.alts),
+                )
             )
     margins = {r: np.concatenate(m) for r, m in held.items()}
     ok = np.isfinite(margins[None])
@@ -475,54 +570,44 @@ def fit_metric(
         if r is not None and ok.any():
             stats[r] = (float(diff.mean()), se)
     passed = [r for r, (gain, se) in stats.items() if gain < -2 * se]
-    chosen: float | None = None
-    if passed:
-        best = min(passed, key=lambda r: stats[r][0])
-        within = [r for r in passed if stats[r][0] <= stats[best][0] + stats[best][1]]
-        chosen = max(within)  # the most regularised of the near-best
-    weights = np.ones(len(sizes))
-    if chosen is not None:
-        weights = _nca_weights(bd, same, exclude, chosen, temperature, alts)
-        # keep the similarity's calibration: shapes of different classes as far apart
-        # (median) as under the default, so exp(-lam d) reads as before
-        other = ~same & ~exclude
-        before = _pair_distances(bd, alts, np.ones(len(sizes)))[other]
-        after = _pair_distances(bd, alts, weights)[other]
-        weights *= np.median(before) / max(np.median(after), 1e-300)
-    log.info(
-        "fit_metric: %d shapes, %d classes, %d view queries; reg %s, weights %s",
-        n,
-        len(np.unique(y)),
-        len(extra),
-        chosen,
-        np.round(weights, 3).tolist(),
-    )
-    return LearnedMetric(
-        blocks=tuple((str(name), int(s)) for name, s in blocks),
-        weights=tuple(float(w) for w in weights),
-        fingerprint=fingerprint,
-        reg=chosen,
-        cv=cv,
-        n_shapes=n,
-        n_classes=int(len(np.unique(y))),
-        n_extra=len(extra),
-        label=label,
-    )
+    if not passed:
+        return None, cv
+    best = min(passed, key=lambda r: stats[r][0])
+    within = [r for r in passed if stats[r][0] <= stats[best][0] + stats[best][1]]
+    return max(within), cv  # the most regularised of the near-best
 
 
-def fit_store_metric(db: Any, *, label: str = "label", **options: Any) -> LearnedMetric:
+def _final_weights(pairs: _Pairs, chosen: float | None, temperature: float) -> NDArray[np.float64]:
+    """Block weights fitted on all pairs at strength ``chosen`` (ones when None).
+
+    Scaled so that shapes of different classes lie as far apart (median) as under
+    the default, which keeps the similarity ``exp(-lam d)`` calibrated.
+    """
+    n_blocks = pairs.bd.shape[2]
+    weights = np.ones(n_blocks)
+    if chosen is None:
+        return weights
+    weights = _nca_weights(pairs.bd, pairs.same, pairs.exclude, chosen, temperature, pairs.alts)
+    other = ~pairs.same & ~pairs.exclude
+    before = _pair_distances(pairs.bd, pairs.alts, np.ones(n_blocks))[other]
+    after = _pair_distances(pairs.bd, pairs.alts, weights)[other]
+    weights *= np.median(before) / max(np.median(after), 1e-300)
+    return weights
+
+
+def fit_store_metric(db: Database, *, label: str = "label", **options: Any) -> LearnedMetric:
     """``db.fit_metric``: :func:`fit_metric` on a store's labelled shapes.
 
-    In a store with sparse views (``KernelConfig.view_cells``) the pairs follow the
+    In a store with sparse views (``CloudConfig.view_cells``) the pairs follow the
     search's rule and each dense shape's view is one more query (see
     :func:`fit_metric`). A store with more than ``max_shapes`` labelled shapes is
     sampled by class before any feature is read. ``options`` go to :func:`fit_metric`
     (``regs``, ``temperature``, ``folds``, ``max_shapes``, ``seed``).
     """
-    from query.evaluate import _labels
+    from query.labelled import stored_labels
     from shapedb.kernel import weights as kernel_weights
 
-    ids, labels = _labels(db, label)
+    ids, labels = stored_labels(db, label)
     keep = np.array([v is not None for v in labels], bool)
     ids, labels = ids[keep], labels[keep]
     max_shapes = int(options.get("max_shapes", MAX_SHAPES))
@@ -530,13 +615,13 @@ def fit_store_metric(db: Any, *, label: str = "label", **options: Any) -> Learne
         pick = _sample_by_class(labels, max_shapes, np.random.default_rng(options.get("seed", 0)))
         ids, labels = ids[pick], labels[pick]
     config = db.config
-    views_kept = bool(config.kernel.view_cells)
+    views_kept = bool(config.cloud.view_cells)
     columns = ["id", "feature", "view_feature"] if views_kept else ["id", "feature"]
     table = db.store.shapes(columns, ids=ids.tolist())
     found = table.column("id").to_numpy()
     pos = np.searchsorted(ids, found)  # a commit may have deleted some meanwhile
     labels = labels[pos]
-    w = np.asarray(kernel_weights(config.kernel), np.float64)
+    w = np.asarray(kernel_weights(config), np.float64)
     feats = np.asarray(table.column("feature").to_pylist(), np.float64).reshape(len(found), -1)
     views = sparse = None
     if views_kept:
@@ -555,7 +640,7 @@ def fit_store_metric(db: Any, *, label: str = "label", **options: Any) -> Learne
     return fit_metric(
         feats * w,
         labels,
-        blocks=block_layout(config.kernel),
+        blocks=block_layout(config),
         views=views,
         sparse=sparse,
         fingerprint=config.fingerprint,

@@ -30,10 +30,8 @@ On disk, beside the store: ``<store>/parts/<PartConfig fingerprint>/current.json
 ``shapes.npy``, ``node_ptr.npy``, ``edge_ptr.npy``, ``edges.npy``, ``alive.npy`` and,
 for IVF, ``faiss.index``. When the store version has moved, new shapes are
 featurised from the store's balls and added, deleted ones tombstoned (the index is
-compacted once a fifth of it is dead). An index written before :class:`PartConfig`
-had ``size``/``centre`` holds the paper's vectors alone and is read with ``size =
-centre = 0``, and one written before ``contact_tol_cells`` with 0 (the stored contact
-graph; :func:`read_part_config`).
+compacted once a fifth of it is dead). The configuration of an index written by an
+older version is read through :mod:`shapedb.migrations` (:func:`read_part_config`).
 """
 
 from __future__ import annotations
@@ -43,7 +41,7 @@ import logging
 import os
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -52,6 +50,9 @@ from query._versioned import POINTER, current, save_version
 from shapedb.config import PartConfig
 from shapedb.errors import NotFittedError, QueryError, StoreError, require
 from shapedb.subgraph import neighbourhood_features_many, part_dim, part_weights
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = ["PartIndex", "open_parts_index", "on_commit", "read_part_config", "PARTS_DIR"]
 
@@ -63,14 +64,9 @@ _DEAD_FRACTION = 0.2
 _SCAN_BLOCK = 262_144
 
 
-#: PartConfig fields added after part indexes were first written, and the values that
-#: reproduce what those indexes hold (the paper's Eq. 1 vector alone).
-_LEGACY = {"size": 0.0, "centre": 0.0, "contact_tol_cells": 0.0}
-
-
 def read_part_config(data: dict[str, Any]) -> PartConfig:
-    """The :class:`PartConfig` of a stored part index; fields it predates take legacy values."""
-    return PartConfig(**{**_LEGACY, **data})
+    """The :class:`PartConfig` of a stored part index of any version (:mod:`shapedb.migrations`)."""
+    return PartConfig.from_dict(data)
 
 
 def _faiss() -> Any:
@@ -181,9 +177,9 @@ class PartIndex:
         ):
             raise QueryError("shape ids are not unique", source="PartIndex")
         feats, offsets = neighbourhood_features_many(graphs, self.config)
-        from shapedb.subgraph import _arrays
+        from shapedb.subgraph import graph_arrays
 
-        edges = [_arrays(g)[1] for g in graphs]
+        edges = [graph_arrays(g)[1] for g in graphs]
         n_edges = np.array([len(e) for e in edges], np.int64)
         self.features_ = np.concatenate([np.asarray(self.features_), feats.astype(np.float32)])
         self.shapes_ = np.concatenate([self.shapes_, ids_a])
@@ -477,7 +473,7 @@ class PartIndex:
             "format": _FORMAT,
             "version": version,
             "kind": self.kind_,
-            "config": {k: getattr(self.config, k) for k in self.config.__dataclass_fields__},
+            "config": self.config.to_dict(),
             "params": self.params,
             "n": int(len(self.features_)),
         }
@@ -528,9 +524,11 @@ def _jaccard(a: NDArray[np.int64], b: NDArray[np.int64]) -> float:
 
 
 def _concat_ranges(ptr: NDArray[np.int64], slots: NDArray[np.int64]) -> NDArray[np.int64]:
-    from shapedb.subgraph import _ranges
+    from shapedb.subgraph import concat_aranges
 
-    return _ranges(ptr[slots].astype(np.int64), (ptr[slots + 1] - ptr[slots]).astype(np.int64))
+    return concat_aranges(
+        ptr[slots].astype(np.int64), (ptr[slots + 1] - ptr[slots]).astype(np.int64)
+    )
 
 
 # ------------------------------------------------------------------ store glue
@@ -538,7 +536,9 @@ _CACHE: dict[tuple[str, str], PartIndex] = {}
 _LOCK = threading.Lock()
 
 
-def _graphs_from_store(db: Any, ids: NDArray[np.int64], cfg: PartConfig) -> list[tuple[Any, Any]]:
+def _graphs_from_store(
+    db: Database, ids: NDArray[np.int64], cfg: PartConfig
+) -> list[tuple[Any, Any]]:
     """(radii, edges) of each stored shape ``ids`` (ascending), read in one go.
 
     The edges are the stored contact graph's when ``cfg.contact_tol_cells`` is 0, and
@@ -569,7 +569,7 @@ def _graphs_from_store(db: Any, ids: NDArray[np.int64], cfg: PartConfig) -> list
 
 
 def open_parts_index(
-    db: Any, config: PartConfig | None = None, *, rebuild: bool = False, **params: Any
+    db: Database, config: PartConfig | None = None, *, rebuild: bool = False, **params: Any
 ) -> PartIndex:
     """The store's part index for ``config``, loaded, brought up to date, or built.
 
@@ -625,7 +625,7 @@ def open_parts_index(
         return index
 
 
-def on_commit(db: Any, *args: Any, **kwargs: Any) -> None:
+def on_commit(db: Database, *args: Any, **kwargs: Any) -> None:
     """Commit hook: bring every part index already built for this store up to date."""
     base = Path(os.fspath(db.store.path)) / PARTS_DIR
     if not base.is_dir():
@@ -640,7 +640,7 @@ def on_commit(db: Any, *args: Any, **kwargs: Any) -> None:
             open_parts_index(db, cfg)
 
 
-def _forget(db: Any) -> None:  # drop a store's in-process cache entries (tests)
+def _forget(db: Database) -> None:  # drop a store's in-process cache entries (tests)
     path = os.fspath(db.store.path)
     for key in [k for k in _CACHE if k[0] == path]:
         _CACHE.pop(key, None)

@@ -15,12 +15,15 @@ import logging
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from shapedb.errors import require
+from shapedb.errors import QueryError, require
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = ["render_model", "render_matches", "render_part_matches", "draw_model"]
 
@@ -272,7 +275,11 @@ def render_matches(
 
 
 def render_part_matches(
-    db: Any, query: Any, matches: Sequence[Any], out: str | os.PathLike[str], **options: Any
+    db: Database | None,
+    query: Any,
+    matches: Sequence[Any],
+    out: str | os.PathLike[str],
+    **options: Any,
 ) -> Path:
     """:func:`render_matches` for the result of ``query.substructure.match``.
 
@@ -294,6 +301,8 @@ def render_part_matches(
     q = query if isinstance(query, Model) else resolve(db, query, complement=complement)
     targets = options.pop("targets", None)
     if targets is None:
+        if db is None:
+            raise QueryError("drawing stored matches needs a database", source="db=None")
         targets = [db.get(m.id).decomposition for m in matches]
     elif len(targets) == 1 and len(matches) > 1:
         targets = list(targets) * len(matches)
@@ -301,7 +310,7 @@ def render_part_matches(
     return render_matches(q.graph, matches, targets, out, query_geometry=qg, **options)
 
 
-def show(db: Any, model: Any, out: str | os.PathLike[str], **options: Any) -> Path:
+def show(db: Database | None, model: Any, out: str | os.PathLike[str], **options: Any) -> Path:
     """Draw ``model`` (a path, Geometry, or stored id/name) with its MDBD balls.
 
     The ``shapedb.extensions`` entry point behind ``shapedb show``. A stored shape is

@@ -12,6 +12,14 @@ Each call opens an in-memory DuckDB connection with
   metric (``db.sql(statement, metric=m)``, :mod:`query.metric`), the macros weigh by it,
   as ``db.search(..., metric=m)`` does.
 
+The connection is a sandbox built with DuckDB's own controls, not string matching:
+its external access is off except for the store's committed Parquet files
+(``allowed_paths`` + ``enable_external_access = false``), extensions cannot be
+installed or loaded, and its configuration is locked (``lock_configuration``). A
+statement must parse (``duckdb.extract_statements``) as exactly one ``SELECT``; a
+``where`` predicate must parse as exactly one expression. COPY, ATTACH, INSTALL /
+LOAD, reading any other path and second statements are :class:`QueryError`.
+
 The distance is a SQL macro (``list_zip`` + ``list_transform`` + ``list_sum``) rather
 than a Python UDF: it runs inside DuckDB's vectorised, multi-threaded engine, is at
 least as fast as a vectorised Arrow UDF (1.2 us a row against 1.4 us, ranking
@@ -21,15 +29,20 @@ least as fast as a vectorised Arrow UDF (1.2 us a row against 1.4 us, ranking
 
 from __future__ import annotations
 
+import json
 import logging
 import os
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
 from numpy.typing import NDArray
 
-from shapedb.errors import QueryError, StoreError, require
+from shapedb.errors import QueryError, ShapeDBError, StoreError, require
+from shapedb.manifest import repair_hint
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = ["sql", "connect", "script", "allowed_ids", "macros"]
 
@@ -43,8 +56,8 @@ def macros(config: Any, metric: Any = None) -> list[str]:
 
     Parameters
     ----------
-    config : shapedb.config.KernelConfig
-        Supplies n_r, la, lb and lam.
+    config : shapedb.config.Config
+        The store's: its kernel supplies n_r, la, lb and lam, its descriptor the length.
     metric : LearnedMetric, optional
         Multiplies the weights by the metric's (:mod:`query.metric`).
 
@@ -65,7 +78,7 @@ def macros(config: Any, metric: Any = None) -> list[str]:
         w = w * metric.dim_weights()
     d = len(w)
     wl = "[" + ", ".join(repr(float(x)) for x in w) + "]::DOUBLE[]"
-    lam = repr(float(config.lam))
+    lam = repr(float(config.kernel.lam))
     return [
         f"CREATE OR REPLACE MACRO mdbd_weights() AS {wl}",
         "CREATE OR REPLACE MACRO mdbd_distance(a, b) AS ("
@@ -93,7 +106,7 @@ def _quote(text: str) -> str:
     return "'" + text.replace("'", "''") + "'"
 
 
-def connect(db: Any, metric: Any = None) -> Any:
+def connect(db: Database, metric: Any = None) -> Any:
     """A new in-memory DuckDB connection with the store's views and macros.
 
     Parameters
@@ -112,22 +125,59 @@ def connect(db: Any, metric: Any = None) -> Any:
     store = db.store
     learned = _metric(db, metric)
     con = duckdb.connect(":memory:")
-    for stmt in macros(db.config.kernel, learned):
+    for stmt in macros(db.config, learned):
         con.execute(stmt)
-    for table, paths in _files(store).items():
+    files = _files(store)
+    for table, paths in files.items():
         if paths:
             listing = ", ".join(_quote(p) for p in paths)
-            con.execute(
-                f"CREATE VIEW {table} AS SELECT * FROM read_parquet([{listing}], union_by_name = true)"
-            )
+            view = f"CREATE VIEW {table} AS SELECT * FROM read_parquet([{listing}], union_by_name = true)"
+            try:
+                con.execute(view)
+            except duckdb.Error as exc:  # DuckDB reads the files' schemas here
+                con.close()
+                raise _error(db, exc, table) from exc
         else:  # no committed file yet: an empty view with the table's schema
-            empty = schema_for(table, int(db.config.kernel.dim)).empty_table()
+            empty = schema_for(table, int(db.config.dim)).empty_table()
             con.register(f"_empty_{table}", empty)
             con.execute(f"CREATE VIEW {table} AS SELECT * FROM _empty_{table}")
+    _sandbox(con, [p for paths in files.values() for p in paths])
     return con
 
 
-def _metric(db: Any, metric: Any) -> Any:
+def _sandbox(con: Any, paths: list[str]) -> None:
+    """Limit a connection to reading ``paths``, then lock its configuration."""
+    allowed = "[" + ", ".join(_quote(p) for p in paths) + "]"
+    for setting in (
+        f"SET allowed_paths = {allowed}",
+        "SET allowed_directories = []",
+        "SET autoinstall_known_extensions = false",
+        "SET autoload_known_extensions = false",
+        "SET allow_community_extensions = false",
+        "SET enable_external_access = false",
+        "SET lock_configuration = true",
+    ):
+        con.execute(setting)
+
+
+def _one_select(statement: str, source: str) -> None:
+    """QueryError unless ``statement`` parses as exactly one SELECT (DuckDB's parser)."""
+    import duckdb
+
+    try:
+        parsed = duckdb.extract_statements(statement)
+    except duckdb.Error as exc:
+        raise QueryError(f"{type(exc).__name__}: {_short(str(exc))}", source=source) from exc
+    if len(parsed) != 1:
+        raise QueryError(f"exactly one statement is allowed, got {len(parsed)}", source=source)
+    kind = parsed[0].type
+    if kind != duckdb.StatementType.SELECT:
+        raise QueryError(
+            f"only read-only SELECT statements are allowed, not {kind.name}", source=source
+        )
+
+
+def _metric(db: Database, metric: Any) -> Any:
     from query.metric import as_metric
 
     learned = as_metric(metric)
@@ -136,7 +186,7 @@ def _metric(db: Any, metric: Any) -> Any:
     return learned
 
 
-def script(db: Any, metric: Any = None) -> str:
+def script(db: Database, metric: Any = None) -> str:
     """SQL that sets up a plain ``duckdb`` session like :func:`connect` does.
 
     The views name the files of the store's current version explicitly (absolute
@@ -153,7 +203,7 @@ def script(db: Any, metric: Any = None) -> str:
     str
         ``CREATE MACRO`` and ``CREATE VIEW`` statements, one per line.
     """
-    lines = [stmt + ";" for stmt in macros(db.config.kernel, _metric(db, metric))]
+    lines = [stmt + ";" for stmt in macros(db.config, _metric(db, metric))]
     for table, paths in _files(db.store).items():
         if paths:
             listing = ", ".join(_quote(p) for p in paths)
@@ -163,14 +213,15 @@ def script(db: Any, metric: Any = None) -> str:
     return "\n".join(lines) + "\n"
 
 
-def sql(db: Any, statement: str, *, metric: Any = None) -> pa.Table:
+def sql(db: Database, statement: str, *, metric: Any = None) -> pa.Table:
     """Run one SQL statement over the store and return its result.
 
     Parameters
     ----------
     db : shapedb.Database
     statement : str
-        Any DuckDB SQL; the views and macros of :func:`connect` are available.
+        One DuckDB ``SELECT`` statement; the views and macros of :func:`connect` are
+        available, no other file is.
     metric : LearnedMetric or path, optional
         Weigh ``mdbd_distance`` / ``mdbd_kernel`` by a learned metric.
 
@@ -182,20 +233,41 @@ def sql(db: Any, statement: str, *, metric: Any = None) -> pa.Table:
     Raises
     ------
     QueryError
-        The statement is malformed or fails; the message is DuckDB's.
+        The statement is malformed, is not exactly one SELECT, reaches outside the
+        store (COPY, ATTACH, INSTALL/LOAD, other files) or fails; the message is DuckDB's.
+    StoreError
+        One of the store's own files cannot be read (damaged); the message names it.
     """
     import duckdb
 
     if not isinstance(statement, str) or not statement.strip():
         raise QueryError("empty SQL statement", source=repr(statement))
+    _one_select(statement, _short(statement))
     con = connect(db, metric)
     try:
         rel = con.sql(statement)
         return pa.table({}) if rel is None else rel.to_arrow_table()
     except duckdb.Error as exc:
-        raise QueryError(f"{type(exc).__name__}: {exc}", source=_short(statement)) from exc
+        raise _error(db, exc, _short(statement)) from exc
     finally:
         con.close()
+
+
+def _error(db: Database, exc: Exception, source: str) -> ShapeDBError:
+    """QueryError, or StoreError when DuckDB could not read one of the store's own files."""
+    import duckdb
+
+    text = " ".join(str(exc).split())
+    if not isinstance(exc, duckdb.PermissionException):
+        for path in (p for paths in _files(db.store).values() for p in paths):
+            if path in text:
+                rel = os.path.relpath(path, db.store.path)
+                return StoreError(
+                    f"segment {rel} cannot be read ({type(exc).__name__}: {_short(text, 160)}); "
+                    f"{repair_hint(db.store.path)}",
+                    source=str(db.store.path),
+                )
+    return QueryError(f"{type(exc).__name__}: {_short(text, 300)}", source=source)
 
 
 def _short(statement: str, limit: int = 200) -> str:
@@ -206,7 +278,7 @@ def _short(statement: str, limit: int = 200) -> str:
 _CONNECTIONS: dict[str, tuple[int, Any]] = {}
 
 
-def allowed_ids(db: Any, where: str) -> NDArray[np.int64]:
+def allowed_ids(db: Database, where: str) -> NDArray[np.int64]:
     """Ids of the shapes satisfying an SQL predicate over ``shapes``.
 
     Parameters
@@ -224,12 +296,14 @@ def allowed_ids(db: Any, where: str) -> NDArray[np.int64]:
     Raises
     ------
     QueryError
-        The predicate is malformed; the message names it.
+        The predicate is malformed or is more than one expression; the message names it.
     """
     import duckdb
 
     if not isinstance(where, str) or not where.strip():
         raise QueryError("empty filter predicate", source=repr(where))
+    statement = f"SELECT id FROM shapes WHERE ({where}) ORDER BY id"
+    _one_expression(statement, where)
     key = os.fspath(db.store.path)
     version = db.store.version
     cached = _CONNECTIONS.get(key)
@@ -239,9 +313,57 @@ def allowed_ids(db: Any, where: str) -> NDArray[np.int64]:
         _CONNECTIONS[key] = (version, connect(db))
     cur = _CONNECTIONS[key][1].cursor()
     try:
-        table = cur.sql(f"SELECT id FROM shapes WHERE ({where}) ORDER BY id").to_arrow_table()
+        table = cur.sql(statement).to_arrow_table()
     except duckdb.Error as exc:
-        raise QueryError(f"malformed filter predicate: {exc}", source=f"where={where!r}") from exc
+        err = _error(db, exc, f"where={where!r}")
+        if isinstance(err, StoreError):
+            raise err from exc
+        raise QueryError(
+            f"malformed filter predicate: {_short(str(exc), 300)}", source=f"where={where!r}"
+        ) from exc
     finally:
         cur.close()
     return table.column("id").to_numpy().astype(np.int64)
+
+
+_TEMPLATE = "SELECT id FROM shapes WHERE (TRUE) ORDER BY id"
+
+
+def _one_expression(statement: str, where: str) -> None:
+    """QueryError unless ``statement`` is :data:`_TEMPLATE` with only its WHERE expression changed.
+
+    Both are parsed by DuckDB (``json_serialize_sql``) and compared with the WHERE
+    clause and the source positions left out, so a predicate that closes the
+    parenthesis and adds a statement, a UNION, a LIMIT or a comment is refused.
+    """
+    import duckdb
+
+    source = f"where={where!r}"
+    _one_select(statement, source)
+    con = duckdb.connect(":memory:")
+    try:
+        got, want = (
+            json.loads(con.execute("SELECT json_serialize_sql(?)", [s]).fetchone()[0])  # type: ignore[index]
+            for s in (statement, _TEMPLATE)
+        )
+    finally:
+        con.close()
+    if got.get("error"):
+        raise QueryError(f"malformed filter predicate: {got.get('error_message')}", source=source)
+    if _skeleton(got) != _skeleton(want):
+        raise QueryError(
+            "the filter must be one boolean expression over the shapes columns", source=source
+        )
+
+
+def _skeleton(tree: Any) -> Any:
+    """A parsed statement without its WHERE clause and source positions."""
+    if isinstance(tree, dict):
+        return {
+            k: _skeleton(v)
+            for k, v in tree.items()
+            if k not in ("where_clause", "query_location", "query_location_length")
+        }
+    if isinstance(tree, list):
+        return [_skeleton(v) for v in tree]
+    return tree

@@ -38,9 +38,9 @@ from __future__ import annotations
 
 import logging
 import os
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -48,6 +48,7 @@ from numpy.typing import ArrayLike, NDArray
 from shapedb.config import PartConfig
 from shapedb.errors import ConfigError, InvalidShapeError, NotFoundError, QueryError
 from shapedb.graph import ContactGraph
+from shapedb.results import PartMatch  # defined there, re-exported here
 from shapedb.subgraph import (
     neighbourhood_features,
     neighbourhoods,
@@ -57,6 +58,9 @@ from shapedb.subgraph import (
     part_vector,
     part_weights,
 )
+
+if TYPE_CHECKING:
+    from shapedb.database import Database
 
 __all__ = [
     "PartMatch",
@@ -75,49 +79,6 @@ log = logging.getLogger(__name__)
 
 _PAIR_BLOCK = 1 << 22  # entries of the (n1, n2) distance matrix computed at once
 _NMS_POOL = 32  # candidate pairs per wanted pair before suppression (widened x4 when short)
-
-
-@dataclass(frozen=True)
-class PartMatch:
-    """One matched part.
-
-    Attributes
-    ----------
-    id : int or None
-        Stored shape id of the match (None for an unstored model).
-    name : str or None
-        Its name.
-    label : str or None
-        Its class label.
-    similarity : float
-        Eq. 3, ``exp(-lam * distance)`` of the two part vectors, in (0, 1].
-    nodes : tuple of int
-        N(u, K) in the matched shape.
-    query_nodes : tuple of int
-        N(v, K) in the query (all nodes when the whole query model is the part).
-    node : int
-        Centre u of the matched neighbourhood.
-    query_node : int
-        Centre v of the query neighbourhood (-1 for a whole-model query).
-    distance : float
-        Part distance: Eq. 2 plus the size/centre blocks (weighted L1).
-    """
-
-    id: int | None
-    name: str | None
-    label: str | None
-    similarity: float
-    nodes: tuple[int, ...]
-    query_nodes: tuple[int, ...]
-    node: int = -1
-    query_node: int = -1
-    distance: float = 0.0
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict: ``{"id", "name", "label", "similarity", "nodes", ...}``."""
-        d = asdict(self)
-        d["nodes"], d["query_nodes"] = list(self.nodes), list(self.query_nodes)
-        return d
 
 
 @dataclass(frozen=True, eq=False)
@@ -167,7 +128,7 @@ class PartGeometry:
 
 # ------------------------------------------------------------------ resolving inputs
 def resolve(
-    db: Any,
+    db: Database | None,
     x: Any,
     *,
     complement: bool = False,
@@ -184,7 +145,7 @@ def resolve(
     return replace(model, graph=part_graph(model.decomposition, part))
 
 
-def _resolve(db: Any, x: Any, *, complement: bool, padding: float) -> Model:
+def _resolve(db: Database | None, x: Any, *, complement: bool, padding: float) -> Model:
     from shapedb.geometry import Geometry
     from shapedb.mdbd import Decomposition, decompose
     from shapedb.schema import ShapeRecord
@@ -423,7 +384,7 @@ def match_pairs(
 
 
 def match(
-    db: Any,
+    db: Database | None,
     a: Any,
     b: Any = None,
     *,
@@ -499,7 +460,7 @@ def match(
                 qb.id,
                 qb.name,
                 qb.label,
-                float(np.exp(-cfg.lam * d)),
+                float(np.exp(-cfg.kernel.lam * d)),
                 tuple(int(x) for x in nb),
                 tuple(int(x) for x in na),
                 int(u),
@@ -525,7 +486,7 @@ def match(
 
 
 def _corpus(
-    db: Any,
+    db: Database,
     feat: NDArray[np.float64],
     qnodes: NDArray[np.int64],
     v: int,
@@ -536,10 +497,10 @@ def _corpus(
     per_shape: int,
     overlap: float | None,
 ) -> list[PartMatch]:
+    from query.engine import checked_k
     from query.parts_index import open_parts_index
 
-    if isinstance(k, bool) or int(k) < 1:
-        raise QueryError("k must be a positive integer", source=f"k={k!r}")
+    k = checked_k(k)  # an integer in [1, MAX_K]; the index returns at most what it holds
     index = open_parts_index(db, cfg)
     allowed = None
     if where is not None:
@@ -558,7 +519,7 @@ def _corpus(
                 sid,
                 name,
                 label,
-                float(np.exp(-cfg.lam * d)),
+                float(np.exp(-cfg.kernel.lam * d)),
                 tuple(int(x) for x in index.node_set(sid, u)),
                 tuple(int(x) for x in qnodes),
                 int(u),
@@ -572,7 +533,7 @@ def _corpus(
 _CATALOGS: dict[str, tuple[int, dict[int, tuple[str, str | None]]]] = {}
 
 
-def _names(db: Any, ids: NDArray[np.int64]) -> dict[int, tuple[str, str | None]]:
+def _names(db: Database, ids: NDArray[np.int64]) -> dict[int, tuple[str, str | None]]:
     """id -> (name, label), read once per store version."""
     key, version = os.fspath(db.store.path), db.store.version
     cached = _CATALOGS.get(key)
@@ -592,7 +553,7 @@ def _names(db: Any, ids: NDArray[np.int64]) -> dict[int, tuple[str, str | None]]
 
 
 def match_brute_force(
-    db: Any,
+    db: Database,
     a: Any,
     *,
     node: int | None = None,
@@ -628,7 +589,7 @@ def match_brute_force(
             sid,
             rec.name,
             rec.label,
-            float(np.exp(-cfg.lam * d)),
+            float(np.exp(-cfg.kernel.lam * d)),
             tuple(int(x) for x in g.neighbourhood(u, cfg.hops)),
             tuple(int(x) for x in qnodes),
             u,

@@ -15,7 +15,14 @@ import importlib
 from typing import Any
 
 from shapedb import kernel  # the module: shapedb.kernel.kernel is Eq. 3
-from shapedb.config import Config, KernelConfig, MDBDConfig, PartConfig
+from shapedb.config import (
+    CloudConfig,
+    Config,
+    DescriptorConfig,
+    KernelConfig,
+    MDBDConfig,
+    PartConfig,
+)
 from shapedb.errors import (
     ConfigError,
     DegenerateGeometryError,
@@ -46,6 +53,16 @@ from shapedb.implicit import (
     Union,
 )
 from shapedb.kernel import distance, features, features_batch, weights
+from shapedb.results import (
+    Classification,
+    Classifier,
+    Hit,
+    IngestReport,
+    Metric,
+    PartMatch,
+    RetrievalScores,
+    StoreInfo,
+)
 
 __version__ = "0.1.0"
 
@@ -66,6 +83,8 @@ __all__ = [
     "Config",
     "MDBDConfig",
     "KernelConfig",
+    "DescriptorConfig",
+    "CloudConfig",
     "PartConfig",
     "ShapeDBError",
     "InvalidShapeError",
@@ -106,9 +125,17 @@ __all__ = [
     "weights",
     "distance",
     "kernel",  # the module shapedb.kernel (Eq. 1-3); the function is shapedb.kernel.kernel
-    # database and examples
+    # database, its results, and examples
     "connect",
     "Database",
+    "IngestReport",
+    "StoreInfo",
+    "Hit",
+    "PartMatch",
+    "RetrievalScores",
+    "Classification",
+    "Metric",
+    "Classifier",
     "examples",
     "__version__",
 ]

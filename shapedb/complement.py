@@ -54,9 +54,8 @@ class Complement(Geometry):
         longest side. The default 0 keeps the exact box, so the complement is the
         stock minus the part (the machining "removal volume"): each through hole or
         slot is a component of its own, open onto the box faces, instead of hanging
-        off slabs of air around the part. On the validation plates of
-        ``bench/parts.py`` this lifts hole -> hole matching from 0.20 (padding 0.05)
-        to 0.35. A solid that fills its box has an empty complement.
+        off slabs of air around the part (padding measured in ``docs/studies.md``).
+        A solid that fills its box has an empty complement.
 
     Attributes
     ----------

@@ -14,17 +14,37 @@ from __future__ import annotations
 import logging
 import os
 from collections import Counter
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
+import numpy as np
 import pyarrow as pa
+from numpy.typing import NDArray
 
-from shapedb.config import Config
+from shapedb.config import Config, PartConfig
 from shapedb.errors import ConfigError, MissingDependencyError, NotFoundError, StoreError
+from shapedb.results import (
+    Classification,
+    Classifier,
+    FailureInfo,
+    Hit,
+    IngestInputs,
+    IngestReport,
+    Metric,
+    PartMatch,
+    PartQuery,
+    RetrievalScores,
+    SearchQuery,
+    ShapeRef,
+    StoreInfo,
+)
 from shapedb.schema import Failure, ShapeRecord
 from shapedb.store import CommitResult, Store
+
+if TYPE_CHECKING:
+    from shapedb.geometry import Geometry
 
 __all__ = ["connect", "Database"]
 
@@ -45,6 +65,7 @@ _PROVIDERS = {
     "render_matches": "query",
     "train_classifier": "query",
     "classify": "query",
+    "serve": "query",
 }
 
 
@@ -86,7 +107,7 @@ def connect(
     create: bool = True,
     config: Config | None = None,
     lock_timeout: float = 10.0,
-    **options: Any,
+    **options: bool | int | float | str,
 ) -> Database:
     """Open the store in ``path``, creating it if needed.
 
@@ -101,8 +122,8 @@ def connect(
     lock_timeout : float
         Seconds a write waits for another writer to finish.
     **options
-        :class:`Config` field names (``resolution``, ``n_balls``, ``n_r``...) applied on
-        top of ``config``. For an existing store they must agree with its config.
+        Flat configuration options (``resolution``, ``n_balls``, ``n_r``, ``descriptor``...,
+        :data:`shapedb.config.OPTIONS`) applied on top of ``config``. For an existing store they must agree with its config.
 
     Returns
     -------
@@ -126,21 +147,21 @@ def connect(
                 source=str(root),
             )
     elif create:
-        store = Store.create(root, requested, lock_timeout=lock_timeout)
+        try:
+            store = Store.create(root, requested, lock_timeout=lock_timeout)
+        except StoreError:
+            if not Store.exists(root):
+                raise
+            # another process created it first: open it (and compare configurations)
+            return connect(root, create=False, config=config, lock_timeout=lock_timeout, **options)
     else:
         raise StoreError("no shapedb store here", source=str(root))
     return Database(store)
 
 
 def _diff(have: Config, want: Config) -> str:
-    a, b = have.to_dict(), want.to_dict()
-    parts = [
-        f"{k}: store {a[s][k]!r}, requested {b[s][k]!r}"
-        for s in a
-        for k in a[s]
-        if a[s][k] != b[s][k]
-    ]
-    return "; ".join(parts)
+    a, b = have.options(), want.options()
+    return "; ".join(f"{k}: store {a[k]!r}, requested {b[k]!r}" for k in a if a[k] != b[k])
 
 
 class Database:
@@ -202,26 +223,61 @@ class Database:
     # ---------------------------------------------------------------- ingest
     def ingest(
         self,
-        paths: Any,
+        inputs: IngestInputs,
         *,
-        labels: Any = None,
+        labels: str | os.PathLike[str] | Mapping[str, str] | None = None,
         label_from_folder: bool = False,
         as_: str | None = None,
         names: Sequence[str] | None = None,
         workers: int | None = None,
-        scheduler: Any = None,
+        scheduler: str | object | None = None,
         force: bool = False,
-        progress: Any = False,
-        **options: Any,
-    ) -> Any:
+        progress: bool | Callable[[int, int], None] = False,
+        batch_size: int = 32,
+        commit_seconds: float = 30.0,
+        max_bytes: int | None = None,
+        max_faces: int | None = None,
+    ) -> IngestReport:
         """Decompose files, folders or in-memory shapes and store them.
 
-        See :func:`ingest.pipeline.ingest` for the parameters; returns an
-        ``IngestReport`` (ingested ids, skipped paths, failed paths with reasons).
+        Parameters
+        ----------
+        inputs : path, Geometry, ``(name, [label,] geometry)``, or several of them
+            Files, folders (walked recursively), shapes, or ``{name: geometry}``.
+        labels : path or mapping, optional
+            A labels CSV (``path,label,...``; extra columns become metadata), or
+            ``{path: label}``.
+        label_from_folder : bool
+            Label each file by its parent folder's name (when the CSV gives none).
+        as_ : {None, "mesh", "pointcloud", "smooth_voxels"}
+            Force the representation of files.
+        names : sequence of str, optional
+            One name per input (not for folders); default: the file stem.
+        workers : int, optional
+            Worker processes; default ``os.cpu_count()``; 1 runs in this process.
+        scheduler : str or distributed.Client, optional
+            Run on a Dask cluster instead (its address, e.g. ``"tcp://host:8786"``).
+        force : bool
+            Rebuild shapes already in the store (they keep their ids).
+        progress : bool or callable
+            ``progress(done, total)`` after each input; True logs progress.
+        batch_size : int
+            Results per atomic commit.
+        commit_seconds : float
+            Commit a partial batch when this much time passed since the last commit.
+        max_bytes, max_faces : int, optional
+            Refuse (as a failure row) any file larger than this many bytes, or any mesh
+            with more faces, so one giant file cannot take the machine's memory.
+
+        Returns
+        -------
+        IngestReport
+            Ingested ids, skipped inputs, failed inputs with reasons
+            (:func:`ingest.pipeline.ingest`).
         """
-        return _extension("ingest")(
+        report = _extension("ingest")(
             self,
-            paths,
+            inputs,
             labels=labels,
             label_from_folder=label_from_folder,
             as_=as_,
@@ -230,8 +286,12 @@ class Database:
             scheduler=scheduler,
             force=force,
             progress=progress,
-            **options,
+            batch_size=batch_size,
+            commit_seconds=commit_seconds,
+            max_bytes=max_bytes,
+            max_faces=max_faces,
         )
+        return cast(IngestReport, report)
 
     def delete(self, ids_or_names: int | str | Iterable[int | str]) -> int:
         """Remove shapes by id or name, in one commit; returns how many were removed.
@@ -256,17 +316,17 @@ class Database:
         """One shape, with its decomposition."""
         return self.store.get(id_or_name)
 
-    def info(self) -> dict[str, Any]:
+    def info(self) -> StoreInfo:
         """Summary, JSON-serialisable: ``{"shapes", "labels", "failures", "config"}``.
 
         ``shapes`` is the number of shapes; ``labels`` maps each label to its count
         (unlabelled shapes are not counted there); ``failures`` lists
         ``{"path", "error"}`` for every input that failed; ``config`` is the store's
-        configuration.
+        configuration (:class:`~shapedb.results.StoreInfo`).
         """
         labels = self.store.shapes(["label"]).column("label").to_pylist()
         counts = Counter(x for x in labels if x is not None)
-        failures = [
+        failures: list[FailureInfo] = [
             {"path": f["source"], "error": f"{f['error']}: {f['message']}"}
             for f in self.store.failures().to_pylist()
         ]
@@ -285,61 +345,298 @@ class Database:
         return True
 
     # ---------------------------------------------------------------- query
-    def search(self, query: Any, *, k: int = 10, where: str | None = None, **options: Any) -> Any:
-        """The ``k`` stored shapes most like ``query`` (a path, a shape, or an id).
+    def search(
+        self,
+        query: SearchQuery,
+        *,
+        k: int = 10,
+        where: str | None = None,
+        metric: Metric | str | os.PathLike[str] | None = None,
+    ) -> list[Hit]:
+        """The ``k`` stored shapes most like ``query``, best first (``query.engine.search``).
 
-        Implemented by ``query.engine.search``; returns hits best first.
+        Parameters
+        ----------
+        query : id, name, path, Geometry, Decomposition, ShapeRecord or (d,) feature
+            What to look for.
+        k : int
+            Number of hits.
+        where : str, optional
+            SQL predicate over the ``shapes`` table (e.g. ``"label = 'Chair'"``); the
+            search is then exhaustive.
+        metric : Metric or path, optional
+            A similarity fitted by :meth:`fit_metric` (or the file it was saved to).
+
+        Raises
+        ------
+        NotFoundError
+            Unknown shape id or name.
+        QueryError
+            Malformed query, ``k`` or ``where``.
         """
-        return _extension("search")(self, query, k=k, where=where, **options)
+        hits = _extension("search")(self, query, k=k, where=where, metric=metric)
+        return cast("list[Hit]", hits)
 
     def search_batch(
-        self, queries: Sequence[Any], *, k: int = 10, where: str | None = None, **options: Any
-    ) -> Any:
-        """:meth:`search` for many queries at once."""
-        return _extension("search_batch")(self, queries, k=k, where=where, **options)
+        self,
+        queries: Sequence[SearchQuery],
+        *,
+        k: int = 10,
+        where: str | None = None,
+        metric: Metric | str | os.PathLike[str] | None = None,
+    ) -> list[list[Hit]]:
+        """:meth:`search` for many queries at once: one list of hits per query."""
+        hits = _extension("search_batch")(self, queries, k=k, where=where, metric=metric)
+        return cast("list[list[Hit]]", hits)
 
-    def sql(self, statement: str, **options: Any) -> pa.Table:
-        """Run a DuckDB statement over the views ``shapes``, ``balls``, ``edges``."""
-        return _extension("sql")(self, statement, **options)  # type: ignore[no-any-return]
+    def sql(
+        self, statement: str, *, metric: Metric | str | os.PathLike[str] | None = None
+    ) -> pa.Table:
+        """Run a DuckDB statement over the views ``shapes``, ``balls``, ``edges``, ``failures``.
 
-    def match(self, *args: Any, **options: Any) -> Any:
-        """Substructure matching (``query.substructure.match``)."""
-        return _extension("match")(self, *args, **options)
+        ``metric`` weighs the macros ``mdbd_distance`` / ``mdbd_kernel`` by a learned
+        similarity (``query.sql.sql``).
+        """
+        return cast(pa.Table, _extension("sql")(self, statement, metric=metric))
 
-    def evaluate(self, *, label: str = "label", **options: Any) -> Any:
-        """Leave-one-out retrieval quality by ``label`` (``query.evaluate.evaluate``)."""
-        return _extension("evaluate")(self, label=label, **options)
+    def match(
+        self,
+        query: PartQuery,
+        target: PartQuery | None = None,
+        *,
+        node: int | None = None,
+        point: Sequence[float] | NDArray[np.float64] | None = None,
+        hops: int = 2,
+        top: int = 5,
+        k: int = 10,
+        config: PartConfig | None = None,
+        where: str | None = None,
+        per_shape: int = 1,
+        complement: bool = False,
+        overlap: float | None = 0.0,
+    ) -> list[PartMatch]:
+        """Stored parts most like a part of ``query`` (Algorithm 1, ``query.substructure.match``).
 
-    def fit_metric(self, *, label: str = "label", **options: Any) -> Any:
+        Parameters
+        ----------
+        query : shape or ContactGraph
+            The model the part is taken from.
+        target : shape or ContactGraph, optional
+            Match against this one model instead of the store (its ``top`` best parts).
+        node : int, optional
+            Ball number of the query part's centre v (default: every part of ``query``,
+            or the whole model).
+        point : (3,) float, optional
+            A point on the model; its nearest ball is ``node``.
+        hops : int
+            Neighbourhood range K.
+        top : int
+            Matches against a ``target``.
+        k : int
+            Matches from the store.
+        config : PartConfig, optional
+            Part kernel (default ``PartConfig()`` with ``hops``).
+        where : str, optional
+            SQL predicate restricting the stored shapes searched.
+        per_shape : int
+            Matches kept per stored shape.
+        complement : bool
+            Match the concave features (parts of the complement).
+        overlap : float or None
+            Largest node overlap between two matches of one shape (None: no suppression).
+        """
+        matches = _extension("match")(
+            self,
+            query,
+            target,
+            node=node,
+            point=point,
+            hops=hops,
+            top=top,
+            k=k,
+            config=config,
+            where=where,
+            per_shape=per_shape,
+            complement=complement,
+            overlap=overlap,
+        )
+        return cast("list[PartMatch]", matches)
+
+    def evaluate(
+        self,
+        *,
+        label: str = "label",
+        method: str | Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
+        plot: str | os.PathLike[str] | None = None,
+        metric: Metric | str | os.PathLike[str] | None = None,
+    ) -> RetrievalScores:
+        """Leave-one-out retrieval quality by ``label`` (``query.evaluate.evaluate``).
+
+        Parameters
+        ----------
+        label : str
+            The ``label`` column, or a metadata key holding the class.
+        method : str or callable, optional
+            Another similarity of the stored features (see ``query.evaluate.evaluate``).
+        plot : path, optional
+            Where to save the precision-recall curve (PNG).
+        metric : Metric or path, optional
+            A similarity fitted by :meth:`fit_metric`.
+        """
+        scores = _extension("evaluate")(self, label=label, method=method, plot=plot, metric=metric)
+        return cast(RetrievalScores, scores)
+
+    def fit_metric(
+        self,
+        *,
+        label: str = "label",
+        regs: Sequence[float] | None = None,
+        temperature: float | None = None,
+        folds: int | None = None,
+        max_shapes: int | None = None,
+        seed: int = 0,
+    ) -> Metric:
         """Fit block weights of the similarity on the stored labels (``query.metric``).
 
-        Returns a ``LearnedMetric`` for ``search(..., metric=)`` and
-        ``evaluate(metric=)``; the identity when cross-validation finds no gain.
-        """
-        return _extension("fit_metric")(self, label=label, **options)
+        Parameters
+        ----------
+        label : str
+            The ``label`` column, or a metadata key holding the class.
+        regs, temperature, folds, max_shapes : optional
+            Settings of the fit (None: ``query.metric``'s defaults).
+        seed : int
+            Seed of the class-stratified sample and of the folds.
 
-    def show(self, model: Any, out: str | os.PathLike[str], **options: Any) -> Path:
-        """Draw ``model`` with its MDBD balls into the PNG ``out`` (``query.render.show``)."""
-        return _extension("show")(self, model, out, **options)  # type: ignore[no-any-return]
+        Returns
+        -------
+        Metric
+            For ``search(..., metric=)`` and ``evaluate(metric=)``; the identity when
+            cross-validation finds no gain.
+        """
+        given = {"regs": regs, "temperature": temperature, "folds": folds, "max_shapes": max_shapes}
+        options = {key: value for key, value in given.items() if value is not None}
+        metric = _extension("fit_metric")(self, label=label, seed=seed, **options)
+        return cast(Metric, metric)
+
+    def show(
+        self,
+        model: ShapeRef,
+        out: str | os.PathLike[str],
+        *,
+        complement: bool = False,
+        title: str | None = None,
+    ) -> Path:
+        """Draw ``model`` with its MDBD balls into the PNG ``out`` (``query.render.show``).
+
+        ``complement`` draws the decomposition of its complement instead.
+        """
+        picture = _extension("show")(self, model, out, complement=complement, title=title)
+        return cast(Path, picture)
 
     def render_matches(
-        self, query: Any, matches: Sequence[Any], out: str | os.PathLike[str], **options: Any
+        self,
+        query: PartQuery,
+        matches: Sequence[PartMatch],
+        out: str | os.PathLike[str],
+        *,
+        complement: bool = False,
+        title: str | None = None,
     ) -> Path:
-        """Draw ``query`` and the parts ``matches`` found by :meth:`match` into ``out``."""
-        return _extension("render_matches")(self, query, matches, out, **options)  # type: ignore[no-any-return]
+        """Draw ``query`` and the parts ``matches`` found by :meth:`match` into the PNG ``out``."""
+        picture = _extension("render_matches")(
+            self, query, matches, out, complement=complement, title=title
+        )
+        return cast(Path, picture)
 
-    def train_classifier(self, *, label: str = "label", **options: Any) -> Any:
-        """Train a graph-CNN classifier on the stored contact graphs (``shapedb[learn]``).
+    def train_classifier(
+        self,
+        *,
+        label: str = "label",
+        methods: Sequence[str] | None = None,
+        conv: str | None = None,
+        out: str | os.PathLike[str] | None = None,
+        plot: str | os.PathLike[str] | None = None,
+        test: float = 0.15,
+        validation: float = 0.2,
+        folds: int | str = "auto",
+        callback: Callable[[int, int, dict[str, float]], None] | None = None,
+        epochs: int | None = None,
+        rotate: bool | None = None,
+        seed: int | None = None,
+        device: str | None = None,
+        lr: float | None = None,
+        batch_size: int | None = None,
+        hidden: int | None = None,
+        dropout: float | None = None,
+        weight_decay: float | None = None,
+        warmup: int | None = None,
+    ) -> Classifier:
+        """Train the classifier that validates best on the stored shapes (``shapedb[learn]``).
 
-        Implemented by ``query.classify.train_classifier``; returns a fitted
-        ``GraphClassifier`` whose ``test_accuracy_`` was measured on a held-out split.
+        Implemented by ``query.classify.train_classifier``: nearest neighbours on the
+        descriptor, a linear model, boosting and the graph CNNs are scored on
+        validation data from the training shapes only; never worse than 1-NN there.
+
+        Parameters
+        ----------
+        label : str
+            The ``label`` column, or a metadata key holding the class.
+        methods : sequence of str, optional
+            Candidates (``query.selection.CANDIDATES``); default all.
+        conv : {"tag", "arma", "spline"}, optional
+            With no ``methods``: compare 1-NN with this graph CNN only.
+        out, plot : path, optional
+            Where to save the model and a graph CNN's training curve.
+        test, validation : float
+            Fractions held out for testing and (holdout protocol) for validation.
+        folds : int or "auto"
+            Validation folds; "auto" cross-validates when a class has under 20 shapes.
+        callback : callable, optional
+            ``callback(epoch, epochs, metrics)`` after every epoch.
+        epochs, rotate, seed, device, lr, batch_size, hidden, dropout, weight_decay, warmup
+            Classifier settings (None: ``query.classify.GraphClassifier``'s defaults).
+
+        Returns
+        -------
+        Classifier
+            Fitted; ``test_accuracy_`` measured on the held-out test split.
         """
-        return _extension("train_classifier")(self, label=label, **options)
+        given = {
+            "epochs": epochs,
+            "rotate": rotate,
+            "seed": seed,
+            "device": device,
+            "lr": lr,
+            "batch_size": batch_size,
+            "hidden": hidden,
+            "dropout": dropout,
+            "weight_decay": weight_decay,
+            "warmup": warmup,
+        }
+        options = {key: value for key, value in given.items() if value is not None}
+        model = _extension("train_classifier")(
+            self,
+            label=label,
+            methods=methods,
+            conv=conv,
+            out=out,
+            plot=plot,
+            test=test,
+            validation=validation,
+            folds=folds,
+            callback=callback,
+            **options,
+        )
+        return cast(Classifier, model)
 
-    def classify(self, model: Any, shape: Any) -> Any:
-        """Label ``shape`` (a path, Geometry or stored id) with a trained ``model`` or its file."""
-        return _extension("classify")(self, model, shape)
+    def classify(
+        self, model: Classifier | str | os.PathLike[str], shape: ShapeRef | list[ShapeRef]
+    ) -> Classification | list[Classification]:
+        """Label ``shape`` (or each of a list, one load) with a trained ``model`` or its file."""
+        return cast(
+            "Classification | list[Classification]", _extension("classify")(self, model, shape)
+        )
 
-    def load(self, path: str | os.PathLike[str], *, as_: str | None = None) -> Any:
+    def load(self, path: str | os.PathLike[str], *, as_: str | None = None) -> Geometry:
         """Read a file into a Geometry with the ``ingest`` loaders."""
-        return _extension("load")(path, as_=as_)
+        return cast("Geometry", _extension("load")(path, as_=as_))

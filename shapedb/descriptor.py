@@ -1,12 +1,9 @@
 """shapedb's default shape descriptor: distributions over the whole decomposition.
 
-The paper's Eq. 1 vector looks at the ~10 largest balls only (its 0.75^i weights make
-the rest vanish), its first entry r1/r1 = 1 carries nothing, and its walk averages
-count how many small balls touch the largest ones, which is unstable. Measured in
-``bench/select_descriptors.py`` (validation splits of CAPOD, the generated
-articulated figures and the generated parts; see issue 6), this descriptor replaces
-it as the default (``KernelConfig(method="mdbd")``); the paper's kernel stays
-available as ``method="paper"``.
+The default similarity (``KernelConfig(method="mdbd")``); the paper's Eq. 1-3 kernel
+stays available as ``method="paper"``. How it compares with the paper's kernel and
+the baselines, and how each version was chosen, is measured in ``docs/results.md``
+("Retrieval"); the blocks tried and dropped are in ``docs/studies.md``.
 
 Everything is computed from the balls and their contact graph only, so it stays
 representation-agnostic. Lengths are divided by ``s = (sum r_i^3)^(1/3)`` (scale
@@ -29,7 +26,7 @@ block              dim   content
 ``inertia``        3     sqrt of the sorted eigenvalues of the balls' second moments, / s
 ``walk``           90    CDFs of log2 of the paper's walk averages at t = 1, 3, 10 (w = 0.9)
 ``paper``          64    Eq. 1 with flat weights: n_r = 32, t = 20, w = 0.7, la = lb = 1
-``paper_sorted``   64    the same with its walk averages sorted (version 4, instead of ``paper``)
+``paper_sorted``   64    the same with its walk averages sorted in decreasing order
 ``geodesic``       48    CDF of geodesic centre-pair distances / s (see below)
 ``geodesic_mean``  30    CDF of geodesic centre-pair distances / their weighted mean
 ``union``          128   spherical-harmonic energies of the ball union (version 5;
@@ -38,82 +35,27 @@ block              dim   content
 
 Geodesic distances run along the contact graph, each edge as long as the distance
 between its balls' centres (Dijkstra from the 400 largest balls): the inner distance
-of the ball union, which an articulation (a bent limb) does not change and which, being
-a sum of many centre steps, moves little when the packing's tail reshuffles. A pair in
-two components of the graph counts as three times its straight distance apart.
+of the ball union, which an articulation (a bent limb) does not change. A pair in two
+components of the graph counts as three times its straight distance apart.
 
 The whole vector is compared with plain L1 (what the faiss index and the SQL
 macros compute) and scaled so that a typical pair of unrelated shapes is at
-distance ln(10), i.e. has similarity exp(-d) of about 0.1 with ``lam = 1`` (CAPOD
-and the parts: 0.05-0.06 between classes; the jointed figures, all one body plan, 0.33).
+distance ln(10), i.e. has similarity exp(-d) of about 0.1 with ``lam = 1``.
 
-Versions (``KernelConfig.descriptor``; a store records the version its features were
-computed with, and refuses to mix them):
+Versions (``DescriptorConfig.version``; a store records the version its features were
+computed with, and refuses to mix them). Weights and typical distances per version
+are :data:`LAYOUTS`:
 
-* **5**: version 4 plus the ``union`` block (:mod:`shapedb.union`): where the balls'
-  volume lies around its centroid, at the scale of the parts, so that shapes built of
-  boxes and sheets (a table's top over its legs, a house's walls under its roof) are
-  told apart. Its weight was chosen on the validation splits of the generic, CAPOD,
-  figures and parts sets (``python -m bench.union_select``; docs/results.md).
-* **4** (default): version 3 with the Eq. 1 block's walk averages ``P_1..P_32``
-  sorted in decreasing order (``paper_sorted``, weight 6, typical distance measured
-  like the others'). The packing often lists two balls of (nearly) one radius in
-  either order, and the Eq. 1 vector then exchanges their walk averages: the block
-  carried about 40 % of the distance between a model and its copy on a grid turned
-  by 0.01 degree (``bench/chaos.py``). Sorted, ``p0`` and ``P`` are two distributions
-  over the representatives. Chosen on the validation splits (``python -m
-  bench.select_descriptors --sorted-walks``, bench/results/descriptor_sorted.json):
-  the objective of version 3 is tied (1.097 at weight 6; 1.089-1.095 at weights 4
-  and 8, or when only the walk averages of balls within 2, 5 or 10 % of one radius
-  are sorted together, ``WALK_TIE``) and the mean log margin ``log(d(nearest same class) / d(nearest other
-  class))``, far less noisy than NN, is lower (better) on all three sets for mesh
-  and cloud queries: CAPOD -1.042 / -0.661 -> -1.097 / -0.690, figures -0.468 /
-  -0.263 -> -0.491 / -0.286, parts -0.703 / -0.515 -> -0.748 / -0.552. Test splits,
-  margins of mesh / cloud -> mesh / cloud-cloud queries, version 3 -> 4: CAPOD
-  -1.286 / -0.751 / -1.085 -> -1.370 / -0.782 / -1.156, figures -0.496 / -0.257 /
-  -0.357 -> -0.530 / -0.269 / -0.377, parts -0.576 / -0.487 / -0.565 -> -0.607 /
-  -0.518 / -0.605; ``python -m bench.retrieval``, NN / 1-T / DCG of meshes and NN of
-  cloud queries: CAPOD 0.967 / 0.855 / 0.945, 0.892 -> 0.967 / 0.852 / 0.945, 0.892;
-  figures 0.979 / 0.810 / 0.952, 0.892 -> 0.979 / 0.803 / 0.948, 0.872; parts 0.917 /
-  0.598 / 0.834, 0.812 -> 0.917 / 0.606 / 0.836, 0.812 (bench/results/retrieval.json,
-  retrieval_descriptor3.json); a CAPOD mesh decimated to 25 % ranks its original
-  first 0.586 -> 0.724 of the time (``--stability``). At coarse settings the pairing
-  of a ball's radius with its walk average carries more: 1-NN classification of the
-  generated parts at 64 cells and 128 balls (``python -m bench.classify
-  --baseline-only``) drops from 92.9 / 85.7 % (meshes / clouds) to 91.0 / 82.0 %;
-  CAPOD at 128 cells stays at 96.7 / 88.9 -> 88.4 %.
-* **3**: version 2 plus geodesic 2, geodesic_mean 1. The inner distances
-  make the figures' poses of one subject look alike and steady cloud queries. Chosen
-  on the validation splits (``bench/select_descriptors.py``'s objective, same engine):
-  version 2 1.066, adding geodesic 2 + geodesic_mean 1 1.094 (weights 1 / 2 / 4 of
-  each tried, with a third block of per-ball geodesic eccentricities; the best, all
-  three at 1, measured 1.098: the two-block choice is the smallest within 0.005 of
-  it; ``python -m bench.select_descriptors --geodesic``). Test splits (``python -m
-  bench.retrieval``), meshes NN / 1-T / DCG and NN of cloud queries, version 2 -> 3:
-  figures 0.954 / 0.768 / 0.934, 0.810 -> 0.964 / 0.799 / 0.945, 0.867; CAPOD 0.958 /
-  0.848 / 0.937, 0.900 -> 0.958 / 0.868 / 0.945, 0.892; parts 0.917 / 0.598 / 0.828,
-  0.781 -> 0.917 / 0.597 / 0.833, 0.812. The inner distances add about 0.02 s per
-  model (Dijkstra from 400 sources; 0.04 s for the whole descriptor at 128 cells and
-  512 balls, ``bench/mdbd.py``), against 0.3-1 s of decomposition. These figures,
-  the weights and the typical distances are for contact graphs at 0.5 cells; on
-  today's 1-cell graphs (``MDBDConfig.contact_tol_cells``, same weights) the test
-  splits measure figures 0.979 / 0.810 / 0.952, 0.892; CAPOD 0.967 / 0.855 / 0.945,
-  0.892; parts 0.917 / 0.598 / 0.834, 0.812 (``bench/contact_tol.py`` for both).
+* **5** (opt-in): version 4 plus the ``union`` block (:mod:`shapedb.union`, weight 4):
+  where the balls' volume lies around its centroid, at the scale of the parts. Chosen
+  on the validation splits (``python -m bench.union_select``); not the default because
+  it costs the jointed figures (docs/results.md, docs/studies.md).
+* **4** (default): version 3 with ``paper_sorted`` (weight 6) instead of ``paper``:
+  sorted, the walk averages no longer depend on which of two near-equal balls the
+  packing listed first.
+* **3**: version 2 plus ``geodesic`` (weight 2) and ``geodesic_mean`` (1).
 * **2**: radius 4, d2c 1, d2c_mean 2, inertia 2, walk 2, paper 8 (no d1c).
-  Chosen on the validation splits with the engine's splat distance and ridge ties, by
-  the objective of ``bench/select_descriptors.py`` ((NN + 1-T + DCG) / 3 + 0.25 NN of
-  point-cloud queries, mean over the sets; blocks scaled by each set's median
-  distance, as that bench does) over 700 random weightings of the blocks. Test
-  splits, ``python -m bench.retrieval``, meshes NN / 1-T / DCG and NN of cloud
-  queries, version 1 -> 2: jointed figures 0.759 / 0.477 / 0.767, 0.677 -> 0.887 /
-  0.616 / 0.858, 0.805; CAPOD 0.967 / 0.855 / 0.946, 0.900 -> 0.967 / 0.865 /
-  0.946, 0.900; machined parts 0.896 / 0.635 / 0.843, 0.854 -> 0.885 / 0.606 /
-  0.820, 0.833 (these with ``MDBDConfig.tie_rule="first"``; with today's "middle",
-  0.954 / 0.768 / 0.934, 0.810; 0.958 / 0.848 / 0.937, 0.900; 0.917 / 0.598 / 0.828,
-  0.781). The graph blocks (walk, Eq. 1), which do not change with a pose, carry the
-  figures; the geometric ones CAPOD and the parts.
-* **1**: radius, d2c_mean, d1c, walk 1 each; inertia, paper 2 (the first selection,
-  on the engine before the splat distance and ridge ties).
+* **1**: radius, d2c_mean, d1c, walk 1 each; inertia, paper 2.
 """
 
 from __future__ import annotations
@@ -148,14 +90,14 @@ Layout = tuple[tuple[str, int, float, float], ...]
 PAPER_SORTED_TYPICAL = 3.791
 PAPER_SORTED_WEIGHT = 6.0
 #: Walk averages of balls whose radii are within this fraction of the previous
-#: ball's are sorted together (1, the selected value: all of them; smaller values
-#: are what ``bench/select_descriptors.py --sorted-walks`` compares).
+#: ball's are sorted together (1: all of them; smaller values are what
+#: ``python -m bench.studies.select_descriptors --sorted-walks`` compares).
 WALK_TIE = 1.0
 
 #: Per version, (name, dimension, typical L1 distance, weight) of each block.
 #: Typical distances are the geometric means over the three validation sets of the
-#: median pairwise distance (bench/select_descriptors.py; versions 2 and 3 with the
-#: current engine); weights are the selected combination.
+#: median pairwise distance (``bench/studies/select_descriptors.py``; versions 2 and 3
+#: with the current engine); weights are the selected combination.
 _VERSION_2: Layout = (
     ("radius", 30, 0.290, 4.0),
     ("d2c", 40, 0.255, 1.0),
@@ -185,7 +127,7 @@ LAYOUTS: dict[int, Layout] = {
 UNION_TYPICAL = 5.069
 UNION_WEIGHT = 4.0
 LAYOUTS[5] = LAYOUTS[4] + (("union", SHELLS * BANDS, UNION_TYPICAL, UNION_WEIGHT),)
-#: The default version (``KernelConfig().descriptor``).
+#: The default version (``DescriptorConfig().version``).
 VERSION: int = 4
 BLOCKS: Layout = LAYOUTS[VERSION]
 

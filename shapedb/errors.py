@@ -126,7 +126,9 @@ def require(module: str, *, extra: str, feature: str) -> Any:
     module : str
         Module to import, e.g. ``"gmsh"``.
     extra : str
-        The pip extra that provides it, e.g. ``"cad"``.
+        The pip extra that provides it, e.g. ``"cad"``. When the installed shapedb
+        declares no such extra (the module is a core dependency), the message says
+        to reinstall shapedb instead.
     feature : str
         What the caller wanted to do, for the message.
     """
@@ -134,8 +136,24 @@ def require(module: str, *, extra: str, feature: str) -> Any:
 
     try:
         return importlib.import_module(module)
-    except ImportError as exc:  # pragma: no cover - depends on the environment
+    except ImportError as exc:
+        extras = _declared_extras()
+        if extras is not None and extra not in extras:
+            raise MissingDependencyError(
+                f"{feature} needs '{module}', a dependency of shapedb that is missing or "
+                f"broken: reinstall it with  pip install --force-reinstall shapedb  ({exc})"
+            ) from exc
         raise MissingDependencyError(
             f"{feature} needs the optional dependency '{module}': "
             f"install it with  pip install 'shapedb[{extra}]'  ({exc})"
         ) from exc
+
+
+def _declared_extras() -> frozenset[str] | None:
+    """The extras the installed shapedb declares; None when it is not installed."""
+    from importlib import metadata
+
+    try:
+        return frozenset(metadata.metadata("shapedb").get_all("Provides-Extra") or ())
+    except metadata.PackageNotFoundError:
+        return None

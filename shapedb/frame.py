@@ -2,9 +2,9 @@
 
 The decomposition's fine grid is laid in this frame (:func:`frame_grid`), anchored
 at the centroid, so a rigid motion of the model moves the grid with it. The greedy
-packing is chaotic: a frame that is off by 0.05 degree already changes the
-decomposition after a handful of balls (kernel 0.83-0.88 on CAPOD meshes), so the
-frame has to follow a rotation to rounding, not to sampling accuracy.
+packing is chaotic: a frame that is off by a fraction of a degree already changes
+the decomposition after a handful of balls, so the frame has to follow a rotation to
+rounding, not to sampling accuracy.
 
 * **Meshes and point clouds**: moments of the representation's own data, which
   move exactly with the model: the triangles' area moments (a quadrature exact
@@ -16,7 +16,8 @@ frame has to follow a rotation to rounding, not to sampling accuracy.
 * **Everything else** (implicit solids, voxels): two coarse
   passes (a ``frame_resolution`` grid) give the solid's volume moments from
   smooth occupancy weights ``clip(D/h + 1/2, 0, 1)``; the second pass lies along
-  the first estimate. This follows a rotation to ~0.01-0.3 degree only.
+  the first estimate. This follows a rotation only to a fraction of a degree
+  (``docs/results.md``, "Ingest").
 
 From the moments: centroid, principal axes (largest variance first), axis signs
 from the third moments, right-handed. Where the frame is not determined by the

@@ -15,9 +15,14 @@ distance, it is the plain L1 distance of ``f * weights(config)``, which is what
 a vector index stores.
 
 With ``KernelConfig(method="mdbd")`` (the default) :func:`features` returns
-shapedb's own descriptor (:mod:`shapedb.descriptor`) instead, already scaled so
-that its plain L1 distance is the distance (:func:`weights` are ones); Eq. 3 turns
-it into a similarity the same way.
+shapedb's own descriptor (:mod:`shapedb.descriptor`, of ``DescriptorConfig.version``)
+instead, already scaled so that its plain L1 distance is the distance (:func:`weights`
+are ones); Eq. 3 turns it into a similarity the same way.
+
+Every function takes the configuration as a whole :class:`~shapedb.config.Config`
+(what a store holds: its kernel and its descriptor version) or as a
+:class:`~shapedb.config.KernelConfig` alone (the descriptor then is today's default
+version); ``**options`` override kernel fields or ``descriptor`` by flat name.
 """
 
 from __future__ import annotations
@@ -28,15 +33,31 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from shapedb.config import KernelConfig, with_options
+from shapedb.config import OPTIONS, Config, KernelConfig
 from shapedb.errors import ConfigError, InvalidShapeError
 from shapedb.graph import ContactGraph
 
 __all__ = ["features", "features_batch", "weights", "distance", "kernel"]
 
 
-def _config(config: KernelConfig | None, options: dict[str, Any]) -> KernelConfig:
-    return with_options(KernelConfig, config, options, what="kernel")
+_KERNEL_OPTIONS = {name for name, (section, _) in OPTIONS.items() if section == "kernel"}
+
+
+def _config(config: Config | KernelConfig | None, options: dict[str, Any]) -> Config:
+    if config is None:
+        cfg = Config()
+    elif isinstance(config, KernelConfig):
+        cfg = Config(kernel=config)
+    elif isinstance(config, Config):
+        cfg = config
+    else:
+        raise ConfigError(f"config must be a Config or KernelConfig, got {type(config).__name__}")
+    if not options:
+        return cfg
+    unknown = set(options) - _KERNEL_OPTIONS - {"descriptor"}
+    if unknown:
+        raise ConfigError(f"unknown kernel option(s): {sorted(unknown)}")
+    return cfg.with_options(**options)
 
 
 def _graph(x: Any) -> ContactGraph:
@@ -48,30 +69,34 @@ def _graph(x: Any) -> ContactGraph:
     raise InvalidShapeError(f"expected a Decomposition or ContactGraph, got {type(x).__name__}")
 
 
-def features(x: Any, config: KernelConfig | None = None, **options: Any) -> NDArray[np.float64]:
+def features(
+    x: Any, config: Config | KernelConfig | None = None, **options: Any
+) -> NDArray[np.float64]:
     """Feature vector of a graph: the paper's Eq. 1, or shapedb's descriptor.
 
     Parameters
     ----------
     x : Decomposition or ContactGraph
         The graph; nodes are ranked by decreasing radius (stable for ties).
-    config : KernelConfig, optional
-        Kernel parameters; ``**options`` override its fields (e.g. ``n_r=10``).
+    config : Config or KernelConfig, optional
+        Kernel parameters (and descriptor version); ``**options`` override them (e.g.
+        ``n_r=10``).
 
     Returns
     -------
-    (config.dim,) float64
+    (Config.dim,) float64
         method "paper": ``[p0_1..p0_nr, P_1..P_nr]`` (2 * n_r), zeros for missing
         nodes; method "mdbd": :func:`shapedb.descriptor.describe` of version
-        ``config.descriptor``.
+        ``config.descriptor.version``.
     """
-    cfg = _config(config, options)
+    full = _config(config, options)
+    cfg = full.kernel
     g = _graph(x)
     if cfg.method == "mdbd":
         from shapedb.descriptor import describe
 
-        return describe(g, cfg.descriptor)
-    out = np.zeros(cfg.dim)
+        return describe(g, full.descriptor.version)
+    out = np.zeros(full.dim)
     n = g.n_nodes
     if n == 0:
         return out
@@ -94,42 +119,44 @@ def features(x: Any, config: KernelConfig | None = None, **options: Any) -> NDAr
 
 
 def features_batch(
-    xs: Iterable[Any], config: KernelConfig | None = None, **options: Any
+    xs: Iterable[Any], config: Config | KernelConfig | None = None, **options: Any
 ) -> NDArray[np.float64]:
-    """Stacked :func:`features` of several graphs: (N, config.dim) float64."""
+    """Stacked :func:`features` of several graphs: (N, Config.dim) float64."""
     cfg = _config(config, options)
     rows = [features(x, cfg) for x in xs]
     return np.stack(rows) if rows else np.zeros((0, cfg.dim))
 
 
-def weights(config: KernelConfig | None = None, **options: Any) -> NDArray[np.float64]:
-    """Eq. 2 weights (2 * n_r,): ``[la^1..la^nr, lb^1..lb^nr]``; ones for "mdbd"."""
-    cfg = _config(config, options)
+def weights(config: Config | KernelConfig | None = None, **options: Any) -> NDArray[np.float64]:
+    """Eq. 2 weights (2 * n_r,): ``[la^1..la^nr, lb^1..lb^nr]``; ones (Config.dim,) for "mdbd"."""
+    full = _config(config, options)
+    cfg = full.kernel
     if cfg.method == "mdbd":
-        return np.ones(cfg.dim)
+        return np.ones(full.dim)
     i = np.arange(1, cfg.n_r + 1, dtype=np.float64)
     return np.concatenate([cfg.la**i, cfg.lb**i])
 
 
-def _check(f: ArrayLike, name: str, cfg: KernelConfig) -> NDArray[np.float64]:
+def _check(f: ArrayLike, name: str, cfg: Config) -> NDArray[np.float64]:
     a = np.asarray(f, dtype=np.float64)
     if a.ndim not in (1, 2) or a.shape[-1] != cfg.dim:
         raise ConfigError(
             f"{name} has shape {a.shape} but this kernel's features have length "
-            f"{cfg.dim} (method {cfg.method!r}); were they computed with another configuration?"
+            f"{cfg.dim} (method {cfg.kernel.method!r}); were they computed with another "
+            "configuration?"
         )
     return a
 
 
 def distance(
-    fa: ArrayLike, fb: ArrayLike, config: KernelConfig | None = None, **options: Any
+    fa: ArrayLike, fb: ArrayLike, config: Config | KernelConfig | None = None, **options: Any
 ) -> NDArray[np.float64] | float:
     """Eq. 2: weighted L1 distance between feature vectors.
 
     Parameters
     ----------
     fa : (d,) float
-        Features of one graph, d = config.dim.
+        Features of one graph, d = ``Config.dim``.
     fb : (d,) or (m, d) float
         Features of one graph or of m graphs.
 
@@ -148,9 +175,10 @@ def distance(
 
 
 def kernel(
-    fa: ArrayLike, fb: ArrayLike, config: KernelConfig | None = None, **options: Any
+    fa: ArrayLike, fb: ArrayLike, config: Config | KernelConfig | None = None, **options: Any
 ) -> NDArray[np.float64] | float:
     """Eq. 3: ``exp(-lam * d)``, a similarity in (0, 1]; shapes as in :func:`distance`."""
     cfg = _config(config, options)
     d = distance(fa, fb, cfg)
-    return float(np.exp(-cfg.lam * d)) if isinstance(d, float) else np.exp(-cfg.lam * d)
+    lam = cfg.kernel.lam
+    return float(np.exp(-lam * d)) if isinstance(d, float) else np.exp(-lam * d)

@@ -55,7 +55,7 @@ from shapedb.sheet import Thickened, needs_thickening
 if TYPE_CHECKING:
     from shapedb.graph import ContactGraph
 
-__all__ = ["Decomposition", "decompose"]
+__all__ = ["Decomposition", "PreparedField", "decompose", "pack_balls", "prepare_field"]
 
 logger = logging.getLogger(__name__)
 
@@ -356,7 +356,7 @@ def _naive_argmax(
     return flat, float(F.ravel()[flat])
 
 
-def _loop(
+def pack_balls(
     geometry: Geometry,
     grid: Grid,
     F: NDArray[np.float32],
@@ -428,7 +428,9 @@ def _loop(
 
 
 @dataclass(frozen=True)
-class _Prepared:
+class PreparedField:
+    """What :func:`prepare_field` returns: the geometry in the grid's frame, the grid and its field."""
+
     local: Geometry  # the geometry in the grid's frame, in units of ``scale``
     grid: Grid
     F: NDArray[np.float32]
@@ -460,7 +462,17 @@ def _local_copy(
     return geometry.transformed(V.T, -V.T @ c), 1.0
 
 
-def _prepare(geometry: Geometry, cfg: MDBDConfig) -> _Prepared:
+def prepare_field(geometry: Geometry, cfg: MDBDConfig) -> PreparedField:
+    """The stages before the packing: canonical frame, local copy, grid and its SDF.
+
+    :func:`decompose` is ``prepare_field`` then :func:`pack_balls` on its field;
+    the two are public so that a profiler can time them apart (``bench/mdbd.py``).
+
+    Raises
+    ------
+    InvalidShapeError
+        ``geometry`` is not a :class:`shapedb.geometry.Geometry`.
+    """
     if not isinstance(geometry, Geometry):
         raise InvalidShapeError(
             f"decompose needs a shapedb Geometry, got {type(geometry).__name__}"
@@ -496,12 +508,12 @@ def _prepare(geometry: Geometry, cfg: MDBDConfig) -> _Prepared:
         local = Thickened(local, thickness)
         F += np.float32(thickness)
     timings["sdf"] = time.perf_counter() - t0
-    return _Prepared(local, grid, F, frame, timings, scale)
+    return PreparedField(local, grid, F, frame, timings, scale)
 
 
 def _finish(
     geometry: Geometry,
-    prep: _Prepared,
+    prep: PreparedField,
     cfg: MDBDConfig,
     centers: NDArray[np.float64],
     radii: NDArray[np.float64],
@@ -539,10 +551,10 @@ def _finish(
 
 
 def _run(geometry: Geometry, cfg: MDBDConfig, *, naive: bool) -> Decomposition:
-    prep = _prepare(geometry, cfg)
+    prep = prepare_field(geometry, cfg)
     stats: dict[str, float] = {}
     t0 = time.perf_counter()
-    centers, radii = _loop(prep.local, prep.grid, prep.F, cfg, naive=naive, stats=stats)
+    centers, radii = pack_balls(prep.local, prep.grid, prep.F, cfg, naive=naive, stats=stats)
     timings = dict(prep.timings)
     timings["decompose"] = time.perf_counter() - t0
     timings["refine"] = stats["refine"]

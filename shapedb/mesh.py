@@ -16,8 +16,8 @@ after cleaning:
    inverted contributes -1 and counts as inside too). On a *closed* cleaned mesh
    (every edge used twice, in opposite directions) ``w`` is an integer off the
    surface, the signed number of crossings along any ray: it is counted with
-   open3d's ray caster (two rays, a third where they disagree), 2-5 times cheaper
-   than a winding number near the surface and the same classification.
+   open3d's ray caster (two rays, a third where they disagree), cheaper than a
+   winding number near the surface and the same classification.
 
 The cleaning and the query structures (open3d scene, winding-number BVH) are built
 once per loaded mesh; :meth:`TriangleMesh.transformed` copies (the decomposition's
@@ -34,7 +34,7 @@ Whole-grid evaluation (:meth:`TriangleMesh.grid_sdf`) never queries every cell:
   grid) get an exact closest-point query;
 * closest-point propagation: every other cell takes the closest surface point of
   its nearest band cell (exact EDT with indices) and measures its distance to it.
-  This is an upper bound of the true distance, typically within 0.01-0.05 cells;
+  This is an upper bound of the true distance;
 * sign: winding numbers on a stride-4 sub-grid and on the cells within 0.75
   cells of the surface; every other cell lies in a 6-connected region that no
   surface crosses and takes the classification of the region's sub-grid nodes
@@ -44,19 +44,13 @@ Whole-grid evaluation (:meth:`TriangleMesh.grid_sdf`) never queries every cell:
   serve), else its own (``_meshing.coarse_to_fine_inside``).
 
 On open meshes the winding numbers are computed in two passes: libigl's Barnes-Hut
-evaluation at accuracy 1.5 (about twice as fast near the surface as the default 2),
-then the default accuracy again for the values within 0.1 of 0.5 (the fast pass errs
-by at most 0.035 on the CAPOD models), so the classification is that of the default.
+evaluation at accuracy 1.5 (faster near the surface than the default 2), then the
+default accuracy again for the values within 0.1 of 0.5, so the classification is
+that of the default.
 
-Measured at 128 cells along the longest side (``Grid.fit``), CPU seconds, on a 2-core
-machine shared with other jobs (load 13-19): 0.32 s median, 0.49 s mean over the 180
-CAPOD models (0.44 s and 0.68 s before the two-pass winding numbers and the compiled
-band, same inside masks); the worst are the open, 22-36k-face class-6 vases (1.3-3 s,
-where 230k near-surface cells need winding numbers at 7-14 us each). The whole
-per-model ingest job (frame, SDF, decomposition, refinement, features) takes 0.48 s
-median, 0.68 s mean (was 0.77 s and 1.09 s). Exact distances at every cell cost
-25-33 s. Grid values agree with :meth:`TriangleMesh.signed_distance` to 0.05-0.1
-cells on average and 0.6 cells at most inside the solid.
+Away from the band, grid values are upper bounds of
+:meth:`TriangleMesh.signed_distance`; their accuracy and cost are measured in
+``docs/results.md`` ("Ingest").
 """
 
 from __future__ import annotations

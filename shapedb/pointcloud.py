@@ -7,14 +7,10 @@ sample's area ``a_i`` (the same areas the winding number uses), radius
 its ``SPLAT_NEIGHBOURS`` nearest samples, and :meth:`closest_points` returns the
 closest point on that disc. The distance to the nearest sample alone overestimates
 the distance to the underlying surface (the nearest sample is offset sideways from
-the true closest point), by 5 % at the median and 10-30 % at the 90th percentile at
-MDBD ball centres; a fixed correction for the mean offset (``sqrt(d^2 - r^2)``,
+the true closest point); a fixed correction for the mean offset (``sqrt(d^2 - r^2)``,
 ``r = SPACING_CORRECTION * rho_k``, still used outside the solid where only the sign
-matters) centres the median but leaves the scatter. Against the exact distance to the
-mesh a cloud was sampled from, at the centres of the cloud's own MDBD balls (20 % of
-the vertices or 2,000 samples; ratio q10 / median / q90): jointed figures 0.80 / 0.98
-/ 1.11 corrected, 0.92 / 1.00 / 1.04 splats; machined parts 0.89 / 1.04 / 1.31 and
-0.92 / 1.00 / 1.09; CAPOD 0.78 / 0.96 / 1.17 and 0.87 / 0.98 / 1.07.
+matters) centres the median but leaves the scatter, which the splats narrow
+(``docs/results.md``, "Point-cloud distance").
 
 The sign is the hard part. Poisson reconstruction and fixed-width shells leak on
 sparse clouds (the paper queries a random 20 % of a mesh's vertices), and point
@@ -74,9 +70,8 @@ SPLAT_NEIGHBOURS = 8
 SPACING_CORRECTION = 0.3
 #: Fraction of kNN edges with unexplained opposite normals (see
 #: ``PointCloud._unexplained``) above which exterior votes are replaced by the
-#: orientation propagated along the surface. Exterior-voted CAPOD clouds measure
-#: 0.005-0.05 on closed and thin-walled models, 0.06-0.07 on pianos, 0.10 on open
-#: cars, 0.16-0.17 on chairs (bench/agreement.py).
+#: orientation propagated along the surface (chosen on CAPOD's clouds with
+#: ``python -m bench.studies.agreement``; ``docs/results.md``).
 UNEXPLAINED_SWITCH = 0.06
 #: Calibration of the ellipse estimate of a sample's area (see ``PointCloud.areas``):
 #: ``4 pi sqrt(l1 l2) / k`` of the k-neighbourhood falls short of the true area per
@@ -232,8 +227,7 @@ class PointCloud(Geometry):
         uniform samples of a surface; where the samples are anisotropic (rings of
         vertices) or lie along a curve (a leg or a wire thinner than the sample
         spacing) the isotropic disc counts the spacing along the curve as a width,
-        and such samples gave the winding number blobs of spurious volume (CAPOD
-        spiders: 1.4x the mesh's ball volume).
+        and such samples gave the winding number blobs of spurious volume.
         """
         lam = self._local_pca[0]
         iso = np.pi * self.spacing**2 / self.k

@@ -8,22 +8,15 @@ mesh, gives the cloud a second feature, compared with the *exact* features of de
 shapes. A pair of a sparse cloud and a dense shape is then as far apart as the nearest
 of their comparisons (:mod:`query.engine`).
 
-Poisson closes every surface, so it swells open sheets and polygon soups (CAPOD's
-chairs and pianos: twice the volume of the cloud's own solid) and rounds what the
-samples leave unresolved. A reconstruction is therefore kept only when its packing's
-volume (the balls are disjoint: ``sum r^3``) agrees with the cloud's own packing's
-within :data:`VOLUME_TOLERANCE`: on the validation splits 100 % of the jointed figures
-and the parts pass, 63 % of CAPOD. Measured there (cloud queries against the mesh
-database, NN / mean log margin, own feature -> nearer of own and reconstruction):
-figures 0.848 / -0.286 -> 0.933 / -0.371, parts 0.854 / -0.552 -> 0.875 / -0.563,
-CAPOD 0.933 / -0.690 -> 0.933 / -0.704; ungated, CAPOD falls to 0.850. On the test
-splits (``python -m bench.retrieval``): figures 0.872 -> 0.913, parts 0.812 -> 0.833,
-CAPOD 0.892 -> 0.892 (meshes 0.979 / 0.917 / 0.967).
+Poisson closes every surface, so it swells open sheets and polygon soups and rounds
+what the samples leave unresolved. A reconstruction is therefore kept only when its
+packing's volume (the balls are disjoint: ``sum r^3``) agrees with the cloud's own
+packing's within :data:`VOLUME_TOLERANCE` (:func:`volumes_agree`).
 
 The reconstruction works on a copy of the cloud in its decomposition's frame, so its
 normals are estimated as the decomposition's were and the cloud keeps no state from
-it. It costs about as much as the cloud's own decomposition (median 1.5-2.3 s against
-1.6-2.9 s per test cloud, one thread).
+it. It costs about one more decomposition per sparse cloud; what it changes in
+retrieval, and what it costs, is measured in ``docs/results.md`` ("Reconstructions").
 """
 
 from __future__ import annotations
@@ -33,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from shapedb.config import KernelConfig
+from shapedb.config import CloudConfig
 from shapedb.errors import ShapeDBError
 from shapedb.geometry import Geometry
 
@@ -43,11 +36,11 @@ log = logging.getLogger(__name__)
 
 #: Default octree depth of the Poisson solve (2^8 cells along the box at the finest
 #: level; the 20 % clouds have 2,000-5,000 samples); stores record theirs as
-#: ``KernelConfig.reconstruct_depth``.
-DEPTH: int = KernelConfig.reconstruct_depth
+#: ``CloudConfig.reconstruct_depth``.
+DEPTH: int = CloudConfig.reconstruct_depth
 #: Largest ratio between the ball volumes of a cloud's packing and of its
 #: reconstruction's for the reconstruction to count (chosen on the validation
-#: splits: 1.1-1.5 measure the same there; figures and parts sit within 1.07).
+#: splits; ``docs/results.md``, "Reconstructions").
 VOLUME_TOLERANCE = 1.3
 
 
@@ -114,7 +107,7 @@ def reconstructed(
     config : MDBDConfig
         The decomposition parameters.
     depth : int
-        Octree depth of the Poisson solve (``KernelConfig.reconstruct_depth``).
+        Octree depth of the Poisson solve (``CloudConfig.reconstruct_depth``).
 
     Returns
     -------

@@ -5,8 +5,8 @@ grid changes the features of a model as much as a change of pose does. Each ball
 is therefore moved from its grid cell to the point (within one cell) maximising
 ``g(c) = min(D(c), min_j |c - c_j| - r_j)``.
 
-Precise distance queries are costly (a numpy CSG tree costs ~0.1-0.3 ms a call, a
-mesh's closest-point query ~10-60 us a point at medial points), so there is *one*
+Precise distance queries are costly (a numpy CSG tree's or a mesh's closest-point
+query at medial points; ``docs/results.md``, "Ingest"), so there is *one*
 query per ball: the closest boundary points ("witnesses") of 7 points around the
 cell. Near the cell, ``D(c) ~ min_k s_k(c)`` with ``s_k`` the signed distance to the
 tangent plane at witness ``q_k`` (exact on flat faces, second order elsewhere);

@@ -45,6 +45,7 @@ __all__ = [
     "edges_table",
     "failures_table",
     "record_from_rows",
+    "safe_text",
 ]
 
 SCHEMA_VERSION = 1
@@ -56,7 +57,7 @@ _TS = pa.timestamp("us", tz="UTC")
 
 
 def shapes_schema(dim: int) -> pa.Schema:
-    """Schema of the ``shapes`` table for features of length ``dim`` (``KernelConfig.dim``).
+    """Schema of the ``shapes`` table for features of length ``dim`` (``Config.dim``).
 
     Parameters
     ----------
@@ -132,6 +133,28 @@ def schema_for(table: str, dim: int) -> pa.Schema:
     return {"balls": BALLS_SCHEMA, "edges": EDGES_SCHEMA, "failures": FAILURES_SCHEMA}[table]
 
 
+def safe_text(text: str) -> str:
+    """``text`` as valid Unicode: undecodable bytes of a file name become ``\\xNN``.
+
+    Python decodes file names that are not UTF-8 with surrogate escapes, which
+    Parquet (and a UTF-8 terminal) cannot store; every string column goes through
+    this function.
+    """
+    try:
+        text.encode("utf-8")
+        return text
+    except UnicodeEncodeError:
+        pass
+    try:
+        return text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+    except UnicodeEncodeError:
+        return text.encode("utf-8", "backslashreplace").decode("utf-8")
+
+
+def _text(value: str | None) -> str | None:
+    return None if value is None else safe_text(str(value))
+
+
 def _now() -> datetime:
     return datetime.now(timezone.utc)
 
@@ -146,7 +169,7 @@ class ShapeRecord:
         User-facing name (by default the file stem).
     decomposition : Decomposition
         The balls and contact graph.
-    feature : (config.kernel.dim,) float32
+    feature : (config.dim,) float32
         The Eq. 1 vector.
     config : Config
         Configuration the record was built with.
@@ -166,9 +189,9 @@ class ShapeRecord:
         UTC time the record was built.
     id : int or None
         Assigned by the store when the record is committed.
-    view_feature : (config.kernel.dim,) float32 or None
+    view_feature : (config.dim,) float32 or None
         Feature of the shape's sparse view (:mod:`shapedb.view`), when the store
-        keeps views (``KernelConfig.view_cells > 0``) and the shape is not itself a
+        keeps views (``CloudConfig.view_cells > 0``) and the shape is not itself a
         sparse point cloud; None otherwise.
     """
 
@@ -263,11 +286,14 @@ def shapes_table(records: Sequence[ShapeRecord], dim: int) -> pa.Table:
     ).reshape(-1)
     cols: dict[str, Any] = {
         "id": ids,
-        "name": [r.name for r in records],
-        "label": [r.label for r in records],
-        "metadata": [sorted((str(k), str(v)) for k, v in r.metadata.items()) for r in records],
+        "name": [safe_text(r.name) for r in records],
+        "label": [_text(r.label) for r in records],
+        "metadata": [
+            sorted((safe_text(str(k)), safe_text(str(v))) for k, v in r.metadata.items())
+            for r in records
+        ],
         "representation": [r.representation for r in records],
-        "source": [r.source for r in records],
+        "source": [_text(r.source) for r in records],
         "content_hash": [r.content_hash for r in records],
         "config": [r.config.to_json() for r in records],
         "config_fingerprint": [r.config.fingerprint for r in records],
@@ -352,7 +378,12 @@ def failures_table(failures: Sequence[Failure]) -> pa.Table:
     """Rows of the ``failures`` table."""
     return pa.Table.from_pylist(
         [
-            {"source": f.source, "error": f.error, "message": f.message, "time": f.time}
+            {
+                "source": safe_text(f.source),
+                "error": safe_text(f.error),
+                "message": safe_text(f.message),
+                "time": f.time,
+            }
             for f in failures
         ],
         schema=FAILURES_SCHEMA,

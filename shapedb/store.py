@@ -10,6 +10,7 @@ Layout of a store directory (see ``docs/store.md``)::
       data/edges/*.parquet
       data/failures/*.parquet
       staging/<txn>/             segments being written (never read)
+      journal/<txn>.json         what a transaction in flight will write (for cleanup)
 
 A commit writes its new segments under ``staging/``, fsyncs them, renames them into
 ``data/`` and then swaps the manifest atomically (temp file + fsync + ``os.replace`` +
@@ -17,14 +18,16 @@ fsync of the directory). Readers only open the files the manifest lists, so a re
 sees a batch entirely or not at all, and a crash at any moment leaves the store as it
 was before the batch or after it. Files a commit replaced (deletion, compaction) are
 *retired*: kept for ``retain_seconds`` so that readers holding an older manifest can
-finish, then removed by a later writer, which also removes staging leftovers and
-orphans (segments renamed into place by a writer that died before its manifest swap).
+finish, then removed by a later writer, which also removes what the journal of a
+writer that died before its manifest swap proves it left (:mod:`shapedb._transaction`).
+A store is created only in a missing or empty folder, and a folder whose manifest is
+missing or damaged is never written to (:mod:`shapedb.manifest`); ``shapedb check``
+and ``shapedb repair`` (:mod:`shapedb.check`) verify and rebuild it.
 """
 
 from __future__ import annotations
 
 import contextlib
-import json
 import logging
 import os
 import time
@@ -40,18 +43,20 @@ import pyarrow.dataset as ds
 import pyarrow.parquet as pq
 from numpy.typing import NDArray
 
-from shapedb._transaction import (
-    DATA,
-    MANIFEST,
-    FileLock,
-    Transaction,
-    cleanup,
-    write_manifest,
-)
+from shapedb._transaction import FileLock, Transaction, cleanup, write_manifest
 from shapedb.config import Config
 from shapedb.errors import ConfigError, NotFoundError, QueryError, StoreError
+from shapedb.manifest import (
+    DATA,
+    FORMAT_VERSION,
+    MANIFEST,
+    check_sizes,
+    new_manifest,
+    read_manifest,
+    require_empty,
+    unreadable,
+)
 from shapedb.schema import (
-    SCHEMA_VERSION,
     TABLES,
     Failure,
     ShapeRecord,
@@ -67,10 +72,10 @@ __all__ = ["Store", "CommitResult", "FORMAT_VERSION", "MANIFEST"]
 
 log = logging.getLogger(__name__)
 
-FORMAT_VERSION = 1
-"""Version of the directory layout and manifest format."""
-
 _LOCK = ".lock"
+_PARQUET = ds.ParquetFileFormat(
+    default_fragment_scan_options=ds.ParquetFragmentScanOptions(page_checksum_verification=True)
+)
 
 
 @dataclass(frozen=True)
@@ -172,30 +177,21 @@ class Store:
         """
         config = config or Config()
         root = Path(path).absolute()
-        if (root / MANIFEST).exists():
-            raise StoreError("a store already exists here", source=str(root))
         if root.exists() and not root.is_dir():
             raise StoreError("exists and is not a directory", source=str(root))
+        # before the lock: refuse a foreign folder without leaving a lock file in it;
+        # what a concurrent creator may have written so far is checked under the lock
+        require_empty(root, ignore=(_LOCK, DATA, MANIFEST, "journal", "staging"))
         root.mkdir(parents=True, exist_ok=True)
-        for t in TABLES:
-            (root / DATA / t).mkdir(parents=True, exist_ok=True)
-        now = time.time()
-        manifest = {
-            "format": "shapedb-store",
-            "format_version": FORMAT_VERSION,
-            "schema_version": SCHEMA_VERSION,
-            "version": 0,
-            "next_id": 1,
-            "created_at": now,
-            "updated_at": now,
-            "config": config.to_dict(),
-            "config_fingerprint": config.fingerprint,
-            "dim": config.kernel.dim,
-            "tables": {t: [] for t in TABLES},
-            "retired": [],
-        }
-        (root / _LOCK).touch()
-        write_manifest(root, manifest)
+        lock = FileLock(root / _LOCK)
+        lock.acquire(max(float(kwargs.get("lock_timeout", 0.0)), 5.0), source=str(root))
+        try:  # under the lock: a second creator sees this store, or an empty folder
+            require_empty(root, ignore=(_LOCK,))
+            for t in TABLES:
+                (root / DATA / t).mkdir(parents=True, exist_ok=True)
+            write_manifest(root, new_manifest(config))
+        finally:
+            lock.release()
         log.info("created store %s (config %s)", root, config.fingerprint)
         return cls(root, **kwargs)
 
@@ -212,7 +208,7 @@ class Store:
 
     @property
     def dim(self) -> int:
-        """Length of the stored feature vectors (``config.kernel.dim``)."""
+        """Length of the stored feature vectors (``config.dim``)."""
         return self._dim
 
     @property
@@ -228,27 +224,7 @@ class Store:
 
     # ------------------------------------------------------------------ reading
     def _snapshot(self) -> _Snapshot:
-        try:
-            text = (self.path / MANIFEST).read_text()
-        except FileNotFoundError:
-            raise StoreError(
-                "no shapedb store here (manifest.json missing)", source=str(self.path)
-            ) from None
-        except OSError as exc:
-            raise StoreError(f"cannot read manifest: {exc}", source=str(self.path)) from exc
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise StoreError(f"manifest is not valid JSON: {exc}", source=str(self.path)) from exc
-        if data.get("format") != "shapedb-store":
-            raise StoreError("manifest.json is not a shapedb manifest", source=str(self.path))
-        if data.get("format_version") != FORMAT_VERSION:
-            raise StoreError(
-                f"store format version {data.get('format_version')} is not supported "
-                f"(this shapedb reads version {FORMAT_VERSION})",
-                source=str(self.path),
-            )
-        return _Snapshot(data)
+        return _Snapshot(read_manifest(self.path))
 
     def files(self, table: str = "shapes") -> list[str]:
         """Absolute paths of the committed Parquet files of ``table`` (for DuckDB)."""
@@ -278,11 +254,18 @@ class Store:
                     if filter is not None:
                         out = out.filter(filter)
                     return out.select(list(columns)) if columns is not None else out
-                dataset = ds.dataset(paths, schema=schema, format="parquet")
+                check_sizes(self.path, snap.segments(table))
+                dataset = ds.dataset(paths, schema=schema, format=_PARQUET)
                 return dataset.to_table(columns=list(columns) if columns else None, filter=filter)
             except FileNotFoundError:
                 # a writer retired a file after we read the manifest: read again
                 time.sleep(0.01 * (attempt + 1))
+            except (pa.ArrowException, OSError) as exc:
+                if isinstance(exc, StoreError):
+                    raise
+                raise unreadable(self.path, snap.segments(table), exc) from exc
+        snap = self._snapshot()
+        check_sizes(self.path, snap.segments(table), missing=True)
         raise StoreError(f"cannot read a consistent snapshot of {table}", source=str(self.path))
 
     def shapes(
@@ -334,7 +317,7 @@ class Store:
         ids : (n,) int64
             Shape ids, ascending.
         matrix : (n, d) float32
-            Row k is the feature of ``ids[k]``; d = ``KernelConfig.dim``.
+            Row k is the feature of ``ids[k]``; d = ``Config.dim``.
         """
         t = self.shapes(["id", "feature", "view_feature"] if view else ["id", "feature"])
         ids = t.column("id").to_numpy()
@@ -479,80 +462,21 @@ class Store:
         """
         with self.writer():
             snap = self._snapshot()
-            data = json.loads(json.dumps(snap.data))  # deep copy
-            dim = int(data["dim"])
-            for r in records:
-                if r.config != self._config:
-                    raise ConfigError(
-                        f"record was built with configuration {r.config.fingerprint} "
-                        f"({r.config.to_json()}), but this store holds configuration "
-                        f"{self._config.fingerprint} ({self._config.to_json()})",
-                        source=r.name,
-                    )
-            delete_ids = {int(i) for i in delete}
-            live_ids = set(self.ids().tolist()) if (delete_ids or records) else set()
-            delete_ids &= live_ids
-            next_id = int(data["next_id"])
-            new: list[ShapeRecord] = []
-            for r in records:
-                if r.id is None:
-                    new.append(replace(r, id=next_id))
-                    next_id += 1
-                else:
-                    if r.id in live_ids and r.id not in delete_ids:
-                        raise StoreError(f"id {r.id} is already in use", source=r.name)
-                    new.append(r)
-                    next_id = max(next_id, int(r.id) + 1)
-            if len({r.id for r in new}) != len(new):
-                raise StoreError("duplicate ids in one commit", source=str(self.path))
+            self._check_config(snap, records)
+            new, delete_ids, next_id = self._plan(records, delete)
             if not new and not delete_ids and not failures:
                 return CommitResult(version=snap.version)
-
             txn = Transaction(self.path, snap.data)
-            tables = txn.tables
-            # copy-on-write deletion: rewrite every segment holding a deleted id
+            dim = int(snap.data["dim"])
             if delete_ids:
-                lo, hi = min(delete_ids), max(delete_ids)
-                doomed = pa.array(sorted(delete_ids), pa.int64())
-                for table, col in (("shapes", "id"), ("balls", "shape_id"), ("edges", "shape_id")):
-                    kept = []
-                    for seg in tables[table]:
-                        if "min_id" not in seg or seg["max_id"] < lo or seg["min_id"] > hi:
-                            kept.append(seg)
-                            continue
-                        t = pq.read_table(self.path / seg["file"], schema=schema_for(table, dim))
-                        mask = pc.is_in(t.column(col), doomed)
-                        if not pc.any(mask).as_py():
-                            kept.append(seg)
-                            continue
-                        rest = t.filter(pc.invert(mask))
-                        txn.retire([seg["file"]])
-                        if rest.num_rows:
-                            kept.append(txn.stage(table, rest, col))
-                    tables[table] = kept
-
+                self._stage_deletions(txn, delete_ids, dim)
             if new:
-                tables["shapes"].append(txn.stage("shapes", shapes_table(new, dim), "id"))
+                txn.tables["shapes"].append(txn.stage("shapes", shapes_table(new, dim), "id"))
                 for table, t in (("balls", balls_table(new)), ("edges", edges_table(new))):
                     if t.num_rows:
-                        tables[table].append(txn.stage(table, t, "shape_id"))
-
-            # failures: one small segment, rewritten whenever it changes
-            gone = {f.source for f in failures} | {r.source for r in new if r.source}
-            gone |= {r.name for r in new}
-            old = self._read("failures", snapshot=snap)
-            remaining = old
-            if old.num_rows and gone:
-                keep = pc.invert(pc.is_in(old.column("source"), pa.array(sorted(gone))))
-                remaining = old.filter(keep)
-            if failures or remaining.num_rows != old.num_rows:
-                merged = pa.concat_tables([remaining, failures_table(failures)])
-                txn.retire([s["file"] for s in tables["failures"]])
-                tables["failures"] = (
-                    [txn.stage("failures", merged, None)] if merged.num_rows else []
-                )
-
-            version = txn.publish(next_id=next_id)
+                        txn.tables[table].append(txn.stage(table, t, "shape_id"))
+            self._stage_failures(txn, snap, failures, new)
+            version = txn.publish(next_id=max(next_id, int(snap.data["next_id"])))
             if assigned is not None:
                 assigned.extend(new)
             log.info(
@@ -568,6 +492,110 @@ class Store:
                 added=tuple(int(r.id) for r in new),  # type: ignore[arg-type]
                 deleted=tuple(sorted(delete_ids)),
                 failures=len(failures),
+            )
+
+    def _check_config(self, snap: _Snapshot, records: Sequence[ShapeRecord]) -> None:
+        """Refuse records built with another configuration than the manifest's (lock held).
+
+        The manifest is the one just re-read under the lock, so a store re-created
+        with another configuration since this object opened it is caught too.
+        """
+        stored = Config.from_dict(snap.data["config"])
+        if stored != self._config:
+            raise StoreError(
+                f"the store's configuration changed since it was opened (now "
+                f"{stored.fingerprint}, opened as {self._config.fingerprint}); reopen it",
+                source=str(self.path),
+            )
+        for r in records:
+            if r.config != stored:
+                raise ConfigError(
+                    f"record was built with configuration {r.config.fingerprint} "
+                    f"({r.config.to_json()}), but this store holds configuration "
+                    f"{stored.fingerprint} ({stored.to_json()})",
+                    source=r.name,
+                )
+
+    def _plan(
+        self, records: Sequence[ShapeRecord], delete: Iterable[int]
+    ) -> tuple[list[ShapeRecord], set[int], int]:
+        """(records with their ids, live ids to delete, next free id) of one commit."""
+        delete_ids = {int(i) for i in delete}
+        live_ids = set(self.ids().tolist()) if (delete_ids or records) else set()
+        delete_ids &= live_ids
+        next_id = int(self._snapshot().data["next_id"])
+        new: list[ShapeRecord] = []
+        for r in records:
+            if r.id is None:
+                new.append(replace(r, id=next_id))
+                next_id += 1
+            else:
+                if r.id in live_ids and r.id not in delete_ids:
+                    raise StoreError(f"id {r.id} is already in use", source=r.name)
+                new.append(r)
+                next_id = max(next_id, int(r.id) + 1)
+        if len({r.id for r in new}) != len(new):
+            raise StoreError("duplicate ids in one commit", source=str(self.path))
+        return new, delete_ids, next_id
+
+    def _stage_deletions(self, txn: Transaction, delete_ids: set[int], dim: int) -> None:
+        """Copy-on-write deletion: rewrite every segment holding a deleted id."""
+        lo, hi = min(delete_ids), max(delete_ids)
+        doomed = pa.array(sorted(delete_ids), pa.int64())
+        for table, col in (("shapes", "id"), ("balls", "shape_id"), ("edges", "shape_id")):
+            kept = []
+            for seg in txn.tables[table]:
+                if "min_id" not in seg or seg["max_id"] < lo or seg["min_id"] > hi:
+                    kept.append(seg)
+                    continue
+                t = self._read_segment(seg, table, dim)
+                mask = pc.is_in(t.column(col), doomed)
+                if not pc.any(mask).as_py():
+                    kept.append(seg)
+                    continue
+                rest = t.filter(pc.invert(mask))
+                txn.retire([seg["file"]])
+                # even when empty: the new file says which one it replaces (for repair)
+                kept.append(txn.stage(table, rest, col, replaces=[seg["file"]]))
+            txn.tables[table] = kept
+
+    def _read_segment(self, seg: dict[str, Any], table: str, dim: int) -> pa.Table:
+        try:
+            check_sizes(self.path, [seg], missing=True)
+            return pq.read_table(
+                self.path / seg["file"],
+                schema=schema_for(table, dim),
+                page_checksum_verification=True,
+            )
+        except (pa.ArrowException, OSError) as exc:
+            if isinstance(exc, StoreError):
+                raise
+            raise unreadable(self.path, [seg], exc) from exc
+
+    def _stage_failures(
+        self,
+        txn: Transaction,
+        snap: _Snapshot,
+        failures: Sequence[Failure],
+        new: Sequence[ShapeRecord],
+    ) -> None:
+        """Failures: one small segment, rewritten whenever it changes.
+
+        Earlier failures of the same sources, and of the sources and names of the new
+        records, are dropped.
+        """
+        gone = {f.source for f in failures} | {r.source for r in new if r.source}
+        gone |= {r.name for r in new}
+        old = self._read("failures", snapshot=snap)
+        remaining = old
+        if old.num_rows and gone:
+            keep = pc.invert(pc.is_in(old.column("source"), pa.array(sorted(gone))))
+            remaining = old.filter(keep)
+        if failures or remaining.num_rows != old.num_rows:
+            merged = pa.concat_tables([remaining, failures_table(failures)])
+            txn.retire([s["file"] for s in txn.tables["failures"]])
+            txn.tables["failures"] = (
+                [txn.stage("failures", merged, None)] if merged.num_rows else []
             )
 
     def compact(self, *, min_segments: int = 2) -> CommitResult:
@@ -591,8 +619,9 @@ class Store:
             for table in todo:
                 col = "id" if table == "shapes" else "shape_id"
                 t = self._read(table, snapshot=snap).sort_by(col)
-                txn.retire([s["file"] for s in snap.segments(table)])
-                txn.tables[table] = [txn.stage(table, t, col)] if t.num_rows else []
+                files = [s["file"] for s in snap.segments(table)]
+                txn.retire(files)
+                txn.tables[table] = [txn.stage(table, t, col, replaces=files)]
             return CommitResult(version=txn.publish())
 
 

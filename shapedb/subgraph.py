@@ -33,8 +33,7 @@ therefore ``[Eq. 1 (2 n_r) | size block (n_r) | centre block (2)]``:
   on. A whole-model part has no centre and uses its largest ball.
 
 The weights were chosen on a validation subset of ``bench.parts`` (see
-:class:`PartConfig`). Most of the gain there comes from the centre ball's size
-relative to the shape (the bench reports that ball-size-only reference too).
+:class:`PartConfig`; measured in ``docs/results.md``, "Part search and matching").
 
 A part identical to another *relative to its shape* (same balls over the same R)
 still has the same vector and scores 1.0; a copy of a subgraph embedded in a shape
@@ -56,11 +55,13 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
-from shapedb.config import PartConfig, with_options
+from shapedb.config import PartConfig
 from shapedb.errors import ConfigError, InvalidShapeError
 from shapedb.graph import ContactGraph
 
 __all__ = [
+    "concat_aranges",
+    "graph_arrays",
     "part_dim",
     "part_weights",
     "part_vector",
@@ -78,18 +79,26 @@ _CHUNK_NODES = 65_536  # disjoint unions are featurised this many nodes at a tim
 def part_config(config: PartConfig | None = None, **options: Any) -> PartConfig:
     """A :class:`PartConfig`, ``config`` (default ``PartConfig()``) with ``options`` applied.
 
+    Options are :class:`PartConfig` fields or fields of its kernel (``n_r``, ``la``...,
+    :meth:`PartConfig.with_options`); None values are ignored.
+
     Raises
     ------
     ConfigError
         For an unknown option name or an out-of-range value.
     """
     options = {k: v for k, v in options.items() if v is not None}
-    return with_options(PartConfig, config, options, what="part")
+    cfg = config if config is not None else PartConfig()
+    if not isinstance(cfg, PartConfig):
+        raise ConfigError(f"config must be a PartConfig, got {type(cfg).__name__}")
+    return cfg.with_options(**options)
 
 
 def part_dim(cfg: PartConfig) -> int:
     """Length of a part vector: 2 n_r, plus n_r with the size block, plus 2 with the centre."""
-    return 2 * cfg.n_r + (cfg.n_r if cfg.size > 0 else 0) + (2 if cfg.centre > 0 else 0)
+    return (
+        2 * cfg.kernel.n_r + (cfg.kernel.n_r if cfg.size > 0 else 0) + (2 if cfg.centre > 0 else 0)
+    )
 
 
 def part_weights(cfg: PartConfig) -> NDArray[np.float64]:
@@ -98,10 +107,10 @@ def part_weights(cfg: PartConfig) -> NDArray[np.float64]:
     ``[la^1..la^nr, lb^1..lb^nr]`` (Eq. 2), then ``size * la^1..la^nr`` and
     ``[centre, centre]`` when those blocks are on.
     """
-    i = np.arange(1, cfg.n_r + 1, dtype=np.float64)
-    blocks = [cfg.la**i, cfg.lb**i]
+    i = np.arange(1, cfg.kernel.n_r + 1, dtype=np.float64)
+    blocks = [cfg.kernel.la**i, cfg.kernel.lb**i]
     if cfg.size > 0:
-        blocks.append(cfg.size * cfg.la**i)
+        blocks.append(cfg.size * cfg.kernel.la**i)
     if cfg.centre > 0:
         blocks.append(np.full(2, float(cfg.centre)))
     return np.concatenate(blocks)
@@ -170,8 +179,8 @@ def part_vector(
     big = float(np.max(graph.radii))
     r = np.asarray(graph.radii, np.float64)[idx]
     if cfg.size > 0:
-        top = np.zeros(cfg.n_r)
-        srt = np.sort(r)[::-1][: cfg.n_r]
+        top = np.zeros(cfg.kernel.n_r)
+        srt = np.sort(r)[::-1][: cfg.kernel.n_r]
         top[: len(srt)] = srt / big
         blocks.append(top)
     if cfg.centre > 0:
@@ -180,7 +189,7 @@ def part_vector(
     return np.concatenate(blocks)
 
 
-def _arrays(x: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+def graph_arrays(x: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """(radii (n,), edges (m, 2)) of a ContactGraph, a Decomposition or a pair."""
     if isinstance(x, ContactGraph):
         return x.radii, x.edges.astype(np.int64)
@@ -238,13 +247,13 @@ def neighbourhoods(x: Any, hops: int = 2) -> sp.csr_matrix:
     (n, n) scipy.sparse.csr_matrix, float32
         Entry (v, u) is 1 when u is within ``hops`` edges of v; indices sorted.
     """
-    r, e = _arrays(x)
+    r, e = graph_arrays(x)
     if hops < 0:
         raise ConfigError(f"hops must be >= 0, got {hops}")
     return _membership(_adjacency(len(r), e), hops)
 
 
-def _ranges(starts: NDArray[np.int64], lengths: NDArray[np.int64]) -> NDArray[np.int64]:
+def concat_aranges(starts: NDArray[np.int64], lengths: NDArray[np.int64]) -> NDArray[np.int64]:
     """Concatenation of ``arange(s, s + l)`` over (s, l) pairs, without a Python loop."""
     total = int(lengths.sum())
     if total == 0:
@@ -277,7 +286,7 @@ def _features(
     aptr, aidx = a.indptr.astype(np.int64), a.indices.astype(np.int64)
     deg = np.diff(aptr)
     src = np.repeat(np.arange(nnz, dtype=np.int64), deg[cols])
-    j = aidx[_ranges(aptr[cols], deg[cols])]
+    j = aidx[concat_aranges(aptr[cols], deg[cols])]
     key = rows[src] * n + j
     slot_keys = rows * n + cols  # ascending: CSR rows, sorted indices
     pos = np.minimum(np.searchsorted(slot_keys, key), nnz - 1)
@@ -296,20 +305,20 @@ def _features(
     p = p0.copy()
     acc = np.zeros(nnz)
     wk = 1.0
-    for _ in range(cfg.t):
+    for _ in range(cfg.kernel.t):
         p = step @ p + keep_mass * p
-        wk *= cfg.w
+        wk *= cfg.kernel.w
         acc += wk * p
     order = np.lexsort((cols, -r, rows))  # per subgraph: decreasing radius, ties by node
     rank = np.arange(nnz) - ptr[rows[order]]
-    keep = rank < cfg.n_r
+    keep = rank < cfg.kernel.n_r
     o, k = order[keep], rank[keep]
     out[rows[o], k] = p0[o]
-    out[rows[o], cfg.n_r + k] = acc[o] / cfg.t
-    col = 2 * cfg.n_r
+    out[rows[o], cfg.kernel.n_r + k] = acc[o] / cfg.kernel.t
+    col = 2 * cfg.kernel.n_r
     if cfg.size > 0:  # the part's largest balls relative to the whole shape
         out[rows[o], col + k] = r[o] / big[rows[o]]
-        col += cfg.n_r
+        col += cfg.kernel.n_r
     if cfg.centre > 0:
         out[:, col] = radii / r1
         out[:, col + 1] = radii / big
@@ -335,7 +344,7 @@ def neighbourhood_features(
         ``kernel.features`` of the subgraph, then the size and centre blocks.
     """
     cfg = part_config(config, **options)
-    r, e = _arrays(x)
+    r, e = graph_arrays(x)
     return _features(r, e, cfg)
 
 
@@ -358,7 +367,7 @@ def neighbourhood_features_many(
         Node offsets of the graphs.
     """
     cfg = part_config(config, **options)
-    arrays = [_arrays(g) for g in graphs]
+    arrays = [graph_arrays(g) for g in graphs]
     sizes = np.array([len(r) for r, _ in arrays], dtype=np.int64)
     offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
     out = np.zeros((int(offsets[-1]), part_dim(cfg)))
@@ -405,7 +414,7 @@ def neighbourhood_features_naive(
 
 def node_sets(x: Any, nodes: ArrayLike, hops: int = 2) -> list[NDArray[np.int64]]:
     """N(v, K) of each node v in ``nodes``: a list of sorted int64 arrays."""
-    r, e = _arrays(x)
+    r, e = graph_arrays(x)
     a = _adjacency(len(r), e)
     out = []
     for v in np.asarray(nodes, dtype=np.int64).ravel():
@@ -416,7 +425,7 @@ def node_sets(x: Any, nodes: ArrayLike, hops: int = 2) -> list[NDArray[np.int64]
         frontier = np.array([v])
         for _ in range(int(hops)):
             nb = a.indices[
-                _ranges(
+                concat_aranges(
                     a.indptr[frontier].astype(np.int64),
                     np.diff(a.indptr)[frontier].astype(np.int64),
                 )

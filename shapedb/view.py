@@ -3,12 +3,12 @@
 A sparse point cloud (the paper queries 20 % of a mesh's vertices, a sample every
 3-5 grid cells) does not bound quite the solid its mesh bounds: between samples the
 surface is only estimated, and the greedy packing, which is chaotic, turns that
-into a systematic difference (about 15 % fewer exact contacts; issue 6 and
-``bench/chaos.py``). Two sparse clouds of one mesh, on the other hand, decompose
-alike: on the test splits, clouds against clouds retrieve nearly as well as meshes
-against meshes, clouds against meshes 0.08-0.11 NN worse.
+into a systematic difference (fewer exact contacts; ``docs/studies.md``). Two
+sparse clouds of one mesh, on the other hand, decompose alike: clouds against clouds
+retrieve nearly as well as meshes against meshes, clouds against meshes worse
+(``docs/results.md``, "Across representations").
 
-So a store built with ``KernelConfig(view_cells=s)`` keeps, for every shape that is
+So a store built with ``CloudConfig(view_cells=s)`` keeps, for every shape that is
 not itself a sparse cloud, a second feature: that of a cloud drawn uniformly by area
 on its surface (a mesh's faces; for other representations the marching-cubes surface
 of their grid SDF) with one sample per ``s`` grid cells of spacing
@@ -22,13 +22,10 @@ before. Everything is still computed from MDBD balls and contact graphs.
 
 The sample count is ``area / (AREA_PER_SAMPLE * (s * cell)^2)``: a uniform sample's
 :attr:`~shapedb.pointcloud.PointCloud.surface_sampling` (distance to the k-th
-neighbour) is about ``sqrt(area per sample / AREA_PER_SAMPLE)`` (measured on the
-paper's 20 % clouds of the three labelled sets: 0.33-0.39). Meshes with hidden or
-doubled faces (CAPOD's polygon soups) have more area than surface, so the view's
-spacing is then measured and the sample thinned to ``s`` cells. On CAPOD's test split
-a fifth of the views need it; in a one-off experiment cloud queries found a model of
-their class first 0.958 of the time against thinned views, 0.917 against unthinned
-ones; ``python -m bench.retrieval`` measures 0.967 with this module (meshes: 0.967).
+neighbour) is about ``sqrt(area per sample / AREA_PER_SAMPLE)``. Meshes with hidden
+or doubled faces (polygon soups) have more area than surface, so the view's spacing
+is then measured and the sample thinned to ``s`` cells (``docs/results.md``,
+"Sparse views").
 """
 
 from __future__ import annotations
@@ -95,7 +92,7 @@ def view_geometry(geometry: Geometry, spacing: float, view_cells: float) -> Geom
     spacing : float
         Grid cell size of ``geometry``'s own decomposition, model units.
     view_cells : float
-        Sample spacing of the view, in grid cells (``KernelConfig.view_cells``).
+        Sample spacing of the view, in grid cells (``CloudConfig.view_cells``).
 
     Returns
     -------

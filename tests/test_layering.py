@@ -1,4 +1,5 @@
-"""The architecture rules, checked: one-way data flow and a light ``import shapedb``."""
+"""The architecture rules, checked: one-way data flow, no import cycles, no imports of
+another module's private names, and a light ``import shapedb``."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("shapedb", "ingest", "query", "bench")
 
 
 def _imported_modules(package: str) -> dict[str, set[str]]:
@@ -44,3 +46,169 @@ def test_import_shapedb_stays_light(heavy: str) -> None:
     code = f"import sys, shapedb; sys.exit(1 if {heavy!r} in sys.modules else 0)"
     result = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
     assert result.returncode == 0, f"'import shapedb' loaded {heavy}: {result.stderr}"
+
+
+# --------------------------------------------------------------------------------------
+# Import graph of the project's modules: cycles and private names
+# --------------------------------------------------------------------------------------
+
+
+def _module_name(root: Path, path: Path) -> str:
+    parts = list(path.relative_to(root).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _project_modules(root: Path, packages: tuple[str, ...]) -> dict[str, Path]:
+    return {
+        _module_name(root, path): path
+        for package in packages
+        for path in sorted((root / package).rglob("*.py"))
+    }
+
+
+def _is_type_checking(node: ast.If) -> bool:
+    test = node.test
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
+
+
+def _imports(path: Path, module: str) -> list[tuple[str, str | None, int, bool]]:
+    """(imported module, imported name or None, line, only under TYPE_CHECKING) of a file.
+
+    Imports inside functions count (a lazy import still closes a cycle at run time);
+    relative imports are resolved against ``module``.
+    """
+    package = module.split(".") if path.name == "__init__.py" else module.split(".")[:-1]
+    found: list[tuple[str, str | None, int, bool]] = []
+
+    def visit(node: ast.AST, typing_only: bool) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.If) and _is_type_checking(child):
+                for stmt in child.body:
+                    visit_one(stmt, True)
+                for stmt in child.orelse:
+                    visit_one(stmt, typing_only)
+            else:
+                visit_one(child, typing_only)
+
+    def visit_one(node: ast.AST, typing_only: bool) -> None:
+        if isinstance(node, ast.Import):
+            found.extend((a.name, None, node.lineno, typing_only) for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parent = package[: len(package) - node.level + 1]
+                base = ".".join([*parent, base] if base else parent)
+            found.extend((base, a.name, node.lineno, typing_only) for a in node.names)
+        visit(node, typing_only)
+
+    visit(ast.parse(path.read_text(), filename=str(path)), False)
+    return found
+
+
+def _is_private(name: str) -> bool:
+    return name.startswith("_") and not name.startswith("__")
+
+
+def import_graph(root: Path, packages: tuple[str, ...]) -> tuple[dict[str, set[str]], list[str]]:
+    """The run-time import graph among the modules of ``packages``, and private-name imports.
+
+    An edge ``a -> b`` is an import of project module ``b`` anywhere in ``a`` (also
+    inside functions; not under ``if TYPE_CHECKING``). ``from p import name`` is an
+    edge to ``p.name`` when that is a module, else to ``p``. Offences: importing a
+    ``_name`` from another module, or a ``_module`` of another top-level package.
+    """
+    modules = _project_modules(root, packages)
+    graph: dict[str, set[str]] = {}
+    offences: list[str] = []
+    for module, path in modules.items():
+        edges: set[str] = set()
+        where = f"{path.relative_to(root)}"
+        for base, name, line, typing_only in _imports(path, module):
+            if base.split(".")[0] not in packages:
+                continue
+            target = base
+            if name is not None and f"{base}.{name}" in modules:
+                target = f"{base}.{name}"
+            elif name is not None and _is_private(name) and base != module:
+                offences.append(f"{where}:{line} imports {name} from {base}")
+            if target.split(".")[0] != module.split(".")[0] and any(
+                _is_private(part) for part in target.split(".")[1:]
+            ):
+                offences.append(f"{where}:{line} imports the private module {target}")
+            if not typing_only and target != module:
+                edges.add(target)
+        graph[module] = edges
+    return graph, offences
+
+
+def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan), sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    cycles: list[list[str]] = []
+
+    def connect(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph.get(v, ()):
+            if w not in graph:
+                continue
+            if w not in index:
+                connect(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                cycles.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            connect(v)
+    return sorted(cycles)
+
+
+def test_no_import_cycles() -> None:
+    graph, _ = import_graph(ROOT, PACKAGES)
+    assert import_cycles(graph) == []
+
+
+def test_no_imports_of_private_names() -> None:
+    _, offences = import_graph(ROOT, PACKAGES)
+    assert offences == []
+
+
+def test_the_checks_find_a_cycle_and_private_imports(tmp_path: Path) -> None:
+    pkg = tmp_path / "pkg"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "sub" / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("from pkg.b import _helper\n")
+    (pkg / "b.py").write_text("def f():\n    from . import a\n")
+    (pkg / "c.py").write_text(
+        "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from pkg import a\n"
+    )
+    (pkg / "sub" / "d.py").write_text("from ..c import x\nfrom other._priv import y\n")
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "__init__.py").write_text("")
+    (tmp_path / "other" / "_priv.py").write_text("")
+    graph, offences = import_graph(tmp_path, ("pkg", "other"))
+    assert import_cycles(graph) == [["pkg.a", "pkg.b"]]
+    assert graph["pkg.c"] == set()  # typing-only imports make no run-time edge
+    assert graph["pkg.sub.d"] == {"pkg.c", "other._priv"}
+    assert offences == [
+        "pkg/a.py:1 imports _helper from pkg.b",
+        "pkg/sub/d.py:2 imports the private module other._priv",
+    ]

@@ -6,13 +6,17 @@ import numpy as np
 import pytest
 
 from bench.query import run_size, synthetic_vectors
-from shapedb.config import KernelConfig
+from shapedb.config import Config, KernelConfig
 
 
 @pytest.mark.parametrize("config", [KernelConfig(), KernelConfig(method="paper", n_r=10)])
 def test_synthetic_vectors_have_the_configured_length(config: KernelConfig) -> None:
     x = synthetic_vectors(500, config, seed=0)
-    assert x.shape == (500, config.dim) and x.dtype == np.float32 and np.isfinite(x).all()
+    assert (
+        x.shape == (500, Config(kernel=config).dim)
+        and x.dtype == np.float32
+        and np.isfinite(x).all()
+    )
 
 
 def test_synthetic_descriptors_are_calibrated_like_real_ones() -> None:
@@ -24,5 +28,5 @@ def test_synthetic_descriptors_are_calibrated_like_real_ones() -> None:
 
 def test_a_small_run_finds_the_exact_neighbours() -> None:
     row = run_size(2000, n_queries=50, n_latency=5, n_baseline=5)
-    assert row["dim"] == KernelConfig().dim
+    assert row["dim"] == Config().dim
     assert row["recall_at_10"] == 1.0 and row["baseline_recall_at_10"] == 1.0

@@ -73,7 +73,7 @@ def test_mixed_folder_is_ingested_and_readable(tmp_db: database.Database, mixed_
         f"FROM read_parquet({store.files('shapes')}) ORDER BY id"
     ).fetchall()
     assert [r[0] for r in sql_shapes] == list(report.ingested)
-    assert {r[3] for r in sql_shapes} == {tmp_db.config.kernel.dim}
+    assert {r[3] for r in sql_shapes} == {tmp_db.config.dim}
     per_shape = con.sql(
         f"SELECT s.id, s.n_balls, count(b.ball) FROM read_parquet({store.files('shapes')}) s "
         f"JOIN read_parquet({store.files('balls')}) b ON b.shape_id = s.id "

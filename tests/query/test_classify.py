@@ -1,7 +1,9 @@
-"""Graph CNN classification of contact graphs (query.classify, query.gnn).
+"""Shape classification: graph CNNs (query.graphcnn, query.gnn), the chosen classifier
+and its file (query.classify, query.model_file).
 
-The tests that train need the ``learn`` extra (torch + torch_geometric) and are
-skipped cleanly without it; the others run everywhere.
+The tests that train a graph CNN need the ``learn`` extra (torch + torch_geometric)
+and are skipped cleanly without it; those of the linear model and boosting need
+scikit-learn (also the ``learn`` extra); the others run everywhere.
 """
 
 from __future__ import annotations
@@ -13,10 +15,12 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from query.classify import GraphClassifier, train_classifier
+from query.classify import GraphClassifier, ShapeClassifier, classify, train_classifier
 from query.gnn import edge_arrays, node_features, stratified_split
+from query.selection import make_candidate
 from shapedb.config import Config, MDBDConfig
-from shapedb.errors import ConfigError, MissingDependencyError, NotFittedError
+from shapedb.errors import ConfigError, LoadError, MissingDependencyError, NotFittedError
+from shapedb.kernel import features
 from shapedb.mdbd import Decomposition
 
 
@@ -200,7 +204,7 @@ def _store_db(tmp_path, graphs: list[Decomposition], labels: list[str], config: 
         ShapeRecord(
             name=f"s{k}",
             decomposition=g,
-            feature=np.zeros(config.kernel.dim, np.float32),
+            feature=features(g, config).astype(np.float32),
             config=config,
             content_hash=f"h{k}",
             representation="implicit",
@@ -219,14 +223,119 @@ def test_train_classifier_on_a_store_and_refuse_another_store(
     db = _store_db(tmp_path, graphs, labels, Config())
     out = tmp_path / "m.pt"
     model = train_classifier(db, conv="tag", out=out, epochs=3, hidden=16, batch_size=8)
-    assert out.is_file() and out.with_suffix(".png").is_file()
+    assert out.is_file() and out.with_suffix(".png").is_file() == (model.kind == "tag")
+    assert [s.name for s in model.selection_.scores] == ["1-nn", "tag"]
+    assert model.kind == model.selection_.chosen
     assert model.fingerprint_ == db.config.fingerprint
     assert 0.0 <= model.test_accuracy_ <= 1.0 and sum(model.split_.values()) == len(graphs)
-    from query.classify import classify
-
     result = classify(db, out, graphs[0])
     assert result.label in model.classes_ and abs(sum(result.probabilities.values()) - 1) < 1e-6
     other = Config().with_options(resolution=64)
     db2 = _store_db(tmp_path / "b", [], [], other)
     with pytest.raises(ConfigError, match="train a model on this database"):
         classify(db2, out, graphs[0])
+
+
+@pytest.fixture(scope="module")
+def descriptors(tiny: tuple[list, list]) -> np.ndarray:
+    return np.stack([features(g, Config()) for g in tiny[0]])
+
+
+def _skip_without(kind: str) -> None:
+    if kind in ("linear", "boosting"):
+        pytest.importorskip("sklearn", reason="needs the learn extra")
+    if kind in ("tag", "arma", "spline", "tag+descriptor"):
+        from query.gnn import import_torch
+
+        try:
+            import_torch()[0].set_num_threads(1)
+        except MissingDependencyError:
+            pytest.skip("needs the learn extra: pip install 'shapedb[learn]'")
+
+
+@pytest.mark.parametrize("kind", ["1-nn", "5-nn", "linear", "boosting", "tag", "tag+descriptor"])
+def test_every_kind_saves_and_reloads_with_identical_predictions(
+    kind: str, tiny: tuple[list, list], descriptors: np.ndarray, tmp_path
+) -> None:
+    _skip_without(kind)
+    graphs, labels = tiny
+    options = {"epochs": 2, "hidden": 16, "batch_size": 8}
+    estimator = make_candidate(kind, graph_options=options)
+    if kind in ("tag", "tag+descriptor"):
+        estimator.fit(graphs, labels, descriptors=descriptors)
+    else:
+        estimator.fit(descriptors, labels)
+    model = ShapeClassifier(kind, estimator, fingerprint=Config().fingerprint)
+    model.test_accuracy_ = 0.5
+    path = model.save(tmp_path / "model.bin")
+    again = ShapeClassifier.load(path)
+    assert again.kind == kind and again.classes_ == ["blob", "disc", "line"]
+    assert again.fingerprint_ == model.fingerprint_ and again.test_accuracy_ == 0.5
+    np.testing.assert_array_equal(
+        again.predict_proba(graphs, descriptors), model.predict_proba(graphs, descriptors)
+    )
+    assert again.needs_graphs == (kind in ("tag", "tag+descriptor"))
+
+
+def test_a_model_file_of_the_first_format_still_loads(
+    pyg: None, fitted: GraphClassifier, tiny: tuple[list, list], tmp_path
+) -> None:
+    import torch
+
+    params = {k: v for k, v in fitted.get_params().items() if k != "descriptor"}
+    state = {
+        "format": "shapedb.graph-classifier/1",
+        "params": {**params, "device": None},
+        "classes": fitted.classes_,
+        "fingerprint": fitted.fingerprint_,
+        "config": None,
+        "history": fitted.history_,
+        "best_epoch": fitted.best_epoch_,
+        "state_dict": {k: v.detach().cpu() for k, v in fitted.model_.state_dict().items()},
+    }
+    torch.save(state, tmp_path / "old.pt")
+    graphs, _ = tiny
+    again = ShapeClassifier.load(tmp_path / "old.pt")
+    assert again.kind == "tag" and again.needs_graphs
+    expected = fitted.predict_proba(graphs)
+    np.testing.assert_array_equal(again.predict_proba(graphs, np.zeros((24, 0))), expected)
+    np.testing.assert_array_equal(
+        GraphClassifier.load(tmp_path / "old.pt").predict_proba(graphs), expected
+    )
+    (tmp_path / "junk.pt").write_bytes(b"not a model")
+    with pytest.raises(LoadError):
+        ShapeClassifier.load(tmp_path / "junk.pt")
+    with pytest.raises(LoadError, match="no such"):
+        ShapeClassifier.load(tmp_path / "missing.pt")
+
+
+def test_the_network_can_read_the_descriptor(
+    pyg: None, tiny: tuple[list, list], descriptors: np.ndarray
+) -> None:
+    graphs, labels = tiny
+    model = GraphClassifier("tag", descriptor=True, epochs=2, hidden=16, batch_size=8)
+    model.fit(graphs, labels, descriptors=descriptors)
+    assert model.descriptor_mean_.shape == (descriptors.shape[1],)
+    assert model.predict_proba(graphs, descriptors=descriptors).shape == (24, 3)
+    with pytest.raises(ConfigError, match="descriptors"):
+        model.predict(graphs)
+    plain = GraphClassifier("tag", epochs=1, hidden=16, batch_size=8).fit(graphs, labels)
+    assert model.n_parameters_ == plain.n_parameters_ + 16 * descriptors.shape[1]
+
+
+def test_classify_many_shapes_with_one_load(tiny: tuple[list, list], tmp_path) -> None:
+    graphs, labels = tiny
+    db = _store_db(tmp_path, graphs, labels, Config())
+    model = train_classifier(db, methods=["1-nn"], test=0, out=tmp_path / "nn.bin")
+    assert model.kind == "1-nn" and model.split_ == {"train": 24, "test": 0}
+    assert not (tmp_path / "nn.png").exists()  # no training curve for neighbours
+    many = classify(db, tmp_path / "nn.bin", [1, "s1", graphs[2]])
+    assert isinstance(many, list) and [r.source for r in many] == ["1", "s1", None]
+    # a stored shape is its own nearest neighbour
+    assert [r.label for r in many] == [labels[0], labels[1], labels[2]]
+    assert all(r.probability == 1.0 for r in many)
+    one = classify(db, model, 3)
+    assert not isinstance(one, list) and one.label == labels[2]
+    other = _decomposition(0, np.random.default_rng(2), MDBDConfig(resolution=64))
+    with pytest.raises(ConfigError, match="configuration"):
+        classify(db, model, [other])

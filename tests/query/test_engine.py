@@ -127,6 +127,23 @@ def test_errors(tmp_db, tmp_path):
         database.connect(tmp_path / "missing", create=False)
 
 
+@pytest.mark.parametrize("k", [0, -3, 3_000_000_000, 99999999999999999999, 2.5, "3", True])
+def test_k_out_of_range_is_a_query_error(tmp_db, k):
+    """Issue 24, case 5: k <= 0, absurd or not an integer is one clear error."""
+    with pytest.raises(QueryError, match="k"):
+        search(tmp_db, "box0", k=k)
+
+
+def test_k_is_capped_at_the_store_size(tmp_db):
+    """A k far above the store's size allocates (and returns) only what is stored."""
+    from query.engine import MAX_K, search_batch
+
+    n = len(tmp_db.store)
+    hits = search(tmp_db, "box0", k=MAX_K)
+    assert len(hits) == n
+    assert [len(h) for h in search_batch(tmp_db, ["box0", "torus1"], k=MAX_K)] == [n, n]
+
+
 def test_store_removed_under_an_open_database(tmp_db):
     import shutil
 

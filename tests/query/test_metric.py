@@ -148,7 +148,7 @@ def test_save_and_load(tmp_path: Any) -> None:
 
 def _handmade(db: Any, first: float = 10.0) -> LearnedMetric:
     """A metric weighing the first block ``first`` times, the others once."""
-    blocks = block_layout(db.config.kernel)
+    blocks = block_layout(db.config)
     weights = (first,) + (1.0,) * (len(blocks) - 1)
     return LearnedMetric(blocks=blocks, weights=weights, fingerprint=db.config.fingerprint, reg=0.1)
 
@@ -217,8 +217,8 @@ def test_metric_index_is_kept_on_disk_and_follows_commits(
 
 def test_a_metric_of_another_store_is_refused(tmp_db: Any) -> None:
     other = LearnedMetric(
-        blocks=block_layout(tmp_db.config.kernel),
-        weights=(1.0,) * len(block_layout(tmp_db.config.kernel)),
+        blocks=block_layout(tmp_db.config),
+        weights=(1.0,) * len(block_layout(tmp_db.config)),
         fingerprint="0" * 16,
         reg=0.1,
     )
@@ -233,10 +233,11 @@ def test_a_metric_of_another_store_is_refused(tmp_db: Any) -> None:
 
 
 def test_block_layouts_cover_the_feature_vector() -> None:
-    from shapedb.config import KernelConfig
+    from shapedb.config import Config
 
-    for cfg in (KernelConfig(), KernelConfig(descriptor=3), KernelConfig(method="paper", n_r=10)):
+    paper = Config().with_options(method="paper", n_r=10)
+    for cfg in (Config(), Config().with_options(descriptor=3), paper):
         layout = block_layout(cfg)
         assert sum(n for _, n in layout) == cfg.dim
-    assert block_layout(KernelConfig(method="paper", n_r=10)) == (("p0", 10), ("walk", 10))
-    assert [b for b, _ in block_layout(KernelConfig())][-2:] == ["geodesic", "geodesic_mean"]
+    assert block_layout(paper) == (("p0", 10), ("walk", 10))
+    assert [b for b, _ in block_layout(Config())][-2:] == ["geodesic", "geodesic_mean"]

@@ -70,7 +70,7 @@ def test_empty_store(tmp_path):
     db = database.connect(tmp_path / "empty", config=CONFIG)
     for table in ("shapes", "balls", "edges", "failures"):
         assert sql(db, f"SELECT * FROM {table}").num_rows == 0
-    assert search(db, np.zeros(CONFIG.kernel.dim)) == []
+    assert search(db, np.zeros(CONFIG.dim)) == []
 
 
 def test_errors(tmp_db):
@@ -79,7 +79,7 @@ def test_errors(tmp_db):
     assert "SELEC name FROM shapes" in str(info.value)
     with pytest.raises(QueryError, match="nosuchtable"):
         sql(tmp_db, "SELECT * FROM nosuchtable")
-    with pytest.raises(QueryError, match=f"length {CONFIG.kernel.dim}"):
+    with pytest.raises(QueryError, match=f"length {CONFIG.dim}"):
         sql(tmp_db, "SELECT mdbd_distance([1.0, 2.0], feature) FROM shapes")
     with pytest.raises(QueryError, match="empty"):
         sql(tmp_db, "   ")
@@ -121,7 +121,7 @@ def test_macros_weigh_by_a_learned_metric(tmp_db, tmp_path):
     from query.metric import LearnedMetric, block_layout
     from query.sql import script
 
-    blocks = block_layout(tmp_db.config.kernel)
+    blocks = block_layout(tmp_db.config)
     metric = LearnedMetric(
         blocks=blocks,
         weights=tuple(float(i % 3 + 1) for i in range(len(blocks))),
@@ -150,3 +150,71 @@ def test_macros_weigh_by_a_learned_metric(tmp_db, tmp_path):
     other = LearnedMetric(blocks=blocks, weights=metric.weights, fingerprint="x", reg=0.1)
     with pytest.raises(ConfigError, match="another configuration"):
         sql(tmp_db, "SELECT 1", metric=other)
+
+
+# ---------------------------------------------------------------- the sandbox (issue 24, case 2)
+def _files_on_disk(db):
+    return sorted((p, p.stat().st_mtime_ns) for p in db.store.path.rglob("*") if p.is_file())
+
+
+@pytest.mark.parametrize(
+    "statement",
+    [
+        "COPY (SELECT 'x') TO '{root}/manifest.json' (FORMAT csv)",
+        "COPY (SELECT * FROM shapes LIMIT 0) TO '{segment}' (FORMAT parquet)",
+        "SELECT * FROM read_csv('/etc/passwd')",
+        "SELECT * FROM read_text('{root}/manifest.json')",
+        "SELECT * FROM read_parquet('{root}/../outside.parquet')",
+        "ATTACH '{root}/x.duckdb' AS x",
+        "INSTALL httpfs",
+        "LOAD httpfs",
+        "SET enable_external_access = true",
+        "CREATE TABLE t AS SELECT 1",
+        "SELECT 1; COPY (SELECT 42) TO '{root}/y.csv'",
+    ],
+)
+def test_sql_never_leaves_the_store(tmp_db, statement):
+    before = _files_on_disk(tmp_db)
+    segment = tmp_db.store.files("shapes")[0]
+    with pytest.raises(QueryError):
+        sql(tmp_db, statement.format(root=tmp_db.store.path, segment=segment))
+    assert _files_on_disk(tmp_db) == before
+    assert sql(tmp_db, "SELECT count(*) AS n FROM shapes").column("n")[0].as_py() == len(
+        tmp_db.store
+    )
+
+
+def test_one_select_is_allowed_even_with_a_trailing_semicolon(tmp_db):
+    assert sql(tmp_db, "SELECT 42 AS x;").column("x").to_pylist() == [42]
+    assert sql(tmp_db, "WITH a AS (SELECT 1 AS v) SELECT v FROM a").num_rows == 1
+
+
+@pytest.mark.parametrize(
+    "where",
+    [
+        "true); COPY (SELECT 42) TO 'y.csv'; SELECT id FROM shapes WHERE (true",
+        "true) UNION SELECT 424242 --",
+        "true) LIMIT 1 --",
+        "true) ORDER BY id; SELECT (1",
+    ],
+)
+def test_where_is_one_expression(tmp_db, tmp_path, monkeypatch, where):
+    from query.sql import allowed_ids
+
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(QueryError):
+        allowed_ids(tmp_db, where)
+    assert not (tmp_path / "y.csv").exists()
+    ids = allowed_ids(tmp_db, "label = 'box' OR n_balls > 0 AND (id IN (SELECT id FROM shapes))")
+    assert len(ids) == len(tmp_db.store)
+
+
+def test_damaged_segment_is_a_store_error_naming_it(tmp_db):
+    from pathlib import Path
+
+    from shapedb.errors import StoreError
+
+    seg = Path(tmp_db.store.files("shapes")[0])
+    seg.write_bytes(seg.read_bytes()[:200])
+    with pytest.raises(StoreError, match=f"segment data/shapes/{seg.name}"):
+        sql(tmp_db, "SELECT count(*) FROM shapes")

@@ -81,7 +81,7 @@ def test_lone_balls_no_longer_match_each_other_perfectly() -> None:
     # with the size block only the copy does; the others by their size difference
     v, u, d = match_pairs(g1, g2, nodes1=[2], top=3, overlap=None)
     assert u.tolist() == [4, 2, 3]
-    per = PartConfig().size * PartConfig().la + PartConfig().centre  # per unit of r / R
+    per = PartConfig().size * PartConfig().kernel.la + PartConfig().centre  # per unit of r / R
     np.testing.assert_allclose(d, [0.0, per * 0.1, per * 0.2])
     (m,) = match(None, g1, g2, node=2, top=1)
     assert (m.node, m.nodes, m.similarity) == (4, (4,), 1.0)

@@ -1,4 +1,4 @@
-"""Stores with sparse views (KernelConfig.view_cells): ingest, search routing, evaluate.
+"""Stores with sparse views (CloudConfig.view_cells): ingest, search routing, evaluate.
 
 Expected results are computed here from the stored features with the rule of
 ``query.engine``: two exact shapes, and two sparse clouds, compare their own features;
@@ -172,7 +172,7 @@ def test_evaluate_follows_the_view_rule(view_db: Any) -> None:
 def test_a_learned_metric_weighs_views_too(view_db: Any) -> None:
     from query.metric import LearnedMetric, block_layout
 
-    blocks = block_layout(CONFIG.kernel)
+    blocks = block_layout(CONFIG)
     metric = LearnedMetric(
         blocks=blocks,
         weights=tuple(float(i + 1) for i in range(len(blocks))),
@@ -227,6 +227,17 @@ def test_store_without_views_keeps_meshes_to_one_feature(tmp_path: Path) -> None
         _forget(db)
 
 
+def _forget_checksums(root: Path) -> None:
+    import json
+
+    manifest = json.loads((root / "manifest.json").read_text())
+    for segments in manifest["tables"].values():
+        for seg in segments:
+            seg.pop("bytes", None)
+            seg.pop("sha256", None)
+    (root / "manifest.json").write_text(json.dumps(manifest))
+
+
 def test_rows_written_before_the_view_column_read_as_null(tmp_path: Path) -> None:
     """A store whose first Parquet file predates ``view_feature`` (the column is absent)."""
     import pyarrow.parquet as pq
@@ -239,6 +250,7 @@ def test_rows_written_before_the_view_column_read_as_null(tmp_path: Path) -> Non
         (old_file,) = db.store.files("shapes")
         table = pq.read_table(old_file)
         pq.write_table(table.drop_columns(["view_feature"]), old_file)
+        _forget_checksums(db.store.path)  # as a store written before they were recorded
         db.ingest([meshes["disc-a"][1]], names=["new"], workers=1)
         assert db.get("old").view_feature is None
         assert db.get("new").view_feature is not None
@@ -377,9 +389,9 @@ def test_reconstructions_can_be_turned_off_and_old_stores_read_without(tmp_path:
     finally:
         _forget(db)
     stored = Config().to_dict()
-    del stored["kernel"]["reconstruct"]  # a store written before reconstructions
-    assert Config.from_dict(stored).kernel.reconstruct is False
-    assert Config().kernel.reconstruct is True
+    del stored["cloud"]["reconstruct"]  # a store written before reconstructions
+    assert Config.from_dict(stored).cloud.reconstruct is False
+    assert Config().cloud.reconstruct is True
 
 
 def test_the_stores_poisson_depth_reaches_ingest_and_search(
@@ -405,8 +417,8 @@ def test_the_stores_poisson_depth_reaches_ingest_and_search(
         _forget(db)
     assert depths == [6, 6]  # the stored cloud, then the query
     stored = Config().to_dict()
-    del stored["kernel"]["reconstruct_depth"]  # written before the depth was stored
-    assert Config.from_dict(stored).kernel.reconstruct_depth == 8
+    del stored["cloud"]["reconstruct_depth"]  # written before the depth was stored
+    assert Config.from_dict(stored).cloud.reconstruct_depth == 8
     with pytest.raises(ConfigError, match="reconstruct_depth"):
         Config().with_options(reconstruct_depth=20)
 

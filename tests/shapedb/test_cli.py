@@ -57,7 +57,7 @@ def test_ingest_info_delete(
     assert report["ingested"] == 6 and report["skipped"] == 0
     assert [Path(f["path"]).name for f in report["failed"]] == ["broken.stl"]
     assert "truncated" in report["failed"][0]["error"]
-    assert set(report) == {"ingested", "skipped", "failed"}
+    assert set(report) == {"ingested", "skipped", "failed", "notes"}
 
     assert main(["info", "--db", str(db), "--json"]) == 0
     info = _json(capsys)
@@ -68,7 +68,7 @@ def test_ingest_info_delete(
 
     (models / "broken.stl").unlink()
     assert _ingest(models, db, "--json") == 0  # idempotent
-    assert _json(capsys) == {"ingested": 0, "skipped": 6, "failed": []}
+    assert _json(capsys) == {"ingested": 0, "skipped": 6, "failed": [], "notes": []}
 
     assert main(["delete", "boxes0", "2", "--db", str(db)]) == 0
     assert "deleted 2" in capsys.readouterr().out
@@ -86,7 +86,7 @@ def test_ingest_sets_any_option_of_a_new_store(
     capsys.readouterr()
     assert main(["info", "--db", str(db), "--json"]) == 0
     config = _json(capsys)["config"]
-    assert config["mdbd"]["tie_cells"] == 0.0 and config["kernel"]["descriptor"] == 1
+    assert config["mdbd"]["tie_cells"] == 0.0 and config["descriptor"]["version"] == 1
     assert main(["ingest", str(models), "--db", str(db), "--set", "colour=red"]) == 1
     assert "unknown configuration option 'colour'" in capsys.readouterr().err
 
@@ -187,6 +187,7 @@ def test_demo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["demo", "--db", str(tmp_path / "demo"), "--workers", "1"]) == 0
     out = capsys.readouterr().out
     assert "ingested 20" in out and "shapes most like" in out
+    assert f"shapedb serve --db {tmp_path / 'demo'}" in out
 
 
 def test_show_and_match(tmp_path: Path, models: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -229,14 +230,25 @@ def test_train_and_classify(
     capsys.readouterr()
     model = tmp_path / "m.pt"
     argv = ["train", "--db", str(db), "--epochs", "2", "--out", str(model), "--json"]
+    argv += ["--methods", "1-nn", "linear", "tag", "--test", "0"]
     assert main(argv) == 0
     trained = _json(capsys)
     assert trained["classes"] == ["boxes", "rods"] and model.exists()
+    scores = trained["selection"]["scores"]
+    assert [s["name"] for s in scores] == ["1-nn", "linear", "tag"]
+    chosen = max(scores, key=lambda s: s["correct"])  # the first of ties: the simplest
+    assert trained["kind"] == trained["selection"]["chosen"] == chosen["name"]
     query = str(models / "rods" / "rods0.obj")
     assert main(["classify", query, "--db", str(db), "--model", str(model), "--json"]) == 0
     result = _json(capsys)
     assert result["label"] in {"boxes", "rods"}
     assert sum(result["probabilities"].values()) == pytest.approx(1.0)
+    # many models, one process and one load: one JSON line each, in order
+    argv = ["classify", query, "boxes0", "rods1", "--db", str(db), "--model", str(model)]
+    assert main([*argv, "--json"]) == 0
+    lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [r["source"] for r in lines] == [query, "boxes0", "rods1"]
+    assert all(r["label"] in {"boxes", "rods"} for r in lines)
     assert main(["classify", query, "--db", str(db), "--model", str(tmp_path / "none.pt")]) == 1
     assert capsys.readouterr().err.startswith("shapedb: error: ")
 
@@ -256,4 +268,4 @@ def test_ingest_voxels_as_smooth_solids(tmp_path: Path, capsys: pytest.CaptureFi
     # the same file read as a smooth solid is another shape (another solid)
     assert main(["ingest", str(folder), "--db", str(db), "--as", "smooth_voxels",
                  "--workers", "1", "--json"]) == 0  # fmt: skip
-    assert _json(capsys) == {"ingested": 1, "skipped": 0, "failed": []}
+    assert _json(capsys) == {"ingested": 1, "skipped": 0, "failed": [], "notes": []}

@@ -23,7 +23,7 @@ def tmp_db(tmp_path: Path) -> database.Database:
 def test_connect_creates_then_opens(tmp_path: Path) -> None:
     db = database.connect(tmp_path / "db", resolution=48, n_r=8)
     assert db.config == Config().with_options(resolution=48, n_r=8)
-    assert db.store.dim == db.config.kernel.dim and len(db) == 0
+    assert db.store.dim == db.config.dim and len(db) == 0
     paper = database.connect(tmp_path / "paper", n_r=8, method="paper")
     assert paper.store.dim == 16
     again = database.connect(tmp_path / "db")  # no options: the stored config

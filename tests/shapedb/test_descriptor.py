@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import shapedb
-from shapedb.config import KernelConfig
+from shapedb.config import DescriptorConfig, KernelConfig
 from shapedb.descriptor import LAYOUTS, VERSION, describe, dim
 from shapedb.graph import ContactGraph, contact_edges
 
@@ -47,14 +47,14 @@ def test_every_version_has_its_length_and_ignores_similarity_transforms(version:
 
 def test_versions_differ_and_the_default_is_the_latest_chosen() -> None:
     # version 5 (the ball-union block) is opt-in: it costs the jointed figures (issue 25)
-    assert VERSION == 4 == KernelConfig().descriptor and max(LAYOUTS) == 5
+    assert VERSION == 4 == DescriptorConfig().version and max(LAYOUTS) == 5
     g = _chain(40, 1.0)
     assert len({LAYOUTS[v] for v in LAYOUTS}) == len(LAYOUTS)
     rows = [describe(g, v) for v in sorted(LAYOUTS)]
     for a in range(len(rows)):
         for b in range(a):
             assert rows[a].shape != rows[b].shape or not np.allclose(rows[a], rows[b])
-    f1 = shapedb.features(g, KernelConfig(descriptor=1))
+    f1 = shapedb.features(g, KernelConfig(), descriptor=1)
     f = shapedb.features(g, KernelConfig())
     np.testing.assert_array_equal(f1, describe(g, 1))
     np.testing.assert_array_equal(f, describe(g, VERSION))
@@ -147,7 +147,7 @@ def test_a_store_keeps_the_descriptor_version_it_was_built_with(tmp_path: Path) 
     db = shapedb.connect(path, resolution=32, n_balls=64, descriptor=1)
     db.ingest([examples.figure(0, 0), examples.part("plate", 0)], names=["figure", "plate"])
     again = shapedb.connect(path)  # no options: the store's own configuration
-    assert again.config.kernel.descriptor == 1
+    assert again.config.descriptor.version == 1
     assert again.get("figure").feature.shape == (dim(1),)
     hits = again.search(examples.figure(0, 0), k=2)
     assert hits[0].name == "figure" and hits[0].similarity > 0.99

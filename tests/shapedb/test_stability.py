@@ -102,7 +102,7 @@ def test_grid_shift_under_a_fixed_solid_keeps_the_kernel_high(base: tuple) -> No
 
     Measured kernels (median, min): 0.92, 0.90 with the paper's plain argmax
     (``tie_cells=0``); 0.95, 0.90 at 0.75; 0.90, 0.85 at the default 1.5, which gains
-    0.18 NN on jointed figures (``bench/ties.py``); 0.77 for one shift with the grid on
+    0.18 NN on jointed figures (``bench/studies/ties.py``); 0.77 for one shift with the grid on
     the model's axes.
     """
     g, d0 = base

@@ -56,7 +56,7 @@ def make_record(
     return ShapeRecord(
         name=name,
         decomposition=d,
-        feature=rng.random(config.kernel.dim).astype(np.float32),
+        feature=rng.random(config.dim).astype(np.float32),
         config=config,
         content_hash=content or f"hash-{name}",
         representation="mesh",
@@ -65,6 +65,16 @@ def make_record(
         source=f"/data/{name}.obj",
         build_seconds=1.5,
     )
+
+
+def forget_checksums(root: Path) -> None:
+    """Make the manifest look written before segment sizes and checksums were recorded."""
+    manifest = json.loads((root / MANIFEST).read_text())
+    for segments in manifest["tables"].values():
+        for seg in segments:
+            seg.pop("bytes", None)
+            seg.pop("sha256", None)
+    (root / MANIFEST).write_text(json.dumps(manifest))
 
 
 @pytest.fixture()
@@ -133,6 +143,7 @@ def test_frame_round_trips_and_old_rows_read_as_identity(tmp_store: Store) -> No
     seg = next(p for p in tmp_store.path.rglob("*.parquet") if "shapes" in str(p))
     old = pq.read_table(seg)
     pq.write_table(old.drop_columns(["frame"]), seg)
+    forget_checksums(tmp_store.path)
     again = Store.open(tmp_store.path)
     assert again.shapes(["frame"]).column("frame").to_pylist() == [None]
     np.testing.assert_array_equal(again.get("framed").decomposition.frame, np.eye(4))
@@ -146,6 +157,7 @@ def test_sampling_round_trips_and_old_rows_read_as_exact(tmp_store: Store) -> No
     # a segment written before the column existed: the row reads back as exact (0)
     seg = next(p for p in tmp_store.path.rglob("*.parquet") if "shapes" in str(p))
     pq.write_table(pq.read_table(seg).drop_columns(["sampling"]), seg)
+    forget_checksums(tmp_store.path)
     again = Store.open(tmp_store.path)
     assert again.shapes(["sampling"]).column("sampling").to_pylist() == [None]
     assert again.get("cloud").decomposition.sampling == 0.0
@@ -211,7 +223,8 @@ def test_delete_is_copy_on_write(tmp_store: Store) -> None:
     for f in before:  # retired, still readable by older readers
         assert Path(f).exists()
     assert tmp_store.delete([1, 3]) == 2 and len(tmp_store) == 0
-    assert tmp_store.files("shapes") == []
+    # an emptied segment is replaced by an empty one that names it (shapedb repair)
+    assert [pq.read_table(f).num_rows for f in tmp_store.files("shapes")] == [0]
     # ids are never reused
     assert tmp_store.add([make_record("d")])[0].id == 4
 
@@ -281,20 +294,110 @@ def test_lock_waits_with_timeout(tmp_store: Store) -> None:
     assert len(tmp_store) == 1
 
 
-def test_next_writer_removes_orphans_and_staging(tmp_store: Store) -> None:
+def test_next_writer_removes_only_what_a_journal_proves(tmp_store: Store) -> None:
     tmp_store.add([make_record("a")])
     root = tmp_store.path
+    store_id = json.loads((root / MANIFEST).read_text())["store_id"]
+    # an aborted transaction of this store: its journal names its staging and data files
     stage = root / "staging" / "dead"
     stage.mkdir(parents=True)
     (stage / "shapes-x.parquet").write_bytes(b"partial")
     orphan = root / "data" / "shapes" / "99999999-orphan.parquet"
     pq.write_table(shapes_table([replace(make_record("zz"), id=50)], 8), orphan)
+    (root / "journal").mkdir(exist_ok=True)
+    journal = {"store": store_id, "txn": "dead", "files": ["data/shapes/99999999-orphan.parquet"]}
+    (root / "journal" / "dead.json").write_text(json.dumps(journal))
+    # files no journal names, and a journal of another store: never deleted
+    stranger = root / "data" / "shapes" / "99999998-stranger.parquet"
+    stranger.write_bytes(b"not ours to delete")
+    alien = root / "data" / "balls" / "99999997-alien.parquet"
+    alien.write_bytes(b"x")
+    other = {"store": "another", "txn": "z", "files": ["data/balls/99999997-alien.parquet"]}
+    (root / "journal" / "z.json").write_text(json.dumps(other))
     (root / ".manifest.json.dead.tmp").write_text("{")
     assert len(tmp_store) == 1  # readers ignore all of it
     tmp_store.add([make_record("b")])
     assert not orphan.exists() and not stage.exists()
+    assert not (root / "journal" / "dead.json").exists()
+    assert stranger.exists() and alien.exists()
     assert not (root / ".manifest.json.dead.tmp").exists()
     assert tmp_store.ids().tolist() == [1, 2]
+
+
+def test_cleanup_never_runs_without_a_valid_manifest(tmp_store: Store) -> None:
+    """Issue 24, case 1: a missing or damaged manifest must not cost any data file."""
+    tmp_store.add([make_record("a"), make_record("b")])
+    root = tmp_store.path
+    on_disk = sorted(root.rglob("*.parquet"))
+    (root / MANIFEST).unlink()
+    with pytest.raises(StoreError, match="manifest.json is missing.*shapedb repair"):
+        Store.open(root)
+    with pytest.raises(StoreError, match="shapedb repair"):
+        Store.create(root, CONFIG)  # never a new empty store over the data
+    with pytest.raises(StoreError, match="manifest.json is missing"):
+        tmp_store.add([make_record("c")])
+    assert sorted(root.rglob("*.parquet")) == on_disk
+
+
+def test_manifest_naming_a_missing_segment_keeps_the_others(tmp_store: Store) -> None:
+    tmp_store.add([make_record("a")])
+    tmp_store.add([make_record("b")])
+    files = tmp_store.files("shapes")
+    Path(files[0]).unlink()
+    with pytest.raises(StoreError, match=f"segment .*{Path(files[0]).name} is missing"):
+        tmp_store.shapes()
+    with pytest.raises(StoreError, match="is missing"):
+        tmp_store.add([make_record("c")])  # refused, and nothing deleted
+    assert Path(files[1]).exists()
+
+
+@pytest.mark.parametrize("key", ["tables", "config", "next_id", "version", "dim"])
+def test_manifest_missing_a_key_is_one_store_error(tmp_store: Store, key: str) -> None:
+    tmp_store.add([make_record("a")])
+    manifest = json.loads((tmp_store.path / MANIFEST).read_text())
+    del manifest[key]
+    (tmp_store.path / MANIFEST).write_text(json.dumps(manifest))
+    with pytest.raises(StoreError, match=f"damaged: key '{key}' is missing.*repair"):
+        Store.open(tmp_store.path)
+
+
+def test_damaged_segment_is_one_store_error_naming_it(tmp_store: Store) -> None:
+    tmp_store.add([make_record("a")])
+    seg = Path(tmp_store.files("shapes")[0])
+    data = bytearray(seg.read_bytes())
+    data[len(data) // 2 : len(data) // 2 + 64] = b"\xff" * 64  # same size, garbage inside
+    seg.write_bytes(bytes(data))
+    with pytest.raises(StoreError, match=f"segment data/shapes/{seg.name}"):
+        tmp_store.shapes()
+    seg.write_bytes(bytes(data[:100]))  # truncated: the recorded size tells at once
+    with pytest.raises(StoreError, match=f"{seg.name} is damaged: 100 bytes"):
+        tmp_store.features()
+
+
+def test_store_is_created_only_in_a_missing_or_empty_folder(tmp_path: Path) -> None:
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    (folder / "holiday.jpg").write_bytes(b"jpeg")
+    with pytest.raises(StoreError, match="not empty.*holds no shapedb store"):
+        Store.create(folder, CONFIG)
+    assert sorted(p.name for p in folder.iterdir()) == ["holiday.jpg"]
+    (tmp_path / "empty").mkdir()
+    assert len(Store.create(tmp_path / "empty", CONFIG)) == 0
+    with pytest.raises(StoreError, match="already exists"):
+        Store.create(tmp_path / "empty", CONFIG)
+
+
+def test_commit_rereads_the_configuration_under_the_lock(tmp_path: Path) -> None:
+    """Issue 24, case 3: a store re-created with another configuration refuses old writers."""
+    path = tmp_path / "race"
+    first = Store.create(path, CONFIG)
+    manifest = json.loads((path / MANIFEST).read_text())
+    other = CONFIG.with_options(resolution=CONFIG.mdbd.resolution + 8)
+    manifest["config"] = other.to_dict()
+    (path / MANIFEST).write_text(json.dumps(manifest))  # what the other creator wrote
+    with pytest.raises(StoreError, match="configuration changed since it was opened"):
+        first.add([make_record("a")])
+    assert len(Store.open(path)) == 0
 
 
 def test_retired_files_expire(tmp_path: Path) -> None:
@@ -360,3 +463,34 @@ def test_plain_duckdb_reads_through_the_manifest(
         )
     assert con.sql("SELECT id, name FROM shapes").fetchall() == [(2, "b")]
     assert con.sql("SELECT count(*) FROM balls").fetchall() == [(6,)]
+
+
+def test_two_creators_never_mix_configurations(tmp_path: Path) -> None:
+    """Issue 24, case 3: connect(p, resolution=a) and (p, resolution=b) at the same moment."""
+    import shapedb.database as database
+    from shapedb.implicit import Sphere
+
+    def create(path: Path, resolution: int, start: threading.Barrier, outcome: dict) -> None:
+        start.wait()
+        try:
+            db = database.connect(path, resolution=resolution, n_balls=16)
+            db.ingest([(f"s{resolution}", Sphere((0.0, 0.0, 0.0), 0.5))], workers=1)
+            outcome[resolution] = "ok"
+        except (ConfigError, StoreError) as exc:
+            outcome[resolution] = type(exc).__name__
+
+    for run in range(8):
+        path = tmp_path / f"race{run}"
+        outcome: dict[int, str] = {}
+        start = threading.Barrier(2)
+        threads = [
+            threading.Thread(target=create, args=(path, r, start, outcome)) for r in (16, 20)
+        ]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        assert sorted(outcome.values()).count("ok") == 1, outcome
+        store = Store.open(path)
+        configs = set(store.shapes(["config"]).column("config").to_pylist())
+        assert configs == {store.config.to_json()}

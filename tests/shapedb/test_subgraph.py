@@ -79,7 +79,7 @@ def test_hand_made_star() -> None:
     # N(3, 1) = {0, 3, 4}: radii 1, .5, .25 over R = 1; centre 3: r_v / r1 = .5 / 1
     np.testing.assert_allclose(f[3, -5:], [1, 0.5, 0.25, 0.5, 0.5])
     np.testing.assert_allclose(
-        part_weights(PartConfig(n_r=3, size=2.0, centre=1.0)),
+        part_weights(part_config(n_r=3, size=2.0, centre=1.0)),
         [0.75, 0.75**2, 0.75**3] * 2 + [1.5, 2 * 0.75**2, 2 * 0.75**3, 1, 1],
     )
 
@@ -95,7 +95,7 @@ def test_lone_balls_of_different_sizes_differ() -> None:
     cfg = PartConfig()
     # size block: size * la * |r / R - r' / R|; centre block: centre * |r / R - r' / R|
     # (r_v / r1 = 1 for both)
-    assert d == pytest.approx((cfg.size * cfg.la + cfg.centre) * (0.3 - 0.2))
+    assert d == pytest.approx((cfg.size * cfg.kernel.la + cfg.centre) * (0.3 - 0.2))
     assert np.exp(-d) < 1.0
     # lone balls of the same size relative to their shapes still match exactly
     h = ContactGraph(np.zeros((2, 3)), [2.0, 0.6], np.zeros((0, 2)))
@@ -152,7 +152,7 @@ def test_config_validation() -> None:
     with pytest.raises(ConfigError):
         PartConfig(hops=-1)
     with pytest.raises(ConfigError):
-        PartConfig(n_r=0)
+        part_config(n_r=0)
     with pytest.raises(ConfigError, match="unknown part option"):
         part_config(radius=2)
     with pytest.raises(InvalidShapeError):

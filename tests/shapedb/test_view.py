@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from shapedb.config import Config, KernelConfig
+from shapedb.config import CloudConfig, Config
 from shapedb.errors import ConfigError
 from shapedb.implicit import Sphere
 from shapedb.mesh import TriangleMesh
@@ -115,12 +115,12 @@ def test_view_needs_a_positive_spacing() -> None:
 @pytest.mark.parametrize("bad", [1.0, 17.0, -4.0, float("nan"), True, "4"])
 def test_view_cells_is_validated(bad: object) -> None:
     with pytest.raises(ConfigError, match="view_cells"):
-        KernelConfig(view_cells=bad)  # type: ignore[arg-type]
+        CloudConfig(view_cells=bad)  # type: ignore[arg-type]
 
 
 def test_view_cells_round_trips_and_defaults_off_for_older_configs() -> None:
     cfg = Config().with_options(view_cells=4.0)
     assert Config.from_json(cfg.to_json()) == cfg
     old = cfg.to_dict()
-    del old["kernel"]["view_cells"]
-    assert Config.from_dict(old).kernel.view_cells == 0.0
+    del old["cloud"]["view_cells"]
+    assert Config.from_dict(old).cloud.view_cells == 0.0

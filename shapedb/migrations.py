@@ -1,0 +1,153 @@
+"""How configurations stored by older versions of shapedb read today.
+
+The one place that knows earlier layouts: :class:`~shapedb.config.Config` and
+:class:`~shapedb.config.PartConfig` hand every stored dict to :func:`upgrade_config`
+/ :func:`upgrade_part_config` and build today's objects from what comes back. The
+functions work on plain dicts (they import nothing of shapedb) and never change their
+argument.
+
+Store configuration layouts (``Config.to_dict()``):
+
+* **1** (no ``layout`` key): ``{"mdbd": {...}, "kernel": {...}}``, the kernel section
+  flat: the Eq. 1-3 fields and ``method``, plus ``descriptor`` (the descriptor's
+  version), ``view_cells``, ``reconstruct`` and ``reconstruct_depth`` (the sparse-cloud
+  policy), each added over time.
+* **2**: ``{"layout": 2, "mdbd", "kernel", "descriptor": {"version"}, "cloud"}``.
+
+Part-index configuration layouts (``PartConfig.to_dict()``):
+
+* **1** (no ``layout`` key): flat ``hops, n_r, t, w, la, lb, lam`` and, added later,
+  ``size``, ``centre``, ``contact_tol_cells``.
+* **2**: ``{"layout": 2, "hops", "kernel": {...}, "size", "centre", "contact_tol_cells"}``.
+
+A field a stored section predates takes the value that reproduces what built the store
+(:data:`ADDED`, :data:`PART_ADDED`); a section not stored at all takes today's defaults
+(the upgraded dict leaves it out).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+__all__ = [
+    "LAYOUT",
+    "PART_LAYOUT",
+    "ADDED",
+    "PART_ADDED",
+    "upgrade_config",
+    "upgrade_part_config",
+    "part_fingerprint_fields",
+]
+
+#: The layout :meth:`Config.to_dict` writes.
+LAYOUT = 2
+#: The layout :meth:`PartConfig.to_dict` writes.
+PART_LAYOUT = 2
+
+#: Per section of a store configuration, fields added after stores were first written,
+#: and the value a stored section without the field was built with.
+ADDED: dict[str, dict[str, Any]] = {
+    # before tie_rule, the packing took the first tied cell (C order)
+    "mdbd": {"tie_rule": "first"},
+    # before method, the only feature was the paper's Eq. 1 vector
+    "kernel": {"method": "paper"},
+    # before versions, the descriptor was version 1
+    "descriptor": {"version": 1},
+    # before each field: no sparse views, no reconstructions, Poisson depth 8
+    "cloud": {"view_cells": 0.0, "reconstruct": False, "reconstruct_depth": 8},
+}
+
+#: Part-index configuration fields added after part indexes were first written, and
+#: the values that reproduce what those indexes hold (the paper's Eq. 1 vector alone
+#: on the decomposition's own contact graph).
+PART_ADDED: dict[str, Any] = {"size": 0.0, "centre": 0.0, "contact_tol_cells": 0.0}
+
+_KERNEL_FIELDS = ("n_r", "t", "w", "la", "lb", "lam", "method")
+_CLOUD_FIELDS = ("view_cells", "reconstruct", "reconstruct_depth")
+
+
+def upgrade_config(data: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """A stored store configuration of any layout as today's sections.
+
+    Parameters
+    ----------
+    data : mapping
+        What ``Config.to_dict()`` of some version wrote (parsed JSON).
+
+    Returns
+    -------
+    dict
+        ``{section: {field: value}}`` for the sections ``mdbd``, ``kernel``,
+        ``descriptor``, ``cloud`` that ``data`` stores (without ``layout``); fields a
+        stored section predates are filled in from :data:`ADDED`. Unknown keys are
+        passed on, for the caller to refuse.
+    """
+    data = dict(data)
+    layout = data.pop("layout", 1)
+    if layout == 1:
+        sections = _layout1_sections(data)
+    else:
+        sections = {name: dict(section) for name, section in data.items()}
+    for name, section in sections.items():
+        if isinstance(section, dict):
+            for key, legacy in ADDED.get(name, {}).items():
+                section.setdefault(key, legacy)
+    return sections
+
+
+def _layout1_sections(data: dict[str, Any]) -> dict[str, Any]:
+    """Layout 1: the descriptor version and the cloud policy inside a flat kernel section.
+
+    An empty section counts as not stored.
+    """
+    sections = {name: section for name, section in data.items() if section}
+    kernel = sections.pop("kernel", None)
+    if isinstance(kernel, Mapping):
+        kernel = dict(kernel)
+        sections["descriptor"] = (
+            {"version": kernel.pop("descriptor")} if "descriptor" in kernel else {}
+        )
+        sections["cloud"] = {k: kernel.pop(k) for k in _CLOUD_FIELDS if k in kernel}
+        sections["kernel"] = kernel  # what is left: the kernel's own fields, or unknowns
+    elif kernel is not None:
+        sections["kernel"] = kernel
+    return sections
+
+
+def upgrade_part_config(data: Mapping[str, Any]) -> dict[str, Any]:
+    """A stored part-index configuration of any layout in today's layout.
+
+    Returns
+    -------
+    dict
+        ``{"hops", "kernel": {...}, "size", "centre", "contact_tol_cells"}`` (only the
+        fields stored, with :data:`PART_ADDED` filled in; without ``layout``). Layout 1
+        kernels were always the paper's (``method="paper"``).
+    """
+    data = dict(data)
+    layout = data.pop("layout", 1)
+    if layout == 1:
+        kernel = {k: data.pop(k) for k in _KERNEL_FIELDS if k in data}
+        kernel["method"] = "paper"
+        data["kernel"] = kernel
+        for key, legacy in PART_ADDED.items():
+            data.setdefault(key, legacy)
+    return data
+
+
+def part_fingerprint_fields(data: Mapping[str, Any]) -> dict[str, Any]:
+    """The flat dict a part configuration's fingerprint hashes.
+
+    Part-index directories are named by this fingerprint; hashing the fields flat, as
+    layout 1 stored them (the kernel's fields beside the part's own, without the
+    always-"paper" ``method``), keeps the names of indexes already on disk.
+
+    Parameters
+    ----------
+    data : mapping
+        ``PartConfig`` as a dict of today's layout (``dataclasses.asdict``).
+    """
+    flat = {k: v for k, v in data.items() if k not in ("kernel", "layout")}
+    flat.update({k: v for k, v in dict(data["kernel"]).items() if k != "method"})
+    return flat

@@ -1,0 +1,34 @@
+"""bench/ holds the product benchmarks; finished research in bench/studies/ still runs."""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+
+import pytest
+
+BENCH = Path(__file__).resolve().parents[2] / "bench"
+STUDIES = sorted(p.stem for p in (BENCH / "studies").glob("*.py") if p.stem != "__init__")
+#: Study modules that are libraries of the others, or run through bench.retrieval.
+NOT_SCRIPTS = {"descriptors", "descriptor_prototypes"}
+
+
+@pytest.mark.parametrize("name", sorted(set(STUDIES) - NOT_SCRIPTS))
+def test_every_study_is_still_runnable(name: str, capsys: pytest.CaptureFixture[str]) -> None:
+    module = importlib.import_module(f"bench.studies.{name}")
+    with pytest.raises(SystemExit) as exit_:
+        module.main(["--help"])
+    assert exit_.value.code == 0
+    assert f"bench.studies.{name}" in capsys.readouterr().out
+
+
+def test_studies_write_their_results_apart() -> None:
+    for name in STUDIES:
+        source = (BENCH / "studies" / f"{name}.py").read_text()
+        if '"results"' in source:
+            assert '"results" / "studies"' in source, name
+
+
+def test_nothing_in_bench_is_named_after_a_work_item() -> None:
+    names = [p.stem for p in BENCH.rglob("*.py")]
+    assert not [n for n in names if n.startswith("issue")]

@@ -1,0 +1,159 @@
+"""Configurations and stores written by older versions of shapedb read as they were built."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+import shapedb
+from shapedb import migrations
+from shapedb.config import (
+    CloudConfig,
+    Config,
+    DescriptorConfig,
+    KernelConfig,
+    MDBDConfig,
+    PartConfig,
+)
+from shapedb.errors import ConfigError
+
+STORE_LAYOUT1 = Path(__file__).resolve().parents[1] / "data" / "store_layout1"
+
+# Literal configurations as older versions stored them (layout 1: a flat kernel section).
+PAPER_ERA = (
+    '{"kernel": {"la": 0.75, "lam": 1.0, "lb": 0.75, "n_r": 32, "t": 10, "w": 0.9}, '
+    '"mdbd": {"canonical_frame": true, "contact_tol_cells": 0.5, "frame_resolution": 48, '
+    '"min_radius_cells": 0.5, "n_balls": 512, "padding_cells": 2, "refine": true, '
+    '"resolution": 128, "tie_cells": 1.5}}'
+)
+METHOD_ERA = '{"kernel": {"la": 0.75, "lam": 1.0, "lb": 0.75, "method": "mdbd", "n_r": 32, "t": 10, "w": 0.9}}'
+VIEWS_ERA = (
+    '{"kernel": {"descriptor": 2, "la": 0.75, "lam": 1.0, "lb": 0.75, "method": "mdbd", '
+    '"n_r": 32, "t": 10, "view_cells": 4.0, "w": 0.9}, "mdbd": {"resolution": 64, '
+    '"tie_rule": "middle"}}'
+)
+RECONSTRUCT_ERA = (
+    '{"kernel": {"descriptor": 4, "la": 0.75, "lam": 1.0, "lb": 0.75, "method": "mdbd", '
+    '"n_r": 32, "reconstruct": true, "t": 10, "view_cells": 0.0, "w": 0.9}, '
+    '"mdbd": {"resolution": 64, "tie_rule": "middle"}}'
+)
+LAST_FLAT = (
+    '{"kernel": {"descriptor": 3, "la": 0.75, "lam": 1.0, "lb": 0.75, "method": "mdbd", '
+    '"n_r": 32, "reconstruct": false, "reconstruct_depth": 7, "t": 10, "view_cells": 4.0, '
+    '"w": 0.9}, "mdbd": {"canonical_frame": true, "contact_tol_cells": 1.0, '
+    '"frame_resolution": 48, "min_radius_cells": 0.5, "n_balls": 32, "padding_cells": 2, '
+    '"refine": true, "resolution": 24, "tie_cells": 1.0, "tie_rule": "middle"}}'
+)
+
+
+def test_the_oldest_layout_is_the_papers_kernel_and_the_first_tie_rule() -> None:
+    cfg = Config.from_json(PAPER_ERA)
+    assert cfg.kernel == KernelConfig(method="paper")
+    assert cfg.descriptor == DescriptorConfig(version=1)
+    assert cfg.cloud == CloudConfig(view_cells=0.0, reconstruct=False, reconstruct_depth=8)
+    assert cfg.mdbd == MDBDConfig(contact_tol_cells=0.5, tie_rule="first")
+
+
+def test_each_later_field_takes_the_value_that_built_the_store() -> None:
+    cfg = Config.from_json(METHOD_ERA)
+    assert cfg.kernel.method == "mdbd" and cfg.descriptor.version == 1
+    assert cfg.mdbd == MDBDConfig()  # no mdbd section stored: today's defaults
+    cfg = Config.from_json(VIEWS_ERA)
+    assert cfg.descriptor.version == 2 and cfg.cloud == CloudConfig(4.0, False, 8)
+    assert cfg.mdbd == MDBDConfig(resolution=64)
+    cfg = Config.from_json(RECONSTRUCT_ERA)
+    assert cfg.descriptor.version == 4 and cfg.cloud == CloudConfig(0.0, True, 8)
+    cfg = Config.from_json(LAST_FLAT)
+    assert cfg == _layout1_store_config()
+
+
+def test_nothing_stored_is_todays_defaults() -> None:
+    assert Config.from_dict({}) == Config()
+    assert Config.from_dict({"kernel": {}, "mdbd": {}}) == Config()
+
+
+def test_todays_layout_round_trips_and_later_fields_take_their_legacy_value() -> None:
+    cfg = _layout1_store_config()
+    assert json.loads(cfg.to_json())["layout"] == migrations.LAYOUT
+    assert Config.from_json(cfg.to_json()) == cfg
+    stored = cfg.to_dict()
+    del stored["cloud"]["reconstruct"], stored["mdbd"]["tie_rule"]
+    again = Config.from_dict(stored)
+    assert again.cloud.reconstruct is False and again.mdbd.tie_rule == "first"
+
+
+def test_unknown_fields_are_refused_in_every_layout() -> None:
+    with pytest.raises(ConfigError, match="colour"):
+        Config.from_dict({"kernel": {"n_r": 32, "colour": "red"}})
+    with pytest.raises(ConfigError, match="colour"):
+        Config.from_dict({**Config().to_dict(), "cloud": {"colour": "red"}})
+    with pytest.raises(ConfigError, match="optics"):
+        Config.from_dict({**Config().to_dict(), "optics": {}})
+
+
+def test_upgrading_leaves_its_argument_alone() -> None:
+    old = json.loads(LAST_FLAT)
+    migrations.upgrade_config(old)
+    assert old == json.loads(LAST_FLAT)
+
+
+def test_part_index_configurations_of_every_layout() -> None:
+    flat = '{"hops": 2, "la": 0.75, "lam": 1.0, "lb": 0.75, "n_r": 10, "t": 10, "w": 0.9}'
+    # the paper's vector on the stored contact graph, as indexes held before
+    assert PartConfig.from_dict(json.loads(flat)) == PartConfig(
+        size=0.0, centre=0.0, contact_tol_cells=0.0
+    )
+    later = (
+        '{"centre": 8.0, "contact_tol_cells": 0.5, "hops": 1, "la": 0.75, "lam": 1.0, '
+        '"lb": 0.75, "n_r": 5, "size": 4.0, "t": 10, "w": 0.9}'
+    )
+    assert PartConfig.from_dict(json.loads(later)) == PartConfig().with_options(hops=1, n_r=5)
+    cfg = PartConfig().with_options(n_r=7, centre=1.0)
+    assert PartConfig.from_dict(json.loads(json.dumps(cfg.to_dict()))) == cfg
+
+
+def _layout1_store_config() -> Config:
+    return Config(
+        mdbd=MDBDConfig(resolution=24, n_balls=32, tie_cells=1.0),
+        kernel=KernelConfig(),
+        descriptor=DescriptorConfig(version=3),
+        cloud=CloudConfig(view_cells=4.0, reconstruct=False, reconstruct_depth=7),
+    )
+
+
+def _box_obj(path: Path, extents: tuple[float, float, float]) -> Path:
+    import trimesh
+
+    trimesh.creation.box(extents=extents).export(path)
+    return path
+
+
+def test_a_store_written_with_the_previous_layout_opens_and_searches(tmp_path: Path) -> None:
+    pytest.importorskip("faiss")
+    path = tmp_path / "old"
+    shutil.copytree(STORE_LAYOUT1, path, ignore=shutil.ignore_patterns("README.md"))
+    assert "layout" not in json.loads((path / "manifest.json").read_text())["config"]
+    db = shapedb.connect(path, create=False)
+    assert db.config == _layout1_store_config()
+    assert db.get("rods1").config == db.config  # each row's own stored configuration
+    # the distances this store gave when it was written (shapedb at cf19ee1)
+    hits = db.search("rods1", k=6)
+    assert [h.name for h in hits] == ["rods1", "rods2", "rods0", "boxes1", "boxes2", "boxes0"]
+    assert [h.distance for h in hits] == pytest.approx(
+        [0.0, 1.460632, 1.550988, 4.291364, 4.326794, 6.963643], abs=1e-5
+    )
+    # a model file is featurised with the store's configuration, as it was then
+    query = _box_obj(tmp_path / "rods1.obj", (0.7, 0.7, 4))
+    hits = db.search(str(query), k=3)
+    assert [h.name for h in hits] == ["rods1", "rods2", "rods0"]
+    assert [h.distance for h in hits] == pytest.approx([0.0, 1.460632, 1.550988], abs=1e-5)
+    # new rows go in beside the old ones, and the store still reads whole
+    report = db.ingest([str(_box_obj(tmp_path / "slab.obj", (1, 1.5, 1)))], workers=1)
+    assert len(report.ingested) == 1
+    again = shapedb.connect(path, create=False)
+    assert again.config == _layout1_store_config() and len(again) == 7
+    assert again.get("slab").config == again.config
+    assert [h.name for h in again.search("rods1", k=3)] == ["rods1", "rods2", "rods0"]
