@@ -27,7 +27,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from bench.datasets import CACHE_DIR, Model, mesh_arrays, point_cloud, stable_seed
+from bench.datasets import (
+    CACHE_DIR,
+    Model,
+    mesh_arrays,
+    min_cloud_points,
+    people_version,
+    point_cloud,
+    stable_seed,
+)
 from shapedb.config import MDBDConfig
 
 __all__ = [
@@ -191,7 +199,11 @@ VARIANTS = (
     "mesh_rotate",
     "mesh_decimate",
     "pointcloud_b",
+    "pointcloud_noisy",
+    "pointcloud_partial",
     "pointcloud_recon",
+    "pointcloud_noisy_recon",
+    "pointcloud_partial_recon",
     "pointcloud_recon_d6",
     "pointcloud_recon_d7",
     "pointcloud_turn_0",
@@ -292,6 +304,8 @@ def _source_key(model: Model) -> str:
         st = os.stat(model.source)
         digest = _file_digest(model.source, st.st_size, st.st_mtime_ns)
         return f"{model.source}:{st.st_size}:{digest}"
+    if model.source.startswith("person:"):
+        return f"{model.source}:{people_version()}"
     return model.source
 
 
@@ -337,7 +351,7 @@ def engine_version(variant: str | None = None) -> str:
     modules = (
         (*_ENGINE_MODULES, "view") if variant and variant.startswith("view_") else _ENGINE_MODULES
     )
-    if variant and variant.startswith("pointcloud_recon"):
+    if variant and variant.startswith("pointcloud") and "_recon" in variant:
         modules = (*modules, "reconstruct")
     for name in modules:
         if name not in skip:
@@ -371,6 +385,8 @@ def cache_path(model: Model, variant: str, config: MDBDConfig) -> Path:
     params = asdict(config)
     del params["contact_tol_cells"]
     key = [_source_key(model), variant, params, engine_version(variant)]
+    if variant.startswith(("pointcloud_noisy", "pointcloud_partial")):
+        key.append(people_version("scans"))  # bench.people makes these clouds
     text = json.dumps(key, sort_keys=True)
     digest = hashlib.sha256(text.encode()).hexdigest()[:20]
     return CACHE_DIR / "dec" / f"{digest}.npz"
@@ -386,11 +402,15 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
     """The geometry of ``model`` in a representation variant.
 
     ``mesh`` the mesh; ``pointcloud`` the paper's point cloud (seeded by the name);
-    ``pointcloud_b`` another draw of it; ``pointcloud_dense`` DENSE_SAMPLES points
+    ``pointcloud_b`` another draw of it; ``pointcloud_noisy`` the paper's cloud with
+    Gaussian noise (:func:`bench.people.noisy_cloud`, sigma 0.3 % of the diagonal);
+    ``pointcloud_partial`` the part of it one horizontal depth camera sees
+    (:func:`bench.people.partial_cloud`); ``pointcloud_dense`` DENSE_SAMPLES points
     sampled uniformly by area on the surface (no normals); ``mesh_shift`` the mesh translated by
     (0.37, 0.21, 0.43) grid cells; ``mesh_rotate`` randomly rotated (seeded);
     ``mesh_decimate`` decimated to 25 % of its faces (fast-simplification);
     ``pointcloud_recon`` the screened Poisson surface of the paper's point cloud
+    (``pointcloud_noisy_recon``, ``pointcloud_partial_recon``: of those clouds)
     (:func:`shapedb.reconstruct.reconstruct`, decomposed as a mesh; whether it is kept
     is decided against the cloud's own packing, :func:`shapedb.reconstruct.volumes_agree`),
     ``pointcloud_recon_d<depth>`` the same at another octree depth;
@@ -412,12 +432,13 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
 
         spacing = _mesh_spacing(model, config)
         return view_geometry(TriangleMesh(v, f, name=model.name), spacing, float(variant[5:]))
-    if variant.startswith("pointcloud_recon"):
+    if "_recon" in variant and variant.startswith("pointcloud"):
         from shapedb.reconstruct import DEPTH, reconstruct
 
-        depth = int(variant.rpartition("_d")[2]) if "_d" in variant else DEPTH
+        base, _, rest = variant.partition("_recon")
+        depth = int(rest.removeprefix("_d")) if rest.startswith("_d") else DEPTH
         # in the cloud's frame, as shapedb.reconstruct.reconstructed does
-        surface = reconstruct(_framed_cloud(model, v, f, config), depth=depth)
+        surface = reconstruct(_framed_cloud(model, v, f, config, base), depth=depth)
         if surface is None:
             raise ValueError(f"{model.name}: no reconstruction")
         return surface
@@ -431,7 +452,18 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
         from shapedb.pointcloud import PointCloud
 
         seed = stable_seed(model.name, variant)
-        return PointCloud(point_cloud(v, f, seed=seed))
+        return PointCloud(point_cloud(v, f, seed=seed, min_points=min_cloud_points(model)))
+    if variant in ("pointcloud_noisy", "pointcloud_partial"):
+        from bench.people import noisy_cloud, partial_cloud
+        from shapedb.pointcloud import PointCloud
+
+        paper = point_cloud(
+            v, f, seed=stable_seed(model.name, "pointcloud"), min_points=min_cloud_points(model)
+        )
+        seed = stable_seed(model.name, variant)
+        if variant == "pointcloud_noisy":
+            return PointCloud(noisy_cloud(paper, v, seed=seed))
+        return PointCloud(partial_cloud(paper, v, f, seed=seed))
     if variant == "pointcloud_dense":
         from bench.baselines import sample_surface
         from shapedb.pointcloud import PointCloud
@@ -466,13 +498,23 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
 
 
 def _framed_cloud(
-    model: Model, v: NDArray[np.float64], f: NDArray[np.int64], config: MDBDConfig
+    model: Model,
+    v: NDArray[np.float64],
+    f: NDArray[np.int64],
+    config: MDBDConfig,
+    variant: str = "pointcloud",
 ) -> Any:
-    """The paper's point cloud of ``model``, moved into its canonical frame."""
+    """The cloud of ``model`` in a cloud ``variant``, moved into its canonical frame."""
     from shapedb.frame import canonical_frame
     from shapedb.pointcloud import PointCloud
 
-    cloud = PointCloud(point_cloud(v, f, seed=stable_seed(model.name, "pointcloud")))
+    if variant == "pointcloud":
+        points = point_cloud(
+            v, f, seed=stable_seed(model.name, "pointcloud"), min_points=min_cloud_points(model)
+        )
+        cloud = PointCloud(points)
+    else:
+        cloud = variant_geometry(model, variant, config)
     found = canonical_frame(cloud, config)
     return cloud if found is None else cloud.transformed(found[0].T, -found[0].T @ found[1])
 

@@ -12,6 +12,10 @@ validation, the rest to test; parameter studies see only the validation split):
     Jointed figures from :func:`shapedb.examples.figure`: several subjects with
     different limb proportions, each in many poses (the class is the subject),
     like SHREC'14's 15 subjects x 20 poses. Meshed with :func:`shapedb.examples.to_mesh`.
+``people``
+    Fine-grained people from :func:`bench.people.person`: 12 subjects x 10 poses
+    whose limb lengths and girths lie 3-10 % apart (the class is the subject),
+    meshes of about 7,000 vertices, like registered scans of real people.
 ``parts``
     Machined parts from :func:`shapedb.examples.part` (the class is the kind,
     seeds vary the dimensions and features).
@@ -22,12 +26,14 @@ validation, the rest to test; parameter studies see only the validation split):
 
 Point-cloud versions follow the paper: a random 20 % of the mesh vertices, seeded by
 the model name; meshes so coarse that this gives fewer than ``min_points`` points are
-sampled uniformly on their surface instead (``min_points`` = 2000).
+sampled uniformly on their surface instead (``min_points`` = 2000; the people keep
+the paper's 20 % of their ~7,000 vertices: :func:`min_cloud_points`).
 """
 
 from __future__ import annotations
 
 import csv
+import functools
 import inspect
 import os
 import zlib
@@ -47,27 +53,31 @@ __all__ = [
     "split_by_model",
     "capod",
     "articulated",
+    "people",
     "parts",
     "generic",
     "load_dataset",
     "mesh_arrays",
     "families",
     "point_cloud",
+    "min_cloud_points",
+    "people_version",
 ]
 
 REPO = Path(__file__).resolve().parents[1]
-#: The real data set (outside the repository; never copied into it).
-#: ``SHAPEDB_CAPOD`` overrides it; else the first ``shared/data/capod`` above the repository
-#: (a git worktree sits one level deeper than the main checkout).
+#: The real data set (outside the repository; never copied into it): ``SHAPEDB_CAPOD``,
+#: else ``../shared/data/capod`` beside the checkout or beside the worktrees' folder.
 CAPOD_ROOT = Path(
-    os.environ.get("SHAPEDB_CAPOD")
-    or next(
-        (
-            p / "shared" / "data" / "capod"
-            for p in REPO.parents
-            if (p / "shared" / "data" / "capod").is_dir()
+    os.environ.get(
+        "SHAPEDB_CAPOD",
+        next(
+            (
+                p / "shared" / "data" / "capod"
+                for p in (REPO.parent, REPO.parent.parent)
+                if (p / "shared" / "data" / "capod").is_dir()
+            ),
+            REPO.parent / "shared" / "data" / "capod",
         ),
-        REPO.parent / "shared" / "data" / "capod",
     )
 )
 #: Decompositions and generated meshes (git-ignored); ``SHAPEDB_BENCH_CACHE`` overrides it.
@@ -207,6 +217,16 @@ def articulated(subjects: int = 15, poses: int = 20) -> Dataset:
     return Dataset("articulated", split_by_model(models))
 
 
+def people(subjects: int = 12, poses: int = 10) -> Dataset:
+    """Fine-grained people: ``subjects`` classes x ``poses`` models (a registered-scan set)."""
+    models = [
+        Model(name=f"h{s:02d}_p{p:02d}", label=f"person{s:02d}", source=f"person:{s}:{p}")
+        for s in range(subjects)
+        for p in range(poses)
+    ]
+    return Dataset("people", split_by_model(models))
+
+
 def part_kinds() -> tuple[str, ...]:
     """The machined-part kinds that :func:`shapedb.examples.part` offers."""
     from shapedb import examples
@@ -243,8 +263,14 @@ def generic(per_kind: int = 20, kinds: Sequence[str] | None = None) -> Dataset:
 
 
 def load_dataset(name: str) -> Dataset:
-    """One of ``capod``, ``articulated``, ``parts``, ``generic`` with its default size."""
-    makers = {"capod": capod, "articulated": articulated, "parts": parts, "generic": generic}
+    """One of ``capod``, ``articulated``, ``people``, ``parts``, ``generic`` with its default size."""
+    makers = {
+        "capod": capod,
+        "articulated": articulated,
+        "people": people,
+        "parts": parts,
+        "generic": generic,
+    }
     if name not in makers:
         raise ValueError(f"unknown data set {name!r}: choose from {sorted(makers)}")
     return makers[name]()
@@ -288,7 +314,7 @@ def mesh_arrays(
 
         _, kind, seed = model.source.split(":")
         return generic_mesh(kind, int(seed))
-    if not model.source.startswith(("figure:", "part:")):
+    if not model.source.startswith(("figure:", "part:", "person:")):
         import trimesh
 
         m = trimesh.load(model.source, force="mesh", process=False)
@@ -296,18 +322,54 @@ def mesh_arrays(
     path = (
         CACHE_DIR / "meshes" / f"{model.source.replace(':', '_')}_{GENERATED_MESH_RESOLUTION}.npz"
     )
+    if model.source.startswith("person:"):
+        from bench import people as people_module
+
+        path = path.with_name(
+            f"{model.source.replace(':', '_')}_{people_module.MESH_RESOLUTION}"
+            f"_{people_module.MESH_VERTICES}_{people_version()}.npz"
+        )
     if cache and path.exists():
         with np.load(path) as z:
             return z["vertices"], z["faces"]
-    mesh = _to_mesh(_generated(model.source), GENERATED_MESH_RESOLUTION)
-    v = np.asarray(mesh.vertices, dtype=np.float64)  # type: ignore[attr-defined]
-    f = np.asarray(mesh.faces, dtype=np.int64)  # type: ignore[attr-defined]
+    if model.source.startswith("person:"):
+        _, s, p = model.source.split(":")
+        v, f = people_module.person_mesh(int(s), int(p))
+    else:
+        mesh = _to_mesh(_generated(model.source), GENERATED_MESH_RESOLUTION)
+        v = np.asarray(mesh.vertices, dtype=np.float64)  # type: ignore[attr-defined]
+        f = np.asarray(mesh.faces, dtype=np.int64)  # type: ignore[attr-defined]
     if cache:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp.npz")
         np.savez_compressed(tmp, vertices=v, faces=f)
         tmp.replace(path)
     return v, f
+
+
+@functools.lru_cache(maxsize=2)
+def people_version(part: str = "mesh") -> str:
+    """sha256 (8 hex) of the people generator's code: part of the cache keys.
+
+    ``part`` ``"mesh"``: what a person's mesh depends on; ``"scans"``: what the
+    noisy and partial clouds of any mesh depend on.
+    """
+    import hashlib
+
+    from bench import people as p
+
+    if part == "mesh":
+        code = [p.proportions, p.angles, p._segments, p._cone, p.person, p.person_mesh]
+        consts = [p._BASE, p._JOINTS, p._RANGES, p.MESH_RESOLUTION, p.MESH_VERTICES, p.BLEND]
+    else:
+        code, consts = [p.noisy_cloud, p.partial_cloud], [p.NOISE_SIGMA]
+    text = "".join(inspect.getsource(f) for f in code) + repr(consts)
+    return hashlib.sha256(text.encode()).hexdigest()[:8]
+
+
+def min_cloud_points(model: Model) -> int:
+    """``min_points`` of :func:`point_cloud` for ``model``: 0 for the people, else 2000."""
+    return 0 if model.source.startswith("person:") else 2000
 
 
 def families(models: Sequence[Model]) -> NDArray[np.str_]:
@@ -322,7 +384,7 @@ def families(models: Sequence[Model]) -> NDArray[np.str_]:
 
     keys = []
     for m in models:
-        if m.source.startswith("figure:"):
+        if m.source.startswith(("figure:", "person:")):
             keys.append(m.source.rsplit(":", 1)[0])
         elif m.source.startswith(("part:", "generic:")):
             keys.append(m.source)

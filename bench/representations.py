@@ -1,152 +1,390 @@
-"""Representation agnosticism on CAPOD: does a point cloud find its own mesh first?
+"""Representation agnosticism: does a sparse scan find its shape, and its person?
 
-Issue #2 asks that a point cloud of each model (:func:`bench.datasets.point_cloud`: a
-random 20 % of its vertices, or 2,000 surface samples for coarse meshes), queried
-against the meshes of all the models, finds its own mesh first at least 95 % of the
-time; issue #6 that point-cloud queries against a mesh database lose at most 0.03 NN
-against mesh-against-mesh retrieval. Per class and overall this bench reports:
+One table per set (``people``, ``capod``, ``figures``, ``parts``), all in one run.
+Each method compares query clouds with the mesh database as a store does:
 
-``own_first``
-    fraction of clouds whose nearest mesh (kernel distance) is their own;
-``k_own``
-    mean kernel similarity k(mesh, cloud) of the same model (paper: 0.996);
-``k_class``
-    mean k(cloud, mesh of another model of the same class), for scale;
-``own_or_reposed_first``
-    fraction whose nearest mesh is their own or a *re-posed copy* of it: a mesh with
-    the same triangles (connectivity) and other vertex positions. Most CAPOD classes
-    are one mesh in 9-12 poses (and a few models are exact duplicates, e.g. m121 and
-    m123), so ``own_first`` there asks to tell poses of one mesh apart;
-``pc_mesh_nn`` / ``mesh_mesh_nn``
-    nearest-neighbour accuracy of cloud queries against the mesh database (own mesh
-    included: it is the right answer) and of mesh queries against the other meshes.
+``mesh->mesh``
+    meshes against the other meshes;
+``cloud->mesh``
+    the paper's clouds (a random 20 % of each mesh's vertices) against the meshes;
+``noisy->mesh``
+    those clouds with Gaussian noise of 0.3 % of the bounding-box diagonal;
+``partial->mesh``
+    the part of the cloud one horizontal depth camera sees (the far side missing,
+    :func:`bench.people.partial_cloud`);
+``mixture``
+    an even, seeded half of the models as clouds, the rest as meshes, all against all.
 
-``--against dense`` replaces the mesh database by dense point clouds of the same
-models (``pointcloud_dense``: 20,000 area-uniform surface samples, no normals, through
-the same point-cloud pipeline): it separates what the sparse sample cannot tell
-(where the dense cloud disagrees too) from mesh-versus-cloud conventions (face
-orientation, components) that only the mesh knows.
+Every query leaves its own model out (PSB NN / first tier / DCG, :mod:`bench.common`);
+``own-first`` is the fraction of cloud queries whose nearest mesh, their own
+included, is their own (meaningful on sets without duplicates: people, figures,
+parts; CAPOD holds re-posed copies and exact duplicates). Methods:
 
-Decompositions come from :func:`bench.common.decompose_all` (cached, keyed by the
-engine's source). Usage: ``python -m bench.representations [--split all] [--no-refine]
-[--against mesh|dense] [--resolution R] [--n-balls N] [--workers 2] [--out PATH]``.
+``default``
+    today's default store: the descriptor of :mod:`shapedb.descriptor`; a sparse
+    cloud and a mesh are as far apart as the nearer of the cloud's own feature and
+    its kept reconstruction's (:mod:`shapedb.reconstruct`, :mod:`query.engine`);
+``paper``
+    the paper's kernel (Eq. 1-3, ``KernelConfig(method="paper")``), own features;
+``D2``
+    Osada's D2 shape distribution (2^18 point pairs, surface samples of the mesh,
+    points of the cloud), L1;
+
+and the candidates a run adds (``--methods``). Cost: median seconds per mesh
+ingest (decomposition) and per cloud query (the cloud's decomposition, plus its
+reconstruction's, Poisson solve included, when the method uses it), and their ratio
+to ``default``; wall clock on a shared machine, so compare ratios within one run.
+
+Usage: ``python -m bench.representations [--sets people capod figures parts]
+[--split test] [--kinds cloud noisy partial] [--workers 2] [--cached] [--out PATH]``.
+Decompositions come from :func:`bench.common.decompose_all` (cached).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.common import Balls, decompose_all, format_table, mdbd_config, write_json
-from bench.datasets import capod, families
-from shapedb.config import KernelConfig
+from bench.baselines import D2Config, d2_descriptor
+from bench.common import (
+    Balls,
+    cache_path,
+    decompose_all,
+    format_table,
+    load_balls,
+    mdbd_config,
+    retrieval_scores,
+    variant_geometry,
+    write_json,
+)
+from bench.datasets import Dataset, Model, articulated, capod, mesh_arrays, parts, people
+from bench.features import kernel_features, l1_matrix, mixture_mask
+from shapedb.config import KernelConfig, MDBDConfig
 
-OUT = Path(__file__).resolve().parent / "results" / "representations_h5_capod.json"
+OUT = Path(__file__).resolve().parent / "results" / "representations.json"
+
+#: Query kinds and the decomposition variants of their clouds and reconstructions.
+KINDS = {
+    "cloud": ("pointcloud", "pointcloud_recon"),
+    "noisy": ("pointcloud_noisy", "pointcloud_noisy_recon"),
+    "partial": ("pointcloud_partial", "pointcloud_partial_recon"),
+}
+#: Point pairs of the D2 baseline (fewer than Osada's 2^20: it ranks alike and is 4x faster).
+D2_PAIRS = 1 << 18
 
 
-def _features(balls: list[Balls], config: KernelConfig) -> NDArray[np.float64]:
-    from shapedb.kernel import features, weights
+@dataclass
+class SetData:
+    """One split of one set: its models, mesh balls and per-kind cloud balls.
 
-    w = np.asarray(weights(config))
-    return np.stack([np.asarray(features(b.decomposition(), config)) * w for b in balls])
-
-
-def measure(
-    fm: NDArray[np.float64],
-    fp: NDArray[np.float64],
-    labels: NDArray[Any],
-    lam: float,
-    family: NDArray[Any] | None = None,
-) -> dict[str, NDArray[Any]]:
-    """Per-model measures from weighted features of meshes fm (n, d) and clouds fp (n, d).
-
-    ``family`` (n,): models with equal entries are re-posed copies of one mesh
-    (default: every model its own family).
+    ``clouds[kind]`` and ``recons[kind]`` hold one entry per model; a recon entry is
+    None where the store keeps no reconstruction (dense cloud, failed solve, volume
+    disagreement).
     """
-    d_pm = np.abs(fp[:, None, :] - fm[None, :, :]).sum(-1)  # cloud i vs mesh j
-    d_mm = np.abs(fm[:, None, :] - fm[None, :, :]).sum(-1)
-    np.fill_diagonal(d_mm, np.inf)
+
+    ds: Dataset
+    mesh: list[Balls]
+    clouds: dict[str, list[Balls]]
+    recons: dict[str, list[Balls | None]]
+
+    @property
+    def labels(self) -> NDArray[Any]:
+        return self.ds.labels
+
+
+def cached_only(models: Sequence[Model], variant: str, mdbd: MDBDConfig) -> list[Balls | None]:
+    """The cached decompositions of ``models`` in ``variant``; None where none is cached."""
+    paths = [cache_path(m, variant, mdbd) for m in models]
+    return [load_balls(p, mdbd.contact_tol_cells) if p.exists() else None for p in paths]
+
+
+def load_set(
+    ds: Dataset, mdbd: MDBDConfig, kinds: Sequence[str], workers: int, *, cached: bool = False
+) -> SetData:
+    """Decompose (or read from the cache) every variant the requested ``kinds`` need.
+
+    Models whose mesh or cloud decomposition failed (``cached``: is not in the cache)
+    are left out of every row; with ``cached`` a reconstruction not in the cache
+    counts as not kept.
+    """
+    from shapedb.reconstruct import volumes_agree
+    from shapedb.view import is_sparse
+
+    def get(models: Sequence[Model], variant: str) -> list[Balls | None]:
+        if cached:
+            return cached_only(models, variant, mdbd)
+        return decompose_all(models, variant, mdbd, workers=workers)
+
+    mesh = get(ds.models, "mesh")
+    raw = {k: get(ds.models, KINDS[k][0]) for k in kinds}
+    keep = [
+        i
+        for i in range(len(ds))
+        if mesh[i] is not None and all(raw[k][i] is not None for k in kinds)
+    ]
+    if len(keep) < len(ds):
+        print(f"  {ds.name}: {len(ds) - len(keep)} model(s) left out (a decomposition failed)")
+    sub = Dataset(ds.name, tuple(ds.models[i] for i in keep))
+    recons: dict[str, list[Balls | None]] = {}
+    for k in kinds:
+        sparse = [is_sparse(raw[k][i].sampling, raw[k][i].spacing) for i in keep]  # type: ignore[union-attr]
+        todo = [m for m, s in zip(sub.models, sparse, strict=True) if s]
+        found = dict(
+            zip(
+                [m.name for m in todo],
+                get(todo, KINDS[k][1]),
+                strict=True,
+            )
+        )
+        out: list[Balls | None] = []
+        for i, m in zip(keep, sub.models, strict=True):
+            r = found.get(m.name)
+            c = raw[k][i]
+            ok = r is not None and c is not None and volumes_agree(c.radii, r.radii)
+            out.append(r if ok else None)
+        recons[k] = out
+    return SetData(
+        sub,
+        [mesh[i] for i in keep],  # type: ignore[misc]
+        {k: [raw[k][i] for i in keep] for k in kinds},  # type: ignore[misc]
+        recons,
+    )
+
+
+# --------------------------------------------------------------------------------------
+# Methods: a method turns a SetData into distance matrices
+# --------------------------------------------------------------------------------------
+
+
+@dataclass
+class Distances:
+    """What a method gives for one set: (n, n) distances and per-model costs.
+
+    ``mesh`` meshes x meshes; ``cloud[kind]`` clouds (rows) x meshes; ``cloud_cloud``
+    the paper's clouds x themselves (for the mixture); ``ingest`` / ``query[kind]``
+    seconds per model.
+    """
+
+    mesh: NDArray[np.float64]
+    cloud: dict[str, NDArray[np.float64]]
+    cloud_cloud: NDArray[np.float64]
+    ingest: NDArray[np.float64]
+    query: dict[str, NDArray[np.float64]]
+
+
+def _feature_seconds(balls: Sequence[Balls], config: KernelConfig) -> float:
+    t0 = time.perf_counter()
+    kernel_features(balls[: min(8, len(balls))], config)
+    return (time.perf_counter() - t0) / min(8, len(balls))
+
+
+def cost(balls: Balls) -> float:
+    """Seconds of a decomposition's own stages (not of making its input), wall clock."""
+    return float(sum(balls.timings.values())) if balls.timings else balls.seconds
+
+
+def store_rule(data: SetData, config: KernelConfig, *, reconstruct: bool = True) -> Distances:
+    """Distances as a store with ``config`` compares: nearest of own and reconstruction."""
+    fm = kernel_features(data.mesh, config)
+    per = _feature_seconds(data.mesh, config)
+    cloud, query = {}, {}
+    for k, balls in data.clouds.items():
+        fc = kernel_features(balls, config)
+        d = l1_matrix(fc, fm)
+        secs = np.array([cost(b) + per for b in balls])
+        if reconstruct:
+            rec = data.recons[k]
+            idx = [i for i, r in enumerate(rec) if r is not None]
+            if idx:
+                fr = kernel_features([rec[i] for i in idx], config)  # type: ignore[misc]
+                d[idx] = np.minimum(d[idx], l1_matrix(fr, fm))
+            # every sparse cloud pays its reconstruction, kept or not
+            # (the Poisson solve included: a reconstruction's input is made at query time)
+            secs = secs + np.array([r.seconds + per if r is not None else 0.0 for r in rec])
+        cloud[k], query[k] = d, secs
+    fc = kernel_features(data.clouds["cloud"], config) if "cloud" in data.clouds else fm
+    return Distances(
+        l1_matrix(fm, fm),
+        cloud,
+        l1_matrix(fc, fc),
+        np.array([cost(b) + per for b in data.mesh]),
+        query,
+    )
+
+
+def default_method(data: SetData) -> Distances:
+    """Today's default store."""
+    return store_rule(data, KernelConfig())
+
+
+def paper_method(data: SetData) -> Distances:
+    """The paper's kernel on own features."""
+    return store_rule(data, KernelConfig(method="paper"), reconstruct=False)
+
+
+def d2_points(points: NDArray[np.float64], config: D2Config) -> NDArray[np.float64]:
+    """D2 of a point set: distances between random pairs of its points, as a PDF."""
+    rng = np.random.default_rng(config.seed)
+    i = rng.integers(0, len(points), size=(config.n_pairs, 2))
+    d = np.linalg.norm(points[i[:, 0]] - points[i[:, 1]], axis=1)
+    d = d[d > 0]
+    hist, _ = np.histogram(d / d.mean(), bins=config.bins, range=(0.0, config.max_ratio))
+    pdf = hist.astype(np.float64).reshape(config.vertices, -1).sum(axis=1)
+    return pdf / max(pdf.sum(), 1e-300)
+
+
+def d2_method(data: SetData) -> Distances:
+    """Osada's D2 (surface samples of meshes, the cloud's own points)."""
+    cfg = D2Config(n_pairs=D2_PAIRS)
+    mdbd = MDBDConfig()
+    t0 = time.perf_counter()
+    fm = np.stack([d2_descriptor(*mesh_arrays(m), cfg) for m in data.ds.models])
+    per_mesh = (time.perf_counter() - t0) / len(fm)
+    cloud, query = {}, {}
+    for k in data.clouds:
+        t0 = time.perf_counter()
+        fc = np.stack(
+            [
+                d2_points(np.asarray(variant_geometry(m, KINDS[k][0], mdbd).points), cfg)
+                for m in data.ds.models
+            ]
+        )
+        cloud[k] = l1_matrix(fc, fm)
+        query[k] = np.full(len(fc), (time.perf_counter() - t0) / len(fc))
+        if k == "cloud":
+            fcc = fc
+    cc = l1_matrix(fcc, fcc) if "cloud" in data.clouds else l1_matrix(fm, fm)
+    return Distances(l1_matrix(fm, fm), cloud, cc, np.full(len(fm), per_mesh), query)
+
+
+#: Methods by name; candidates register here.
+METHODS: dict[str, Callable[[SetData], Distances]] = {
+    "default": default_method,
+    "paper": paper_method,
+    "D2": d2_method,
+}
+
+
+# --------------------------------------------------------------------------------------
+# Scores
+# --------------------------------------------------------------------------------------
+
+
+def score_rows(name: str, dist: Distances, labels: NDArray[Any]) -> list[list[Any]]:
+    """Table rows of one method: one per query kind, then the mixture (labels (n,))."""
+
+    def scores(d: NDArray[np.float64]) -> list[float]:
+        s = retrieval_scores(-d, labels)
+        return [s["nn"], s["first_tier"], s["dcg"]]
+
     n = len(labels)
-    same = labels[:, None] == labels[None, :]
-    k = np.exp(-lam * d_pm)
-    other_same = same & ~np.eye(n, dtype=bool)
-    fam = np.arange(n) if family is None else np.asarray(family)
-    nearest = np.argmin(d_pm, axis=1)
-    return {
-        "own_first": nearest == np.arange(n),
-        "own_or_reposed_first": fam[nearest] == fam,
-        "k_own": np.diag(k),
-        "k_class": np.array(
-            [k[i, other_same[i]].mean() if other_same[i].any() else np.nan for i in range(n)]
-        ),
-        "pc_mesh_nn": labels[np.argmin(d_pm, axis=1)] == labels,
-        "mesh_mesh_nn": labels[np.argmin(d_mm, axis=1)] == labels,
+    rows = [[name, "mesh->mesh", *scores(dist.mesh), None, float(np.median(dist.ingest))]]
+    for k, d in dist.cloud.items():
+        own = float(np.mean(np.argmin(d, axis=1) == np.arange(n)))
+        rows.append([name, f"{k}->mesh", *scores(d), own, float(np.median(dist.query[k]))])
+    if "cloud" in dist.cloud:
+        pc = mixture_mask([str(i) for i in range(n)])  # only the count matters
+        mix = np.where(
+            pc[:, None] & pc[None, :],
+            dist.cloud_cloud,
+            np.where(~pc[:, None] & ~pc[None, :], dist.mesh, 0.0),
+        )
+        cross = dist.cloud["cloud"]  # cloud rows x mesh columns
+        mix = np.where(pc[:, None] & ~pc[None, :], cross, mix)
+        mix = np.where(~pc[:, None] & pc[None, :], cross.T, mix)
+        rows.append([name, "mixture", *scores(mix), None, None])
+    return rows
+
+
+def build(names: Sequence[str], split: str) -> list[Dataset]:
+    """The requested sets' ``split``."""
+    makers: dict[str, Callable[[], Dataset]] = {
+        "people": people,
+        "capod": capod,
+        "figures": articulated,
+        "parts": parts,
     }
+    return [makers[n]().split(split) for n in names]
+
+
+def run(
+    datasets: Sequence[Dataset],
+    methods: Sequence[str],
+    kinds: Sequence[str],
+    *,
+    mdbd: MDBDConfig,
+    workers: int,
+    cached: bool = False,
+) -> dict[str, Any]:
+    """Every set's table (printed) and the JSON-ready results."""
+    out: dict[str, Any] = {}
+    columns = ("method", "query", "NN", "1-T", "DCG", "own-first", "cost s", "x default")
+    for ds in datasets:
+        data = load_set(ds, mdbd, kinds, workers, cached=cached)
+        rows: list[list[Any]] = []
+        base: dict[str, float] = {}
+        for name in methods:
+            for r in score_rows(name, METHODS[name](data), data.labels):
+                if name == methods[0] and r[6] is not None:
+                    base[r[1]] = r[6]
+                ratio = r[6] / base[r[1]] if r[6] is not None and base.get(r[1]) else None
+                rows.append([*r, ratio])
+        print(
+            format_table(
+                f"{ds.name} ({len(data.ds)} models, {len(set(data.labels))} classes): "
+                "queries against the mesh database; cost = mesh ingest / cloud query",
+                columns,
+                rows,
+            )
+        )
+        print()
+        out[ds.name] = {"n": len(data.ds), "columns": list(columns), "table": rows}
+    return out
 
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--split", default="all", choices=("all", "test", "validation"))
-    ap.add_argument("--resolution", type=int, default=None)
-    ap.add_argument("--n-balls", type=int, default=None)
-    ap.add_argument("--no-refine", action="store_true")
-    ap.add_argument("--against", default="mesh", choices=("mesh", "dense"))
+    ap.add_argument("--sets", nargs="+", default=["people", "capod", "figures", "parts"])
+    ap.add_argument("--split", default="test", choices=("all", "test", "validation"))
+    ap.add_argument("--kinds", nargs="+", default=list(KINDS), choices=list(KINDS))
+    ap.add_argument("--methods", nargs="+", default=["default", "paper", "D2"])
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--out", type=Path, default=OUT)
+    ap.add_argument(
+        "--cached", action="store_true", help="decompose nothing: use what is in the cache"
+    )
     args = ap.parse_args(argv)
-    out = args.out or (
-        OUT if args.against == "mesh" else OUT.with_name("representations_dense.json")
+    unknown = [m for m in args.methods if m not in METHODS]
+    if unknown:
+        raise SystemExit(f"unknown method(s) {unknown}: choose from {sorted(METHODS)}")
+    mdbd = mdbd_config()
+    results = run(
+        build(args.sets, args.split),
+        args.methods,
+        args.kinds,
+        mdbd=mdbd,
+        workers=args.workers,
+        cached=args.cached,
     )
-    cfg = mdbd_config(resolution=args.resolution, n_balls=args.n_balls, no_refine=args.no_refine)
-    kcfg = KernelConfig()
-    ds = capod().split(args.split)
-    reference = "mesh" if args.against == "mesh" else "pointcloud_dense"
-    mesh = decompose_all(ds.models, reference, cfg, workers=args.workers)
-    pc = decompose_all(ds.models, "pointcloud", cfg, workers=args.workers)
-    keep = [i for i in range(len(ds)) if mesh[i] is not None and pc[i] is not None]
-    models = [ds.models[i] for i in keep]
-    labels = np.asarray([m.label for m in models])
-    fm = _features([mesh[i] for i in keep], kcfg)  # type: ignore[misc]
-    fp = _features([pc[i] for i in keep], kcfg)  # type: ignore[misc]
-    per = measure(fm, fp, labels, kcfg.lam, families(models))
-    names = list(per)
-    rows = []
-    for label in sorted(set(labels)):
-        sel = labels == label
-        rows.append([label, int(sel.sum()), *(float(np.nanmean(per[k][sel])) for k in names)])
-    rows.append(["all", len(labels), *(float(np.nanmean(per[k])) for k in names)])
-    print(
-        format_table(
-            f"CAPOD ({args.split}, resolution {cfg.resolution}, {cfg.n_balls} balls, "
-            f"refine={cfg.refine}): point cloud vs {reference}",
-            ("class", "n", *names),
-            rows,
-        )
-    )
-    missed = [m.name for m, ok in zip(models, per["own_first"], strict=True) if not ok]
-    print(f"clouds not finding their own mesh first: {missed}")
     write_json(
-        out,
+        args.out,
         {
             "split": args.split,
-            "against": reference,
-            "config": dataclasses.asdict(cfg),
-            "kernel": dataclasses.asdict(kcfg),
-            "columns": ["class", "n", *names],
-            "table": rows,
-            "missed": missed,
-            "models": [
-                {"name": m.name, "label": m.label, **{k: float(per[k][i]) for k in names}}
-                for i, m in enumerate(models)
-            ],
+            "kinds": args.kinds,
+            "methods": args.methods,
+            "mdbd": dataclasses.asdict(mdbd),
+            "sets": results,
         },
     )
-    print(f"wrote {out}")
+    print(f"wrote {args.out}")
 
 
 if __name__ == "__main__":
