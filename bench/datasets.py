@@ -19,6 +19,10 @@ validation, the rest to test; parameter studies see only the validation split):
 ``parts``
     Machined parts from :func:`shapedb.examples.part` (the class is the kind,
     seeds vary the dimensions and features).
+``generic``
+    Web-like man-made and natural models from :mod:`bench.generic_shapes` (boxes,
+    zero-thickness sheets, open and interpenetrating parts; the class is the kind),
+    used as the triangle soups they are generated as.
 
 Point-cloud versions follow the paper: a random 20 % of the mesh vertices, seeded by
 the model name; meshes so coarse that this gives fewer than ``min_points`` points are
@@ -51,6 +55,7 @@ __all__ = [
     "articulated",
     "people",
     "parts",
+    "generic",
     "load_dataset",
     "mesh_arrays",
     "families",
@@ -244,9 +249,28 @@ def parts(per_kind: int = 12, kinds: Sequence[str] | None = None) -> Dataset:
     return Dataset("parts", split_by_model(models))
 
 
+def generic(per_kind: int = 20, kinds: Sequence[str] | None = None) -> Dataset:
+    """Generated web-like models: one class per kind of :mod:`bench.generic_shapes`."""
+    from bench.generic_shapes import KINDS
+
+    kinds = tuple(kinds) if kinds else KINDS
+    models = [
+        Model(name=f"{k}_{i:02d}", label=k, source=f"generic:{k}:{i}")
+        for k in kinds
+        for i in range(per_kind)
+    ]
+    return Dataset("generic", split_by_model(models))
+
+
 def load_dataset(name: str) -> Dataset:
-    """One of ``capod``, ``articulated``, ``people``, ``parts`` with its default size."""
-    makers = {"capod": capod, "articulated": articulated, "people": people, "parts": parts}
+    """One of ``capod``, ``articulated``, ``people``, ``parts``, ``generic`` with its default size."""
+    makers = {
+        "capod": capod,
+        "articulated": articulated,
+        "people": people,
+        "parts": parts,
+        "generic": generic,
+    }
     if name not in makers:
         raise ValueError(f"unknown data set {name!r}: choose from {sorted(makers)}")
     return makers[name]()
@@ -285,6 +309,11 @@ def mesh_arrays(
     CAPOD meshes are read as they are (triangle soups included); generated shapes
     are meshed at :data:`GENERATED_MESH_RESOLUTION` and cached as npz.
     """
+    if model.source.startswith("generic:"):
+        from bench.generic_shapes import generic_mesh
+
+        _, kind, seed = model.source.split(":")
+        return generic_mesh(kind, int(seed))
     if not model.source.startswith(("figure:", "part:", "person:")):
         import trimesh
 
@@ -357,7 +386,7 @@ def families(models: Sequence[Model]) -> NDArray[np.str_]:
     for m in models:
         if m.source.startswith(("figure:", "person:")):
             keys.append(m.source.rsplit(":", 1)[0])
-        elif m.source.startswith("part:"):
+        elif m.source.startswith(("part:", "generic:")):
             keys.append(m.source)
         else:
             faces = np.ascontiguousarray(mesh_arrays(m)[1], dtype=np.int64)

@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from bench.common import Balls, decompose_all
 from bench.datasets import Dataset, stable_seed
 from shapedb import kernel
-from shapedb.config import KernelConfig, MDBDConfig
+from shapedb.config import Config, KernelConfig, MDBDConfig
 from shapedb.reconstruct import volumes_agree
 
 __all__ = ["complete", "kernel_features", "l1_matrix", "mixture_mask", "reconstructions"]
@@ -32,7 +32,7 @@ def l1_matrix(a: FloatArray, b: FloatArray) -> FloatArray:
     return out
 
 
-def kernel_features(balls: Sequence[Balls], config: KernelConfig) -> FloatArray:
+def kernel_features(balls: Sequence[Balls], config: KernelConfig | Config) -> FloatArray:
     """Feature vectors pre-multiplied by their weights, so that plain L1 is the distance.
 
     :func:`shapedb.kernel.features` times :func:`shapedb.kernel.weights` of ``config``

@@ -38,7 +38,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.baselines import D2Config, d2_descriptor, grakel_similarity, l1_similarity
+from bench.baselines import (
+    D2Config,
+    SHConfig,
+    d2_descriptor,
+    grakel_similarity,
+    l1_similarity,
+    l2_similarity,
+    sh_descriptor,
+)
 from bench.common import (
     MEASURES,
     Balls,
@@ -48,9 +56,9 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.datasets import Dataset, articulated, capod, mesh_arrays, parts
+from bench.datasets import Dataset, articulated, capod, generic, mesh_arrays, parts
 from bench.features import complete, kernel_features, l1_matrix, mixture_mask, reconstructions
-from shapedb.config import KernelConfig, MDBDConfig
+from shapedb.config import Config, DescriptorConfig, KernelConfig, MDBDConfig
 
 RESULTS = Path(__file__).resolve().parent / "results"
 COLUMNS = ("method", "NN", "1-T", "2-T", "E", "DCG", "seconds")
@@ -87,6 +95,7 @@ def run_tables(
     grakel: bool,
     d2: D2Config,
     view_cells: float = 0.0,
+    clouds: bool = True,
 ) -> dict[str, Any]:
     """One data set's table: MDBD kernel on every representation, and baselines.
 
@@ -96,13 +105,17 @@ def run_tables(
     follow the store's rule (``query.engine``): the nearest of the own features, the
     cloud against the mesh's view (views rows) and the cloud's reconstruction against
     the mesh (``shapedb.reconstruct``, variant ``pointcloud_recon``). The paper
-    kernel's rows compare own features only, as the paper does.
+    kernel's rows compare own features only, as the paper does. Without ``clouds``
+    only the meshes are decomposed (no point-cloud rows). Beside shapedb's default
+    descriptor the other of versions 4 and 5 is scored on the same balls.
     """
     t0 = time.perf_counter()
     mesh = decompose_all(ds.models, "mesh", mdbd, workers=workers)
-    pc = decompose_all(ds.models, "pointcloud", mdbd, workers=workers)
+    pc = decompose_all(ds.models, "pointcloud", mdbd, workers=workers) if clouds else mesh
     have_pc = any(b is not None for b in pc)
-    if not have_pc:
+    if not clouds:
+        have_pc = False
+    elif not have_pc:
         print("  no point-cloud decomposition succeeded: point-cloud rows left out")
         pc = mesh
     view = mesh
@@ -120,11 +133,19 @@ def run_tables(
     calib: dict[str, dict[str, float]] = {}
     feat_s: dict[str, float] = {}
     # shapedb's default descriptor and the paper's kernel, side by side
-    methods = [("shapedb", kcfg), ("paper kernel", dataclasses.replace(kcfg, method="paper"))]
-    for label, cfg in methods:
+    version = DescriptorConfig().version
+    other = 4 if version == 5 else 5
+    methods = [
+        (f"shapedb v{version}", Config(kernel=kcfg)),
+        (f"shapedb v{other}", Config(kernel=kcfg, descriptor=DescriptorConfig(version=other))),
+        ("paper kernel", Config(kernel=dataclasses.replace(kcfg, method="paper"))),
+    ]
+    default_label = methods[0][0]
+    for label, full in methods:
+        cfg = full.kernel
         t = time.perf_counter()
-        fm = kernel_features(mesh, cfg)
-        fp = kernel_features(pc, cfg)
+        fm = kernel_features(mesh, full)
+        fp = kernel_features(pc, full)
         feat_s[label] = (time.perf_counter() - t) / 2
         k_mm = kernel_matrix(fm, fm, cfg.lam)
         k_pp = kernel_matrix(fp, fp, cfg.lam)
@@ -132,8 +153,8 @@ def run_tables(
         fx = np.where(mix[:, None], fp, fm)
         k_xx = kernel_matrix(fx, fx, cfg.lam)
         one = mix[:, None] != mix[None, :]  # cloud-mesh pairs of the mixture
-        if have_pc and label == "shapedb":  # the store's rule (query.engine)
-            fr = kernel_features(recon, cfg)
+        if have_pc and label == default_label:  # the store's rule (query.engine)
+            fr = kernel_features(recon, full)
             k_pm = np.maximum(k_pm, kernel_matrix(fr, fm, cfg.lam))
             k_rx = kernel_matrix(np.where(mix[:, None], fr, fm), fx, cfg.lam)
             k_xx = np.where(one, np.maximum(k_xx, np.maximum(k_rx, k_rx.T)), k_xx)
@@ -142,8 +163,8 @@ def run_tables(
             rows.append(_row(f"{label}, point clouds", k_pp, labels, feat_s[label]))
             rows.append(_row(f"{label}, even mixture", k_xx, labels, feat_s[label]))
             rows.append(_row(f"{label}, pc query -> mesh db", k_pm, labels, feat_s[label]))
-            if view is not mesh and label == "shapedb":
-                fv = kernel_features(view, cfg)
+            if view is not mesh and label == default_label:
+                fv = kernel_features(view, full)
                 k_pv = np.maximum(kernel_matrix(fp, fv, cfg.lam), k_pm)  # the nearest
                 fy = np.where(mix[:, None], fp, fv)  # clouds, and the meshes' views
                 k_xy = kernel_matrix(fx, fy, cfg.lam)  # own features against views
@@ -172,6 +193,11 @@ def run_tables(
     dd = np.stack([d2_descriptor(*mesh_arrays(m), d2) for m in ds.models])
     d2_sim = l1_similarity(dd)
     rows.append(_row("D2 shape distribution, meshes", d2_sim, labels, time.perf_counter() - t))
+    t = time.perf_counter()
+    sh = np.stack([sh_descriptor(*mesh_arrays(m), SHConfig()) for m in ds.models])
+    rows.append(
+        _row("spherical harmonics, meshes", l2_similarity(sh), labels, time.perf_counter() - t)
+    )
 
     dec_mesh = float(np.mean([b.seconds for b in mesh]))
     dec_pc = float(np.mean([b.seconds for b in pc]))
@@ -195,7 +221,7 @@ def run_tables(
         )
     print(
         f"decomposition per model: mesh {dec_mesh:.2f} s, point cloud {dec_pc:.2f} s "
-        f"(cached runs report the original time); features {feat_s['shapedb'] / len(ds) * 1e3:.2f} "
+        f"(cached runs report the original time); features {feat_s[default_label] / len(ds) * 1e3:.2f} "
         f"ms/model (paper's Eq. 1: {feat_s['paper kernel'] / len(ds) * 1e3:.2f}); "
         f"mean balls {np.mean([len(b.radii) for b in mesh]):.0f}"
     )
@@ -209,7 +235,7 @@ def run_tables(
             "decompose_mesh": dec_mesh,
             "decompose_pointcloud": dec_pc,
             "decompose_view": dec_view,
-            "features": feat_s["shapedb"] / len(ds),
+            "features": feat_s[default_label] / len(ds),
             "features_paper": feat_s["paper kernel"] / len(ds),
         },
         "wall_seconds": time.perf_counter() - t0,
@@ -305,6 +331,9 @@ def build_sets(
                 out.append(parts(4) if quick else parts(per_kind))
             except (ImportError, AttributeError, RuntimeError) as exc:
                 print(f"parts set unavailable: {exc}")
+        elif name == "generic":
+            ds = generic()
+            out.append(ds.head(per_class=6) if quick else ds)
         else:
             raise SystemExit(f"unknown data set {name!r}")
     return out
@@ -315,7 +344,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m bench.retrieval", description=__doc__.split("\n")[0]
     )
-    ap.add_argument("--datasets", nargs="+", default=["capod", "articulated", "parts"])
+    ap.add_argument("--datasets", nargs="+", default=["generic", "capod", "articulated", "parts"])
     ap.add_argument("--quick", action="store_true", help="small subsets and a coarse grid")
     ap.add_argument("--split", default="test", choices=["test", "validation", "all"])
     ap.add_argument("--resolution", type=int, default=None)
@@ -333,6 +362,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-grakel", action="store_true")
+    ap.add_argument(
+        "--meshes-only", action="store_true", help="decompose meshes only: no point-cloud rows"
+    )
     ap.add_argument("--study", action="store_true", help="parameter study on the validation split")
     ap.add_argument("--descriptors", action="store_true", help="issue 6 descriptor prototypes")
     ap.add_argument("--stability", action="store_true", help="shift / rotation / decimation")
@@ -389,6 +421,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 grakel=not args.no_grakel,
                 d2=d2,
                 view_cells=args.views,
+                clouds=not args.meshes_only,
             )
         report["datasets"][ds.name] = entry
         out = args.out

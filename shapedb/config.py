@@ -95,6 +95,11 @@ class MDBDConfig:
         shaft's or hole's first ball lies at its middle; a ridge whose centroid falls
         between two cells is decided by rounding); "first" the smallest flat (C-order)
         index, i.e. one end of the ridge along the frame's first axis.
+    sheet_cells : float
+        Triangle meshes in which no ball fits (sheets, flat or thinner than the grid
+        models), and open meshes made largely of sheets, are decomposed dilated by
+        this many grid cells (:mod:`shapedb.sheet`); 0 turns it off (such models then
+        fail). Closed meshes in which a ball fits are never dilated.
     """
 
     resolution: int = 128
@@ -107,6 +112,7 @@ class MDBDConfig:
     frame_resolution: int = 48
     tie_cells: float = 1.5
     tie_rule: str = "middle"
+    sheet_cells: float = 1.0
 
     def __post_init__(self) -> None:
         _check(
@@ -146,6 +152,7 @@ class MDBDConfig:
             "must be an integer in [16, 256]",
         )
         _check(0.0 <= self.tie_cells <= 4, "tie_cells", self.tie_cells, "must be in [0, 4]")
+        _check(0.0 <= self.sheet_cells <= 8, "sheet_cells", self.sheet_cells, "must be in [0, 8]")
         _check(
             self.tie_rule in ("first", "middle"),
             "tie_rule",

@@ -29,6 +29,8 @@ block              dim   content
 ``paper_sorted``   64    the same with its walk averages sorted in decreasing order
 ``geodesic``       48    CDF of geodesic centre-pair distances / s (see below)
 ``geodesic_mean``  30    CDF of geodesic centre-pair distances / their weighted mean
+``union``          128   spherical-harmonic energies of the ball union (version 5;
+                         :mod:`shapedb.union`: 16 shells x degrees 0-7)
 =================  ====  ======================================================
 
 Geodesic distances run along the contact graph, each edge as long as the distance
@@ -44,6 +46,10 @@ Versions (``DescriptorConfig.version``; a store records the version its features
 computed with, and refuses to mix them). Weights and typical distances per version
 are :data:`LAYOUTS`:
 
+* **5** (opt-in): version 4 plus the ``union`` block (:mod:`shapedb.union`, weight 4):
+  where the balls' volume lies around its centroid, at the scale of the parts. Chosen
+  on the validation splits (``python -m bench.union_select``); not the default because
+  it costs the jointed figures (docs/results.md, docs/studies.md).
 * **4** (default): version 3 with ``paper_sorted`` (weight 6) instead of ``paper``:
   sorted, the walk averages no longer depend on which of two near-equal balls the
   packing listed first.
@@ -59,6 +65,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from shapedb.graph import ContactGraph
+from shapedb.union import BANDS, SHELLS, union_features
 
 __all__ = ["describe", "dim", "DIM", "BLOCKS", "LAYOUTS", "VERSION"]
 
@@ -116,6 +123,10 @@ LAYOUTS: dict[int, Layout] = {
     )
     + (("geodesic", 48, 0.383, 2.0), ("geodesic_mean", 30, 0.0752, 1.0)),
 }
+#: Typical distance and weight of version 5's ``union`` block (:mod:`shapedb.union`).
+UNION_TYPICAL = 5.069
+UNION_WEIGHT = 4.0
+LAYOUTS[5] = LAYOUTS[4] + (("union", SHELLS * BANDS, UNION_TYPICAL, UNION_WEIGHT),)
 #: The default version (``DescriptorConfig().version``).
 VERSION: int = 4
 BLOCKS: Layout = LAYOUTS[VERSION]
@@ -250,6 +261,9 @@ def describe(g: ContactGraph, version: int = VERSION) -> FloatArray:
         blocks["geodesic"] = _cdf(gd / s, w, _GEO_BINS)
         gmean = float((gd * w).sum() / max(w.sum(), 1e-300))
         blocks["geodesic_mean"] = _cdf(gd / max(gmean, 1e-300), w, _GEO_MEAN_BINS)
+
+    if "union" in names:
+        blocks["union"] = union_features(c, r)
 
     calibration = np.log(10.0) / sum(b[3] for b in layout)
     at = 0

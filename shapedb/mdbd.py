@@ -50,6 +50,7 @@ from shapedb.errors import DegenerateGeometryError, InvalidShapeError
 from shapedb.frame import canonical_frame, frame_grid
 from shapedb.geometry import Geometry, Grid
 from shapedb.refine import Refiner
+from shapedb.sheet import Thickened, needs_thickening
 
 if TYPE_CHECKING:
     from shapedb.graph import ContactGraph
@@ -500,6 +501,12 @@ def prepare_field(geometry: Geometry, cfg: MDBDConfig) -> PreparedField:
         raise InvalidShapeError(
             f"grid_sdf returned shape {F.shape}, expected {grid.shape}", source=repr(geometry)
         )
+    if cfg.sheet_cells > 0 and needs_thickening(
+        local, F, grid.spacing, cfg.min_radius_cells * grid.spacing
+    ):
+        thickness = cfg.sheet_cells * grid.spacing
+        local = Thickened(local, thickness)
+        F += np.float32(thickness)
     timings["sdf"] = time.perf_counter() - t0
     return PreparedField(local, grid, F, frame, timings, scale)
 

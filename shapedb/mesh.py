@@ -115,7 +115,8 @@ class TriangleMesh(Geometry):
     NonFiniteGeometryError
         NaN or infinite vertex coordinates.
     DegenerateGeometryError
-        All faces degenerate, or the mesh is flat (encloses no volume).
+        All faces degenerate, or every vertex on one line. A flat mesh (a sheet)
+        is accepted: it encloses no volume, and :mod:`shapedb.sheet` thickens it.
     InvalidShapeError
         Wrong array shapes, non-integer faces or out-of-range indices.
     """
@@ -154,12 +155,12 @@ class TriangleMesh(Geometry):
             )
         used = v[np.unique(f)]
         extent = used.max(0) - used.min(0)
-        scale = float(extent.max())
         centred = used - used.mean(0)
         sv = np.linalg.svd(centred[:: max(1, len(centred) // 20000)], compute_uv=False)
-        if scale <= 0 or len(sv) < 3 or sv[2] <= _FLAT * sv[0]:
+        if not float(extent.max()) > 0 or len(sv) < 2 or sv[1] <= _FLAT * sv[0]:
             raise DegenerateGeometryError(
-                f"mesh is flat (extent {extent.tolist()}): it encloses no volume", source=name
+                f"mesh is a point or a line (extent {extent.tolist()}): it has no surface",
+                source=name,
             )
         self._vertices = v
         self._faces = f
@@ -360,6 +361,12 @@ class TriangleMesh(Geometry):
             third = self._crossings(points[differ], _RAYS[2])
             w[differ] = np.where(third == other[differ], third, w[differ])
         return np.abs(w)
+
+    @property
+    def closed(self) -> bool:
+        """Whether the cleaned mesh is closed (every edge used twice, in opposite directions)."""
+        base = self if self._base is None else self._base
+        return base._closed_normals is not None
 
     def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
         """Point-membership classification (n,) bool: ``|winding number| > 0.5``.

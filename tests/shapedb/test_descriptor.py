@@ -34,11 +34,20 @@ def test_every_version_has_its_length_and_ignores_similarity_transforms(version:
     assert f.shape == (dim(version),) and np.isfinite(f).all() and np.abs(f).sum() > 0
     q, _ = np.linalg.qr(np.random.default_rng(1).normal(size=(3, 3)))
     moved = ContactGraph(3.5 * g.centers @ q.T + [4.0, -2.0, 7.0], 3.5 * g.radii, g.edges)
-    np.testing.assert_allclose(describe(moved, version), f, atol=1e-9)
+    m = describe(moved, version)
+    union = np.zeros(len(f), dtype=bool)
+    at = 0
+    for name, size, _, _ in LAYOUTS[version]:
+        union[at : at + size] = name == "union"
+        at += size
+    np.testing.assert_allclose(m[~union], f[~union], atol=1e-9)
+    # the ball union is sampled on spheres: invariant up to the sampling
+    assert np.abs(m[union] - f[union]).sum() <= 0.05 * max(np.abs(f[union]).sum(), 1e-12)
 
 
-def test_versions_differ_and_the_default_is_the_latest() -> None:
-    assert VERSION == max(LAYOUTS) == DescriptorConfig().version
+def test_versions_differ_and_the_default_is_the_latest_chosen() -> None:
+    # version 5 (the ball-union block) is opt-in: it costs the jointed figures (issue 25)
+    assert VERSION == 4 == DescriptorConfig().version and max(LAYOUTS) == 5
     g = _chain(40, 1.0)
     assert len({LAYOUTS[v] for v in LAYOUTS}) == len(LAYOUTS)
     rows = [describe(g, v) for v in sorted(LAYOUTS)]

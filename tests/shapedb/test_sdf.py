@@ -193,9 +193,9 @@ class TestMesh:
         v[0, 1] = np.nan
         with pytest.raises(NonFiniteGeometryError, match="NaN"):
             TriangleMesh(v, tm.faces)
-        flat = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], dtype=float)
-        with pytest.raises(DegenerateGeometryError, match="flat"):
-            TriangleMesh(flat, [[0, 1, 2], [1, 3, 2]])
+        line = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]], dtype=float)
+        with pytest.raises(DegenerateGeometryError, match="line"):
+            TriangleMesh(line, [[0, 1, 2], [1, 3, 2]])
         with pytest.raises(InvalidShapeError, match="indices"):
             TriangleMesh(tm.vertices, tm.faces + 100)
         with pytest.raises(ValueError, match="shape"):

@@ -1,0 +1,176 @@
+"""Choose the weight of the ball-union block (descriptor version 5) on validation splits.
+
+Usage (from the repository root)::
+
+    python -m bench.union_select                         # all four sets, validation
+    python -m bench.union_select --split test --weights 0 8   # report two weights on test
+    python -m bench.union_select --cost 8      # CPU per model: decomposition, v4, v5
+
+For each set's split (generic, capod, articulated, parts; meshes), the version-4
+descriptor of :mod:`shapedb.descriptor` and the ball-union block of
+:mod:`shapedb.union` are computed from the cached decompositions; the block's typical
+L1 distance is the geometric mean over the sets of its median pairwise distance (as
+``bench/select_descriptors.py`` measures the others'), and the combined distance is
+version 4's plus ``weight / typical`` times the block's, in version 4's units (which
+is what version 5 computes, up to one overall factor that changes no ranking). Per
+weight the table lists NN / 1-T / 2-T / DCG per set and the objective, the mean over
+the sets of (NN + 1-T + DCG) / 3. The chosen weight is the best objective among those
+with no set's NN, 1-T or DCG more than two queries' worth below weight 0.
+Written to bench/results/union_select.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.common import decompose_all, format_table, retrieval_scores, write_json
+from bench.datasets import Dataset, articulated, capod, generic, parts
+from shapedb.config import Config, DescriptorConfig, MDBDConfig
+from shapedb.descriptor import LAYOUTS
+from shapedb.union import union_features
+
+RESULTS = Path(__file__).resolve().parent / "results"
+WEIGHTS = (0.0, 1.0, 2.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0)
+
+
+def _l1(x: np.ndarray) -> np.ndarray:
+    out = np.empty((len(x), len(x)))
+    for i in range(len(x)):
+        out[i] = np.abs(x - x[i]).sum(axis=1)
+    return out
+
+
+def set_matrices(ds: Dataset, mdbd: MDBDConfig, workers: int) -> dict[str, Any]:
+    """Version-4 and ball-union distance matrices of one split's meshes."""
+    from bench.retrieval import kernel_features
+
+    balls = decompose_all(ds.models, "mesh", mdbd, workers=workers)
+    keep = [i for i, b in enumerate(balls) if b is not None]
+    if len(keep) < len(ds):
+        print(f"  {ds.name}: {len(ds) - len(keep)} model(s) left out (decomposition failed)")
+    bs = [balls[i] for i in keep]
+    labels = ds.labels[keep]
+    v4 = kernel_features(bs, Config(descriptor=DescriptorConfig(version=4)))  # type: ignore[arg-type]
+    cal4 = np.log(10.0) / sum(b[3] for b in LAYOUTS[4])
+    t0 = time.process_time()
+    u = np.stack([union_features(b.centers, b.radii) for b in bs])  # type: ignore[union-attr]
+    sec = (time.process_time() - t0) / max(len(bs), 1)
+    return {"labels": labels, "d4": _l1(v4) / cal4, "du": _l1(u), "union_cpu_s": sec}
+
+
+def cost(per_set: int = 8) -> dict[str, dict[str, float]]:
+    """Median CPU seconds per model: decomposition, descriptor v4 and v5 (CAPOD, generic)."""
+    from bench.datasets import mesh_arrays
+    from shapedb.descriptor import describe
+    from shapedb.graph import ContactGraph
+    from shapedb.mdbd import decompose
+    from shapedb.mesh import TriangleMesh
+
+    out = {}
+    for ds in (capod().split("validation"), generic().split("validation")):
+        rows = []
+        for m in ds.head(per_class=1).models[:per_set]:
+            t = time.process_time()
+            d = decompose(TriangleMesh(*mesh_arrays(m)))
+            td = time.process_time() - t
+            g = ContactGraph(d.centers, d.radii, d.edges)
+            t = time.process_time()
+            describe(g, 4)
+            t4 = time.process_time() - t
+            t = time.process_time()
+            describe(g, 5)
+            rows.append((td, t4, time.process_time() - t))
+        td, t4, t5 = np.median(np.asarray(rows), axis=0)
+        out[ds.name] = {"decompose": td, "v4": t4, "v5": t5, "extra": (t5 - t4) / (td + t4)}
+        print(f"{ds.name}: median CPU s decompose {td:.3f}, v4 {t4:.4f}, v5 {t5:.4f}, "
+              f"extra {(t5 - t4) / (td + t4):.1%}")  # fmt: skip
+    return out
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point; returns the exit status."""
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.union_select", description=__doc__.split("\n")[0]
+    )
+    ap.add_argument("--datasets", nargs="+", default=["generic", "capod", "articulated", "parts"])
+    ap.add_argument("--split", default="validation", choices=["validation", "test"])
+    ap.add_argument("--weights", type=float, nargs="+", default=list(WEIGHTS))
+    ap.add_argument(
+        "--typical", type=float, default=None, help="block typical distance (default: measured)"
+    )
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--cost", type=int, default=0, help="only time N models per set")
+    args = ap.parse_args(argv)
+    if args.cost:
+        write_json(RESULTS / "union_cost.json", cost(args.cost))
+        return 0
+    makers = {"generic": generic, "capod": capod, "articulated": articulated, "parts": parts}
+    mats = {}
+    for name in args.datasets:
+        ds = makers[name]().split(args.split)
+        mats[name] = set_matrices(ds, MDBDConfig(), args.workers)
+    medians = {
+        n: float(np.median(m["du"][np.triu_indices(len(m["du"]), 1)])) for n, m in mats.items()
+    }
+    typical = args.typical or float(np.exp(np.mean(np.log(list(medians.values())))))
+    rows, table = [], []
+    base: dict[str, dict[str, float]] = {}
+    for w in args.weights:
+        entry: dict[str, Any] = {"weight": w}
+        obj = []
+        for name, m in mats.items():
+            d = m["d4"] + (w / typical) * m["du"]
+            s = retrieval_scores(-d, m["labels"])
+            entry[name] = s
+            obj.append((s["nn"] + s["first_tier"] + s["dcg"]) / 3)
+        entry["objective"] = float(np.mean(obj))
+        if w == 0.0:
+            base = {n: entry[n] for n in mats}
+        table.append(entry)
+        rows.append(
+            [
+                w,
+                *(
+                    f"{entry[n]['nn']:.3f}/{entry[n]['first_tier']:.3f}/{entry[n]['second_tier']:.3f}/{entry[n]['dcg']:.3f}"
+                    for n in mats
+                ),
+                entry["objective"],
+            ]
+        )
+    chosen = None
+    if base:
+        ok = []
+        for e in table:
+            fine = all(
+                e[n][k] >= base[n][k] - 2.0 / len(mats[n]["labels"])
+                for n in mats
+                for k in ("nn", "first_tier", "dcg")
+            )
+            if fine:
+                ok.append(e)
+        chosen = max(ok, key=lambda e: e["objective"])["weight"] if ok else None
+    print()
+    print(format_table(
+        f"ball-union block weight, {args.split} splits (NN/1-T/2-T/DCG), typical {typical:.4g}",
+        ("weight", *mats, "objective"), rows,
+    ))  # fmt: skip
+    print(f"block medians {medians}; union block CPU s/model "
+          f"{ {n: round(m['union_cpu_s'], 4) for n, m in mats.items()} }; chosen weight {chosen}")  # fmt: skip
+    out = args.out or RESULTS / f"union_select_{args.split}.json"
+    write_json(out, {"split": args.split, "typical": typical, "medians": medians, "table": table,
+                     "chosen": chosen,
+                     "union_cpu_s": {n: m["union_cpu_s"] for n, m in mats.items()}})  # fmt: skip
+    print(f"written {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
