@@ -492,7 +492,7 @@ class Config:
     @property
     def fingerprint(self) -> str:
         """Short hash of the decomposition parameters (what changes the graphs)."""
-        text = json.dumps(asdict(self.mdbd), sort_keys=True)
+        text = json.dumps(migrations.mdbd_fingerprint_fields(asdict(self.mdbd)), sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
     def with_options(self, **options: Any) -> Config:

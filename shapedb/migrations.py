@@ -38,6 +38,8 @@ __all__ = [
     "upgrade_config",
     "upgrade_part_config",
     "part_fingerprint_fields",
+    "mdbd_fingerprint_fields",
+    "MDBD_UNHASHED",
 ]
 
 #: The layout :meth:`Config.to_dict` writes.
@@ -48,8 +50,9 @@ PART_LAYOUT = 2
 #: Per section of a store configuration, fields added after stores were first written,
 #: and the value a stored section without the field was built with.
 ADDED: dict[str, dict[str, Any]] = {
-    # before tie_rule, the packing took the first tied cell (C order)
-    "mdbd": {"tie_rule": "first"},
+    # before tie_rule, the packing took the first tied cell (C order); before
+    # sheet_cells, sheets and flat meshes were never thickened (they failed)
+    "mdbd": {"tie_rule": "first", "sheet_cells": 0.0},
     # before method, the only feature was the paper's Eq. 1 vector
     "kernel": {"method": "paper"},
     # before versions, the descriptor was version 1
@@ -57,6 +60,11 @@ ADDED: dict[str, dict[str, Any]] = {
     # before each field: no sparse views, no reconstructions, Poisson depth 8
     "cloud": {"view_cells": 0.0, "reconstruct": False, "reconstruct_depth": 8},
 }
+
+#: Decomposition fields added after ``Config.fingerprint`` was first stored, and the
+#: value at which the fingerprint leaves them out, so that stores written before each
+#: field keep the fingerprint their rows carry.
+MDBD_UNHASHED: dict[str, Any] = {"sheet_cells": 0.0}
 
 #: Part-index configuration fields added after part indexes were first written, and
 #: the values that reproduce what those indexes hold (the paper's Eq. 1 vector alone
@@ -101,7 +109,11 @@ def _layout1_sections(data: dict[str, Any]) -> dict[str, Any]:
 
     An empty section counts as not stored.
     """
-    sections = {name: section for name, section in data.items() if section}
+    sections = {
+        name: dict(section) if isinstance(section, Mapping) else section
+        for name, section in data.items()
+        if section
+    }
     kernel = sections.pop("kernel", None)
     if isinstance(kernel, Mapping):
         kernel = dict(kernel)
@@ -151,3 +163,17 @@ def part_fingerprint_fields(data: Mapping[str, Any]) -> dict[str, Any]:
     flat = {k: v for k, v in data.items() if k not in ("kernel", "layout")}
     flat.update({k: v for k, v in dict(data["kernel"]).items() if k != "method"})
     return flat
+
+
+def mdbd_fingerprint_fields(data: Mapping[str, Any]) -> dict[str, Any]:
+    """The dict a store configuration's fingerprint hashes: its ``MDBDConfig`` fields.
+
+    Fields in :data:`MDBD_UNHASHED` are left out at their legacy value, so a store
+    written before such a field existed (its rows carry the old fingerprint) keeps it.
+
+    Parameters
+    ----------
+    data : mapping
+        ``MDBDConfig`` as a dict (``dataclasses.asdict``).
+    """
+    return {k: v for k, v in data.items() if not (k in MDBD_UNHASHED and v == MDBD_UNHASHED[k])}

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -54,7 +55,7 @@ def test_the_oldest_layout_is_the_papers_kernel_and_the_first_tie_rule() -> None
     assert cfg.kernel == KernelConfig(method="paper")
     assert cfg.descriptor == DescriptorConfig(version=1)
     assert cfg.cloud == CloudConfig(view_cells=0.0, reconstruct=False, reconstruct_depth=8)
-    assert cfg.mdbd == MDBDConfig(contact_tol_cells=0.5, tie_rule="first")
+    assert cfg.mdbd == MDBDConfig(contact_tol_cells=0.5, tie_rule="first", sheet_cells=0.0)
 
 
 def test_each_later_field_takes_the_value_that_built_the_store() -> None:
@@ -63,7 +64,7 @@ def test_each_later_field_takes_the_value_that_built_the_store() -> None:
     assert cfg.mdbd == MDBDConfig()  # no mdbd section stored: today's defaults
     cfg = Config.from_json(VIEWS_ERA)
     assert cfg.descriptor.version == 2 and cfg.cloud == CloudConfig(4.0, False, 8)
-    assert cfg.mdbd == MDBDConfig(resolution=64)
+    assert cfg.mdbd == MDBDConfig(resolution=64, sheet_cells=0.0)
     cfg = Config.from_json(RECONSTRUCT_ERA)
     assert cfg.descriptor.version == 4 and cfg.cloud == CloudConfig(0.0, True, 8)
     cfg = Config.from_json(LAST_FLAT)
@@ -117,7 +118,7 @@ def test_part_index_configurations_of_every_layout() -> None:
 
 def _layout1_store_config() -> Config:
     return Config(
-        mdbd=MDBDConfig(resolution=24, n_balls=32, tie_cells=1.0),
+        mdbd=MDBDConfig(resolution=24, n_balls=32, tie_cells=1.0, sheet_cells=0.0),
         kernel=KernelConfig(),
         descriptor=DescriptorConfig(version=3),
         cloud=CloudConfig(view_cells=4.0, reconstruct=False, reconstruct_depth=7),
@@ -157,3 +158,20 @@ def test_a_store_written_with_the_previous_layout_opens_and_searches(tmp_path: P
     assert again.config == _layout1_store_config() and len(again) == 7
     assert again.get("slab").config == again.config
     assert [h.name for h in again.search("rods1", k=3)] == ["rods1", "rods2", "rods0"]
+
+
+def test_stores_written_before_sheets_never_thicken_and_keep_their_fingerprint(
+    tmp_path: Path,
+) -> None:
+    old = _layout1_store_config()
+    assert old.mdbd.sheet_cells == 0.0  # sheets failed then: records were built without
+    path = tmp_path / "old"
+    shutil.copytree(STORE_LAYOUT1, path, ignore=shutil.ignore_patterns("README.md"))
+    db = shapedb.connect(path, create=False)
+    stored = db.shapes(["config_fingerprint"]).column("config_fingerprint").to_pylist()
+    assert set(stored) == {old.fingerprint} == {db.config.fingerprint}
+    assert (
+        Config().mdbd.sheet_cells > 0
+        and Config().fingerprint
+        != replace(Config(), mdbd=replace(Config().mdbd, sheet_cells=0.0)).fingerprint
+    )
