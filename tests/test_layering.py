@@ -212,3 +212,9 @@ def test_the_checks_find_a_cycle_and_private_imports(tmp_path: Path) -> None:
         "pkg/a.py:1 imports _helper from pkg.b",
         "pkg/sub/d.py:2 imports the private module other._priv",
     ]
+
+
+def test_test_modules_have_unique_basenames() -> None:
+    """pytest imports test files by basename (no packages under tests/): two alike break collection."""
+    names = [p.name for p in (ROOT / "tests").rglob("test_*.py")]
+    assert sorted({n for n in names if names.count(n) > 1}) == []
