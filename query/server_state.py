@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import hmac
 import json
-import math
 import re
 import shutil
 import tempfile
@@ -35,6 +34,7 @@ from shapedb.errors import (
     StoreError,
     StoreLockedError,
 )
+from shapedb.results import jsonable
 
 if TYPE_CHECKING:
     from shapedb.database import Database
@@ -87,23 +87,6 @@ def error_response(status: int, message: str, headers: dict[str, str] | None = N
     """``{"error": message, "status": status}`` with that status."""
     body = json.dumps({"error": one_line(message), "status": status})
     return Response(body, status_code=status, media_type="application/json", headers=headers)
-
-
-def jsonable(x: Any) -> Any:
-    """``x`` as plain JSON values: arrays as lists, non-finite floats as null, dates ISO."""
-    if isinstance(x, dict):
-        return {str(k): jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [jsonable(v) for v in x]
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, (str, int, bool)) or x is None:
-        return x
-    if hasattr(x, "tolist"):
-        return jsonable(x.tolist())
-    if hasattr(x, "isoformat"):
-        return x.isoformat()
-    return str(x)
 
 
 def json_response(data: Any, status: int = 200, headers: dict[str, str] | None = None) -> Response:

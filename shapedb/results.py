@@ -25,6 +25,7 @@ The type aliases :data:`ShapeRef`, :data:`SearchQuery`, :data:`PartQuery`,
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
@@ -43,6 +44,7 @@ if TYPE_CHECKING:
     from shapedb.schema import ShapeRecord
 
 __all__ = [
+    "jsonable",
     "IngestReport",
     "StoreInfo",
     "FailureInfo",
@@ -373,3 +375,20 @@ class Classifier(Protocol):
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the model and its settings; returns the path."""
+
+
+def jsonable(x: Any) -> Any:
+    """``x`` with numpy values, paths and dates made JSON-serialisable (non-finite -> null)."""
+    if isinstance(x, dict):
+        return {str(k): jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [jsonable(v) for v in x]
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, (str, int, float, bool)) or x is None:
+        return x
+    if hasattr(x, "tolist"):
+        return jsonable(x.tolist())
+    if hasattr(x, "isoformat"):
+        return x.isoformat()
+    return str(x)

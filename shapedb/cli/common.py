@@ -7,11 +7,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, Protocol
+
+from shapedb.results import jsonable
 
 if TYPE_CHECKING:
     from shapedb.database import Database
@@ -141,23 +142,6 @@ class ProgressBar:
 def hit_row(hit: Hit) -> dict[str, Any]:
     """A search hit as a dict of its fields (:data:`HIT_COLUMNS`)."""
     return hit.to_dict()
-
-
-def jsonable(x: Any) -> Any:
-    """``x`` with numpy values, paths and dates made JSON-serialisable (non-finite -> null)."""
-    if isinstance(x, dict):
-        return {str(k): jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [jsonable(v) for v in x]
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if isinstance(x, (str, int, float, bool)) or x is None:
-        return x
-    if hasattr(x, "tolist"):
-        return jsonable(x.tolist())
-    if hasattr(x, "isoformat"):
-        return x.isoformat()
-    return str(x)
 
 
 def print_json(data: Any) -> None:
