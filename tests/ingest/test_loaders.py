@@ -104,7 +104,7 @@ def test_content_wins_over_extension(tmp_path: Path, good_files: dict[str, Path]
         "junk.obj",
         "junk.ply",
         "nan.obj",
-        "flat.obj",
+        "line.obj",
         "model.fbx",
         "text.obj",
     ],
@@ -124,7 +124,7 @@ def test_bad_files_raise_clear_errors(bad_dir: tuple[Path, dict[str, str]], name
 def test_bad_reasons_are_specific(bad_dir: tuple[Path, dict[str, str]]) -> None:
     folder, _ = bad_dir
     reasons = {}
-    for name in ("empty.obj", "truncated.stl", "junk.obj", "nan.obj", "flat.obj", "model.fbx"):
+    for name in ("empty.obj", "truncated.stl", "junk.obj", "nan.obj", "line.obj", "model.fbx"):
         with pytest.raises(E.ShapeDBError) as info:
             load(folder / name)
         reasons[name] = info.value.reason.lower()
@@ -132,7 +132,7 @@ def test_bad_reasons_are_specific(bad_dir: tuple[Path, dict[str, str]]) -> None:
     assert "truncated" in reasons["truncated.stl"]
     assert "junk" in reasons["junk.obj"]
     assert "nan" in reasons["nan.obj"]
-    assert "volume" in reasons["flat.obj"] or "flat" in reasons["flat.obj"]
+    assert "a point or a line" in reasons["line.obj"]
     assert "unsupported" in reasons["model.fbx"]
 
 

@@ -232,3 +232,11 @@ def test_reader_sees_only_whole_batches(tmp_db: database.Database) -> None:
     assert len(report.ingested) == 12 and not errors
     assert seen and all(n % batch == 0 for n in seen), sorted(set(seen))
     assert tmp_db.store.version == 12 // batch
+
+
+def test_a_flat_sheet_is_a_model_not_a_failure(tmp_db: database.Database, tmp_path: Path) -> None:
+    sheet = tmp_path / "table_top.obj"  # one quad, zero thickness: decomposed as a thin slab
+    sheet.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n")
+    report = tmp_db.ingest([sheet], workers=1)
+    assert report.failed == () and len(report.ingested) == 1
+    assert tmp_db.get("table_top").decomposition.n_balls > 0
