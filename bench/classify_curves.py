@@ -24,6 +24,9 @@ Sets (decompositions from the shared bench cache, as in :mod:`bench.classify`):
   14 to train, 6 to test; training sizes 5, 10, 14 per class (nested subsets).
 - ``capod``: 15 classes x 12 meshes, 3 stratified folds (8 train, 4 test per class);
   training sizes 5, 8 per class; the figures are means over the folds.
+- ``heldout50``: the same 20 classes with 56 models per class (the first 20 of each are
+  ``heldout``'s models); the test part is ``heldout``'s 6 per class, the training part the
+  other 50 per class (``heldout``'s 14 and 36 more); training sizes 20, 50 per class.
 - ``large``: 12 part / figure classes of :func:`bench.classify.generated` with 20 test
   and up to 100 training models per class (sizes 20, 50, 100): costly, off by default.
 
@@ -55,10 +58,11 @@ from shapedb.config import Config, MDBDConfig
 RESULTS = Path(__file__).resolve().parent / "results"
 CONFIGS = {
     "heldout": MDBDConfig(resolution=64, n_balls=128, refine=False),
+    "heldout50": MDBDConfig(resolution=64, n_balls=128, refine=False),
     "large": MDBDConfig(resolution=64, n_balls=128, refine=False),
     "capod": MDBDConfig(refine=False),
 }
-SIZES = {"heldout": (5, 10, 14), "capod": (5, 8), "large": (20, 50, 100)}
+SIZES = {"heldout": (5, 10, 14), "heldout50": (20, 50), "capod": (5, 8), "large": (20, 50, 100)}
 
 
 def load_set(
@@ -77,6 +81,15 @@ def load_set(
         ds = generated(20, 20)
         labels = [m.label for m in ds.models]
         tr, te = stratified_split(labels, (14 / 20, 6 / 20), seed=0)
+        splits, want = [{"train": tr, "test": te}], te
+    elif name == "heldout50":
+        ds = generated(56, 20)
+        labels = [m.label for m in ds.models]
+        small = [m.label for m in generated(20, 20).models]
+        _, te20 = stratified_split(small, (14 / 20, 6 / 20), seed=0)
+        # model j of class c is index c * 20 + j there and c * 56 + j here
+        te = np.sort(np.asarray([(i // 20) * 56 + i % 20 for i in te20], dtype=np.int64))
+        tr = np.setdiff1d(np.arange(len(labels)), te)
         splits, want = [{"train": tr, "test": te}], te
     elif name == "large":
         ds = generated(120, 12)
