@@ -208,7 +208,15 @@ def run_set(name: str, args: argparse.Namespace) -> dict[str, Any]:
                 train = subset(labels, s["train"], n)
                 for c in args.candidates:
                     jobs[(n, f, c)] = pool.submit(run_candidate, c, data, train, s["test"], options)
-        results = {k: j.result() for k, j in jobs.items()}
+        results = {}
+        for (n, f, c), j in jobs.items():  # submission order: the smaller sizes first
+            r = results[(n, f, c)] = j.result()
+            print(
+                f"  {n}/class split {f} {c}: validation {r['validation_accuracy']:.3f}, "
+                f"test mesh {r['test_mesh']:.3f}, points {r['test_points']:.3f} "
+                f"({r['seconds']:.0f} s)",
+                flush=True,
+            )
     points: dict[int, Any] = {}
     for n in sizes:
         per_fold = [[results[(n, f, c)] for c in args.candidates] for f in range(len(splits))]
