@@ -334,8 +334,23 @@ def _code_only(source: str) -> str:
 
 
 @functools.lru_cache(maxsize=4)
-def engine_version(variant: str | None = None) -> str:
+def _source_at(commit: str, module: str) -> str | None:
+    """``shapedb/<module>.py`` at ``commit`` (None if it did not exist then)."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run(
+        ["git", "show", f"{commit}:shapedb/{module}.py"],
+        cwd=root, capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    return done.stdout if done.returncode == 0 else None
+
+
+def engine_version(variant: str | None = None, *, commit: str | None = None) -> str:
     """A digest (16 hex) of the decomposition engine's code.
+
+    ``commit``: of the engine as it was at that git commit of this repository (the
+    modules it did not have yet left out), to read decompositions cached then.
 
     Docstrings and comments do not count, so documentation edits keep the cache.
     Mesh variants leave ``pointcloud.py`` out of it, so that work on the point-cloud
@@ -354,8 +369,11 @@ def engine_version(variant: str | None = None) -> str:
     if variant and variant.startswith("pointcloud") and "_recon" in variant:
         modules = (*modules, "reconstruct")
     for name in modules:
-        if name not in skip:
-            digest.update(_code_only((root / f"{name}.py").read_text()).encode())
+        if name in skip:
+            continue
+        source = (root / f"{name}.py").read_text() if commit is None else _source_at(commit, name)
+        if source is not None:
+            digest.update(_code_only(source).encode())
     return digest.hexdigest()[:16]
 
 
@@ -375,16 +393,23 @@ def mdbd_config(
     return replace(cfg, refine=False) if no_refine else cfg
 
 
-def cache_path(model: Model, variant: str, config: MDBDConfig) -> Path:
+def cache_path(
+    model: Model, variant: str, config: MDBDConfig, *, engine_commit: str | None = None
+) -> Path:
     """Where the decomposition of ``model`` in ``variant`` with ``config`` is cached.
 
     The key holds the model's source, the variant, the config (without
     ``contact_tol_cells``, which only the contact graph depends on) and
-    :func:`engine_version` of the variant.
+    :func:`engine_version` of the variant. ``engine_commit``: the key an older engine
+    used (its code at that commit; ``sheet_cells`` left out of the config if it had
+    no ``sheet.py``), to read what it cached where the changes since cannot matter.
     """
     params = asdict(config)
     del params["contact_tol_cells"]
-    key = [_source_key(model), variant, params, engine_version(variant)]
+    if engine_commit is not None and _source_at(engine_commit, "sheet") is None:
+        del params["sheet_cells"]
+    version = engine_version(variant, commit=engine_commit)
+    key = [_source_key(model), variant, params, version]
     if variant.startswith(("pointcloud_noisy", "pointcloud_partial")):
         key.append(people_version("scans"))  # bench.people makes these clouds
     text = json.dumps(key, sort_keys=True)

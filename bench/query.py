@@ -235,19 +235,13 @@ def run_size(
     return row
 
 
-def run_store(
-    n: int, *, n_latency: int = 300, kernel: KernelConfig | None = None
-) -> dict[str, Any]:
-    """End-to-end ``query.engine.search`` latency on a real store of n synthetic shapes."""
-    import shapedb.database as database
-    from query.engine import search
-    from query.index import open_index
-    from query.metric import LearnedMetric, block_layout
+def synthetic_records(n: int, config: Config) -> list[Any]:
+    """``n`` ShapeRecords of one ball each with realistic feature vectors (ids s0..s{n-1},
+    labels c0..c49), for stores whose search cost, not decomposition, is measured."""
     from shapedb.mdbd import Decomposition
     from shapedb.schema import ShapeRecord
 
-    config = Config(kernel=kernel or KernelConfig())
-    x = synthetic_vectors(n, config.kernel, 7)
+    x = synthetic_vectors(n, config, 7)
     one = Decomposition(
         centers=np.zeros((1, 3)),
         radii=np.ones(1),
@@ -257,12 +251,26 @@ def run_store(
         config=config.mdbd,
         representation="implicit",
     )
+    return [
+        ShapeRecord(f"s{i}", one, x[i], config, f"h{i}", "implicit", label=f"c{i % 50}")
+        for i in range(n)
+    ]
+
+
+def run_store(
+    n: int, *, n_latency: int = 300, kernel: KernelConfig | None = None
+) -> dict[str, Any]:
+    """End-to-end ``query.engine.search`` latency on a real store of n synthetic shapes."""
+    import shapedb.database as database
+    from query.engine import search
+    from query.index import open_index
+    from query.metric import LearnedMetric, block_layout
+
+    config = Config(kernel=kernel or KernelConfig())
     with tempfile.TemporaryDirectory() as tmp:
         db = database.connect(Path(tmp) / "store", config=config)
-        records = [
-            ShapeRecord(f"s{i}", one, x[i], config, f"h{i}", "implicit", label=f"c{i % 50}")
-            for i in range(n)
-        ]
+        records = synthetic_records(n, config)
+        x = np.stack([r.feature for r in records])
         t0 = time.perf_counter()
         db.commit(records)
         commit = time.perf_counter() - t0

@@ -57,31 +57,14 @@ CAPOD = Path("/work/shared/data/capod")
 # ------------------------------------------------------------------ the store
 def synthetic_store(root: Path, n: int) -> Any:
     """A store of ``n`` synthetic shapes (one ball each, realistic feature vectors)."""
-    from bench.query import synthetic_vectors
+    from bench.query import synthetic_records
     from query.index import open_index
     from shapedb.config import Config
     from shapedb.database import connect
-    from shapedb.mdbd import Decomposition
-    from shapedb.schema import ShapeRecord
 
     config = Config()
-    x = synthetic_vectors(n, config, 7)
-    one = Decomposition(
-        centers=np.zeros((1, 3)),
-        radii=np.ones(1),
-        edges=np.zeros((0, 2), np.int32),
-        spacing=0.1,
-        bounds=np.array([[-1.0, -1, -1], [1, 1, 1]]),
-        config=config.mdbd,
-        representation="implicit",
-    )
     db = connect(root, config=config)
-    db.commit(
-        [
-            ShapeRecord(f"s{i}", one, x[i], config, f"h{i}", "implicit", label=f"c{i % 50}")
-            for i in range(n)
-        ]
-    )
+    db.commit(synthetic_records(n, config))
     open_index(db)  # built once here, loaded by the server
     return db
 

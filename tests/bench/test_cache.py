@@ -119,3 +119,21 @@ def test_turned_clouds_are_the_frame_cloud_turned_about_each_axis(model: Model) 
             assert (got * want.inv()).magnitude() < 1e-9
     # a turn is about the frame's centroid, whatever the model's own placement
     np.testing.assert_allclose(turned[0].points.mean(axis=0), 0.0, atol=1e-9)
+
+
+def test_an_older_engines_key_reads_its_code_at_that_commit(model: Model) -> None:
+    import subprocess
+
+    root = Path(common.__file__).resolve().parents[1]
+    clean = subprocess.run(
+        ["git", "diff", "--quiet", "HEAD", "--", "shapedb"], cwd=root, check=False
+    ).returncode
+    if clean != 0:
+        pytest.skip("the engine has uncommitted changes: HEAD is not the working tree")
+    assert common.engine_version("mesh", commit="HEAD") == common.engine_version("mesh")
+    assert common.cache_path(model, "mesh", CONFIG, engine_commit="HEAD") == common.cache_path(
+        model, "mesh", CONFIG
+    )
+    # a commit before shapedb/sheet.py existed: another engine, and no sheet_cells in the key
+    before = common.cache_path(model, "mesh", CONFIG, engine_commit="f031e22")
+    assert before != common.cache_path(model, "mesh", CONFIG)
