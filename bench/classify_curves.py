@@ -65,6 +65,23 @@ CONFIGS = {
 SIZES = {"heldout": (5, 10, 14), "heldout50": (20, 50), "capod": (5, 8), "large": (20, 50, 100)}
 
 
+def heldout50() -> tuple[Any, NDArray[np.int64], NDArray[np.int64]]:
+    """The ``heldout50`` set and its (train, test) indices.
+
+    Returns
+    -------
+    dataset : the 20 classes of :func:`bench.classify.generated` at 56 models per class
+    train : (1000,) int64, the 50 per class outside the test part
+    test : (120,) int64, the same models as the ``heldout`` set's 6 test models per class
+    """
+    ds = generated(56, 20)
+    small = [m.label for m in generated(20, 20).models]
+    _, te20 = stratified_split(small, (14 / 20, 6 / 20), seed=0)
+    # model j of class c is index c * 20 + j there and c * 56 + j here
+    te = np.sort(np.asarray([(i // 20) * 56 + i % 20 for i in te20], dtype=np.int64))
+    return ds, np.setdiff1d(np.arange(len(ds.models)), te), te
+
+
 def load_set(
     name: str, workers: int, points: bool, capod_root: Path = CAPOD_ROOT
 ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
@@ -83,13 +100,7 @@ def load_set(
         tr, te = stratified_split(labels, (14 / 20, 6 / 20), seed=0)
         splits, want = [{"train": tr, "test": te}], te
     elif name == "heldout50":
-        ds = generated(56, 20)
-        labels = [m.label for m in ds.models]
-        small = [m.label for m in generated(20, 20).models]
-        _, te20 = stratified_split(small, (14 / 20, 6 / 20), seed=0)
-        # model j of class c is index c * 20 + j there and c * 56 + j here
-        te = np.sort(np.asarray([(i // 20) * 56 + i % 20 for i in te20], dtype=np.int64))
-        tr = np.setdiff1d(np.arange(len(labels)), te)
+        ds, tr, te = heldout50()
         splits, want = [{"train": tr, "test": te}], te
     elif name == "large":
         ds = generated(120, 12)
