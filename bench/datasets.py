@@ -23,6 +23,11 @@ validation, the rest to test; parameter studies see only the validation split):
     Web-like man-made and natural models from :mod:`bench.generic_shapes` (boxes,
     zero-thickness sheets, open and interpenetrating parts; the class is the kind),
     used as the triangle soups they are generated as.
+``web``
+    A harder web-like set from :mod:`bench.web_shapes`: 45 kinds in close families
+    (seats, tables, buildings, vehicles, aircraft, ...), large variation within a
+    kind, random yaw and some arbitrary rotations; sources carry
+    :func:`bench.web_shapes.web_version`, so caches key on the generator's code.
 
 Point-cloud versions follow the paper: a random 20 % of the mesh vertices, seeded by
 the model name; meshes so coarse that this gives fewer than ``min_points`` points are
@@ -56,6 +61,7 @@ __all__ = [
     "people",
     "parts",
     "generic",
+    "web",
     "load_dataset",
     "mesh_arrays",
     "families",
@@ -262,14 +268,33 @@ def generic(per_kind: int = 20, kinds: Sequence[str] | None = None) -> Dataset:
     return Dataset("generic", split_by_model(models))
 
 
+def web(per_kind: int = 20, kinds: Sequence[str] | None = None) -> Dataset:
+    """The hard web-like set: one class per kind of :mod:`bench.web_shapes`.
+
+    Sources are ``"web:<kind>:<seed>:<web_version>"``: a change of the generator's
+    code changes every source, so no cache serves stale models.
+    """
+    from bench.web_shapes import KINDS, web_version
+
+    kinds = tuple(kinds) if kinds else KINDS
+    version = web_version()
+    models = [
+        Model(name=f"{k}_{i:02d}", label=k, source=f"web:{k}:{i}:{version}")
+        for k in kinds
+        for i in range(per_kind)
+    ]
+    return Dataset("web", split_by_model(models))
+
+
 def load_dataset(name: str) -> Dataset:
-    """One of ``capod``, ``articulated``, ``people``, ``parts``, ``generic`` with its default size."""
+    """One of ``capod``, ``articulated``, ``people``, ``parts``, ``generic``, ``web`` (default size)."""
     makers = {
         "capod": capod,
         "articulated": articulated,
         "people": people,
         "parts": parts,
         "generic": generic,
+        "web": web,
     }
     if name not in makers:
         raise ValueError(f"unknown data set {name!r}: choose from {sorted(makers)}")
@@ -314,6 +339,15 @@ def mesh_arrays(
 
         _, kind, seed = model.source.split(":")
         return generic_mesh(kind, int(seed))
+    if model.source.startswith("web:"):
+        from bench.web_shapes import web_mesh, web_version
+
+        _, kind, seed, version = model.source.split(":")
+        if version != web_version():
+            raise ValueError(
+                f"{model.name}: made by web generator {version}, this code is {web_version()}"
+            )
+        return web_mesh(kind, int(seed))
     if not model.source.startswith(("figure:", "part:", "person:")):
         import trimesh
 
@@ -386,7 +420,7 @@ def families(models: Sequence[Model]) -> NDArray[np.str_]:
     for m in models:
         if m.source.startswith(("figure:", "person:")):
             keys.append(m.source.rsplit(":", 1)[0])
-        elif m.source.startswith(("part:", "generic:")):
+        elif m.source.startswith(("part:", "generic:", "web:")):
             keys.append(m.source)
         else:
             faces = np.ascontiguousarray(mesh_arrays(m)[1], dtype=np.int64)

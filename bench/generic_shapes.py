@@ -19,97 +19,10 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from numpy.typing import NDArray
+
+from bench.mesh_parts import F, Part, Rng, V, box, ellipsoid, hquad, place, quad, revolve, rod
 
 __all__ = ["KINDS", "generic_mesh"]
-
-V = NDArray[np.float64]
-F = NDArray[np.int64]
-Part = tuple[V, F]
-Rng = np.random.Generator
-
-_BOX_F = np.array(
-    [[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
-     [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]],
-)  # fmt: skip
-
-
-def box(c: tuple[float, ...] | V, s: tuple[float, ...] | V) -> Part:
-    """A closed box centred at ``c`` with full sizes ``s``."""
-    c, h = np.asarray(c, float), 0.5 * np.asarray(s, float)
-    sx = np.array([-1, 1, 1, -1, -1, 1, 1, -1])
-    sy = np.array([-1, -1, 1, 1, -1, -1, 1, 1])
-    sz = np.array([-1, -1, -1, -1, 1, 1, 1, 1])
-    v = c + np.stack([sx * h[0], sy * h[1], sz * h[2]], axis=1)
-    return v, _BOX_F.copy()
-
-
-def quad(c: tuple[float, ...] | V, a: tuple[float, ...] | V, b: tuple[float, ...] | V) -> Part:
-    """A zero-thickness rectangle ``c + s a + t b``, s, t in [-1, 1]."""
-    c, a, b = (np.asarray(x, float) for x in (c, a, b))
-    v = np.stack([c - a - b, c + a - b, c + a + b, c - a + b])
-    return v, np.array([[0, 1, 2], [0, 2, 3]])
-
-
-def hquad(c: tuple[float, ...], sx: float, sy: float) -> Part:
-    """A horizontal sheet of full sizes ``sx``, ``sy``."""
-    return quad(c, (sx / 2, 0, 0), (0, sy / 2, 0))
-
-
-def revolve(
-    z: V, r: V, *, n: int = 16, bottom: bool = True, top: bool = False,
-    c: tuple[float, float] = (0.0, 0.0),
-) -> Part:  # fmt: skip
-    """Surface of revolution about the vertical through ``c``: radii ``r`` at heights ``z``."""
-    z, r = np.asarray(z, float), np.asarray(r, float)
-    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
-    ring = np.stack([np.cos(t), np.sin(t)], axis=1)
-    v = [np.column_stack([c[0] + ri * ring[:, 0], c[1] + ri * ring[:, 1], np.full(n, zi)])
-         for zi, ri in zip(z, r, strict=True)]  # fmt: skip
-    verts = np.concatenate(v)
-    faces = []
-    for k in range(len(z) - 1):
-        for j in range(n):
-            a, b = k * n + j, k * n + (j + 1) % n
-            faces += [[a, b, b + n], [a, b + n, a + n]]
-    for cap, k in ((bottom, 0), (top, len(z) - 1)):
-        if cap:
-            centre = len(verts)
-            verts = np.vstack([verts, [c[0], c[1], z[k]]])
-            faces += [[centre, k * n + (j + 1) % n, k * n + j] for j in range(n)]
-    return verts, np.asarray(faces)
-
-
-def rod(p0: tuple[float, ...] | V, p1: tuple[float, ...] | V, r: float, n: int = 8) -> Part:
-    """A capped cylinder from ``p0`` to ``p1`` of radius ``r``."""
-    p0, p1 = np.asarray(p0, float), np.asarray(p1, float)
-    length = float(np.linalg.norm(p1 - p0))
-    v, f = revolve(np.array([0.0, length]), np.array([r, r]), n=n, top=True)
-    return _place(v, p0, (p1 - p0) / max(length, 1e-12)), f
-
-
-def ellipsoid(c: tuple[float, ...] | V, radii: tuple[float, ...] | V) -> Part:
-    """A closed ellipsoid (an icosphere, 80 faces, scaled)."""
-    import trimesh
-
-    s = trimesh.creation.icosphere(subdivisions=1)
-    return np.asarray(s.vertices) * np.asarray(radii, float) + np.asarray(c, float), np.asarray(
-        s.faces, dtype=np.int64
-    )
-
-
-def _place(v: V, origin: V, axis: V) -> V:
-    """Map local z to ``axis`` (unit) and translate by ``origin``."""
-    z = np.array([0.0, 0.0, 1.0])
-    k = np.cross(z, axis)
-    s, c = float(np.linalg.norm(k)), float(z @ axis)
-    if s < 1e-12:
-        rot = np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    else:
-        k /= s
-        kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-        rot = np.eye(3) + s * kx + (1 - c) * kx @ kx
-    return np.asarray(v @ rot.T + origin)
 
 
 def _legs(rng: Rng, w: float, d: float, h: float, t: float, inset: float = 0.0) -> list[Part]:
@@ -309,7 +222,7 @@ def skyscraper(rng: Rng) -> list[Part]:
 def _wheel_parts(c: tuple[float, float, float], r: float, width: float, axis: int) -> list[Part]:
     v, f = revolve(np.array([-width / 2, width / 2]), np.array([r, r]), n=12, bottom=True, top=True)
     a = np.eye(3)[axis]
-    return [(_place(v, np.asarray(c, float), a), f)]
+    return [(place(v, np.asarray(c, float), a), f)]
 
 
 def car(rng: Rng) -> list[Part]:
@@ -372,7 +285,7 @@ def bicycle(rng: Rng) -> list[Part]:
     parts: list[Part] = []
     for x in (-base / 2, base / 2):
         v, f = revolve(np.array([-0.02, 0.02]), np.array([r, r]), n=24, bottom=False)
-        parts.append((_place(v, np.array([x, 0, r]), np.array([0, 1.0, 0])), f))
+        parts.append((place(v, np.array([x, 0, r]), np.array([0, 1.0, 0])), f))
     seat = np.array([-0.15, 0, r + 0.5])
     head = np.array([base / 2 - 0.15, 0, r + 0.45])
     crank = np.array([0.0, 0, r])
@@ -397,7 +310,7 @@ def wheel(rng: Rng) -> list[Part]:
         a = 2 * np.pi * k / n
         parts.append(rod((0.15 * r * np.cos(a), 0.15 * r * np.sin(a), 0),
                          (0.8 * r * np.cos(a), 0.8 * r * np.sin(a), 0), 0.03 * r, n=6))  # fmt: skip
-    return [(_place(v, np.zeros(3), np.array([1.0, 0, 0])), f) for v, f in parts]
+    return [(place(v, np.zeros(3), np.array([1.0, 0, 0])), f) for v, f in parts]
 
 
 def satellite_dish(rng: Rng) -> list[Part]:
@@ -407,7 +320,7 @@ def satellite_dish(rng: Rng) -> list[Part]:
     tilt = rng.uniform(0.3, 0.8)
     h = rng.uniform(0.6, 1.2)
     axis = np.array([np.sin(tilt), 0, np.cos(tilt)])
-    parts = [(_place(v, np.array([0, 0, h]), axis), f)]
+    parts = [(place(v, np.array([0, 0, h]), axis), f)]
     parts.append(rod((0, 0, 0), (0, 0, h), 0.03))
     parts.append(rod((0, 0, h), np.array([0, 0, h]) + 0.7 * R * axis, 0.01))
     parts.append(box((0, 0, 0.02), (0.4, 0.4, 0.04)))

@@ -56,7 +56,7 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.datasets import Dataset, articulated, capod, generic, mesh_arrays, parts
+from bench.datasets import Dataset, articulated, capod, generic, mesh_arrays, parts, web
 from bench.features import complete, kernel_features, l1_matrix, mixture_mask, reconstructions
 from shapedb.config import Config, DescriptorConfig, KernelConfig, MDBDConfig
 
@@ -333,6 +333,9 @@ def build_sets(
                 print(f"parts set unavailable: {exc}")
         elif name == "generic":
             ds = generic()
+            out.append(ds.head(per_class=6) if quick else ds)
+        elif name == "web":
+            ds = web()
             out.append(ds.head(per_class=6) if quick else ds)
         else:
             raise SystemExit(f"unknown data set {name!r}")
