@@ -18,6 +18,13 @@ Spherical harmonic descriptor (Kazhdan, Funkhouser and Rusinkiewicz, SGP 2003)
     indicator (32 shells, 16 degrees); sampling the surface is the same function up to
     the blur.
 
+Light field descriptor (Chen, Tian, Shen and Ouhyoung, Eurographics 2003)
+    Zernike and Fourier descriptors of silhouettes from the 10 view pairs of a
+    dodecahedron, several light fields per model, the distance minimised over the 60
+    rotations of the dodecahedron and over light-field pairs; in its own module,
+    :mod:`bench.lightfield` (``LFDConfig``, ``lfd_descriptor``, ``lfd_similarity``),
+    which samples surfaces with :func:`sample_surface` from here.
+
 GraKeL graph kernels (Siglidis et al., JMLR 2020) on the MDBD contact graphs
     Shortest-Path, Weisfeiler-Lehman subtree and Pyramid Match, all normalised
     (k(x, y) / sqrt(k(x, x) k(y, y))), with discrete node labels
