@@ -13,7 +13,8 @@ zero-thickness sheets, open tubes; parts interpenetrate), 30 % of the parts have
 faces flipped, and the orientation is not canonical: every model is turned by a
 random angle about its up axis, and :data:`TILTED` of them are turned arbitrarily in
 3-D. Sizes are random too (a factor in [0.5, 2]), and :data:`GROUNDED` of the models
-stand on a ground sheet or a display base, as some web models do.
+stand on a ground sheet or a display base, as some web models do; :data:`FURNISHED`
+of them keep hidden parts inside their bulkiest part (interiors no view shows).
 
 ``web_mesh(kind, seed)`` is deterministic and cheap (milliseconds).
 :func:`web_version` is a digest of the generator's code, for cache keys.
@@ -30,7 +31,16 @@ import numpy as np
 from bench import web_furniture, web_organic, web_structures
 from bench.mesh_parts import F, Part, Rng, V
 
-__all__ = ["KINDS", "FAMILIES", "TILTED", "FLIPPED", "GROUNDED", "web_mesh", "web_version"]
+__all__ = [
+    "KINDS",
+    "FAMILIES",
+    "TILTED",
+    "FLIPPED",
+    "GROUNDED",
+    "FURNISHED",
+    "web_mesh",
+    "web_version",
+]
 
 _BUILDERS: dict[str, Callable[[Rng], list[Part]]] = {
     **web_furniture.BUILDERS,
@@ -61,6 +71,8 @@ TILTED = 0.2
 FLIPPED = 0.3
 #: Fraction of the models that stand on a ground sheet or a display base.
 GROUNDED = 0.15
+#: Fraction of the models with hidden parts inside their bulkiest part (interiors).
+FURNISHED = 0.4
 
 
 def _random_rotation(rng: Rng) -> np.ndarray:
@@ -81,6 +93,33 @@ def _ground(rng: Rng, v: V) -> Part:
         return hquad((c[0], c[1], lo[2]), grow * size[0], grow * size[1])
     t = 0.05 * float(size.max())
     return box((c[0], c[1], lo[2] - t / 2), (grow * size[0], grow * size[1], t))
+
+
+def _interior(rng: Rng, parts: list[Part]) -> list[Part]:
+    """1-5 boxes and floor sheets hidden inside the part of largest bounding box.
+
+    They stay within 0.55 of its half-extents about its centre, so inside a box or an
+    ellipsoid they are out of sight from every side (web models keep interiors, engines,
+    inner walls and floors that no view shows).
+    """
+    from bench.mesh_parts import box, hquad
+
+    ext = [np.ptp(v, axis=0) for v, _ in parts]
+    volume = [float(np.prod(e)) for e in ext]
+    k = int(np.argmax(volume))
+    if not volume[k] > 0:  # only sheets: nothing is hidden inside a sheet
+        return []
+    v = parts[k][0]
+    c, half = 0.5 * (v.min(axis=0) + v.max(axis=0)), 0.55 * 0.5 * ext[k]
+    out: list[Part] = []
+    for _ in range(int(rng.integers(1, 6))):
+        size = half * rng.uniform(0.2, 1.0, 3)
+        at = c + (half - size) * rng.uniform(-1, 1, 3)
+        if rng.random() < 0.5:
+            out.append(box(at, 2 * size))
+        else:
+            out.append(hquad((at[0], at[1], at[2]), 2 * size[0], 2 * size[1]))
+    return out
 
 
 def web_mesh(kind: str, seed: int) -> tuple[V, F]:
@@ -110,6 +149,8 @@ def web_mesh(kind: str, seed: int) -> tuple[V, F]:
         raise ValueError(f"unknown web kind {kind!r}: choose from {KINDS}")
     rng = np.random.default_rng(zlib.crc32(f"web/{kind}/{seed}".encode()))
     parts = _BUILDERS[kind](rng)
+    if rng.random() < FURNISHED:
+        parts += _interior(rng, parts)
     if rng.random() < GROUNDED:
         parts.append(_ground(rng, np.concatenate([v for v, _ in parts])))
     vs, fs, at = [], [], 0
