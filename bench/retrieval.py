@@ -6,6 +6,7 @@ Usage (from the repository root)::
     python -m bench.retrieval                          # all three sets, test split
     python -m bench.retrieval --study                  # parameter study, validation split
     python -m bench.retrieval --descriptors --stability  # issue 6 measurements
+    python -m bench.retrieval --baselines-only         # D2, SH, LFD only: no decomposition
 
 For each data set (generic, web, capod, articulated, parts) one table is printed, on the test split:
 the MDBD kernel of Eq. 3 on meshes, on point clouds (20 % of the vertices), on an even
@@ -191,23 +192,7 @@ def run_tables(
         for name, run in runs.items():
             rows.append(_row(f"GraKeL {name}, meshes", run.matrix, labels, run.seconds))
             baselines[name] = run.seconds
-    t = time.perf_counter()
-    dd = np.stack([d2_descriptor(*mesh_arrays(m), d2) for m in ds.models])
-    d2_sim = l1_similarity(dd)
-    rows.append(_row("D2 shape distribution, meshes", d2_sim, labels, time.perf_counter() - t))
-    t = time.perf_counter()
-    sh = np.stack([sh_descriptor(*mesh_arrays(m), SHConfig()) for m in ds.models])
-    rows.append(
-        _row("spherical harmonics, meshes", l2_similarity(sh), labels, time.perf_counter() - t)
-    )
-    t = time.perf_counter()
-    lfd = np.stack([lfd_descriptor(*mesh_arrays(m), LFDConfig()) for m in ds.models])
-    lfd_s = time.perf_counter() - t
-    t = time.perf_counter()
-    rows.append(_row("light field descriptor, meshes", lfd_similarity(lfd), labels,
-                     lfd_s + time.perf_counter() - t))  # fmt: skip
-    print(f"  light fields: {lfd_s / len(ds) * 1e3:.0f} ms/model, distances "
-          f"{time.perf_counter() - t:.0f} s")  # fmt: skip
+    rows += mesh_baselines(ds, d2)
 
     dec_mesh = float(np.mean([b.seconds for b in mesh]))
     dec_pc = float(np.mean([b.seconds for b in pc]))
@@ -248,6 +233,49 @@ def run_tables(
             "features": feat_s[default_label] / len(ds),
             "features_paper": feat_s["paper kernel"] / len(ds),
         },
+        "wall_seconds": time.perf_counter() - t0,
+    }
+
+
+def mesh_baselines(ds: Dataset, d2: D2Config) -> list[list[Any]]:
+    """Rows of the descriptors computed from the meshes alone: D2, spherical harmonics, LFD.
+
+    Each row is ``[name, NN, 1-T, 2-T, E, DCG, seconds]`` on ``ds`` (every model
+    against every other); the seconds include the descriptors and the distances.
+    """
+    labels = ds.labels
+    rows: list[list[Any]] = []
+    t = time.perf_counter()
+    dd = np.stack([d2_descriptor(*mesh_arrays(m), d2) for m in ds.models])
+    rows.append(_row("D2 shape distribution, meshes", l1_similarity(dd), labels,
+                     time.perf_counter() - t))  # fmt: skip
+    t = time.perf_counter()
+    sh = np.stack([sh_descriptor(*mesh_arrays(m), SHConfig()) for m in ds.models])
+    rows.append(
+        _row("spherical harmonics, meshes", l2_similarity(sh), labels, time.perf_counter() - t)
+    )
+    t = time.perf_counter()
+    lfd = np.stack([lfd_descriptor(*mesh_arrays(m), LFDConfig()) for m in ds.models])
+    lfd_s = time.perf_counter() - t
+    t = time.perf_counter()
+    rows.append(_row("light field descriptor, meshes", lfd_similarity(lfd), labels,
+                     lfd_s + time.perf_counter() - t))  # fmt: skip
+    print(f"  light fields: {lfd_s / len(ds) * 1e3:.0f} ms/model, distances "
+          f"{time.perf_counter() - t:.0f} s")  # fmt: skip
+    return rows
+
+
+def run_baselines(ds: Dataset, d2: D2Config) -> dict[str, Any]:
+    """One data set's table of :func:`mesh_baselines` only (no decomposition)."""
+    t0 = time.perf_counter()
+    rows = mesh_baselines(ds, d2)
+    print()
+    print(format_table(f"{ds.name}: {len(ds)} models, {len(set(ds.labels))} classes, "
+                       "baselines only", COLUMNS, rows))  # fmt: skip
+    return {
+        "models": len(ds),
+        "classes": len(set(ds.labels)),
+        "table": [dict(zip(COLUMNS, r, strict=True)) for r in rows],
         "wall_seconds": time.perf_counter() - t0,
     }
 
@@ -378,6 +406,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument(
         "--meshes-only", action="store_true", help="decompose meshes only: no point-cloud rows"
     )
+    ap.add_argument(
+        "--baselines-only",
+        action="store_true",
+        help="only the mesh descriptors D2, spherical harmonics and LFD (no decomposition)",
+    )
     ap.add_argument("--study", action="store_true", help="parameter study on the validation split")
     ap.add_argument("--descriptors", action="store_true", help="issue 6 descriptor prototypes")
     ap.add_argument("--stability", action="store_true", help="shift / rotation / decimation")
@@ -425,7 +458,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     probes=12 if args.quick else args.probes,
                     view_cells=args.views,
                 )
-        if not (args.study or args.descriptors or args.stability or args.refine_shift):
+        if args.baselines_only:
+            entry["baselines"] = run_baselines(ds.split(args.split), d2)
+        elif not (args.study or args.descriptors or args.stability or args.refine_shift):
             entry["tables"] = run_tables(
                 ds.split(args.split),
                 mdbd,
