@@ -346,6 +346,7 @@ def _source_at(commit: str, module: str) -> str | None:
     return done.stdout if done.returncode == 0 else None
 
 
+@functools.lru_cache(maxsize=64)
 def engine_version(variant: str | None = None, *, commit: str | None = None) -> str:
     """A digest (16 hex) of the decomposition engine's code.
 
@@ -353,6 +354,7 @@ def engine_version(variant: str | None = None, *, commit: str | None = None) -> 
     modules it did not have yet left out), to read decompositions cached then.
 
     Docstrings and comments do not count, so documentation edits keep the cache.
+    Computed once per process and variant (the code does not change under a run).
     Mesh variants leave ``pointcloud.py`` out of it, so that work on the point-cloud
     distance does not recompute every mesh decomposition; ``view_*`` variants (sparse
     views, decomposed as point clouds) add ``view.py``.

@@ -407,6 +407,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--meshes-only", action="store_true", help="decompose meshes only: no point-cloud rows"
     )
     ap.add_argument(
+        "--d2-pairs", type=int, default=None, help="D2 point pairs (default 1024**2; --quick 2**18)"
+    )
+    ap.add_argument(
         "--baselines-only",
         action="store_true",
         help="only the mesh descriptors D2, spherical harmonics and LFD (no decomposition)",
@@ -431,7 +434,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         base, resolution=args.resolution, n_balls=args.n_balls, no_refine=args.no_refine
     )
     kcfg = KernelConfig() if args.n_r is None else KernelConfig(n_r=args.n_r)
-    d2 = D2Config(n_pairs=2**18 if args.quick else 1024**2)
+    d2 = D2Config(n_pairs=args.d2_pairs or (2**18 if args.quick else 1024**2))
     report: dict[str, Any] = {"quick": args.quick, "split": args.split, "datasets": {}}
     for ds in build_sets(args.datasets, args.quick, args.subjects, args.poses, args.per_kind):
         entry: dict[str, Any] = {}
