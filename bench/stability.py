@@ -30,8 +30,9 @@ from numpy.typing import NDArray
 
 from bench.baselines import D2Config, d2_descriptor, l1_similarity
 from bench.common import decompose_all, format_table, mdbd_config, variant_geometry
-from bench.datasets import Dataset, articulated, capod, families, mesh_arrays, parts
+from bench.datasets import Dataset, families, mesh_arrays
 from bench.features import kernel_features, l1_matrix, reconstructions
+from bench.retrieval import build_sets
 from shapedb.config import KernelConfig, MDBDConfig
 
 __all__ = ["VARIANTS", "main", "run_stability"]
@@ -122,22 +123,6 @@ def _d2_first(test: Dataset, target: NDArray[np.int64], variant: str, mdbd: MDBD
         qs.append(d2_descriptor(g.vertices, g.faces, D2Config(n_pairs=2**18, seed=1)))
     sim = l1_similarity(np.stack(qs), db)
     return float(np.mean(np.argmax(sim, axis=1) == target))
-
-
-def build_sets(names: Sequence[str], quick: bool) -> list[Dataset]:
-    """The requested data sets (capod, articulated, parts), subset when ``quick``."""
-    out = []
-    for name in names:
-        if name == "capod":
-            ds = capod()
-            out.append(ds.head(per_class=6, classes=8) if quick else ds)
-        elif name == "articulated":
-            out.append(articulated(6, 6) if quick else articulated(15, 20))
-        elif name == "parts":
-            out.append(parts(4) if quick else parts(12))
-        else:
-            raise SystemExit(f"unknown data set {name!r}")
-    return out
 
 
 def main(argv: Sequence[str] | None = None) -> int:
