@@ -63,6 +63,7 @@ __all__ = [
     "generic",
     "web",
     "load_dataset",
+    "build_sets",
     "mesh_arrays",
     "families",
     "point_cloud",
@@ -299,6 +300,39 @@ def load_dataset(name: str) -> Dataset:
     if name not in makers:
         raise ValueError(f"unknown data set {name!r}: choose from {sorted(makers)}")
     return makers[name]()
+
+
+def build_sets(
+    names: Sequence[str], quick: bool, subjects: int = 15, poses: int = 20, per_kind: int = 12
+) -> list[Dataset]:
+    """The requested data sets by name, subsets when ``quick`` (the benches' ``--datasets``).
+
+    Raises
+    ------
+    SystemExit
+        For an unknown name (the benches' command lines).
+    """
+    out = []
+    for name in names:
+        if name == "capod":
+            ds = capod()
+            out.append(ds.head(per_class=6, classes=8) if quick else ds)
+        elif name == "articulated":
+            out.append(articulated(6, 6) if quick else articulated(subjects, poses))
+        elif name == "parts":
+            try:
+                out.append(parts(4) if quick else parts(per_kind))
+            except (ImportError, AttributeError, RuntimeError) as exc:
+                print(f"parts set unavailable: {exc}")
+        elif name == "generic":
+            ds = generic()
+            out.append(ds.head(per_class=6) if quick else ds)
+        elif name == "web":
+            ds = web()
+            out.append(ds.head(per_class=6) if quick else ds)
+        else:
+            raise SystemExit(f"unknown data set {name!r}")
+    return out
 
 
 # --------------------------------------------------------------------------------------

@@ -57,7 +57,7 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.datasets import Dataset, articulated, capod, generic, mesh_arrays, parts, web
+from bench.datasets import Dataset, build_sets, mesh_arrays
 from bench.features import complete, kernel_features, l1_matrix, mixture_mask, reconstructions
 from bench.lightfield import LFDConfig, lfd_descriptor, lfd_similarity
 from shapedb.config import Config, DescriptorConfig, KernelConfig, MDBDConfig
@@ -350,33 +350,6 @@ def run_study(
 # --------------------------------------------------------------------------------------
 # Main
 # --------------------------------------------------------------------------------------
-
-
-def build_sets(
-    names: Sequence[str], quick: bool, subjects: int = 15, poses: int = 20, per_kind: int = 12
-) -> list[Dataset]:
-    """The requested data sets, subset when ``quick``."""
-    out = []
-    for name in names:
-        if name == "capod":
-            ds = capod()
-            out.append(ds.head(per_class=6, classes=8) if quick else ds)
-        elif name == "articulated":
-            out.append(articulated(6, 6) if quick else articulated(subjects, poses))
-        elif name == "parts":
-            try:
-                out.append(parts(4) if quick else parts(per_kind))
-            except (ImportError, AttributeError, RuntimeError) as exc:
-                print(f"parts set unavailable: {exc}")
-        elif name == "generic":
-            ds = generic()
-            out.append(ds.head(per_class=6) if quick else ds)
-        elif name == "web":
-            ds = web()
-            out.append(ds.head(per_class=6) if quick else ds)
-        else:
-            raise SystemExit(f"unknown data set {name!r}")
-    return out
 
 
 def main(argv: Sequence[str] | None = None) -> int:
