@@ -118,6 +118,19 @@ def cost(per_set: int = 8) -> dict[str, dict[str, float]]:
     return out
 
 
+def _read_older_cache(commit: str) -> None:
+    """Make :func:`bench.common.decompose_all` fall back to ``commit``'s cache keys."""
+    import bench.common as common
+
+    today = common.cache_path
+
+    def path(model: Any, variant: str, config: MDBDConfig, **kw: Any) -> Path:
+        p = today(model, variant, config, **kw)
+        return p if p.exists() else today(model, variant, config, engine_commit=commit)
+
+    common.cache_path = path  # type: ignore[assignment]
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
     ap = argparse.ArgumentParser(
@@ -131,6 +144,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--typical", type=float, default=None, help="block typical distance (default: measured)"
     )
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument(
+        "--engine-commit",
+        default=None,
+        help="read decompositions an older engine cached (its code at this commit) where "
+        "today's are missing",
+    )
     ap.add_argument("--out", type=Path, default=None)
     ap.add_argument("--cost", type=int, default=0, help="only time N models per set")
     args = ap.parse_args(argv)
@@ -140,6 +159,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     makers = {
         "generic": generic, "capod": capod, "articulated": articulated, "parts": parts, "web": web
     }  # fmt: skip
+    if args.engine_commit:
+        _read_older_cache(args.engine_commit)
     mats = {}
     for name in args.datasets:
         ds = makers[name]().split(args.split)
