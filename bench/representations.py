@@ -65,7 +65,17 @@ from bench.common import (
     variant_geometry,
     write_json,
 )
-from bench.datasets import Dataset, Model, articulated, capod, mesh_arrays, parts, people
+from bench.datasets import (
+    PEOPLE_EXTRA_VALIDATION,
+    Dataset,
+    Model,
+    articulated,
+    capod,
+    generic,
+    mesh_arrays,
+    parts,
+    people,
+)
 from bench.features import kernel_features, l1_matrix, mixture_mask
 from shapedb.config import KernelConfig, MDBDConfig
 
@@ -308,9 +318,11 @@ def build(names: Sequence[str], split: str) -> list[Dataset]:
     """The requested sets' ``split``."""
     makers: dict[str, Callable[[], Dataset]] = {
         "people": people,
+        "people-xl": lambda: people(extra_validation=PEOPLE_EXTRA_VALIDATION),
         "capod": capod,
         "figures": articulated,
         "parts": parts,
+        "generic": generic,
     }
     return [makers[n]().split(split) for n in names]
 
@@ -352,7 +364,12 @@ def run(
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sets", nargs="+", default=["people", "capod", "figures", "parts"])
+    ap.add_argument(
+        "--sets",
+        nargs="+",
+        default=["people", "capod", "figures", "parts"],
+        help="also people-xl (validation: 12 more subjects) and generic",
+    )
     ap.add_argument("--split", default="test", choices=("all", "test", "validation"))
     ap.add_argument("--kinds", nargs="+", default=list(KINDS), choices=list(KINDS))
     ap.add_argument("--methods", nargs="+", default=["default", "paper", "D2"])

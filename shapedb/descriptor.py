@@ -46,6 +46,11 @@ Versions (``DescriptorConfig.version``; a store records the version its features
 computed with, and refuses to mix them). Weights and typical distances per version
 are :data:`LAYOUTS`:
 
+* **6** (opt-in): version 4 without the pose blocks ``d2c_mean`` and ``inertia``
+  (:data:`POSE_BLOCKS`): the shape of the centre-distance distribution relative to
+  its mean, and the balls' principal extents, follow the pose of a jointed shape
+  more than the shape, so without them a scan of a person finds its person rather
+  than another person in its pose (``python -m bench.studies.cloud_weights``).
 * **5** (opt-in): version 4 plus the ``union`` block (:mod:`shapedb.union`, weight 4):
   where the balls' volume lies around its centroid, at the scale of the parts. Chosen
   on the validation splits (``python -m bench.union_select``); not the default because
@@ -67,7 +72,7 @@ from numpy.typing import NDArray
 from shapedb.graph import ContactGraph
 from shapedb.union import BANDS, SHELLS, union_features
 
-__all__ = ["describe", "dim", "DIM", "BLOCKS", "LAYOUTS", "VERSION"]
+__all__ = ["describe", "dim", "DIM", "BLOCKS", "LAYOUTS", "POSE_BLOCKS", "VERSION"]
 
 FloatArray = NDArray[np.float64]
 
@@ -127,6 +132,9 @@ LAYOUTS: dict[int, Layout] = {
 UNION_TYPICAL = 5.069
 UNION_WEIGHT = 4.0
 LAYOUTS[5] = LAYOUTS[4] + (("union", SHELLS * BANDS, UNION_TYPICAL, UNION_WEIGHT),)
+#: Blocks that tell poses apart more than shapes: version 6 leaves them out.
+POSE_BLOCKS = ("d2c_mean", "inertia")
+LAYOUTS[6] = tuple(b for b in LAYOUTS[4] if b[0] not in POSE_BLOCKS)
 #: The default version (``DescriptorConfig().version``).
 VERSION: int = 4
 BLOCKS: Layout = LAYOUTS[VERSION]
