@@ -30,6 +30,9 @@ parts; CAPOD holds re-posed copies and exact duplicates). Methods:
     Osada's D2 shape distribution (2^18 point pairs, surface samples of the mesh,
     points of the cloud), L1;
 
+``v6``
+    a store with descriptor version 6 (version 4 without the pose blocks; opt-in);
+
 and the candidates a run adds (``--methods``). Cost: median seconds per mesh
 ingest (decomposition) and per cloud query (the cloud's decomposition, plus its
 reconstruction's, Poisson solve included, when the method uses it), and their ratio
@@ -77,7 +80,7 @@ from bench.datasets import (
     people,
 )
 from bench.features import kernel_features, l1_matrix, mixture_mask
-from shapedb.config import KernelConfig, MDBDConfig
+from shapedb.config import Config, KernelConfig, MDBDConfig
 
 OUT = Path(__file__).resolve().parent / "results" / "representations.json"
 
@@ -201,7 +204,9 @@ def cost(balls: Balls) -> float:
     return float(sum(balls.timings.values())) if balls.timings else balls.seconds
 
 
-def store_rule(data: SetData, config: KernelConfig, *, reconstruct: bool = True) -> Distances:
+def store_rule(
+    data: SetData, config: KernelConfig | Config, *, reconstruct: bool = True
+) -> Distances:
     """Distances as a store with ``config`` compares: nearest of own and reconstruction."""
     fm = kernel_features(data.mesh, config)
     per = _feature_seconds(data.mesh, config)
@@ -233,6 +238,11 @@ def store_rule(data: SetData, config: KernelConfig, *, reconstruct: bool = True)
 def default_method(data: SetData) -> Distances:
     """Today's default store."""
     return store_rule(data, KernelConfig())
+
+
+def v6_method(data: SetData) -> Distances:
+    """A store with descriptor version 6 (no pose blocks; opt-in)."""
+    return store_rule(data, Config().with_options(descriptor=6))
 
 
 def paper_method(data: SetData) -> Distances:
@@ -280,6 +290,7 @@ METHODS: dict[str, Callable[[SetData], Distances]] = {
     "default": default_method,
     "paper": paper_method,
     "D2": d2_method,
+    "v6": v6_method,
 }
 
 
