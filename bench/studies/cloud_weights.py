@@ -46,6 +46,7 @@ sheet rule (:data:`bench.studies.people_blocks.PRE_SHEET`; closed solids unchang
 from __future__ import annotations
 
 import argparse
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -153,7 +154,7 @@ def _features(balls: list[Balls], paths: Sequence[Path]) -> dict[str, FloatArray
         for j, i in enumerate(todo):
             one = {k: v[j] for k, v in fresh.items()}
             out[i] = one
-            tmp = folder / f"{Path(paths[i]).stem}_{tag}.tmp.npz"
+            tmp = folder / f"{Path(paths[i]).stem}_{tag}.{os.getpid()}.tmp.npz"
             np.savez(tmp, **one)
             tmp.replace(folder / f"{Path(paths[i]).stem}_{tag}.npz")
     names = list(out[0]) if out else []
