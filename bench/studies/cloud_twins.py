@@ -1,0 +1,175 @@
+"""Like with like: a cloud query against "twins" of the stored meshes.
+
+A mesh's *twin* is another random 20 % of its vertices (the ``pointcloud_b`` variant,
+never the query's own draw), decomposed as a point cloud at ingest; a sparse cloud
+query is then compared with the twins as well as (or instead of) the meshes. From
+the cached decompositions (decomposes what is missing), per weighting (descriptor
+version 4, and version 4 without the pose blocks ``d2c_mean`` and ``inertia``), each
+rule's cloud -> mesh NN / 1-T / DCG (the query's own model left out), own-first and
+log margin (:func:`bench.common.log_margin`), and the cost of a twin against a mesh
+decomposition (median seconds of the cached decompositions' own stages).
+
+Rules (a cloud row against a stored shape):
+
+``default``   nearer of the cloud's own feature and its kept reconstruction's, vs the mesh;
+``twin``      the cloud's own feature vs the twin;
+``twin+default``  nearest of the three comparisons;
+``twin+own``  nearer of cloud vs mesh and cloud vs twin (no reconstruction);
+``mean``      the cloud's own feature vs the mean of the mesh's and the twin's features;
+``query mean``  the mean of the cloud's and its reconstruction's features vs the mesh
+              (when every reconstruction is kept);
+``both means``  that mean vs the mean of the mesh's and the twin's.
+
+Usage: ``python -m bench.studies.cloud_twins --sets people --split validation``.
+Results go to ``bench/results/studies/cloud_twins_<split>.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+import bench.common as common
+import bench.representations as representations
+from bench.common import (
+    Balls,
+    decompose_all,
+    format_table,
+    log_margin,
+    mdbd_config,
+    retrieval_scores,
+    write_json,
+)
+from bench.features import kernel_features, l1_matrix
+from bench.representations import build, load_set
+from shapedb.config import Config, MDBDConfig
+from shapedb.descriptor import LAYOUTS
+
+OUT = Path(__file__).resolve().parents[1] / "results" / "studies"
+FloatArray = NDArray[np.float64]
+#: The last commit before the sheet rule; see :mod:`bench.studies.people_blocks`.
+PRE_SHEET = "f031e22"
+
+
+def fast_engine_version() -> None:
+    """Memoise :func:`bench.common.engine_version` (it parses 12 modules per call)."""
+    if not hasattr(common.engine_version, "__wrapped__"):
+        original = common.engine_version
+        cached = functools.lru_cache(maxsize=256)(original)
+        common.engine_version = cached  # type: ignore[assignment]
+        src = functools.lru_cache(maxsize=256)(common._source_at.__wrapped__)  # noqa: SLF001
+        common._source_at = src  # type: ignore[assignment]  # noqa: SLF001
+
+
+def cached_path(model: Any, variant: str, config: MDBDConfig) -> Path:
+    """Today's cache path of ``model`` if it exists, else its key before the sheet rule."""
+    path = common.cache_path(model, variant, config)
+    if path.exists() or variant.startswith(("pointcloud_noisy", "pointcloud_partial")):
+        return path
+    old = common.cache_path(model, variant, config, engine_commit=PRE_SHEET)
+    return old if old.exists() else path
+
+
+def weightings() -> dict[str, NDArray[np.float64]]:
+    """Column masks of version 4's feature: all blocks, and without the pose blocks."""
+    cols: list[float] = []
+    for name, size, _t, _w in LAYOUTS[4]:
+        cols += [0.0 if name in ("d2c_mean", "inertia") else 1.0] * size
+    return {"v4": np.ones(len(cols)), "v4-pose": np.asarray(cols)}
+
+
+def twins(models: Any, config: MDBDConfig, workers: int) -> list[Balls | None]:
+    """Each model's twin decomposition (cached, else decomposed now)."""
+    found = [cached_path(m, "pointcloud_b", config) for m in models]
+    if all(p.exists() for p in found):
+        return [common.load_balls(p, config.contact_tol_cells) for p in found]
+    return decompose_all(models, "pointcloud_b", config, workers=workers)
+
+
+def seconds(balls: list[Balls]) -> float:
+    """Median seconds of the decompositions' own stages."""
+    return float(np.median([representations.cost(b) for b in balls]))
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(prog="python -m bench.studies.cloud_twins")
+    ap.add_argument("--sets", nargs="+", default=["people"])
+    ap.add_argument("--split", default="validation")
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args(argv)
+    fast_engine_version()
+    representations.cache_path = cached_path  # type: ignore[assignment]
+    cfg = mdbd_config()
+    out: dict[str, Any] = {}
+    for ds in build(args.sets, args.split):
+        data = load_set(ds, cfg, ["cloud"], workers=args.workers, cached=True)
+        tw = twins(data.ds.models, cfg, args.workers)
+        keep = [i for i, t in enumerate(tw) if t is not None]
+        if len(keep) < len(tw):
+            print(f"  {ds.name}: {len(tw) - len(keep)} twin(s) failed; kept as meshes only")
+        labels = np.asarray(data.labels)
+        n = len(labels)
+        conf = Config()
+        fm_all = kernel_features(data.mesh, conf)
+        fc_all = kernel_features(data.clouds["cloud"], conf)
+        ft_all = fm_all.copy()
+        ft_all[keep] = kernel_features([tw[i] for i in keep], conf)  # type: ignore[misc]
+        rec = data.recons["cloud"]
+        ridx = [i for i, r in enumerate(rec) if r is not None]
+        fr_all = kernel_features([rec[i] for i in ridx], conf) if ridx else None  # type: ignore[misc]
+        rows: list[list[Any]] = []
+        table: dict[str, Any] = {}
+        for wname, mask in weightings().items():
+            fm, fc, ft = fm_all * mask, fc_all * mask, ft_all * mask
+            own = l1_matrix(fc, fm)
+            default = own.copy()
+            if fr_all is not None:
+                default[ridx] = np.minimum(default[ridx], l1_matrix(fr_all * mask, fm))
+            twin = l1_matrix(fc, ft)
+            rules = {
+                "mesh->mesh": l1_matrix(fm, fm),
+                "default": default,
+                "twin": twin,
+                "twin+default": np.minimum(default, twin),
+                "twin+own": np.minimum(own, twin),
+                "mean": l1_matrix(fc, 0.5 * (fm + ft)),
+            }
+            if fr_all is not None and len(ridx) == n:
+                fq = 0.5 * (fc + fr_all * mask)
+                rules["query mean"] = l1_matrix(fq, fm)
+                rules["both means"] = l1_matrix(fq, 0.5 * (fm + ft))
+            for rname, d in rules.items():
+                s = retrieval_scores(-d, labels)
+                first = float(np.mean(np.argmin(d, axis=1) == np.arange(n)))
+                row = [wname, rname, s["nn"], s["first_tier"], s["dcg"], first, log_margin(d, labels)]
+                rows.append(row)
+                table[f"{wname} {rname}"] = row[2:]
+        mesh_s = seconds(data.mesh)
+        twin_s = seconds([tw[i] for i in keep])  # type: ignore[misc]
+        cloud_s = seconds(data.clouds["cloud"])
+        print(
+            format_table(
+                f"{ds.name} {args.split} ({n} models): cloud queries against meshes and twins",
+                ("weights", "rule", "NN", "1-T", "DCG", "own-first", "margin"),
+                rows,
+            )
+        )
+        print(
+            f"cost (median s, own stages): mesh {mesh_s:.2f}, twin {twin_s:.2f} "
+            f"(ingest x{(mesh_s + twin_s) / mesh_s:.2f}), query cloud {cloud_s:.2f}"
+        )
+        out[ds.name] = {
+            "n": n,
+            "table": table,
+            "seconds": {"mesh": mesh_s, "twin": twin_s, "cloud": cloud_s},
+        }
+    write_json(OUT / f"cloud_twins_{args.split}.json", {"split": args.split, "sets": out})
+
+
+if __name__ == "__main__":
+    main()
