@@ -199,6 +199,7 @@ VARIANTS = (
     "mesh_rotate",
     "mesh_decimate",
     "pointcloud_b",
+    "pointcloud_sphere",
     "pointcloud_noisy",
     "pointcloud_partial",
     "pointcloud_recon",
@@ -313,7 +314,7 @@ def _source_key(model: Model) -> str:
 #: their content, so an engine change never reuses stale decompositions.
 _ENGINE_MODULES = (
     "geometry", "mesh", "pointcloud", "voxels", "implicit", "complement", "_meshing",
-    "frame", "refine", "mdbd", "graph", "sheet",
+    "frame", "refine", "mdbd", "graph", "sheet", "surface_fit",
 )  # fmt: skip
 
 
@@ -353,8 +354,8 @@ def engine_version(variant: str | None = None, *, commit: str | None = None) -> 
     modules it did not have yet left out), to read decompositions cached then.
 
     Docstrings and comments do not count, so documentation edits keep the cache.
-    Mesh variants leave ``pointcloud.py`` out of it, so that work on the point-cloud
-    distance does not recompute every mesh decomposition; ``view_*`` variants (sparse
+    Mesh variants leave ``pointcloud.py`` and ``surface_fit.py`` out of it, so that
+    work on the point-cloud distance does not recompute every mesh decomposition; ``view_*`` variants (sparse
     views, decomposed as point clouds) add ``view.py``.
     """
     import shapedb
@@ -362,7 +363,7 @@ def engine_version(variant: str | None = None, *, commit: str | None = None) -> 
     root = Path(shapedb.__file__).parent
     digest = hashlib.sha256()
     clouds = variant is None or variant.startswith(("pointcloud", "view_"))
-    skip = () if clouds else ("pointcloud",)
+    skip = () if clouds else ("pointcloud", "surface_fit")
     modules = (
         (*_ENGINE_MODULES, "view") if variant and variant.startswith("view_") else _ENGINE_MODULES
     )
@@ -427,7 +428,8 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
     """The geometry of ``model`` in a representation variant.
 
     ``mesh`` the mesh; ``pointcloud`` the paper's point cloud (seeded by the name);
-    ``pointcloud_b`` another draw of it; ``pointcloud_noisy`` the paper's cloud with
+    ``pointcloud_b`` another draw of it; ``pointcloud_sphere`` the paper's cloud with
+    the sphere-fit distance (``PointCloud(distance="sphere")``); ``pointcloud_noisy`` the paper's cloud with
     Gaussian noise (:func:`bench.people.noisy_cloud`, sigma 0.3 % of the diagonal);
     ``pointcloud_partial`` the part of it one horizontal depth camera sees
     (:func:`bench.people.partial_cloud`); ``pointcloud_dense`` DENSE_SAMPLES points
@@ -473,11 +475,14 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
         axis = np.eye(3)[int(variant.removeprefix("pointcloud_turn_"))]
         turn = Rotation.from_rotvec(np.deg2rad(CLOUD_TURN_DEGREES) * axis).as_matrix()
         return _framed_cloud(model, v, f, config).transformed(turn, np.zeros(3))
-    if variant in ("pointcloud", "pointcloud_b"):
+    if variant in ("pointcloud", "pointcloud_b", "pointcloud_sphere"):
         from shapedb.pointcloud import PointCloud
 
-        seed = stable_seed(model.name, variant)
-        return PointCloud(point_cloud(v, f, seed=seed, min_points=min_cloud_points(model)))
+        seed = stable_seed(model.name, "pointcloud" if variant.endswith("sphere") else variant)
+        points = point_cloud(v, f, seed=seed, min_points=min_cloud_points(model))
+        if variant == "pointcloud_sphere":
+            return PointCloud(points, distance="sphere")
+        return PointCloud(points)
     if variant in ("pointcloud_noisy", "pointcloud_partial"):
         from bench.people import noisy_cloud, partial_cloud
         from shapedb.pointcloud import PointCloud

@@ -52,8 +52,11 @@ from shapedb.descriptor import LAYOUTS
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies"
 FloatArray = NDArray[np.float64]
-#: The last commit before the sheet rule; see :mod:`bench.studies.people_blocks`.
-PRE_SHEET = "f031e22"
+#: Engines whose cached decompositions are read where today's key has none: main
+#: before the sphere-fit distance (only point clouds with ``distance="sphere"``
+#: changed since), and the last commit before the sheet rule (the people set's
+#: decompositions; see :mod:`bench.studies.people_blocks`).
+FALLBACK_COMMITS = ("45ea7bf", "f031e22")
 
 
 def fast_engine_version() -> None:
@@ -67,12 +70,18 @@ def fast_engine_version() -> None:
 
 
 def cached_path(model: Any, variant: str, config: MDBDConfig) -> Path:
-    """Today's cache path of ``model`` if it exists, else its key before the sheet rule."""
+    """Today's cache path of ``model`` if it exists, else its key by an older engine.
+
+    The engines of :data:`FALLBACK_COMMITS`, in order; today's path if none exists.
+    """
     path = common.cache_path(model, variant, config)
-    if path.exists() or variant.startswith(("pointcloud_noisy", "pointcloud_partial")):
+    if path.exists() or variant == "pointcloud_sphere":
         return path
-    old = common.cache_path(model, variant, config, engine_commit=PRE_SHEET)
-    return old if old.exists() else path
+    for commit in FALLBACK_COMMITS:
+        old = common.cache_path(model, variant, config, engine_commit=commit)
+        if old.exists():
+            return old
+    return path
 
 
 def weightings() -> dict[str, NDArray[np.float64]]:
