@@ -1,7 +1,8 @@
 """How far is a sparse cloud's distance from the exact distance, at its ball centres?
 
 For every model of a set's split: the paper's cloud (20 % of the vertices), the centres
-of its cached MDBD balls (``pointcloud`` variant), the exact distance to the mesh
+of its cached MDBD balls (``pointcloud`` variant; ``--centres mesh``: of the mesh's,
+for sets whose clouds are not cached), the exact distance to the mesh
 there (:meth:`shapedb.mesh.TriangleMesh.unsigned_distance`) and each estimator's
 distance. Printed: quantiles (q10 / median / q90) of estimate / exact over all
 centres and over the 32 largest balls of each model, and the median absolute error
@@ -14,7 +15,7 @@ with ``distance=``):
              around the splat's closest point (:mod:`shapedb.surface_fit`).
 
 Usage: ``python -m bench.studies.cloud_distance --sets people --split validation``;
-writes ``bench/results/studies/cloud_distance_<split>.json``. Decomposes nothing.
+writes ``bench/results/studies/cloud_distance_<split>_<centres>.json``. Decomposes nothing.
 """
 
 from __future__ import annotations
@@ -42,6 +43,12 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--split", default="validation")
     ap.add_argument("--limit", type=int, default=0, help="first N models only (0: all)")
     ap.add_argument("--estimators", nargs="+", default=list(ESTIMATORS))
+    ap.add_argument(
+        "--centres",
+        default="pointcloud",
+        choices=("pointcloud", "mesh"),
+        help="whose cached balls give the centres: the cloud's (default) or the mesh's",
+    )
     args = ap.parse_args(argv)
     fast_engine_version()
     cfg = mdbd_config()
@@ -52,7 +59,7 @@ def main(argv: list[str] | None = None) -> None:
         top: dict[str, list[Any]] = {e: [] for e in args.estimators}
         cells: dict[str, list[Any]] = {e: [] for e in args.estimators}
         for m in models:
-            path = cached_path(m, "pointcloud", cfg)
+            path = cached_path(m, args.centres, cfg)
             if not path.exists():
                 continue
             b = load_balls(path)
@@ -76,13 +83,16 @@ def main(argv: list[str] | None = None) -> None:
         print(
             format_table(
                 f"{ds.name} {args.split} ({len(ratios[args.estimators[0]])} clouds): "
-                "estimate / exact distance at the cloud's ball centres",
+                f"estimate / exact distance at the {args.centres}'s ball centres",
                 ("estimator", "q10", "median", "q90", f"top{TOP} q10", "median", "q90", "|err| cells"),
                 rows,
             )
         )
         out[ds.name] = res
-    write_json(OUT / f"cloud_distance_{args.split}.json", {"split": args.split, "sets": out})
+    write_json(
+        OUT / f"cloud_distance_{args.split}_{args.centres}.json",
+        {"split": args.split, "centres": args.centres, "sets": out},
+    )
 
 
 if __name__ == "__main__":

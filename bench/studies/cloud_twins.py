@@ -12,16 +12,23 @@ decomposition (median seconds of the cached decompositions' own stages).
 Rules (a cloud row against a stored shape):
 
 ``default``   nearer of the cloud's own feature and its kept reconstruction's, vs the mesh;
+``own``       the cloud's own feature vs the mesh;
+``query mean``  the mean of the cloud's own and its kept reconstruction's features (its
+              own alone where none is kept) vs the mesh: averaging two packings of the
+              query, at no extra cost (the store computes the reconstruction anyway);
 ``twin``      the cloud's own feature vs the twin;
 ``twin+default``  nearest of the three comparisons;
 ``twin+own``  nearer of cloud vs mesh and cloud vs twin (no reconstruction);
 ``mean``      the cloud's own feature vs the mean of the mesh's and the twin's features;
-``query mean``  the mean of the cloud's and its reconstruction's features vs the mesh
-              (when every reconstruction is kept);
-``both means``  that mean vs the mean of the mesh's and the twin's.
+``both means``  the query mean vs the mean of the mesh's and the twin's.
 
-Usage: ``python -m bench.studies.cloud_twins --sets people --split validation``.
-Results go to ``bench/results/studies/cloud_twins_<split>.json``.
+``--query pointcloud_sphere`` takes the queries with the sphere-fit distance
+(:mod:`shapedb.surface_fit`); their reconstructions are the paper cloud's (the same
+points and normals), kept by the store's volume check against the new packing.
+
+Usage: ``python -m bench.studies.cloud_twins --sets people --split validation
+[--query pointcloud_sphere]``. Results go to
+``bench/results/studies/cloud_twins_<split>[_<query>].json``.
 """
 
 from __future__ import annotations
@@ -56,7 +63,7 @@ FloatArray = NDArray[np.float64]
 #: before the sphere-fit distance (only point clouds with ``distance="sphere"``
 #: changed since), and the last commit before the sheet rule (the people set's
 #: decompositions; see :mod:`bench.studies.people_blocks`).
-FALLBACK_COMMITS = ("45ea7bf", "f031e22")
+FALLBACK_COMMITS = ("45ea7bf", "b95b2be", "f031e22")
 
 
 def fast_engine_version() -> None:
@@ -110,16 +117,29 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--sets", nargs="+", default=["people"])
     ap.add_argument("--split", default="validation")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument(
+        "--query",
+        default="pointcloud",
+        choices=("pointcloud", "pointcloud_sphere"),
+        help="the queries' cloud variant (their reconstructions are the paper cloud's)",
+    )
+    ap.add_argument(
+        "--no-twins", action="store_true", help="rules without twins only (decomposes none)"
+    )
     args = ap.parse_args(argv)
+    representations.KINDS["cloud"] = (args.query, "pointcloud_recon")
     fast_engine_version()
     representations.cache_path = cached_path  # type: ignore[assignment]
     cfg = mdbd_config()
     out: dict[str, Any] = {}
     for ds in build(args.sets, args.split):
         data = load_set(ds, cfg, ["cloud"], workers=args.workers, cached=True)
-        tw = twins(data.ds.models, cfg, args.workers)
+        if args.no_twins:
+            tw: list[Balls | None] = [None] * len(data.ds)
+        else:
+            tw = twins(data.ds.models, cfg, args.workers)
         keep = [i for i, t in enumerate(tw) if t is not None]
-        if len(keep) < len(tw):
+        if len(keep) < len(tw) and not args.no_twins:
             print(f"  {ds.name}: {len(tw) - len(keep)} twin(s) failed; kept as meshes only")
         labels = np.asarray(data.labels)
         n = len(labels)
@@ -127,7 +147,8 @@ def main(argv: list[str] | None = None) -> None:
         fm_all = kernel_features(data.mesh, conf)
         fc_all = kernel_features(data.clouds["cloud"], conf)
         ft_all = fm_all.copy()
-        ft_all[keep] = kernel_features([tw[i] for i in keep], conf)  # type: ignore[misc]
+        if keep:
+            ft_all[keep] = kernel_features([tw[i] for i in keep], conf)  # type: ignore[misc]
         rec = data.recons["cloud"]
         ridx = [i for i, r in enumerate(rec) if r is not None]
         fr_all = kernel_features([rec[i] for i in ridx], conf) if ridx else None  # type: ignore[misc]
@@ -139,19 +160,25 @@ def main(argv: list[str] | None = None) -> None:
             default = own.copy()
             if fr_all is not None:
                 default[ridx] = np.minimum(default[ridx], l1_matrix(fr_all * mask, fm))
-            twin = l1_matrix(fc, ft)
+            # the query's mean feature: of its own and its kept reconstruction's
+            fq = fc.copy()
+            if fr_all is not None:
+                fq[ridx] = 0.5 * (fc[ridx] + fr_all * mask)
             rules = {
                 "mesh->mesh": l1_matrix(fm, fm),
                 "default": default,
-                "twin": twin,
-                "twin+default": np.minimum(default, twin),
-                "twin+own": np.minimum(own, twin),
-                "mean": l1_matrix(fc, 0.5 * (fm + ft)),
+                "own": own,
+                "query mean": l1_matrix(fq, fm),
             }
-            if fr_all is not None and len(ridx) == n:
-                fq = 0.5 * (fc + fr_all * mask)
-                rules["query mean"] = l1_matrix(fq, fm)
-                rules["both means"] = l1_matrix(fq, 0.5 * (fm + ft))
+            if keep:
+                twin = l1_matrix(fc, ft)
+                rules |= {
+                    "twin": twin,
+                    "twin+default": np.minimum(default, twin),
+                    "twin+own": np.minimum(own, twin),
+                    "mean": l1_matrix(fc, 0.5 * (fm + ft)),
+                    "both means": l1_matrix(fq, 0.5 * (fm + ft)),
+                }
             for rname, d in rules.items():
                 s = retrieval_scores(-d, labels)
                 first = float(np.mean(np.argmin(d, axis=1) == np.arange(n)))
@@ -159,11 +186,12 @@ def main(argv: list[str] | None = None) -> None:
                 rows.append(row)
                 table[f"{wname} {rname}"] = row[2:]
         mesh_s = seconds(data.mesh)
-        twin_s = seconds([tw[i] for i in keep])  # type: ignore[misc]
+        twin_s = seconds([tw[i] for i in keep]) if keep else float("nan")  # type: ignore[misc]
         cloud_s = seconds(data.clouds["cloud"])
         print(
             format_table(
-                f"{ds.name} {args.split} ({n} models): cloud queries against meshes and twins",
+                f"{ds.name} {args.split} ({n} models): {args.query} queries against meshes "
+                "and twins",
                 ("weights", "rule", "NN", "1-T", "DCG", "own-first", "margin"),
                 rows,
             )
@@ -177,7 +205,11 @@ def main(argv: list[str] | None = None) -> None:
             "table": table,
             "seconds": {"mesh": mesh_s, "twin": twin_s, "cloud": cloud_s},
         }
-    write_json(OUT / f"cloud_twins_{args.split}.json", {"split": args.split, "sets": out})
+    suffix = "" if args.query == "pointcloud" else f"_{args.query}"
+    write_json(
+        OUT / f"cloud_twins_{args.split}{suffix}.json",
+        {"split": args.split, "query": args.query, "sets": out},
+    )
 
 
 if __name__ == "__main__":
