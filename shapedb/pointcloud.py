@@ -536,7 +536,9 @@ class PointCloud(Geometry):
             return d
         from shapedb.surface_fit import sphere_distance
 
-        return np.minimum(d, sphere_distance(p, q, self._points, self.normals, self.spacing, self._tree))
+        return np.minimum(
+            d, sphere_distance(p, q, self._points, self.normals, self.spacing, self._tree)
+        )
 
     def signed_distance(self, points: ArrayLike) -> NDArray[np.float64]:
         """Signed distance (n,) of points (n, 3), model units, positive inside."""

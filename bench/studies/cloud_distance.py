@@ -84,7 +84,16 @@ def main(argv: list[str] | None = None) -> None:
             format_table(
                 f"{ds.name} {args.split} ({len(ratios[args.estimators[0]])} clouds): "
                 f"estimate / exact distance at the {args.centres}'s ball centres",
-                ("estimator", "q10", "median", "q90", f"top{TOP} q10", "median", "q90", "|err| cells"),
+                (
+                    "estimator",
+                    "q10",
+                    "median",
+                    "q90",
+                    f"top{TOP} q10",
+                    "median",
+                    "q90",
+                    "|err| cells",
+                ),
                 rows,
             )
         )

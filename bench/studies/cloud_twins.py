@@ -182,7 +182,15 @@ def main(argv: list[str] | None = None) -> None:
             for rname, d in rules.items():
                 s = retrieval_scores(-d, labels)
                 first = float(np.mean(np.argmin(d, axis=1) == np.arange(n)))
-                row = [wname, rname, s["nn"], s["first_tier"], s["dcg"], first, log_margin(d, labels)]
+                row = [
+                    wname,
+                    rname,
+                    s["nn"],
+                    s["first_tier"],
+                    s["dcg"],
+                    first,
+                    log_margin(d, labels),
+                ]
                 rows.append(row)
                 table[f"{wname} {rname}"] = row[2:]
         mesh_s = seconds(data.mesh)
