@@ -334,7 +334,7 @@ def _code_only(source: str) -> str:
     return ast.dump(tree)
 
 
-@functools.lru_cache(maxsize=4)
+@functools.lru_cache(maxsize=256)
 def _source_at(commit: str, module: str) -> str | None:
     """``shapedb/<module>.py`` at ``commit`` (None if it did not exist then)."""
     import subprocess
@@ -345,6 +345,19 @@ def _source_at(commit: str, module: str) -> str | None:
         cwd=root, capture_output=True, text=True, check=False,
     )  # fmt: skip
     return done.stdout if done.returncode == 0 else None
+
+
+@functools.lru_cache(maxsize=256)
+def _module_code(path: str, size: int, mtime_ns: int) -> str:
+    """:func:`_code_only` of the file at ``path``; cached per path, size and mtime."""
+    return _code_only(Path(path).read_text())
+
+
+@functools.lru_cache(maxsize=256)
+def _code_at(commit: str, module: str) -> str | None:
+    """:func:`_code_only` of ``shapedb/<module>.py`` at ``commit`` (None if absent)."""
+    source = _source_at(commit, module)
+    return None if source is None else _code_only(source)
 
 
 def engine_version(variant: str | None = None, *, commit: str | None = None) -> str:
@@ -372,9 +385,13 @@ def engine_version(variant: str | None = None, *, commit: str | None = None) -> 
     for name in modules:
         if name in skip:
             continue
-        source = (root / f"{name}.py").read_text() if commit is None else _source_at(commit, name)
-        if source is not None:
-            digest.update(_code_only(source).encode())
+        if commit is None:
+            st = (root / f"{name}.py").stat()
+            code: str | None = _module_code(str(root / f"{name}.py"), st.st_size, st.st_mtime_ns)
+        else:
+            code = _code_at(commit, name)
+        if code is not None:
+            digest.update(code.encode())
     return digest.hexdigest()[:16]
 
 
@@ -416,6 +433,25 @@ def cache_path(
     text = json.dumps(key, sort_keys=True)
     digest = hashlib.sha256(text.encode()).hexdigest()[:20]
     return CACHE_DIR / "dec" / f"{digest}.npz"
+
+
+def existing_cache_path(
+    model: Model, variant: str, config: MDBDConfig, commits: Sequence[str] = ()
+) -> Path:
+    """Today's cache path of ``model`` in ``variant`` if it exists, else an older engine's.
+
+    ``commits``: engines (git commits of this repository) whose keys are tried in
+    order (:func:`cache_path` with ``engine_commit``); today's path when none exists.
+    Only for variants whose decomposition the changes since those commits leave alone.
+    """
+    path = cache_path(model, variant, config)
+    if path.exists():
+        return path
+    for commit in commits:
+        old = cache_path(model, variant, config, engine_commit=commit)
+        if old.exists():
+            return old
+    return path
 
 
 def _rotation(seed: int) -> NDArray[np.float64]:

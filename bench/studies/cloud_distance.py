@@ -29,7 +29,7 @@ import numpy as np
 from bench.common import format_table, load_balls, mdbd_config, variant_geometry, write_json
 from bench.datasets import mesh_arrays
 from bench.representations import build
-from bench.studies.cloud_twins import cached_path, fast_engine_version
+from bench.studies.cloud_twins import cached_path
 from shapedb.mesh import TriangleMesh
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies"
@@ -50,7 +50,6 @@ def main(argv: list[str] | None = None) -> None:
         help="whose cached balls give the centres: the cloud's (default) or the mesh's",
     )
     args = ap.parse_args(argv)
-    fast_engine_version()
     cfg = mdbd_config()
     out: dict[str, Any] = {}
     for ds in build(args.sets, args.split):

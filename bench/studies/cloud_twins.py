@@ -28,13 +28,12 @@ points and normals), kept by the store's volume check against the new packing.
 
 Usage: ``python -m bench.studies.cloud_twins --sets people --split validation
 [--query pointcloud_sphere]``. Results go to
-``bench/results/studies/cloud_twins_<split>[_<query>].json``.
+``bench/results/studies/cloud_twins_<split>[_<query>][_no_twins].json``.
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
 from pathlib import Path
 from typing import Any
 
@@ -66,29 +65,9 @@ FloatArray = NDArray[np.float64]
 FALLBACK_COMMITS = ("45ea7bf", "b95b2be", "f031e22")
 
 
-def fast_engine_version() -> None:
-    """Memoise :func:`bench.common.engine_version` (it parses 12 modules per call)."""
-    if not hasattr(common.engine_version, "__wrapped__"):
-        original = common.engine_version
-        cached = functools.lru_cache(maxsize=256)(original)
-        common.engine_version = cached  # type: ignore[assignment]
-        src = functools.lru_cache(maxsize=256)(common._source_at.__wrapped__)  # noqa: SLF001
-        common._source_at = src  # type: ignore[assignment]  # noqa: SLF001
-
-
 def cached_path(model: Any, variant: str, config: MDBDConfig) -> Path:
-    """Today's cache path of ``model`` if it exists, else its key by an older engine.
-
-    The engines of :data:`FALLBACK_COMMITS`, in order; today's path if none exists.
-    """
-    path = common.cache_path(model, variant, config)
-    if path.exists() or variant == "pointcloud_sphere":
-        return path
-    for commit in FALLBACK_COMMITS:
-        old = common.cache_path(model, variant, config, engine_commit=commit)
-        if old.exists():
-            return old
-    return path
+    """Today's cache path of ``model``, else its key by an engine of :data:`FALLBACK_COMMITS`."""
+    return common.existing_cache_path(model, variant, config, FALLBACK_COMMITS)
 
 
 def weightings() -> dict[str, NDArray[np.float64]]:
@@ -128,8 +107,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     args = ap.parse_args(argv)
     representations.KINDS["cloud"] = (args.query, "pointcloud_recon")
-    fast_engine_version()
-    representations.cache_path = cached_path  # type: ignore[assignment]
+    representations.ENGINE_COMMITS[:] = FALLBACK_COMMITS
     cfg = mdbd_config()
     out: dict[str, Any] = {}
     for ds in build(args.sets, args.split):
@@ -213,7 +191,9 @@ def main(argv: list[str] | None = None) -> None:
             "table": table,
             "seconds": {"mesh": mesh_s, "twin": twin_s, "cloud": cloud_s},
         }
-    suffix = "" if args.query == "pointcloud" else f"_{args.query}"
+    suffix = ("" if args.query == "pointcloud" else f"_{args.query}") + (
+        "_no_twins" if args.no_twins else ""
+    )
     write_json(
         OUT / f"cloud_twins_{args.split}{suffix}.json",
         {"split": args.split, "query": args.query, "sets": out},
