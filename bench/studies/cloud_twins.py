@@ -28,7 +28,7 @@ points and normals), kept by the store's volume check against the new packing.
 
 Usage: ``python -m bench.studies.cloud_twins --sets people --split validation
 [--query pointcloud_sphere]``. Results go to
-``bench/results/studies/cloud_twins_<split>[_<query>][_no_twins].json``.
+``bench/results/studies/cloud_twins_<sets>_<split>[_<query>][_no_twins].json``.
 """
 
 from __future__ import annotations
@@ -195,7 +195,7 @@ def main(argv: list[str] | None = None) -> None:
         "_no_twins" if args.no_twins else ""
     )
     write_json(
-        OUT / f"cloud_twins_{args.split}{suffix}.json",
+        OUT / f"cloud_twins_{'_'.join(args.sets)}_{args.split}{suffix}.json",
         {"split": args.split, "query": args.query, "sets": out},
     )
 
