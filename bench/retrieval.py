@@ -5,7 +5,7 @@ Usage (from the repository root)::
     python -m bench.retrieval --quick                  # small subsets, a few minutes
     python -m bench.retrieval                          # all three sets, test split
     python -m bench.retrieval --study                  # parameter study, validation split
-    python -m bench.retrieval --descriptors --stability  # issue 6 measurements
+    python -m bench.retrieval --stability              # = python -m bench.stability
 
 For each data set (capod, articulated, parts) one table is printed, on the test split:
 the MDBD kernel of Eq. 3 on meshes, on point clouds (20 % of the vertices), on an even
@@ -16,8 +16,7 @@ between the mesh and the point cloud of the same model (paper: 0.996), beside th
 same-class and other-class means. Everything is written to bench/results/retrieval.json.
 
 ``--study`` varies the kernel and decomposition parameters one at a time on the
-validation split; ``--descriptors``, ``--stability`` and ``--refine-shift`` run the
-studies of :mod:`bench.studies.descriptor_prototypes`; :mod:`bench.studies.select_descriptors`
+validation split; ``--stability`` runs :mod:`bench.stability`; :mod:`bench.studies.select_descriptors`
 chooses one descriptor combination for all sets on their validation splits.
 
 Decompositions are cached (bench/results/cache/, git-ignored) by source, representation
@@ -366,11 +365,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--meshes-only", action="store_true", help="decompose meshes only: no point-cloud rows"
     )
     ap.add_argument("--study", action="store_true", help="parameter study on the validation split")
-    ap.add_argument("--descriptors", action="store_true", help="issue 6 descriptor prototypes")
     ap.add_argument("--stability", action="store_true", help="shift / rotation / decimation")
-    ap.add_argument(
-        "--refine-shift", action="store_true", help="sub-cell shift with and without refinement"
-    )
     ap.add_argument(
         "--views",
         type=float,
@@ -394,25 +389,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             if args.study_resolutions is not None:
                 res = args.study_resolutions
             entry["study"] = run_study(ds, mdbd, kcfg, workers=args.workers, resolutions=res)
-        if args.refine_shift:
-            from bench.studies.descriptor_prototypes import run_refine_shift
+        if args.stability:
+            from bench.stability import run_stability
 
-            entry["refine_shift"] = run_refine_shift(ds, mdbd, kcfg, workers=args.workers)
-        if args.descriptors or args.stability:
-            from bench.studies.descriptor_prototypes import run_descriptors, run_stability
-
-            if args.descriptors:
-                entry["descriptors"] = run_descriptors(ds, mdbd, workers=args.workers)
-            if args.stability:
-                entry["stability"] = run_stability(
-                    ds,
-                    mdbd,
-                    kcfg,
-                    workers=args.workers,
-                    probes=12 if args.quick else args.probes,
-                    view_cells=args.views,
-                )
-        if not (args.study or args.descriptors or args.stability or args.refine_shift):
+            entry["stability"] = run_stability(
+                ds,
+                mdbd,
+                kcfg,
+                workers=args.workers,
+                probes=12 if args.quick else args.probes,
+                view_cells=args.views,
+            )
+        if not (args.study or args.stability):
             entry["tables"] = run_tables(
                 ds.split(args.split),
                 mdbd,

@@ -35,7 +35,7 @@ OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "agreement.j
 def _watertight(vertices: np.ndarray, faces: np.ndarray) -> bool:
     from shapedb.mesh import TriangleMesh
 
-    return TriangleMesh(vertices, faces)._closed_normals is not None
+    return TriangleMesh(vertices, faces).closed
 
 
 def measure(model, resolution: int) -> dict:
@@ -61,7 +61,7 @@ def measure(model, resolution: int) -> dict:
     return {
         "name": model.name,
         "label": model.label,
-        "watertight": mesh._closed_normals is not None,
+        "watertight": mesh.closed,
         "points": len(pts),
         "iou": float(both.sum() / union) if union else 1.0,
         "vol": float(b.sum() / max(int(a.sum()), 1)),

@@ -14,8 +14,8 @@ d(nearest other class))`` (lower is better; far less noisy than NN) and
 ``bench/studies/select_descriptors.py``'s objective, (NN + 1-T + DCG) / 3 + 0.25 NN of cloud
 queries, averaged over the sets.
 
-A second table asks the stability question of ``python -m bench.retrieval
---stability`` at every tolerance: do a decimated copy (25 % of the faces) and a
+A second table asks the stability question of ``python -m bench.stability`` at
+every tolerance: do a decimated copy (25 % of the faces) and a
 point cloud of a test model (the same ~30 probes per set) find their own model first
 among the test meshes? Besides that count it reports the mean
 ``log(d(own model) / d(nearest other model))``, lower is better, which is far less
@@ -78,7 +78,7 @@ def _own_copy(
 ) -> list[list[Any]]:
     """Rows (set, variant, copies, tol, own first, mean log margin) for the test probes.
 
-    The probes are those of ``bench.studies.descriptor_prototypes.run_stability``: every
+    The probes are those of ``bench.stability.run_stability``: every
     ``len(test) // probes``-th decomposable test model.
     """
     test = ds.split("test")

@@ -1,25 +1,23 @@
 """Descriptor prototypes and stability, beside the paper's kernel and D2.
 
-Run through the retrieval bench, whose data sets and options they share (it imports
-this module; this module never imports it)::
+Usage (from the repository root; the data sets of :mod:`bench.retrieval`)::
 
-    python -m bench.retrieval --descriptors     # run_descriptors
-    python -m bench.retrieval --stability       # run_stability
-    python -m bench.retrieval --refine-shift    # run_refine_shift
+    python -m bench.studies.descriptor_prototypes --descriptors     # run_descriptors
+    python -m bench.studies.descriptor_prototypes --refine-shift    # run_refine_shift
 
 ``run_descriptors``
     Every block of :mod:`bench.studies.descriptors` alone and in combinations, on the
     validation split (mesh vs mesh retrieval and point-cloud queries against the mesh
     database); a greedy forward selection of blocks on validation; then the chosen
     combinations, the paper's kernel and D2 on the test split.
-``run_stability``
-    A model and its copy shifted by a fraction of a cell, rotated, decimated to 25 %
-    of its faces, or re-sampled as another point cloud: how often the copy ranks its
-    original first among all mesh models of the test split.
+(The stability probes that began here are the product bench :mod:`bench.stability`.)
 """
 
 from __future__ import annotations
 
+import argparse
+import json
+import sys
 import time
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -29,12 +27,11 @@ from numpy.typing import NDArray
 
 from bench.baselines import D2Config, d2_descriptor, l1_similarity
 from bench.common import Balls, decompose_all, format_table, retrieval_scores
-from bench.datasets import Dataset, families, mesh_arrays
-from bench.features import kernel_features, reconstructions
+from bench.datasets import Dataset, mesh_arrays
 from bench.studies import descriptors as desc
 from shapedb.config import KernelConfig, MDBDConfig
 
-__all__ = ["CANDIDATES", "run_descriptors", "run_refine_shift", "run_stability"]
+__all__ = ["CANDIDATES", "main", "run_descriptors", "run_refine_shift"]
 
 #: Hand-made combinations (equal weights after scaling each block by its median distance).
 CANDIDATES: dict[str, tuple[str, ...]] = {
@@ -158,117 +155,6 @@ def run_descriptors(ds: Dataset, mdbd: MDBDConfig, *, workers: int = 2) -> dict[
     }
 
 
-STABILITY_VARIANTS = ("mesh_shift", "mesh_rotate", "mesh_decimate", "pointcloud")
-_SHAPEDB_COLUMNS = ("shapedb", "shapedb, own or re-posed")
-
-
-def run_stability(
-    ds: Dataset,
-    mdbd: MDBDConfig,
-    kcfg: KernelConfig,
-    *,
-    workers: int = 2,
-    probes: int = 30,
-    view_cells: float = 0.0,
-) -> dict[str, Any]:
-    """Does a transformed copy rank its original first among all test-split meshes?
-
-    With ``view_cells``, a last row asks it of the point clouds against the meshes'
-    sparse views (:mod:`shapedb.view`), as a store with ``view_cells`` compares them
-    (shapedb's descriptor only).
-    """
-    test = ds.split("test")
-    mesh = decompose_all(test.models, "mesh", mdbd, workers=workers)
-    keep = [i for i, b in enumerate(mesh) if b is not None]
-    test = Dataset(ds.name, tuple(test.models[i] for i in keep))
-    mesh = [mesh[i] for i in keep]
-    step = max(1, len(test) // probes)
-    probe = list(range(0, len(test), step))
-    db = desc.describe(mesh)  # type: ignore[arg-type]
-    scales = desc.block_scales(db)
-
-    shapedb_db = kernel_features(mesh, kcfg)  # type: ignore[arg-type]
-    fam = families(test.models)
-    methods = {
-        "paper kernel": ("paper",),
-        **{k: CANDIDATES[k] for k in ("geom", "chosen", "all")},
-    }
-    out: dict[str, Any] = {}
-    rows = []
-    for variant in STABILITY_VARIANTS:
-        copies = decompose_all([test.models[i] for i in probe], variant, mdbd, workers=workers)
-        ok = [k for k, b in enumerate(copies) if b is not None]
-        if not ok:
-            continue
-        q = desc.describe([copies[k] for k in ok])  # type: ignore[misc]
-        target = np.asarray([probe[k] for k in ok])
-        res = {}
-        for name, names in methods.items():
-            d = desc.combined_distance(q, db, dict.fromkeys(names, 1.0), scales)
-            first = float(np.mean(np.argmin(d, axis=1) == target))
-            res[name] = first
-        fq = kernel_features([copies[k] for k in ok], kcfg)  # type: ignore[misc]
-        d = np.abs(fq[:, None, :] - shapedb_db[None, :, :]).sum(-1)
-        if variant == "pointcloud":  # and by its reconstruction, as a store compares
-            recon = reconstructions(
-                [test.models[probe[k]] for k in ok], [copies[k] for k in ok], mdbd, workers=workers
-            )
-            fr = kernel_features(recon, kcfg)  # type: ignore[arg-type]
-            d = np.minimum(d, np.abs(fr[:, None, :] - shapedb_db[None, :, :]).sum(-1))
-        res["shapedb"] = float(np.mean(np.argmin(d, axis=1) == target))
-        # a re-posed copy of the original (another pose of one mesh or subject) first:
-        # what a pose-invariant signature cannot tell apart
-        res["shapedb, own or re-posed"] = float(np.mean(fam[np.argmin(d, axis=1)] == fam[target]))
-        if variant != "pointcloud":
-            v_arr = [mesh_arrays(test.models[probe[k]]) for k in ok]
-            res["D2"] = _d2_first(test, v_arr, target, variant, mdbd)
-        out[variant] = {"copies": len(ok), **res}
-        rows.append([variant, len(ok), *(res.get(m) for m in [*_SHAPEDB_COLUMNS, *methods, "D2"])])
-        if variant == "pointcloud" and view_cells:
-            views = decompose_all(test.models, f"view_{view_cells:g}", mdbd, workers=workers)
-            if all(v is not None for v in views):
-                fv = kernel_features(views, kcfg)  # type: ignore[arg-type]
-                d_view = np.abs(fq[:, None, :] - fv[None, :, :]).sum(-1)
-                hit = np.argmin(np.minimum(d, d_view), axis=1)  # the nearer (query.engine)
-                res = {
-                    "shapedb": float(np.mean(hit == target)),
-                    "shapedb, own or re-posed": float(np.mean(fam[hit] == fam[target])),
-                }
-                name = f"pointcloud -> views {view_cells:g}"
-                out[name] = {"copies": len(ok), **res}
-                rows.append(
-                    [name, len(ok), *(res.get(m) for m in [*_SHAPEDB_COLUMNS, *methods, "D2"])]
-                )
-    print()
-    print(
-        format_table(
-            f"stability, {ds.name}: copy ranks its original first (among {len(test)} meshes)",
-            ("variant", "copies", "shapedb", "own/re-posed", *methods, "D2"),
-            rows,
-        )
-    )
-    return out
-
-
-def _d2_first(
-    test: Dataset,
-    arrays: Sequence[tuple[NDArray[np.float64], NDArray[np.int64]]],
-    target: NDArray[np.int64],
-    variant: str,
-    mdbd: MDBDConfig,
-) -> float:
-    from bench.common import variant_geometry
-
-    cfg = D2Config(n_pairs=2**18)
-    db = np.stack([d2_descriptor(*mesh_arrays(m), cfg) for m in test.models])
-    qs = []
-    for t in target:
-        g = variant_geometry(test.models[int(t)], variant, mdbd)
-        qs.append(d2_descriptor(g.vertices, g.faces, D2Config(n_pairs=2**18, seed=1)))
-    sim = l1_similarity(np.stack(qs), db)
-    return float(np.mean(np.argmax(sim, axis=1) == target))
-
-
 def run_refine_shift(
     ds: Dataset, mdbd: MDBDConfig, kcfg: KernelConfig, *, workers: int = 2, n: int = 24
 ) -> dict[str, Any]:
@@ -319,3 +205,44 @@ def run_refine_shift(
         )
     )
     return out
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point; returns the exit status."""
+    from pathlib import Path
+
+    from bench.common import mdbd_config
+    from bench.retrieval import build_sets
+
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.studies.descriptor_prototypes", description=__doc__.split("\n")[0]
+    )
+    ap.add_argument("--datasets", nargs="+", default=["capod", "articulated", "parts"])
+    ap.add_argument("--quick", action="store_true", help="small subsets and a coarse grid")
+    ap.add_argument("--descriptors", action="store_true", help="every block, alone and combined")
+    ap.add_argument("--refine-shift", action="store_true", help="sub-cell shift, refined or not")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=Path(__file__).resolve().parents[1] / "results" / "studies" / "prototypes.json",
+    )
+    args = ap.parse_args(argv)
+    base = MDBDConfig(resolution=64, n_balls=256) if args.quick else MDBDConfig()
+    mdbd = mdbd_config(base)
+    report: dict[str, Any] = {}
+    for ds in build_sets(args.datasets, args.quick):
+        entry: dict[str, Any] = {}
+        if args.descriptors:
+            entry["descriptors"] = run_descriptors(ds, mdbd, workers=args.workers)
+        if args.refine_shift:
+            entry["refine_shift"] = run_refine_shift(ds, mdbd, KernelConfig(), workers=args.workers)
+        report[ds.name] = entry
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(report, indent=1) + "\n")
+    print(f"written to {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

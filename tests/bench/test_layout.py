@@ -9,8 +9,8 @@ import pytest
 
 BENCH = Path(__file__).resolve().parents[2] / "bench"
 STUDIES = sorted(p.stem for p in (BENCH / "studies").glob("*.py") if p.stem != "__init__")
-#: Study modules that are libraries of the others, or run through bench.retrieval.
-NOT_SCRIPTS = {"descriptors", "descriptor_prototypes"}
+#: Study modules that are libraries of the others.
+NOT_SCRIPTS = {"descriptors"}
 
 
 @pytest.mark.parametrize("name", sorted(set(STUDIES) - NOT_SCRIPTS))
@@ -32,3 +32,25 @@ def test_studies_write_their_results_apart() -> None:
 def test_nothing_in_bench_is_named_after_a_work_item() -> None:
     names = [p.stem for p in BENCH.rglob("*.py")]
     assert not [n for n in names if n.startswith("issue")]
+
+
+PRODUCT = sorted(
+    p.stem for p in BENCH.glob("*.py") if "def main(" in p.read_text() and p.stem != "__init__"
+)
+
+
+@pytest.mark.parametrize("name", PRODUCT)
+def test_every_product_bench_answers_help(name: str, capsys: pytest.CaptureFixture[str]) -> None:
+    module = importlib.import_module(f"bench.{name}")
+    with pytest.raises(SystemExit) as exit_:
+        module.main(["--help"])
+    assert exit_.value.code == 0
+    assert capsys.readouterr().out.startswith("usage:")
+
+
+def test_no_product_bench_imports_a_study() -> None:
+    """Research depends on the product benches, never the other way."""
+    for name in PRODUCT:
+        source = (BENCH / f"{name}.py").read_text()
+        assert "from bench.studies" not in source, name
+        assert "import bench.studies" not in source, name
