@@ -181,3 +181,14 @@ def test_version_6_is_version_4_without_the_pose_blocks() -> None:
     ratio = sum(b[3] for b in LAYOUTS[4]) / sum(b[3] for b in LAYOUTS[6])
     rest = np.concatenate([_block(f4, b[0], 4) for b in keep])
     np.testing.assert_allclose(f6, rest * ratio, rtol=1e-12)
+
+
+def test_a_store_can_be_built_with_version_6(tmp_path: Path) -> None:
+    from shapedb import examples
+
+    db = shapedb.connect(tmp_path / "v6.db", resolution=32, n_balls=64, descriptor=6)
+    db.ingest([examples.figure(0, 0), examples.part("plate", 0)], names=["figure", "plate"])
+    again = shapedb.connect(tmp_path / "v6.db")
+    assert again.config.descriptor.version == 6
+    assert again.get("plate").feature.shape == (dim(6),)
+    assert again.search(examples.part("plate", 0), k=1)[0].name == "plate"
