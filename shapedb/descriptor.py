@@ -51,7 +51,11 @@ are :data:`LAYOUTS`:
   objects. Weight chosen on the validation splits of the rigid sets
   (``python -m bench.union_select --block views``); not the default because, like
   version 5, it costs the jointed figures (a pose changes the silhouettes).
-* **6**: reserved.
+* **6** (opt-in): version 4 without the pose blocks ``d2c_mean`` and ``inertia``
+  (:data:`POSE_BLOCKS`): the shape of the centre-distance distribution relative to
+  its mean, and the balls' principal extents, follow the pose of a jointed shape
+  more than the shape, so without them a scan of a person finds its person rather
+  than another person in its pose (``python -m bench.studies.cloud_weights``).
 * **5** (opt-in): version 4 plus the ``union`` block (:mod:`shapedb.union`, weight 4):
   where the balls' volume lies around its centroid, at the scale of the parts. Chosen
   on the validation splits (``python -m bench.union_select``); not the default because
@@ -74,7 +78,7 @@ from shapedb.graph import ContactGraph
 from shapedb.union import BANDS, SHELLS, union_features
 from shapedb.union_views import view_dim, view_features
 
-__all__ = ["describe", "dim", "DIM", "BLOCKS", "LAYOUTS", "VERSION"]
+__all__ = ["describe", "dim", "DIM", "BLOCKS", "LAYOUTS", "POSE_BLOCKS", "VERSION"]
 
 FloatArray = NDArray[np.float64]
 
@@ -138,6 +142,9 @@ LAYOUTS[5] = LAYOUTS[4] + (("union", SHELLS * BANDS, UNION_TYPICAL, UNION_WEIGHT
 VIEWS_TYPICAL = 4.722
 VIEWS_WEIGHT = 8.0
 LAYOUTS[7] = LAYOUTS[4] + (("views", view_dim(), VIEWS_TYPICAL, VIEWS_WEIGHT),)
+#: Blocks that tell poses apart more than shapes: version 6 leaves them out.
+POSE_BLOCKS = ("d2c_mean", "inertia")
+LAYOUTS[6] = tuple(b for b in LAYOUTS[4] if b[0] not in POSE_BLOCKS)
 #: The default version (``DescriptorConfig().version``).
 VERSION: int = 4
 BLOCKS: Layout = LAYOUTS[VERSION]
