@@ -199,6 +199,7 @@ VARIANTS = (
     "mesh_rotate",
     "mesh_decimate",
     "pointcloud_b",
+    "pointcloud_sphere",
     "pointcloud_noisy",
     "pointcloud_partial",
     "pointcloud_recon",
@@ -313,7 +314,7 @@ def _source_key(model: Model) -> str:
 #: their content, so an engine change never reuses stale decompositions.
 _ENGINE_MODULES = (
     "geometry", "mesh", "pointcloud", "voxels", "implicit", "complement", "_meshing",
-    "frame", "refine", "mdbd", "graph", "sheet",
+    "frame", "refine", "mdbd", "graph", "sheet", "surface_fit",
 )  # fmt: skip
 
 
@@ -333,7 +334,7 @@ def _code_only(source: str) -> str:
     return ast.dump(tree)
 
 
-@functools.lru_cache(maxsize=4)
+@functools.lru_cache(maxsize=256)
 def _source_at(commit: str, module: str) -> str | None:
     """``shapedb/<module>.py`` at ``commit`` (None if it did not exist then)."""
     import subprocess
@@ -346,7 +347,19 @@ def _source_at(commit: str, module: str) -> str | None:
     return done.stdout if done.returncode == 0 else None
 
 
-@functools.lru_cache(maxsize=64)
+@functools.lru_cache(maxsize=256)
+def _module_code(path: str, size: int, mtime_ns: int) -> str:
+    """:func:`_code_only` of the file at ``path``; cached per path, size and mtime."""
+    return _code_only(Path(path).read_text())
+
+
+@functools.lru_cache(maxsize=256)
+def _code_at(commit: str, module: str) -> str | None:
+    """:func:`_code_only` of ``shapedb/<module>.py`` at ``commit`` (None if absent)."""
+    source = _source_at(commit, module)
+    return None if source is None else _code_only(source)
+
+
 def engine_version(variant: str | None = None, *, commit: str | None = None) -> str:
     """A digest (16 hex) of the decomposition engine's code.
 
@@ -354,9 +367,8 @@ def engine_version(variant: str | None = None, *, commit: str | None = None) -> 
     modules it did not have yet left out), to read decompositions cached then.
 
     Docstrings and comments do not count, so documentation edits keep the cache.
-    Computed once per process and variant (the code does not change under a run).
-    Mesh variants leave ``pointcloud.py`` out of it, so that work on the point-cloud
-    distance does not recompute every mesh decomposition; ``view_*`` variants (sparse
+    Mesh variants leave ``pointcloud.py`` and ``surface_fit.py`` out of it, so that
+    work on the point-cloud distance does not recompute every mesh decomposition; ``view_*`` variants (sparse
     views, decomposed as point clouds) add ``view.py``.
     """
     import shapedb
@@ -364,7 +376,7 @@ def engine_version(variant: str | None = None, *, commit: str | None = None) -> 
     root = Path(shapedb.__file__).parent
     digest = hashlib.sha256()
     clouds = variant is None or variant.startswith(("pointcloud", "view_"))
-    skip = () if clouds else ("pointcloud",)
+    skip = () if clouds else ("pointcloud", "surface_fit")
     modules = (
         (*_ENGINE_MODULES, "view") if variant and variant.startswith("view_") else _ENGINE_MODULES
     )
@@ -373,9 +385,13 @@ def engine_version(variant: str | None = None, *, commit: str | None = None) -> 
     for name in modules:
         if name in skip:
             continue
-        source = (root / f"{name}.py").read_text() if commit is None else _source_at(commit, name)
-        if source is not None:
-            digest.update(_code_only(source).encode())
+        if commit is None:
+            st = (root / f"{name}.py").stat()
+            code: str | None = _module_code(str(root / f"{name}.py"), st.st_size, st.st_mtime_ns)
+        else:
+            code = _code_at(commit, name)
+        if code is not None:
+            digest.update(code.encode())
     return digest.hexdigest()[:16]
 
 
@@ -419,6 +435,25 @@ def cache_path(
     return CACHE_DIR / "dec" / f"{digest}.npz"
 
 
+def existing_cache_path(
+    model: Model, variant: str, config: MDBDConfig, commits: Sequence[str] = ()
+) -> Path:
+    """Today's cache path of ``model`` in ``variant`` if it exists, else an older engine's.
+
+    ``commits``: engines (git commits of this repository) whose keys are tried in
+    order (:func:`cache_path` with ``engine_commit``); today's path when none exists.
+    Only for variants whose decomposition the changes since those commits leave alone.
+    """
+    path = cache_path(model, variant, config)
+    if path.exists():
+        return path
+    for commit in commits:
+        old = cache_path(model, variant, config, engine_commit=commit)
+        if old.exists():
+            return old
+    return path
+
+
 def _rotation(seed: int) -> NDArray[np.float64]:
     q, r = np.linalg.qr(np.random.default_rng(seed).normal(size=(3, 3)))
     q = q * np.sign(np.diag(r))
@@ -429,7 +464,8 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
     """The geometry of ``model`` in a representation variant.
 
     ``mesh`` the mesh; ``pointcloud`` the paper's point cloud (seeded by the name);
-    ``pointcloud_b`` another draw of it; ``pointcloud_noisy`` the paper's cloud with
+    ``pointcloud_b`` another draw of it; ``pointcloud_sphere`` the paper's cloud with
+    the sphere-fit distance (``PointCloud(distance="sphere")``); ``pointcloud_noisy`` the paper's cloud with
     Gaussian noise (:func:`bench.people.noisy_cloud`, sigma 0.3 % of the diagonal);
     ``pointcloud_partial`` the part of it one horizontal depth camera sees
     (:func:`bench.people.partial_cloud`); ``pointcloud_dense`` DENSE_SAMPLES points
@@ -475,11 +511,14 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
         axis = np.eye(3)[int(variant.removeprefix("pointcloud_turn_"))]
         turn = Rotation.from_rotvec(np.deg2rad(CLOUD_TURN_DEGREES) * axis).as_matrix()
         return _framed_cloud(model, v, f, config).transformed(turn, np.zeros(3))
-    if variant in ("pointcloud", "pointcloud_b"):
+    if variant in ("pointcloud", "pointcloud_b", "pointcloud_sphere"):
         from shapedb.pointcloud import PointCloud
 
-        seed = stable_seed(model.name, variant)
-        return PointCloud(point_cloud(v, f, seed=seed, min_points=min_cloud_points(model)))
+        seed = stable_seed(model.name, "pointcloud" if variant.endswith("sphere") else variant)
+        points = point_cloud(v, f, seed=seed, min_points=min_cloud_points(model))
+        if variant == "pointcloud_sphere":
+            return PointCloud(points, distance="sphere")
+        return PointCloud(points)
     if variant in ("pointcloud_noisy", "pointcloud_partial"):
         from bench.people import noisy_cloud, partial_cloud
         from shapedb.pointcloud import PointCloud

@@ -224,14 +224,38 @@ def articulated(subjects: int = 15, poses: int = 20) -> Dataset:
     return Dataset("articulated", split_by_model(models))
 
 
-def people(subjects: int = 12, poses: int = 10) -> Dataset:
-    """Fine-grained people: ``subjects`` classes x ``poses`` models (a registered-scan set)."""
+#: Subjects the people set adds to its validation split only (``people(extra_validation=...)``).
+PEOPLE_EXTRA_VALIDATION = 12
+#: Poses of each extra validation subject (seeded among the ``poses`` of the set).
+PEOPLE_EXTRA_POSES = 3
+
+
+def people(subjects: int = 12, poses: int = 10, *, extra_validation: int = 0) -> Dataset:
+    """Fine-grained people: ``subjects`` classes x ``poses`` models (a registered-scan set).
+
+    ``extra_validation`` more subjects (numbered from ``subjects`` on) join the
+    validation split only, each in :data:`PEOPLE_EXTRA_POSES` seeded poses, so that
+    choices made on validation rest on more queries; the test split is the same
+    whatever ``extra_validation`` is.
+    """
     models = [
         Model(name=f"h{s:02d}_p{p:02d}", label=f"person{s:02d}", source=f"person:{s}:{p}")
         for s in range(subjects)
         for p in range(poses)
     ]
-    return Dataset("people", split_by_model(models))
+    extra = []
+    for s in range(subjects, subjects + extra_validation):
+        rng = np.random.default_rng(stable_seed("people-extra", s))
+        for p in sorted(rng.permutation(poses)[: min(PEOPLE_EXTRA_POSES, poses)].tolist()):
+            extra.append(
+                Model(
+                    name=f"h{s:02d}_p{p:02d}",
+                    label=f"person{s:02d}",
+                    source=f"person:{s}:{p}",
+                    split="validation",
+                )
+            )
+    return Dataset("people", split_by_model(models) + tuple(extra))
 
 
 def part_kinds() -> tuple[str, ...]:

@@ -30,13 +30,18 @@ parts; CAPOD holds re-posed copies and exact duplicates). Methods:
     Osada's D2 shape distribution (2^18 point pairs, surface samples of the mesh,
     points of the cloud), L1;
 
-and the candidates a run adds (``--methods``). Cost: median seconds per mesh
-ingest (decomposition) and per cloud query (the cloud's decomposition, plus its
+and the candidates a run adds (``--methods``): ``mean`` (the default store, a sparse
+cloud's own and kept reconstruction's features averaged instead of the nearer of
+the two taken), ``pose-free`` (the default descriptor without its pose blocks
+``d2c_mean`` and ``inertia``), ``pose-free mean`` (both), ``v6`` (a store with
+descriptor version 6: ``pose-free`` as a descriptor version, rescaled, same ranking).
+Cost: median seconds per mesh ingest (decomposition) and per cloud query (the cloud's decomposition, plus its
 reconstruction's, Poisson solve included, when the method uses it), and their ratio
 to ``default``; wall clock on a shared machine, so compare ratios within one run.
 
 Usage: ``python -m bench.representations [--sets people capod figures parts]
-[--split test] [--kinds cloud noisy partial] [--workers 2] [--cached] [--out PATH]``.
+[--split test] [--kinds cloud noisy partial] [--workers 2] [--cached [--engine-commits C ...]]
+[--out PATH]``.
 Decompositions come from :func:`bench.common.decompose_all` (cached).
 """
 
@@ -56,8 +61,8 @@ from numpy.typing import NDArray
 from bench.baselines import D2Config, d2_descriptor
 from bench.common import (
     Balls,
-    cache_path,
     decompose_all,
+    existing_cache_path,
     format_table,
     load_balls,
     mdbd_config,
@@ -65,9 +70,19 @@ from bench.common import (
     variant_geometry,
     write_json,
 )
-from bench.datasets import Dataset, Model, articulated, capod, mesh_arrays, parts, people
+from bench.datasets import (
+    PEOPLE_EXTRA_VALIDATION,
+    Dataset,
+    Model,
+    articulated,
+    capod,
+    generic,
+    mesh_arrays,
+    parts,
+    people,
+)
 from bench.features import kernel_features, l1_matrix, mixture_mask
-from shapedb.config import KernelConfig, MDBDConfig
+from shapedb.config import Config, KernelConfig, MDBDConfig
 
 OUT = Path(__file__).resolve().parent / "results" / "representations.json"
 
@@ -100,9 +115,17 @@ class SetData:
         return self.ds.labels
 
 
+#: Engines (git commits) whose cached decompositions ``--cached`` also reads
+#: (``--engine-commits``; :func:`bench.common.existing_cache_path`).
+ENGINE_COMMITS: list[str] = []
+
+
 def cached_only(models: Sequence[Model], variant: str, mdbd: MDBDConfig) -> list[Balls | None]:
-    """The cached decompositions of ``models`` in ``variant``; None where none is cached."""
-    paths = [cache_path(m, variant, mdbd) for m in models]
+    """The cached decompositions of ``models`` in ``variant``; None where none is cached.
+
+    Keys of the engines in :data:`ENGINE_COMMITS` are tried where today's has none.
+    """
+    paths = [existing_cache_path(m, variant, mdbd, ENGINE_COMMITS) for m in models]
     return [load_balls(p, mdbd.contact_tol_cells) if p.exists() else None for p in paths]
 
 
@@ -180,7 +203,7 @@ class Distances:
     query: dict[str, NDArray[np.float64]]
 
 
-def _feature_seconds(balls: Sequence[Balls], config: KernelConfig) -> float:
+def _feature_seconds(balls: Sequence[Balls], config: KernelConfig | Config) -> float:
     t0 = time.perf_counter()
     kernel_features(balls[: min(8, len(balls))], config)
     return (time.perf_counter() - t0) / min(8, len(balls))
@@ -191,26 +214,53 @@ def cost(balls: Balls) -> float:
     return float(sum(balls.timings.values())) if balls.timings else balls.seconds
 
 
-def store_rule(data: SetData, config: KernelConfig, *, reconstruct: bool = True) -> Distances:
-    """Distances as a store with ``config`` compares: nearest of own and reconstruction."""
-    fm = kernel_features(data.mesh, config)
+def pose_free_mask(config: KernelConfig) -> NDArray[np.float64]:
+    """Column mask of the default descriptor without its pose blocks (``d2c_mean``, ``inertia``)."""
+    from shapedb.descriptor import LAYOUTS
+
+    cols: list[float] = []
+    for name, size, _typical, _weight in LAYOUTS[4]:
+        cols += [0.0 if name in ("d2c_mean", "inertia") else 1.0] * size
+    return np.asarray(cols)
+
+
+def store_rule(
+    data: SetData,
+    config: KernelConfig | Config,
+    *,
+    reconstruct: bool = True,
+    combine: str = "nearest",
+    mask: NDArray[np.float64] | None = None,
+) -> Distances:
+    """Distances as a store with ``config`` compares a cloud and its reconstruction.
+
+    ``combine`` ``"nearest"`` (the store's rule): the nearer of the cloud's own
+    feature and its kept reconstruction's; ``"mean"``: the mean of the two features
+    (two packings of the query averaged). ``mask`` (dim,) multiplies every feature
+    (e.g. :func:`pose_free_mask`).
+    """
+    scale = np.ones(1) if mask is None else mask
+    fm = kernel_features(data.mesh, config) * scale
     per = _feature_seconds(data.mesh, config)
     cloud, query = {}, {}
     for k, balls in data.clouds.items():
-        fc = kernel_features(balls, config)
+        fc = kernel_features(balls, config) * scale
         d = l1_matrix(fc, fm)
         secs = np.array([cost(b) + per for b in balls])
         if reconstruct:
             rec = data.recons[k]
             idx = [i for i, r in enumerate(rec) if r is not None]
             if idx:
-                fr = kernel_features([rec[i] for i in idx], config)  # type: ignore[misc]
-                d[idx] = np.minimum(d[idx], l1_matrix(fr, fm))
+                fr = kernel_features([rec[i] for i in idx], config) * scale  # type: ignore[misc]
+                if combine == "mean":
+                    d[idx] = l1_matrix(0.5 * (fc[idx] + fr), fm)
+                else:
+                    d[idx] = np.minimum(d[idx], l1_matrix(fr, fm))
             # every sparse cloud pays its reconstruction, kept or not
             # (the Poisson solve included: a reconstruction's input is made at query time)
             secs = secs + np.array([r.seconds + per if r is not None else 0.0 for r in rec])
         cloud[k], query[k] = d, secs
-    fc = kernel_features(data.clouds["cloud"], config) if "cloud" in data.clouds else fm
+    fc = kernel_features(data.clouds["cloud"], config) * scale if "cloud" in data.clouds else fm
     return Distances(
         l1_matrix(fm, fm),
         cloud,
@@ -223,6 +273,26 @@ def store_rule(data: SetData, config: KernelConfig, *, reconstruct: bool = True)
 def default_method(data: SetData) -> Distances:
     """Today's default store."""
     return store_rule(data, KernelConfig())
+
+
+def mean_method(data: SetData) -> Distances:
+    """The default store, a cloud's own and reconstruction's features averaged."""
+    return store_rule(data, KernelConfig(), combine="mean")
+
+
+def pose_free_method(data: SetData) -> Distances:
+    """The default store without the pose blocks (``d2c_mean``, ``inertia``)."""
+    return store_rule(data, KernelConfig(), mask=pose_free_mask(KernelConfig()))
+
+
+def pose_free_mean_method(data: SetData) -> Distances:
+    """Both: no pose blocks, a cloud's two features averaged."""
+    return store_rule(data, KernelConfig(), combine="mean", mask=pose_free_mask(KernelConfig()))
+
+
+def v6_method(data: SetData) -> Distances:
+    """A store with descriptor version 6 (no pose blocks; opt-in)."""
+    return store_rule(data, Config().with_options(descriptor=6))
 
 
 def paper_method(data: SetData) -> Distances:
@@ -268,8 +338,12 @@ def d2_method(data: SetData) -> Distances:
 #: Methods by name; candidates register here.
 METHODS: dict[str, Callable[[SetData], Distances]] = {
     "default": default_method,
+    "mean": mean_method,
+    "pose-free": pose_free_method,
+    "pose-free mean": pose_free_mean_method,
     "paper": paper_method,
     "D2": d2_method,
+    "v6": v6_method,
 }
 
 
@@ -308,9 +382,11 @@ def build(names: Sequence[str], split: str) -> list[Dataset]:
     """The requested sets' ``split``."""
     makers: dict[str, Callable[[], Dataset]] = {
         "people": people,
+        "people-xl": lambda: people(extra_validation=PEOPLE_EXTRA_VALIDATION),
         "capod": capod,
         "figures": articulated,
         "parts": parts,
+        "generic": generic,
     }
     return [makers[n]().split(split) for n in names]
 
@@ -352,7 +428,12 @@ def run(
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sets", nargs="+", default=["people", "capod", "figures", "parts"])
+    ap.add_argument(
+        "--sets",
+        nargs="+",
+        default=["people", "capod", "figures", "parts"],
+        help="also people-xl (validation: 12 more subjects) and generic",
+    )
     ap.add_argument("--split", default="test", choices=("all", "test", "validation"))
     ap.add_argument("--kinds", nargs="+", default=list(KINDS), choices=list(KINDS))
     ap.add_argument("--methods", nargs="+", default=["default", "paper", "D2"])
@@ -361,7 +442,14 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument(
         "--cached", action="store_true", help="decompose nothing: use what is in the cache"
     )
+    ap.add_argument(
+        "--engine-commits",
+        nargs="*",
+        default=[],
+        help="with --cached: also read what the engines of these commits cached",
+    )
     args = ap.parse_args(argv)
+    ENGINE_COMMITS[:] = args.engine_commits
     unknown = [m for m in args.methods if m not in METHODS]
     if unknown:
         raise SystemExit(f"unknown method(s) {unknown}: choose from {sorted(METHODS)}")

@@ -46,6 +46,16 @@ Versions (``DescriptorConfig.version``; a store records the version its features
 computed with, and refuses to mix them). Weights and typical distances per version
 are :data:`LAYOUTS`:
 
+* **7** (opt-in): version 4 plus the ``views`` block (:mod:`shapedb.union_views`,
+  weight 8): what the ball union looks like from outside, for collections of rigid
+  objects. Weight chosen on the validation splits of the rigid sets
+  (``python -m bench.union_select --block views``); not the default because, like
+  version 5, it costs the jointed figures (a pose changes the silhouettes).
+* **6** (opt-in): version 4 without the pose blocks ``d2c_mean`` and ``inertia``
+  (:data:`POSE_BLOCKS`): the shape of the centre-distance distribution relative to
+  its mean, and the balls' principal extents, follow the pose of a jointed shape
+  more than the shape, so without them a scan of a person finds its person rather
+  than another person in its pose (``python -m bench.studies.cloud_weights``).
 * **5** (opt-in): version 4 plus the ``union`` block (:mod:`shapedb.union`, weight 4):
   where the balls' volume lies around its centroid, at the scale of the parts. Chosen
   on the validation splits (``python -m bench.union_select``); not the default because
@@ -66,8 +76,9 @@ from numpy.typing import NDArray
 
 from shapedb.graph import ContactGraph
 from shapedb.union import BANDS, SHELLS, union_features
+from shapedb.union_views import view_dim, view_features
 
-__all__ = ["describe", "dim", "DIM", "BLOCKS", "LAYOUTS", "VERSION"]
+__all__ = ["describe", "dim", "DIM", "BLOCKS", "LAYOUTS", "POSE_BLOCKS", "VERSION"]
 
 FloatArray = NDArray[np.float64]
 
@@ -127,6 +138,13 @@ LAYOUTS: dict[int, Layout] = {
 UNION_TYPICAL = 5.069
 UNION_WEIGHT = 4.0
 LAYOUTS[5] = LAYOUTS[4] + (("union", SHELLS * BANDS, UNION_TYPICAL, UNION_WEIGHT),)
+#: Typical distance and weight of version 7's ``views`` block (:mod:`shapedb.union_views`).
+VIEWS_TYPICAL = 4.722
+VIEWS_WEIGHT = 8.0
+LAYOUTS[7] = LAYOUTS[4] + (("views", view_dim(), VIEWS_TYPICAL, VIEWS_WEIGHT),)
+#: Blocks that tell poses apart more than shapes: version 6 leaves them out.
+POSE_BLOCKS = ("d2c_mean", "inertia")
+LAYOUTS[6] = tuple(b for b in LAYOUTS[4] if b[0] not in POSE_BLOCKS)
 #: The default version (``DescriptorConfig().version``).
 VERSION: int = 4
 BLOCKS: Layout = LAYOUTS[VERSION]
@@ -264,6 +282,8 @@ def describe(g: ContactGraph, version: int = VERSION) -> FloatArray:
 
     if "union" in names:
         blocks["union"] = union_features(c, r)
+    if "views" in names:
+        blocks["views"] = view_features(c, r)
 
     calibration = np.log(10.0) / sum(b[3] for b in layout)
     at = 0

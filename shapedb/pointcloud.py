@@ -56,7 +56,7 @@ from shapedb.errors import (
 )
 from shapedb.geometry import Geometry, Grid, as_points
 
-__all__ = ["PointCloud"]
+__all__ = ["DISTANCES", "PointCloud"]
 
 logger = logging.getLogger(__name__)
 
@@ -78,6 +78,8 @@ UNEXPLAINED_SWITCH = 0.06
 #: sample by a factor 1.19-1.33 on uniform random samples of a sphere, a box and a torus
 #: (500-8,000 samples); the isotropic ``pi rho_k^2 / k`` is within 3 % there.
 ELLIPSE_AREA = 1.2
+#: Distance estimators :meth:`PointCloud.unsigned_distance` offers (see its docstring).
+DISTANCES = ("splat", "nearest", "sphere")
 #: Query-point x sample pairs up to which winding numbers are summed directly.
 _DIRECT_WINDING_PAIRS = 200_000
 
@@ -105,6 +107,9 @@ class PointCloud(Geometry):
         Wall radius of the adaptive shell, in units of the local spacing.
     orient_resolution : int
         Cells along the longest side of the grid used to find the exterior.
+    distance : str
+        The distance estimator (one of :data:`DISTANCES`; see
+        :meth:`unsigned_distance`), used by every query and by :meth:`grid_sdf`.
 
     Raises
     ------
@@ -129,8 +134,14 @@ class PointCloud(Geometry):
         k: int = 10,
         shell: float = 1.5,
         orient_resolution: int = 96,
+        distance: str = "splat",
     ) -> None:
         self.name = name
+        if distance not in DISTANCES:
+            raise InvalidShapeError(
+                f"distance={distance!r} is unknown; choose from {DISTANCES}", source=name
+            )
+        self.distance = distance
         p = np.asarray(points)
         if p.size == 0:
             raise EmptyGeometryError("point cloud has no points", source=name)
@@ -483,6 +494,7 @@ class PointCloud(Geometry):
         out = object.__new__(PointCloud)
         out.name, out.k, out.shell = self.name, self.k, self.shell
         out.orient_resolution = self.orient_resolution
+        out.distance = self.distance
         out._points = np.ascontiguousarray(self._points @ R.T + t)
         given = self._given_normals
         out._given_normals = None if given is None else np.ascontiguousarray(given @ R.T)
@@ -490,15 +502,43 @@ class PointCloud(Geometry):
             out.__dict__["spacing"] = self.spacing
         return out
 
-    def unsigned_distance(self, points: ArrayLike) -> NDArray[np.float64]:
+    def unsigned_distance(
+        self, points: ArrayLike, *, distance: str | None = None
+    ) -> NDArray[np.float64]:
         """Estimated distance (n,) of points (n, 3) to the surface, model units.
 
-        The distance to the nearest splat (see the module docstring).
+        ``distance`` (default: the cloud's own, :attr:`distance`) picks the estimator:
+        ``"splat"`` the nearest splat (see the module docstring); ``"nearest"`` the
+        nearest sample; ``"sphere"`` the nearer of the splat and the local sphere
+        fitted to the samples around the splat's closest point
+        (:func:`shapedb.surface_fit.sphere_distance`).
+
+        Raises
+        ------
+        InvalidShapeError
+            ``distance`` is not one of :data:`DISTANCES`.
         """
         p = as_points(points)
         if len(p) == 0:
             return np.zeros(0)
-        return self._splat(p)[1]
+        return self._distance(p, self.distance if distance is None else distance)
+
+    def _distance(self, p: NDArray[np.float64], distance: str) -> NDArray[np.float64]:
+        """Distances (n,) of points p (n, 3) by the estimator ``distance``."""
+        if distance == "nearest":
+            return np.asarray(self._tree.query(p)[0], dtype=np.float64)
+        if distance not in DISTANCES:
+            raise InvalidShapeError(
+                f"distance={distance!r} is unknown; choose from {DISTANCES}", source=self.name
+            )
+        q, d = self._splat(p)
+        if distance == "splat":
+            return d
+        from shapedb.surface_fit import sphere_distance
+
+        return np.minimum(
+            d, sphere_distance(p, q, self._points, self.normals, self.spacing, self._tree)
+        )
 
     def signed_distance(self, points: ArrayLike) -> NDArray[np.float64]:
         """Signed distance (n,) of points (n, 3), model units, positive inside."""
@@ -524,5 +564,5 @@ class PointCloud(Geometry):
         dist = _corrected(dist, rho) * np.float32(h)
         # inside, where MDBD puts its balls, the distance to the splats
         cells = np.argwhere(inside)
-        dist[inside] = self._splat(grid.to_point(cells))[1]
+        dist[inside] = self._distance(grid.to_point(cells), self.distance)
         return np.where(inside, dist, -dist).astype(np.float32, copy=False)

@@ -87,7 +87,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--sep", type=float, default=1.4, help="'stable': keep blocks with sep above")
     ap.add_argument("--shift", type=float, default=0.6, help="'stable': and shift below")
     args = ap.parse_args(argv)
-    representations.cache_path = pre_sheet_path  # type: ignore[assignment]
+    representations.ENGINE_COMMITS[:] = [PRE_SHEET]
     (ds,) = build(["people"], args.split)
     data = load_set(ds, mdbd_config(), ["cloud"], workers=1, cached=True)
     labels = np.asarray(data.labels)

@@ -137,3 +137,28 @@ def test_an_older_engines_key_reads_its_code_at_that_commit(model: Model) -> Non
     # a commit before shapedb/sheet.py existed: another engine, and no sheet_cells in the key
     before = common.cache_path(model, "mesh", CONFIG, engine_commit="f031e22")
     assert before != common.cache_path(model, "mesh", CONFIG)
+
+
+def test_sphere_variant_is_the_paper_cloud_with_the_sphere_distance(model: Model) -> None:
+    plain = common.variant_geometry(model, "pointcloud", CONFIG)
+    fitted = common.variant_geometry(model, "pointcloud_sphere", CONFIG)
+    np.testing.assert_array_equal(fitted.points, plain.points)
+    assert (plain.distance, fitted.distance) == ("splat", "sphere")
+    assert common.cache_path(model, "pointcloud_sphere", CONFIG) != common.cache_path(
+        model, "pointcloud", CONFIG
+    )
+
+
+def test_mesh_keys_leave_the_point_cloud_distance_out(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Editing shapedb/surface_fit.py (or pointcloud.py) changes cloud keys, not mesh keys."""
+    real = common._module_code.__wrapped__
+
+    def edited(path: str, size: int, mtime_ns: int) -> str:
+        code = real(path, size, mtime_ns)
+        return code + "EDITED" if path.endswith("surface_fit.py") else code
+
+    before = (common.engine_version("mesh"), common.engine_version("pointcloud"))
+    monkeypatch.setattr(common, "_module_code", edited)
+    after = (common.engine_version("mesh"), common.engine_version("pointcloud"))
+    assert after[0] == before[0]
+    assert after[1] != before[1]

@@ -59,6 +59,17 @@ def test_people_set_is_split_by_subject_with_poses_as_families() -> None:
     assert len(set(families(ds.models))) == 4
 
 
+def test_extra_validation_subjects_leave_the_test_split_as_it_is() -> None:
+    from bench.datasets import PEOPLE_EXTRA_POSES
+
+    base, more = people(subjects=4, poses=6), people(subjects=4, poses=6, extra_validation=2)
+    assert more.split("test").models == base.split("test").models
+    extra = [m for m in more.models if m not in base.models]
+    assert len(extra) == 2 * PEOPLE_EXTRA_POSES and {m.split for m in extra} == {"validation"}
+    assert {m.label for m in extra} == {"person04", "person05"}
+    assert len({m.name for m in more.models}) == len(more)
+
+
 def test_noisy_cloud_has_the_stated_noise(sphere: tuple[np.ndarray, np.ndarray]) -> None:
     v, _ = sphere
     pts = np.repeat(v, 20, axis=0)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from bench.baselines import D2Config
@@ -51,3 +53,37 @@ def test_d2_of_points_is_a_pdf() -> None:
     assert pdf.shape == (64,)
     assert np.isclose(pdf.sum(), 1.0)
     assert np.array_equal(pdf, d2_points(pts, cfg))
+
+
+def _balls(radius: float, shift: float) -> Any:
+    from bench.common import Balls
+
+    centers = np.array([[shift, 0.0, 0.0], [shift + 1.5, 0.0, 0.0], [shift, 1.4, 0.0]])
+    radii = np.array([radius, 0.5, 0.4])
+    return Balls(centers, radii, np.array([[0, 1], [0, 2]]), 0.05, 1.0, {"sdf": 1.0}, 0.2)
+
+
+def test_store_rule_mean_averages_a_cloud_and_its_reconstruction() -> None:
+    """``combine="mean"`` compares the mean of the two features; a mask scales all three."""
+    from bench.datasets import Dataset, Model
+    from bench.features import kernel_features
+    from bench.representations import SetData, pose_free_mask, store_rule
+    from shapedb.config import KernelConfig
+
+    models = tuple(Model(f"m{i}", "a", f"toy:{i}") for i in range(2))
+    mesh = [_balls(1.0, 0.0), _balls(0.8, 0.0)]
+    cloud = [_balls(0.9, 0.0), _balls(0.7, 0.0)]
+    recon = [_balls(1.1, 0.0), None]
+    data = SetData(Dataset("toy", models), mesh, {"cloud": cloud}, {"cloud": recon})
+    cfg = KernelConfig()
+    mask = pose_free_mask(cfg)
+    fm, fc = kernel_features(mesh, cfg) * mask, kernel_features(cloud, cfg) * mask
+    fr = kernel_features([recon[0]], cfg) * mask
+    got = store_rule(data, cfg, combine="mean", mask=mask).cloud["cloud"]
+    np.testing.assert_allclose(got[0], np.abs(fm - 0.5 * (fc[0] + fr[0])).sum(axis=1))
+    np.testing.assert_allclose(got[1], np.abs(fm - fc[1]).sum(axis=1))  # no reconstruction
+    nearest = store_rule(data, cfg, mask=mask).cloud["cloud"]
+    np.testing.assert_allclose(
+        nearest[0], np.minimum(np.abs(fm - fc[0]).sum(1), np.abs(fm - fr[0]).sum(1))
+    )
+    assert mask.sum() == len(mask) - 33  # d2c_mean (30) and inertia (3) left out
