@@ -31,7 +31,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["union_features", "shell_energies", "sphere_grid", "SHELLS", "BANDS"]
+__all__ = ["union_features", "centred_balls", "shell_energies", "sphere_grid", "SHELLS", "BANDS"]
 
 FloatArray = NDArray[np.float64]
 
@@ -44,6 +44,44 @@ _N_THETA = 24
 _N_PHI = 48
 #: Balls considered per chunk of sample points (bounds the temporary arrays).
 _CHUNK = 4096
+
+
+def centred_balls(centers: ArrayLike, radii: ArrayLike) -> tuple[FloatArray, FloatArray, float]:
+    """The balls of positive radius about their volume centroid, and the union's scale.
+
+    Parameters
+    ----------
+    centers : (n, 3) float
+        Ball centres.
+    radii : (n,) float
+        Ball radii, same units; balls of radius <= 0 are left out.
+
+    Returns
+    -------
+    x : (m, 3) float64
+        Centres relative to the volume-weighted centroid (weights ``r^3``).
+    r : (m,) float64
+        Their radii.
+    R : float
+        ``2 sqrt(sum v (|x|^2 + 0.6 r^2))`` with ``v = r^3 / sum r^3``: twice the radius
+        of gyration of the union (each ball a solid sphere); 0 when no ball is left.
+
+    Raises
+    ------
+    ValueError
+        If the arrays' lengths disagree.
+    """
+    c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
+    r = np.asarray(radii, dtype=np.float64).reshape(-1)
+    if len(c) != len(r):
+        raise ValueError(f"centers ({len(c)}) and radii ({len(r)}) must have the same length")
+    keep = r > 0
+    c, r = c[keep], r[keep]
+    if len(r) == 0:
+        return np.zeros((0, 3)), r, 0.0
+    v = r**3 / (r**3).sum()
+    x = c - v @ c
+    return x, r, 2.0 * float(np.sqrt(v @ ((x**2).sum(axis=1) + 0.6 * r**2)))
 
 
 @lru_cache(maxsize=8)
@@ -131,20 +169,8 @@ def union_features(
     ValueError
         If the arrays' shapes disagree.
     """
-    c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
-    r = np.asarray(radii, dtype=np.float64).reshape(-1)
-    if len(c) != len(r):
-        raise ValueError(f"centers ({len(c)}) and radii ({len(r)}) must have the same length")
     out = np.zeros(shells * bands)
-    keep = r > 0
-    c, r = c[keep], r[keep]
-    if len(r) == 0:
-        return out
-    vol = r**3
-    v = vol / vol.sum()
-    o = v @ c
-    x = c - o
-    R = 2.0 * float(np.sqrt(v @ ((x**2).sum(axis=1) + 0.6 * r**2)))
+    x, r, R = centred_balls(centers, radii)
     if not R > 0:
         return out
     width = R / shells

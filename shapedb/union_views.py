@@ -39,6 +39,8 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from shapedb.union import centred_balls
+
 __all__ = [
     "view_features",
     "view_images",
@@ -94,14 +96,6 @@ def _basis(d: FloatArray) -> tuple[FloatArray, FloatArray]:
     return u, np.cross(d, u)
 
 
-def _frame(c: FloatArray, r: FloatArray) -> tuple[FloatArray, float]:
-    """Balls' centres about their volume centroid, and the scale ``R``."""
-    vol = r**3
-    v = vol / vol.sum()
-    x = c - v @ c
-    return x, 2.0 * float(np.sqrt(v @ ((x**2).sum(axis=1) + 0.6 * r**2)))
-
-
 def view_images(
     centers: ArrayLike,
     radii: ArrayLike,
@@ -134,16 +128,8 @@ def view_images(
     ValueError
         If the arrays' shapes disagree.
     """
-    c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
-    r = np.asarray(radii, dtype=np.float64).reshape(-1)
-    if len(c) != len(r):
-        raise ValueError(f"centers ({len(c)}) and radii ({len(r)}) must have the same length")
     shape = (directions, rings, samples)
-    keep = r > 0
-    c, r = c[keep], r[keep]
-    if len(r) == 0:
-        return np.zeros(shape), np.zeros(shape), np.zeros(shape)
-    x, big_r = _frame(c, r)
+    x, r, big_r = centred_balls(centers, radii)
     if not big_r > 0:
         return np.zeros(shape), np.zeros(shape), np.zeros(shape)
     width = big_r / rings
