@@ -35,6 +35,7 @@ __all__ = [
     "KernelConfig",
     "DescriptorConfig",
     "CloudConfig",
+    "LightFieldConfig",
     "PartConfig",
     "Config",
     "OPTIONS",
@@ -287,6 +288,57 @@ class CloudConfig:
             self.reconstruct_depth,
             "must be an integer in [4, 12]",
         )
+
+
+@dataclass(frozen=True)
+class LightFieldConfig:
+    """Light fields of a shape (:mod:`shapedb.lightfield`, Chen et al. 2003).
+
+    Attributes
+    ----------
+    n_fields : int
+        Light fields (dodecahedra turned in fixed ways), 1-10; each is 10 views.
+    resolution : int
+        Image side, pixels, in [16, 256]; the image spans the unit disc.
+    zernike_order : int
+        Largest Zernike order, in [2, 16] (order 10: 36 magnitudes per image).
+    fourier : int
+        Fourier descriptors of the silhouette's centroid distance, 0 to ``angles // 2``.
+    angles : int
+        Samples of the centroid distance around the contour, >= 8.
+    fourier_weight : float
+        Weight of the Fourier block against the Zernike block, >= 0.
+    depth_weight : float
+        0: silhouettes only. Positive: each view also has the Zernike magnitudes of its
+        two depth images (front and back, combined as their sum and absolute
+        difference), times this weight (ball unions only).
+    seed : int
+        Seed of the light fields' turns.
+    """
+
+    n_fields: int = 10
+    resolution: int = 64
+    zernike_order: int = 10
+    fourier: int = 10
+    angles: int = 64
+    fourier_weight: float = 1.0
+    depth_weight: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        ints = {"n_fields": (1, 10), "resolution": (16, 256), "zernike_order": (2, 16)}
+        for name, (lo, hi) in ints.items():
+            v = getattr(self, name)
+            _check(_is_int(v) and lo <= v <= hi, name, v, f"must be an integer in [{lo}, {hi}]")
+        _check(_is_int(self.angles) and self.angles >= 8, "angles", self.angles, "must be >= 8")
+        _check(
+            _is_int(self.fourier) and 0 <= self.fourier <= self.angles // 2,
+            "fourier", self.fourier, "must be an integer in [0, angles // 2]",
+        )  # fmt: skip
+        for name in ("fourier_weight", "depth_weight"):
+            v = getattr(self, name)
+            _check(isinstance(v, (int, float)) and v >= 0, name, v, "must be a number >= 0")
+        _check(_is_int(self.seed), "seed", self.seed, "must be an integer")
 
 
 def _part_kernel() -> KernelConfig:
