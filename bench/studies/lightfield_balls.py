@@ -18,6 +18,11 @@ engines in :data:`ENGINE_COMMITS`, which differ only where the sets are unaffect
     ``p = --power``);
   - ``adrank w``: rank fusion with the light field's term gated the same way,
     ``1 / (60 + rank4) + w * a_q^p / (60 + rankl)``;
+  - with ``--ceiling c`` the gate of ``adapt`` and ``adrank`` is also multiplied by
+    ``clip((c - s_q) / --ramp, 0, 1)``, ``s_q`` the median of ``dl / typical`` over the
+    median of ``d4`` among the query's 100 nearest by v4 (the candidates a re-ranking
+    stage would see): the light field's spread relative to v4's, high where every
+    silhouette looks alike (the people, the figures);
 
 * with ``--baselines``: the mesh light field descriptor (``bench.lightfield``) and D2
   (``bench.baselines``) in the same run.
@@ -167,6 +172,14 @@ def overlap(d4: FloatArray, dl: FloatArray, top: int = TOP) -> FloatArray:
     return np.array([len(set(a[i]) & set(b[i])) / top for i in range(n)])
 
 
+def spread(d4: FloatArray, dl: FloatArray, typical: float, candidates: int = 100) -> FloatArray:
+    """(n,) median ``dl / typical`` over median ``d4`` among each query's nearest by ``d4``."""
+    n = len(d4)
+    near = np.argsort(d4 + np.eye(n) * 1e300, axis=1, kind="stable")[:, : min(candidates, n - 1)]
+    num = np.median(np.take_along_axis(dl, near, axis=1), axis=1) / typical
+    return num / np.maximum(np.median(np.take_along_axis(d4, near, axis=1), axis=1), 1e-300)
+
+
 def fuse(
     kind: str,
     w: float,
@@ -175,17 +188,21 @@ def fuse(
     typical: float,
     top: int = TOP,
     power: float = 3.0,
+    ceiling: float = 0.0,
+    ramp: float = 0.02,
 ) -> FloatArray:
     """A fused distance (rows are queries)."""
     if kind == "sum":
         return d4 + w * dl / typical
     if kind == "rank":
         return -(1.0 / (60.0 + _ranks(d4)) + w / (60.0 + _ranks(dl)))
-    if kind == "adapt":
+    if kind in ("adapt", "adrank"):
         a = overlap(d4, dl, top) ** power
+        if ceiling > 0:
+            a = a * np.clip((ceiling - spread(d4, dl, typical)) / ramp, 0.0, 1.0)
+    if kind == "adapt":
         return d4 + w * a[:, None] * dl / typical
     if kind == "adrank":
-        a = overlap(d4, dl, top) ** power
         return -(1.0 / (60.0 + _ranks(d4)) + w * a[:, None] / (60.0 + _ranks(dl)))
     raise ValueError(f"fusion {kind!r} is unknown")
 
@@ -247,8 +264,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--adrank", type=float, nargs="*", default=[0.5, 1, 2, 4])
     ap.add_argument("--top", type=int, default=TOP, help="neighbours of the adaptive gate")
     ap.add_argument("--power", type=float, default=3.0, help="power of the adaptive gate")
+    ap.add_argument("--ceiling", type=float, default=0.0, help="spread ceiling (0: none)")
+    ap.add_argument("--ramp", type=float, default=0.02, help="width of the ceiling's fade")
     ap.add_argument("--typical", type=float, default=None)
     ap.add_argument("--baselines", action="store_true", help="mesh LFD and D2 in the same run")
+    ap.add_argument("--out", type=Path, default=None, help="JSON path (default: by split)")
     ap.add_argument("--cost", type=int, default=0, help="only time N models per set (--fuse)")
     args = ap.parse_args(argv)
     if args.cost:
@@ -292,7 +312,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         obj = []
         for n, s in sets.items():
             m = s["mats"]
-            d = fuse(kind, w, m["v4"], m[key], typical, args.top, args.power) if kind else m[label]
+            d = (
+                fuse(
+                    kind, w, m["v4"], m[key], typical, args.top, args.power, args.ceiling, args.ramp
+                )
+                if kind
+                else m[label]
+            )
             sc = retrieval_scores(-d, s["labels"])
             entry[n] = sc
             obj.append((sc["nn"] + sc["first_tier"] + sc["dcg"]) / 3)
@@ -314,14 +340,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     print()
     print(format_table(
         f"light fields from the balls, {args.split} splits (NN/1-T/DCG), fused: {args.fuse}, "
-        f"typical {typical:.4g}, gate: top {args.top}, power {args.power:g}",
+        f"typical {typical:.4g}, gate: top {args.top}, power {args.power:g}, "
+        f"ceiling {args.ceiling:g}, ramp {args.ramp:g}",
         ("row", *sets, "objective", "passes"), rows,
     ))  # fmt: skip
     print(f"medians {medians}; chosen {chosen}")
     print(f"CPU s per model / per pair: {cpu}")
-    out = OUT / f"lightfield_balls_{args.split}.json"
+    out = args.out or OUT / f"lightfield_balls_{args.split}.json"
     write_json(out, {"split": args.split, "fuse": args.fuse, "typical": typical,
-                     "top": args.top, "power": args.power,
+                     "top": args.top, "power": args.power, "ceiling": args.ceiling,
+                     "ramp": args.ramp,
                      "medians": medians, "table": table, "chosen": chosen, "cpu": cpu,
                      "sizes": {n: len(s["labels"]) for n, s in sets.items()}})  # fmt: skip
     print(f"written {out}")
