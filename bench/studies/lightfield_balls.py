@@ -24,6 +24,9 @@ engines in :data:`ENGINE_COMMITS`, which differ only where the sets are unaffect
     stage would see): the light field's spread relative to v4's, high where every
     silhouette looks alike (the people, the figures);
 
+* with ``--queries pointcloud`` (or another cached variant): the queries are that
+  variant's decompositions, compared with every model's mesh (its own mesh left out, as
+  :func:`bench.common.retrieval_scores` leaves out the diagonal);
 * with ``--baselines``: the mesh light field descriptor (``bench.lightfield``) and D2
   (``bench.baselines``) in the same run.
 
@@ -79,8 +82,11 @@ SETS = ("web", "generic", "capod", "figures", "parts", "people")
 TOP = 5
 
 
-def load(name: str, split: str) -> tuple[Dataset, list[Balls]]:
-    """The split's models whose decomposition is cached, and their balls."""
+def load(name: str, split: str, variants: Sequence[str] = ("mesh",)) -> tuple[Dataset, list[Any]]:
+    """The split's models decomposed (cached) in every variant, and their balls.
+
+    Returns the models and, per model, its Balls (one variant) or a tuple of Balls.
+    """
     if name == "people":
         (ds,) = build(["people"], split)
     else:
@@ -89,12 +95,15 @@ def load(name: str, split: str) -> tuple[Dataset, list[Balls]]:
     cfg = MDBDConfig()
     keep, balls = [], []
     for i, m in enumerate(ds.models):
-        paths = [cache_path(m, "mesh", cfg)]
-        paths += [cache_path(m, "mesh", cfg, engine_commit=c) for c in ENGINE_COMMITS]
-        path = next((p for p in paths if p.exists()), None)
-        if path is not None:
+        found = []
+        for variant in variants:
+            paths = [cache_path(m, variant, cfg)]
+            paths += [cache_path(m, variant, cfg, engine_commit=c) for c in ENGINE_COMMITS]
+            found.append(next((p for p in paths if p.exists()), None))
+        if all(p is not None for p in found):
             keep.append(i)
-            balls.append(load_balls(path, cfg.contact_tol_cells))
+            got = [load_balls(p, cfg.contact_tol_cells) for p in found if p is not None]
+            balls.append(got[0] if len(got) == 1 else tuple(got))
     if len(keep) < len(ds):
         print(f"  {name}: {len(ds) - len(keep)} of {len(ds)} models not cached, left out")
     return Dataset(ds.name, tuple(ds.models[i] for i in keep)), balls
@@ -113,21 +122,34 @@ def _l1(x: FloatArray) -> FloatArray:
     return out
 
 
-def v4_distances(balls: list[Balls]) -> FloatArray:
-    """Version 4's L1 distances in its calibrated units."""
+def v4_distances(balls: list[Balls], queries: list[Balls] | None = None) -> FloatArray:
+    """Version 4's L1 distances (queries x balls) in its calibrated units."""
     from bench.features import kernel_features
 
-    f = kernel_features(balls, Config(descriptor=DescriptorConfig(version=4)))
-    return _l1(f) / (np.log(10.0) / sum(b[3] for b in LAYOUTS[4]))
+    cfg = Config(descriptor=DescriptorConfig(version=4))
+    f = kernel_features(balls, cfg)
+    cal = np.log(10.0) / sum(b[3] for b in LAYOUTS[4])
+    if queries is None:
+        return _l1(f) / cal
+    q = kernel_features(queries, cfg)
+    return np.abs(q[:, None, :] - f[None, :, :]).sum(axis=-1) / cal
 
 
 def light_field_matrix(
-    name: str, ds: Dataset, balls: list[Balls], text: str
+    name: str,
+    ds: Dataset,
+    balls: list[Balls],
+    text: str,
+    queries: list[Balls] | None = None,
+    variant: str = "mesh",
 ) -> tuple[FloatArray, float, float]:
-    """Ball light field distances (cached), CPU s per model, CPU s of the distances."""
+    """Ball light field distances (queries x balls; cached), CPU s per model and of the distances."""
     code = (Path(__file__).resolve().parents[2] / "shapedb" / "lightfield.py").read_bytes()
     key = hashlib.sha256(
-        code + text.encode() + "\n".join(m.name + m.source for m in ds.models).encode()
+        code
+        + text.encode()
+        + "\n".join(m.name + m.source for m in ds.models).encode()
+        + (b"" if queries is None else variant.encode())
     ).hexdigest()[:16]
     path = CACHE_DIR / "lightfield_balls" / f"{name}_{key}.npz"
     if path.exists():
@@ -138,7 +160,11 @@ def light_field_matrix(
     lf = np.stack([ball_light_field(b.centers, b.radii, cfg) for b in balls])
     per_model = (time.process_time() - t) / len(balls)
     t = time.process_time()
-    d = light_field_distance(lf)
+    if queries is None:
+        d = light_field_distance(lf)
+    else:
+        lq = np.stack([ball_light_field(b.centers, b.radii, cfg) for b in queries])
+        d = light_field_distance(lq, lf)
     dist_s = time.process_time() - t
     path.parent.mkdir(parents=True, exist_ok=True)
     np.savez(path, d=d, per_model=per_model, dist_s=dist_s)
@@ -268,6 +294,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--ramp", type=float, default=0.02, help="width of the ceiling's fade")
     ap.add_argument("--typical", type=float, default=None)
     ap.add_argument("--baselines", action="store_true", help="mesh LFD and D2 in the same run")
+    ap.add_argument(
+        "--queries", default="mesh", help="variant of the queries (e.g. pointcloud) against meshes"
+    )
     ap.add_argument("--out", type=Path, default=None, help="JSON path (default: by split)")
     ap.add_argument("--cost", type=int, default=0, help="only time N models per set (--fuse)")
     args = ap.parse_args(argv)
@@ -279,11 +308,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     cpu: dict[str, dict[str, float]] = {}
     for name in args.datasets:
         t0 = time.perf_counter()
-        ds, balls = load(name, args.split)
-        mats: dict[str, FloatArray] = {"v4": v4_distances(balls)}
+        queries = None
+        if args.queries == "mesh":
+            ds, balls = load(name, args.split)
+        else:
+            ds, pairs = load(name, args.split, ("mesh", args.queries))
+            balls, queries = [p[0] for p in pairs], [p[1] for p in pairs]
+        mats: dict[str, FloatArray] = {"v4": v4_distances(balls, queries)}
         cpu[name] = {}
         for text in dict.fromkeys([*args.configs, args.fuse]):
-            d, per_model, dist_s = light_field_matrix(name, ds, balls, text)
+            d, per_model, dist_s = light_field_matrix(name, ds, balls, text, queries, args.queries)
             mats[f"lfb {text}"] = d
             cpu[name][text] = per_model
             cpu[name][f"{text} distances s/pair"] = dist_s / max(len(d) * (len(d) - 1) / 2, 1)
@@ -339,7 +373,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     chosen = max(fused, key=lambda e: e["objective"])["row"] if fused else None
     print()
     print(format_table(
-        f"light fields from the balls, {args.split} splits (NN/1-T/DCG), fused: {args.fuse}, "
+        f"light fields from the balls, {args.split} splits, {args.queries} queries (NN/1-T/DCG), "
+        f"fused: {args.fuse}, "
         f"typical {typical:.4g}, gate: top {args.top}, power {args.power:g}, "
         f"ceiling {args.ceiling:g}, ramp {args.ramp:g}",
         ("row", *sets, "objective", "passes"), rows,
@@ -347,7 +382,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"medians {medians}; chosen {chosen}")
     print(f"CPU s per model / per pair: {cpu}")
     out = args.out or OUT / f"lightfield_balls_{args.split}.json"
-    write_json(out, {"split": args.split, "fuse": args.fuse, "typical": typical,
+    write_json(out, {"split": args.split, "queries": args.queries, "fuse": args.fuse,
+                     "typical": typical,
                      "top": args.top, "power": args.power, "ceiling": args.ceiling,
                      "ramp": args.ramp,
                      "medians": medians, "table": table, "chosen": chosen, "cpu": cpu,
