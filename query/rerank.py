@@ -9,7 +9,8 @@ id). Past the K-th, results keep the stored-vector order and distance. Search
 :func:`rerank_candidates`, so they rank alike.
 
 Scorers are looked up by ``RerankConfig.scorer`` in a registry
-(:func:`register_scorer`): a factory ``(Config) -> Scorer``. A scorer sees one
+(:func:`register_scorer`): a factory ``(Config) -> Scorer``; a scorer defined in a
+module of its own is named in :data:`SCORER_MODULES`, imported on first use. A scorer sees one
 batch of candidate lists, :class:`Candidates`: the queries' and candidates' stored
 vectors, their ids and their stored distances, and returns one distance per
 candidate. A scorer that needs a per-record array of its own (not in the stored
@@ -52,6 +53,7 @@ __all__ = [
     "rerank_candidates",
     "search",
     "block_slice",
+    "SCORER_MODULES",
 ]
 
 log = logging.getLogger(__name__)
@@ -109,6 +111,9 @@ class Scorer(Protocol):
 
 ScorerFactory = Callable[["Config"], Scorer]
 _REGISTRY: dict[str, ScorerFactory] = {}
+#: Scorers registered by a module of their own: name -> module imported (and so
+#: registering it) the first time a store asks for that scorer.
+SCORER_MODULES: dict[str, str] = {}
 
 
 def register_scorer(name: str, factory: ScorerFactory) -> None:
@@ -140,6 +145,10 @@ def scorer_for(config: Config) -> Scorer | None:
     name = config.rerank.scorer
     if name == "none":
         return None
+    if name not in _REGISTRY and name in SCORER_MODULES:
+        import importlib
+
+        importlib.import_module(SCORER_MODULES[name])
     factory = _REGISTRY.get(name)
     if factory is None:
         raise ConfigError(f"unknown scorer; known: {list(scorers())}", source=f"rerank={name!r}")

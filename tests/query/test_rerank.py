@@ -190,3 +190,23 @@ def test_a_reopened_store_searches_the_same_way(stage_db: Any) -> None:
     after = [[(h.id, h.distance) for h in row] for row in again.search_batch(some, k=8)]
     assert after == before
     _forget(again)
+
+
+def test_a_scorer_of_its_own_module_is_imported_on_first_use(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (tmp_path / "my_scorer.py").write_text(
+        "from query.rerank import register_scorer\n"
+        "class Far:\n"
+        "    def __init__(self, config):\n"
+        "        pass\n"
+        "    def score(self, batch):\n"
+        "        return -batch.distances\n"
+        "register_scorer('test_far', Far)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setitem(rerank.SCORER_MODULES, "test_far", "my_scorer")
+    index, x = _index()
+    cfg = Config().with_options(rerank="test_far", rerank_candidates=10)
+    got, _ = rerank.search(index, x[:2], 10, config=cfg)
+    np.testing.assert_array_equal(got, index.search(x[:2], 10)[0][:, ::-1])
