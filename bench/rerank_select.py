@@ -2,9 +2,9 @@
 
 Usage (from the repository root)::
 
-    python -m bench.rerank_select                      # validation, six sets, the grid
-    python -m bench.rerank_select --split test --neighbours 5 --power 2 --weight 8 \\
-        --candidates 100 --lfd                         # test, the chosen setting, with LFD
+    python -m bench.rerank_select                      # validation, six sets, the k x p x w x K grid
+    python -m bench.rerank_select --grid ratio --out bench/results/rerank_select_validation_ratio.json
+    python -m bench.rerank_select --split test --setting 10 1 16 100 0.35 --lfd   # k p w K ratio
     python -m bench.rerank_select --cost               # per-query search time, with and without
 
 For each set's split (meshes, decompositions at the defaults from the bench cache), the
@@ -49,7 +49,10 @@ RESULTS = Path(__file__).resolve().parent / "results"
 SETS = ("web", "generic", "capod", "articulated", "parts", "people")
 #: The grid of the adaptive stage: neighbours k, power p, weight w, candidates K.
 GRID = {"neighbours": (5, 10, 20), "power": (1.0, 2.0), "weight": (4.0, 8.0, 16.0),
-        "candidates": (50, 100, 200)}  # fmt: skip
+        "candidates": (50, 100, 200), "ratio": (0.0,)}  # fmt: skip
+#: The grid of ``--grid ratio``: the spread ceiling beside the overlap gate.
+RATIO_GRID = {"neighbours": (5, 10), "power": (1.0, 2.0), "weight": (8.0, 16.0),
+              "candidates": (100,), "ratio": (0.0, 0.35, 0.4)}  # fmt: skip
 #: An engine whose cached decompositions the test splits fall back on (bench.union_select).
 OLDER_ENGINE = "b95b2be"
 _MEASURES = ("nn", "first_tier", "dcg")
@@ -129,7 +132,8 @@ def _index(x: np.ndarray) -> FeatureIndex:
 
 
 def _setting(cfg: dict[str, Any]) -> str:
-    return f"k={cfg['neighbours']} p={cfg['power']:g} w={cfg['weight']:g} K={cfg['candidates']}"
+    return (f"k={cfg['neighbours']} p={cfg['power']:g} w={cfg['weight']:g} K={cfg['candidates']}"
+            f" r={cfg['ratio']:g}")  # fmt: skip
 
 
 def _objective(entry: dict[str, Any], sets: Sequence[str]) -> float:
@@ -162,7 +166,8 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
                       "index7": _index(v7)}  # fmt: skip
         print(f"  {name}: {len(keep)} models", flush=True)
     views = rerank.block_slice(Config().with_options(descriptor=7), "views")
-    settings = [dict(zip(GRID, c, strict=True)) for c in itertools.product(*GRID.values())]
+    grid = RATIO_GRID if args.grid == "ratio" else GRID
+    settings = [dict(zip(grid, c, strict=True)) for c in itertools.product(*grid.values())]
     if args.setting:
         settings = [dict(zip(GRID, args.setting, strict=True))]
         settings[0] = {k: type(GRID[k][0])(v) for k, v in settings[0].items()}
@@ -236,7 +241,7 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
     ds = web().split("validation")
     balls = decompose_all(ds.models, "mesh", MDBDConfig(), workers=args.workers)
     keep, v7 = descriptors(ds, 7, args.workers, "validation")
-    setting = dict(zip(GRID, args.setting or (10, 1.0, 8.0, 100), strict=True))
+    setting = dict(zip(GRID, args.setting or (10, 1.0, 16.0, 100, 0.35), strict=True))
     options = {f"rerank_{k}": type(GRID[k][0])(v) for k, v in setting.items()}
     out: dict[str, Any] = {"models": len(keep), "setting": options}
     with tempfile.TemporaryDirectory() as tmp:
@@ -281,8 +286,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=SETS)
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
-    ap.add_argument("--setting", nargs=4, metavar=("K_NEIGHBOURS", "POWER", "WEIGHT", "CANDIDATES"),
+    ap.add_argument("--setting", nargs=5,
+                    metavar=("K_NEIGHBOURS", "POWER", "WEIGHT", "CANDIDATES", "RATIO"),
                     help="one setting instead of the grid")  # fmt: skip
+    ap.add_argument("--grid", default="overlap", choices=["overlap", "ratio"],
+                    help="overlap: k x p x w x K (ratio off); ratio: with the spread ceiling")  # fmt: skip
     ap.add_argument("--lfd", action="store_true", help="add the light field descriptor's row")
     ap.add_argument("--cost", action="store_true", help="only time db.search with and without")
     ap.add_argument("--workers", type=int, default=2)

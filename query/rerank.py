@@ -25,7 +25,9 @@ Built in:
   the query's ``neighbours`` nearest candidates by either part, to the power
   ``power``: the block counts where it agrees with the rest about the query's
   neighbourhood. ``g = 0`` ranks by the stored vector without the block; ``g = 1``
-  with ``weight`` at the block's own weight by the stored vector.
+  with ``weight`` at the block's own weight by the stored vector. With
+  ``ratio > 0``, ``g(q)`` also fades out where the block spreads the candidates more
+  than the rest does (median block part over median base above ``ratio``).
 """
 
 from __future__ import annotations
@@ -61,6 +63,9 @@ log = logging.getLogger(__name__)
 #: Queries scored together (bounds the (queries, candidates, d) temporaries).
 _CHUNK = 16
 _NO_ID = np.iinfo(np.int64).max
+#: Width of the ramp of ``RerankConfig.ratio``: the gate falls from 1 to 0 as the
+#: candidates' block-to-rest spread rises from ``ratio - RATIO_RAMP`` to ``ratio``.
+RATIO_RAMP = 0.1
 
 
 @dataclass(frozen=True)
@@ -196,6 +201,7 @@ class AdaptiveFusion:
         self.neighbours = int(r.neighbours)
         self.power = float(r.power)
         self.factor = float(r.weight) / _block_weight(config, r.block)
+        self.ratio = float(r.ratio)
         if self.block.stop == self.block.start:
             log.debug("rerank: no block %r in this layout: the stored distance decides", r.block)
 
@@ -211,7 +217,12 @@ class AdaptiveFusion:
     def gate(
         self, batch: Candidates, base: NDArray[np.float64], part: NDArray[np.float64]
     ) -> NDArray[np.float64]:
-        """``g(q)``, (q,): overlap of the nearest candidates by ``base`` and by ``part``."""
+        """``g(q)``, (q,): overlap of the nearest candidates by ``base`` and by ``part``.
+
+        With ``RerankConfig.ratio > 0`` also times ``clip((ratio - r) / RATIO_RAMP, 0,
+        1)``, ``r`` the median ``part`` over the median ``base`` of the candidates (the
+        query left out).
+        """
         ok = batch.valid & (batch.ids != batch.query_ids[:, None])
         key = np.where(ok, batch.ids, _NO_ID)
         g = np.zeros(len(key))
@@ -223,8 +234,11 @@ class AdaptiveFusion:
             p = np.where(ok[row], part[row], np.inf)
             a = np.lexsort((key[row], b))[:m]
             c = np.lexsort((key[row], p))[:m]
-            g[row] = len(np.intersect1d(a, c)) / m
-        return g**self.power
+            g[row] = (len(np.intersect1d(a, c)) / m) ** self.power
+            if self.ratio > 0:
+                spread = np.median(p[ok[row]]) / max(float(np.median(b[ok[row]])), 1e-300)
+                g[row] *= float(np.clip((self.ratio - spread) / RATIO_RAMP, 0.0, 1.0))
+        return g
 
     def score(self, batch: Candidates) -> NDArray[np.float64]:
         """Fused distances, (q, c)."""

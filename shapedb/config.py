@@ -319,6 +319,11 @@ class RerankConfig:
         weight), in [0, 1000].
     block : str
         The descriptor block ``g(q)`` scales (a layout without it: the stored distance).
+    ratio : float
+        0, or a ceiling on ``r``, the median of the candidates' ``block`` distances over
+        the median of their other distances: ``g(q)`` is then also multiplied by
+        ``clip((ratio - r) / 0.1, 0, 1)``, so the block counts less where it spreads the
+        candidates more than the rest does (a pose changing its silhouettes). In [0, 10].
     """
 
     scorer: str = "none"
@@ -327,6 +332,7 @@ class RerankConfig:
     power: float = 1.0
     weight: float = 8.0
     block: str = "views"
+    ratio: float = 0.0
 
     def __post_init__(self) -> None:
         name_ok = isinstance(self.scorer, str) and self.scorer.replace("_", "a").isalnum()
@@ -346,6 +352,7 @@ class RerankConfig:
         _check(0.0 <= self.power <= 8.0, "rerank_power", self.power, "must be in [0, 8]")
         _check(0.0 <= self.weight <= 1000.0, "rerank_weight", self.weight, "must be in [0, 1000]")
         _check(isinstance(self.block, str), "rerank_block", self.block, "must be a block name")
+        _check(0.0 <= self.ratio <= 10.0, "rerank_ratio", self.ratio, "must be in [0, 10]")
 
 
 def _part_kernel() -> KernelConfig:

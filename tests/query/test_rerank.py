@@ -130,6 +130,10 @@ def test_the_gate_is_the_overlap_of_the_two_neighbourhoods() -> None:
     assert scorer.gate(stranger, base, part)[0] == pytest.approx(1.0)  # A = B = {7, 1}
     fused = scorer.score(batch)  # weight 8 at the views' own weight 8: base + g * part
     np.testing.assert_allclose(fused, base + 0.25 * part)
+    # the others' medians: part 4.25 (0.2, 0.5, 8, 9), base 2.5 (1, 2, 3, 4): spread 1.7
+    for ceiling, factor in ((1.85, 1.0), (1.75, 0.5), (1.65, 0.0)):
+        capped = rerank.AdaptiveFusion(cfg.with_options(rerank_ratio=ceiling))
+        assert capped.gate(batch, base, part)[0] == pytest.approx(0.25 * factor)
 
 
 STAGE = CONFIG.with_options(
