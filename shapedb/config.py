@@ -297,7 +297,9 @@ class RerankConfig:
 
     The index proposes the ``candidates`` nearest shapes by the stored vector's L1
     distance; a named exact scorer re-ranks them; past them, results keep the
-    stored-vector order. Search and evaluation rank alike.
+    stored-vector order. Search and evaluation rank alike. The defaults of the
+    adaptive fusion's fields are the setting chosen on the validation splits
+    (``python -m bench.rerank_select --grid ratio``); the stage itself is opt-in.
 
     Attributes
     ----------
@@ -330,9 +332,9 @@ class RerankConfig:
     candidates: int = 100
     neighbours: int = 10
     power: float = 1.0
-    weight: float = 8.0
+    weight: float = 16.0
     block: str = "views"
-    ratio: float = 0.0
+    ratio: float = 0.35
 
     def __post_init__(self) -> None:
         name_ok = isinstance(self.scorer, str) and self.scorer.replace("_", "a").isalnum()

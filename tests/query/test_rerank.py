@@ -102,7 +102,9 @@ def test_with_g_zero_the_fusion_ranks_by_version_4_and_with_g_one_by_the_stored_
         got, _ = rerank.search(index, x[:10], 60, config=cfg, query_ids=ids[:10])
         for row in range(10):
             np.testing.assert_array_equal(got[row], _ranking(x[:, :n4], x[row, :n4], ids))
-    cfg = Config().with_options(descriptor=7, rerank="test_gate1", rerank_candidates=60)
+    cfg = Config().with_options(
+        descriptor=7, rerank="test_gate1", rerank_candidates=60, rerank_weight=8.0
+    )  # the views at their own weight
     got, dist = rerank.search(index, x[:10], 60, config=cfg)
     want_ids, want_d = index.search(x[:10], 60)
     np.testing.assert_array_equal(got, want_ids)
@@ -111,8 +113,9 @@ def test_with_g_zero_the_fusion_ranks_by_version_4_and_with_g_one_by_the_stored_
 
 def test_the_gate_is_the_overlap_of_the_two_neighbourhoods() -> None:
     cfg = Config().with_options(
-        descriptor=7, rerank="adaptive", rerank_neighbours=2, rerank_power=2
-    )
+        descriptor=7, rerank="adaptive", rerank_neighbours=2, rerank_power=2, rerank_weight=8.0,
+        rerank_ratio=0.0,
+    )  # fmt: skip
     scorer = rerank.AdaptiveFusion(cfg)
     base = np.array([[0.0, 1.0, 2.0, 3.0, 4.0]])
     part = np.array([[0.0, 0.2, 9.0, 0.5, 8.0]])  # self, then A = {1, 2}, B = {1, 3}
