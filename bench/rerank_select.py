@@ -51,7 +51,7 @@ SETS = ("web", "generic", "capod", "articulated", "parts", "people")
 GRID = {"neighbours": (5, 10, 20), "power": (1.0, 2.0), "weight": (4.0, 8.0, 16.0),
         "candidates": (50, 100, 200), "ratio": (0.0,)}  # fmt: skip
 #: The grid of ``--grid ratio``: the spread ceiling beside the overlap gate.
-RATIO_GRID = {"neighbours": (5, 10), "power": (1.0, 2.0), "weight": (8.0, 16.0),
+RATIO_GRID = {"neighbours": (5, 10), "power": (0.0, 1.0, 2.0), "weight": (8.0, 16.0, 24.0, 32.0),
               "candidates": (100,), "ratio": (0.0, 0.35, 0.4)}  # fmt: skip
 #: An engine whose cached decompositions the test splits fall back on (bench.union_select).
 OLDER_ENGINE = "b95b2be"

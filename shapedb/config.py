@@ -314,7 +314,8 @@ class RerankConfig:
     neighbours : int
         Neighbourhood size of ``g(q)`` among the candidates, in [1, 1000].
     power : float
-        Exponent of ``g(q)``, in [0, 8].
+        Exponent of the overlap in ``g(q)``, in [0, 8]; 0 ignores the overlap (the
+        ``ratio`` ceiling alone then gates the block).
     weight : float
         Weight of ``block`` at ``g = 1``, in the units of the descriptor's block weights
         (:data:`shapedb.descriptor.LAYOUTS`: the stored vector has ``block`` at its own
@@ -331,7 +332,7 @@ class RerankConfig:
     scorer: str = "none"
     candidates: int = 100
     neighbours: int = 10
-    power: float = 1.0
+    power: float = 0.0
     weight: float = 16.0
     block: str = "views"
     ratio: float = 0.35
