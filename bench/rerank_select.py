@@ -241,7 +241,7 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
     ds = web().split("validation")
     balls = decompose_all(ds.models, "mesh", MDBDConfig(), workers=args.workers)
     keep, v7 = descriptors(ds, 7, args.workers, "validation")
-    setting = dict(zip(GRID, args.setting or (10, 1.0, 16.0, 100, 0.35), strict=True))
+    setting = dict(zip(GRID, args.setting or (10, 0.0, 16.0, 100, 0.35), strict=True))
     options = {f"rerank_{k}": type(GRID[k][0])(v) for k, v in setting.items()}
     out: dict[str, Any] = {"models": len(keep), "setting": options}
     with tempfile.TemporaryDirectory() as tmp:
