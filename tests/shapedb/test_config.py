@@ -15,6 +15,7 @@ from shapedb.config import (
     MDBDConfig,
     PartConfig,
     RerankConfig,
+    parse_options,
     with_options,
 )
 from shapedb.errors import ConfigError
@@ -51,6 +52,8 @@ def test_every_flat_option_names_one_field() -> None:
     assert OPTIONS["tie_rule"] == ("mdbd", "tie_rule")
     assert OPTIONS["rerank"] == ("rerank", "scorer")
     assert OPTIONS["rerank_candidates"] == ("rerank", "candidates")
+    typed = parse_options(["rerank=adaptive", "rerank_ratio=0.4", "rerank_candidates=50"])
+    assert typed == {"rerank": "adaptive", "rerank_ratio": 0.4, "rerank_candidates": 50}
     sections = (MDBDConfig, KernelConfig, DescriptorConfig, CloudConfig, RerankConfig)
     assert len(OPTIONS) == sum(len(dataclasses.fields(c)) for c in sections)
     options = Config().options()
