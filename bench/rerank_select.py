@@ -22,7 +22,9 @@ among those with no set's NN, 1-T or DCG more than two queries' worth below vers
 (the "two-queries rule"); the table also says whether it beats version 4's objective
 on every set. ``--lfd`` adds the light field descriptor (:mod:`bench.lightfield`,
 meshes; descriptors cached). ``--cost`` times ``db.search`` on a store of the web
-validation shapes (version 7) with the stage and without it, queries interleaved.
+validation shapes (version 7) with the stage and without it, queries interleaved, and
+scores both stores with ``db.evaluate`` (which must reproduce the web rows of the
+validation table).
 Written to bench/results/rerank_select_<split>.json (``rerank_cost.json``).
 """
 
@@ -258,6 +260,11 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
             ])  # fmt: skip
             dbs[label] = db
         ids = [int(i) for i in dbs["with"].store.features()[0]]
+        for label, db in dbs.items():  # db.evaluate ranks as db.search does
+            got = db.evaluate()
+            out[f"evaluate_{label}"] = {m: float(getattr(got, m)) for m in _MEASURES}
+            print(f"  db.evaluate, stage {label}: NN / 1-T / DCG "
+                  f"{got.nn:.3f} / {got.first_tier:.3f} / {got.dcg:.3f}")  # fmt: skip
         for db in dbs.values():
             db.search(ids[0], k=10)  # warm: index built and loaded
         times: dict[str, list[float]] = {"with": [], "without": []}
