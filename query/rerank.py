@@ -232,9 +232,11 @@ class AdaptiveFusion:
                 continue
             b = np.where(ok[row], base[row], np.inf)
             p = np.where(ok[row], part[row], np.inf)
-            a = np.lexsort((key[row], b))[:m]
-            c = np.lexsort((key[row], p))[:m]
-            g[row] = (len(np.intersect1d(a, c)) / m) ** self.power
+            g[row] = 1.0
+            if self.power > 0:  # power 0: the overlap does not count
+                a = np.lexsort((key[row], b))[:m]
+                c = np.lexsort((key[row], p))[:m]
+                g[row] = (len(np.intersect1d(a, c)) / m) ** self.power
             if self.ratio > 0:
                 spread = np.median(p[ok[row]]) / max(float(np.median(b[ok[row]])), 1e-300)
                 g[row] *= float(np.clip((self.ratio - spread) / RATIO_RAMP, 0.0, 1.0))
