@@ -100,6 +100,15 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
         timings = dict(decomposition.timings)
         if view is not None:
             timings["view"] = time.perf_counter() - t2
+        light_field = None
+        if config.stores_light_fields:
+            from shapedb.lightfield import record_light_field
+
+            t3 = time.perf_counter()
+            light_field = record_light_field(
+                decomposition.centers, decomposition.radii, config.light_field
+            )
+            timings["light_field"] = time.perf_counter() - t3
         timings["load"] = t_load
         timings["features"] = t2 - t1
         timings["cpu"] = time.process_time() - c0  # this process's CPU seconds
@@ -120,6 +129,7 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
         source=item.source if item.path is not None else None,
         build_seconds=time.perf_counter() - t0,
         view_feature=view,
+        light_field=light_field,
     )
 
 

@@ -152,9 +152,11 @@ def search_batch(
 
         vectors = np.stack([r.feature for r in resolved])
         qids = np.array([r.sid for r in resolved], np.int64)
+        arrays, query_arrays = _stored_arrays(db, resolved)
         ids, dist = rerank_search(
-            index, vectors, int(k), config=db.config, query_ids=qids, allowed=allowed
-        )
+            index, vectors, int(k), config=db.config, query_ids=qids, allowed=allowed,
+            arrays=arrays, query_arrays=query_arrays,
+        )  # fmt: skip
     catalog = _catalog(db, index.version_)
     lam = float(db.config.kernel.lam)
     out: list[list[Hit]] = []
@@ -216,18 +218,35 @@ class _Query:
     (:mod:`shapedb.view`), a sparse cloud's reconstruction (:mod:`shapedb.reconstruct`);
     or a function computing it (only called when the search needs it), or None when
     the query has none (a raw vector, a decomposition, a rejected reconstruction).
-    ``sid`` is the stored shape's id when the query is one, else -1.
+    ``sid`` is the stored shape's id when the query is one, else -1; ``decomposition``
+    the query's own decomposition when it has one (a stored shape's is not read).
     """
 
     feature: NDArray[np.float64]
     sparse: bool = False
     view: Any = None
     sid: int = -1
+    decomposition: Any = None
 
     def view_feature(self) -> NDArray[np.float64] | None:
         if callable(self.view):
             self.view = self.view()
         return self.view
+
+
+def _stored_arrays(db: Database, resolved: list[_Query]) -> tuple[Any, Any]:
+    """The per-record array reader and the queries' own arrays a store's scorer reads.
+
+    Only a store that keeps light fields (``Config.stores_light_fields``) has any: its
+    records' ``light_field`` column, and each outside query's light fields computed from
+    its decomposition (NaN for a stored query, read by id, or a raw vector).
+    """
+    if not db.config.stores_light_fields:
+        return None, None
+    from query.rerank_lightfield import COLUMN, StoredArrays, query_light_fields
+
+    own = [r.decomposition if r.sid < 0 else None for r in resolved]
+    return StoredArrays(db), {COLUMN: query_light_fields(db.config, own)}
 
 
 def _resolve(db: Database, query: Any, index: Any) -> _Query:
@@ -248,7 +267,10 @@ def _resolve(db: Database, query: Any, index: Any) -> _Query:
                 f"decomposition was computed with {query.config}, but the store uses {config.mdbd}",
                 source="query decomposition",
             )
-        return _Query(_featurise(query, config), is_sparse(query.sampling, query.spacing))
+        return _Query(
+            _featurise(query, config), is_sparse(query.sampling, query.spacing),
+            decomposition=query,
+        )  # fmt: skip
     if isinstance(query, Geometry):
         return _from_geometry(db, query)
     if isinstance(query, ShapeRecord):
@@ -257,8 +279,9 @@ def _resolve(db: Database, query: Any, index: Any) -> _Query:
         d = query.decomposition
         view = None if query.view_feature is None else np.asarray(query.view_feature, np.float64)
         return _Query(
-            _vector(query.feature, dim, source=query.name), is_sparse(d.sampling, d.spacing), view
-        )
+            _vector(query.feature, dim, source=query.name), is_sparse(d.sampling, d.spacing), view,
+            decomposition=d,
+        )  # fmt: skip
     if isinstance(query, os.PathLike) or (isinstance(query, str) and _is_file(query)):
         return _from_file(db, Path(query))
     if isinstance(query, str):
@@ -348,7 +371,7 @@ def _from_geometry(db: Database, geometry: Any) -> _Query:
             else None
         )
         recon = None if found is None else _featurise(found, config)
-        return _Query(_featurise(d, config), True, recon)
+        return _Query(_featurise(d, config), True, recon, decomposition=d)
 
     def view() -> NDArray[np.float64] | None:
         try:
@@ -359,7 +382,9 @@ def _from_geometry(db: Database, geometry: Any) -> _Query:
             return None
         return _featurise(found, config) if found is not None and found.n_balls else None
 
-    return _Query(_featurise(d, config), False, view if config.cloud.view_cells else None)
+    return _Query(
+        _featurise(d, config), False, view if config.cloud.view_cells else None, decomposition=d
+    )
 
 
 def _from_file(db: Database, path: Path) -> _Query:

@@ -311,7 +311,14 @@ def _kernel_distance_rows(
 
     def rows() -> Iterator[tuple[NDArray[np.intp], NDArray[np.float64]]]:
         if stage is not None:
-            yield from _reranked_rows(stage, db.config, ids, x, np.asarray(w, np.float64))
+            arrays = None
+            if db.config.stores_light_fields:
+                from query.rerank_lightfield import StoredArrays
+
+                arrays = StoredArrays(db, preload=True)
+            yield from _reranked_rows(
+                stage, db.config, ids, x, np.asarray(w, np.float64), arrays=arrays
+            )
             return
         step = max(1, _CHUNK_CELLS // max(n, 1))
         for lo in range(0, n, step):
@@ -327,7 +334,13 @@ def _kernel_distance_rows(
 
 
 def _reranked_rows(
-    scorer: Any, config: Any, ids: NDArray[np.int64], x: NDArray[np.float64], w: NDArray[np.float64]
+    scorer: Any,
+    config: Any,
+    ids: NDArray[np.int64],
+    x: NDArray[np.float64],
+    w: NDArray[np.float64],
+    *,
+    arrays: Any = None,
 ) -> Iterator[tuple[NDArray[np.intp], NDArray[np.float64]]]:
     """Rows of ranks (0 = first) in the order a search with the re-ranking stage returns.
 
@@ -346,8 +359,9 @@ def _reranked_rows(
         d = np.abs(x[None, :, :] - x[idx, None, :]) @ w  # (b, n), as FeatureIndex re-ranks
         order = np.lexsort((np.broadcast_to(ids, d.shape), d), axis=-1)
         batch = Candidates(
-            ids[idx], x[idx], ids[order], x[order], w, np.take_along_axis(d, order, 1), config
-        )
+            ids[idx], x[idx], ids[order], x[order], w, np.take_along_axis(d, order, 1), config,
+            arrays,
+        )  # fmt: skip
         got, _ = rerank_candidates(scorer, batch, n)
         cols = sorter[np.searchsorted(ids, got, sorter=sorter)]
         ranks = np.empty((len(idx), n))

@@ -32,8 +32,9 @@ Built in:
 
 from __future__ import annotations
 
+import dataclasses
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -47,6 +48,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "Candidates",
+    "ArrayReader",
     "Scorer",
     "AdaptiveFusion",
     "register_scorer",
@@ -89,6 +91,13 @@ class Candidates:
         Stored distances of the candidates; inf where padded.
     config : Config
         The store's configuration.
+    arrays : ArrayReader, optional
+        Reads a per-record array column by ids (e.g. ``"light_field"``): ``arrays(name,
+        ids)`` -> (m, ...) float64, NaN rows for records without it, or None when the
+        store has no such column. None: no per-record arrays.
+    query_arrays : mapping, optional
+        Per-query arrays computed from the queries themselves, by column name: (q, ...)
+        float64, NaN rows where a query has none (e.g. a stored query, read by id).
     """
 
     query_ids: NDArray[np.int64]
@@ -98,11 +107,19 @@ class Candidates:
     weights: NDArray[np.float64]
     distances: NDArray[np.float64]
     config: Config
+    arrays: ArrayReader | None = None
+    query_arrays: Mapping[str, NDArray[np.float64]] | None = None
 
     @property
     def valid(self) -> NDArray[np.bool_]:
         """(q, c) bool: a real candidate (not padding)."""
         return (self.ids >= 0) & np.isfinite(self.distances)
+
+
+class ArrayReader(Protocol):
+    """Reads a per-record array column: ``(name, ids (m,) int64) -> (m, ...) float64 | None``."""
+
+    def __call__(self, name: str, ids: NDArray[np.int64]) -> NDArray[np.float64] | None: ...
 
 
 class Scorer(Protocol):
@@ -118,7 +135,7 @@ ScorerFactory = Callable[["Config"], Scorer]
 _REGISTRY: dict[str, ScorerFactory] = {}
 #: Scorers registered by a module of their own: name -> module imported (and so
 #: registering it) the first time a store asks for that scorer.
-SCORER_MODULES: dict[str, str] = {}
+SCORER_MODULES: dict[str, str] = {"lightfield": "query.rerank_lightfield"}
 
 
 def register_scorer(name: str, factory: ScorerFactory) -> None:
@@ -277,14 +294,11 @@ def rerank_candidates(
         The scorer's distance for the first ``K``, the stored one after; inf pads.
     """
     n_k = int(batch.config.rerank.candidates)
-    head = Candidates(
-        batch.query_ids,
-        batch.queries,
-        batch.ids[:, :n_k],
-        batch.features[:, :n_k],
-        batch.weights,
-        batch.distances[:, :n_k],
-        batch.config,
+    head = dataclasses.replace(
+        batch,
+        ids=batch.ids[:, :n_k],
+        features=batch.features[:, :n_k],
+        distances=batch.distances[:, :n_k],
     )
     d = np.asarray(scorer.score(head), np.float64)
     valid = head.valid
@@ -310,6 +324,8 @@ def search(
     query_ids: NDArray[np.int64] | None = None,
     allowed: Any = None,
     scorer: Scorer | None = None,
+    arrays: ArrayReader | None = None,
+    query_arrays: Mapping[str, NDArray[np.float64]] | None = None,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """The index's search followed by the re-ranking stage of ``config.rerank``.
 
@@ -329,6 +345,8 @@ def search(
         Restrict the candidates to these ids (an exhaustive scan).
     scorer : Scorer, optional
         Overrides ``config.rerank.scorer``.
+    arrays, query_arrays : optional
+        Per-record and per-query arrays for the scorer (:class:`Candidates`).
 
     Returns
     -------
@@ -351,7 +369,8 @@ def search(
         feats[pos < 0] = 0.0
         batch = Candidates(
             qid[s : s + _CHUNK], q[s : s + _CHUNK], c, feats, index.weights_,
-            dist[s : s + _CHUNK], config,
+            dist[s : s + _CHUNK], config, arrays,
+            None if query_arrays is None else {n: a[s : s + _CHUNK] for n, a in query_arrays.items()},
         )  # fmt: skip
         out_i[s : s + len(c)], out_d[s : s + len(c)] = rerank_candidates(scorer, batch, k)
     return out_i, out_d

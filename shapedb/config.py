@@ -6,7 +6,10 @@ A :class:`Config` composes the settings that determine a store's records:
 * :class:`KernelConfig`: the paper's Eq. 1-3 random-walk kernel and the feature method;
 * :class:`DescriptorConfig`: the version of shapedb's own descriptor (method "mdbd");
 * :class:`CloudConfig`: what a store keeps for sparse point clouds (views, reconstructions);
-* :class:`RerankConfig`: how a search re-ranks the candidates of the index.
+* :class:`RerankConfig`: how a search re-ranks the candidates of the index;
+* :class:`LightFieldConfig` and :class:`LightFieldFusionConfig` (module
+  :mod:`shapedb.config_lightfield`): the light fields of the balls stored per record and
+  the ``"lightfield"`` re-ranking scorer's fusion.
 
 :class:`PartConfig` (substructure matching) embeds a :class:`KernelConfig` of its own.
 
@@ -17,7 +20,8 @@ fields) are read through :mod:`shapedb.migrations`, the only module that knows t
 
 On the command line and in :func:`shapedb.connect` every setting is one flat option
 (:data:`OPTIONS`): the field's name, except ``descriptor`` for
-``DescriptorConfig.version`` and ``rerank`` / ``rerank_<field>`` for :class:`RerankConfig`.
+``DescriptorConfig.version``, ``rerank`` / ``rerank_<field>`` for :class:`RerankConfig`
+and ``lf_<field>`` for the two light field sections.
 """
 
 from __future__ import annotations
@@ -29,6 +33,8 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any, TypeVar
 
 from shapedb import migrations
+from shapedb.config_checks import check, is_int
+from shapedb.config_lightfield import LightFieldConfig, LightFieldFusionConfig, product_light_field
 from shapedb.errors import ConfigError
 
 __all__ = [
@@ -37,6 +43,7 @@ __all__ = [
     "DescriptorConfig",
     "CloudConfig",
     "LightFieldConfig",
+    "LightFieldFusionConfig",
     "RerankConfig",
     "PartConfig",
     "Config",
@@ -48,13 +55,8 @@ __all__ = [
 _C = TypeVar("_C")
 
 
-def _check(cond: bool, name: str, value: Any, why: str) -> None:
-    if not cond:
-        raise ConfigError(f"{name}={value!r} is invalid: {why}")
-
-
-def _is_int(x: Any) -> bool:
-    return isinstance(x, int) and not isinstance(x, bool)
+_check = check
+_is_int = is_int
 
 
 @dataclass(frozen=True)
@@ -293,57 +295,6 @@ class CloudConfig:
 
 
 @dataclass(frozen=True)
-class LightFieldConfig:
-    """Light fields of a shape (:mod:`shapedb.lightfield`, Chen et al. 2003).
-
-    Attributes
-    ----------
-    n_fields : int
-        Light fields (dodecahedra turned in fixed ways), 1-10; each is 10 views.
-    resolution : int
-        Image side, pixels, in [16, 256]; the image spans the unit disc.
-    zernike_order : int
-        Largest Zernike order, in [2, 16] (order 10: 36 magnitudes per image).
-    fourier : int
-        Fourier descriptors of the silhouette's centroid distance, 0 to ``angles // 2``.
-    angles : int
-        Samples of the centroid distance around the contour, >= 8.
-    fourier_weight : float
-        Weight of the Fourier block against the Zernike block, >= 0.
-    depth_weight : float
-        0: silhouettes only. Positive: each view also has the Zernike magnitudes of its
-        two depth images (front and back, combined as their sum and absolute
-        difference), times this weight (ball unions only).
-    seed : int
-        Seed of the light fields' turns.
-    """
-
-    n_fields: int = 10
-    resolution: int = 64
-    zernike_order: int = 10
-    fourier: int = 10
-    angles: int = 64
-    fourier_weight: float = 1.0
-    depth_weight: float = 0.0
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        ints = {"n_fields": (1, 10), "resolution": (16, 256), "zernike_order": (2, 16)}
-        for name, (lo, hi) in ints.items():
-            v = getattr(self, name)
-            _check(_is_int(v) and lo <= v <= hi, name, v, f"must be an integer in [{lo}, {hi}]")
-        _check(_is_int(self.angles) and self.angles >= 8, "angles", self.angles, "must be >= 8")
-        _check(
-            _is_int(self.fourier) and 0 <= self.fourier <= self.angles // 2,
-            "fourier", self.fourier, "must be an integer in [0, angles // 2]",
-        )  # fmt: skip
-        for name in ("fourier_weight", "depth_weight"):
-            v = getattr(self, name)
-            _check(isinstance(v, (int, float)) and v >= 0, name, v, "must be a number >= 0")
-        _check(_is_int(self.seed), "seed", self.seed, "must be an integer")
-
-
-@dataclass(frozen=True)
 class RerankConfig:
     """How a search re-ranks the candidates the index proposes (:mod:`query.rerank`).
 
@@ -529,6 +480,8 @@ _SECTIONS: dict[str, type] = {
     "descriptor": DescriptorConfig,
     "cloud": CloudConfig,
     "rerank": RerankConfig,
+    "light_field": LightFieldConfig,
+    "lf_fusion": LightFieldFusionConfig,
 }
 
 
@@ -537,6 +490,8 @@ def _option(section: str, name: str) -> str:
         return "descriptor"
     if section == "rerank":
         return "rerank" if name == "scorer" else f"rerank_{name}"
+    if section in ("light_field", "lf_fusion"):
+        return f"lf_{name}"
     return name
 
 
@@ -566,7 +521,14 @@ class Config:
     cloud : CloudConfig
         Sparse views and reconstructions of sparse point clouds.
     rerank : RerankConfig
-        How a search re-ranks the index's candidates (changes no record).
+        How a search re-ranks the index's candidates. ``scorer="lightfield"`` is also
+        the switch that makes ingest store each record's light fields (the
+        ``light_field`` column).
+    light_field : LightFieldConfig
+        The light fields stored per record when the scorer is ``"lightfield"``
+        (default: 64 px, 3 light fields, silhouettes only).
+    lf_fusion : LightFieldFusionConfig
+        How the ``"lightfield"`` scorer fuses them with the stored distance.
     """
 
     mdbd: MDBDConfig = field(default_factory=MDBDConfig)
@@ -574,6 +536,13 @@ class Config:
     descriptor: DescriptorConfig = field(default_factory=DescriptorConfig)
     cloud: CloudConfig = field(default_factory=CloudConfig)
     rerank: RerankConfig = field(default_factory=RerankConfig)
+    light_field: LightFieldConfig = field(default_factory=product_light_field)
+    lf_fusion: LightFieldFusionConfig = field(default_factory=LightFieldFusionConfig)
+
+    @property
+    def stores_light_fields(self) -> bool:
+        """Whether ingest computes and stores each record's light fields (the switch)."""
+        return self.rerank.scorer == "lightfield"
 
     @property
     def dim(self) -> int:

@@ -55,6 +55,7 @@ __all__ = [
     "silhouette_features",
     "render_discs",
     "ball_light_field",
+    "record_light_field",
     "light_field_dim",
     "light_field_distance",
 ]
@@ -380,6 +381,30 @@ def ball_light_field(
         both = np.hstack([z[:, 0] + z[:, 1], np.abs(z[:, 0] - z[:, 1])])
         feats = np.hstack([feats, cfg.depth_weight * both])
     return feats.reshape(cfg.n_fields, 10, -1)
+
+
+def record_light_field(
+    centers: ArrayLike, radii: ArrayLike, config: LightFieldConfig | None = None
+) -> NDArray[np.float32]:
+    """:func:`ball_light_field` as a store keeps it: float32, computed with one BLAS thread.
+
+    The Zernike projections are small matrix products on which a multi-threaded BLAS
+    spends more time waking threads than computing, so the call is limited to one BLAS
+    thread (:mod:`threadpoolctl`) whatever the process's setting.
+
+    Returns
+    -------
+    (config.n_fields, 10, dim) float32
+
+    Raises
+    ------
+    ValueError
+        If no ball has a positive radius.
+    """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return ball_light_field(centers, radii, config).astype(np.float32)
 
 
 # --------------------------------------------------------------------------------------

@@ -15,6 +15,11 @@ Store configuration layouts (``Config.to_dict()``):
 * **2**: ``{"layout": 2, "mdbd", "kernel", "descriptor": {"version"}, "cloud"}``.
 * **3**: layout 2 plus ``"rerank"`` (how a search re-ranks, ``RerankConfig``); a store of
   an earlier layout searched without a re-ranking stage (:data:`SECTIONS_ADDED`).
+* **4**: layout 3 plus ``"light_field"`` and ``"lf_fusion"`` (``LightFieldConfig``,
+  ``LightFieldFusionConfig``: the light fields a store with the ``"lightfield"`` scorer
+  keeps per record, and that scorer's fusion); a store of an earlier layout kept no light
+  fields and reads both sections at today's defaults for the product (64 px, 3 light
+  fields, silhouettes only).
 
 Part-index configuration layouts (``PartConfig.to_dict()``):
 
@@ -46,7 +51,7 @@ __all__ = [
 ]
 
 #: The layout :meth:`Config.to_dict` writes.
-LAYOUT = 3
+LAYOUT = 4
 #: The layout :meth:`PartConfig.to_dict` writes.
 PART_LAYOUT = 2
 
@@ -64,12 +69,14 @@ ADDED: dict[str, dict[str, Any]] = {
     "cloud": {"view_cells": 0.0, "reconstruct": False, "reconstruct_depth": 8},
     # before the section: no re-ranking stage
     "rerank": {"scorer": "none"},
+    # before the section no light fields were stored; the product's light fields
+    "light_field": {"n_fields": 3, "resolution": 64, "depth_weight": 0.0},
 }
 
 #: Sections added to the store configuration, by the first layout that writes them:
 #: a configuration of an earlier layout gets the section with the values of
 #: :data:`ADDED` (what its store did), never today's defaults.
-SECTIONS_ADDED: dict[str, int] = {"rerank": 3}
+SECTIONS_ADDED: dict[str, int] = {"rerank": 3, "light_field": 4, "lf_fusion": 4}
 
 #: Decomposition fields added after ``Config.fingerprint`` was first stored, and the
 #: value at which the fingerprint leaves them out, so that stores written before each
@@ -97,7 +104,7 @@ def upgrade_config(data: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
     -------
     dict
         ``{section: {field: value}}`` for the sections ``mdbd``, ``kernel``,
-        ``descriptor``, ``cloud``, ``rerank`` that ``data`` stores (without ``layout``),
+        ``descriptor``, ``cloud``, ``rerank``, ``light_field``, ``lf_fusion`` that ``data`` stores (without ``layout``),
         and the sections its layout predates (:data:`SECTIONS_ADDED`); fields a stored
         section predates are filled in from :data:`ADDED`. Unknown keys are
         passed on, for the caller to refuse.

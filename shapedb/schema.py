@@ -89,6 +89,9 @@ def shapes_schema(dim: int) -> pa.Schema:
         # feature of the shape's sparse view (shapedb.view); null when the store keeps
         # no views, for sparse point clouds, and in rows older than it
         pa.field("view_feature", pa.list_(pa.float32(), dim)),
+        # the balls' light fields (shapedb.lightfield), (fields * 10 * d) row-major; null
+        # unless the store's re-ranking scorer is "lightfield", and in rows older than it
+        pa.field("light_field", pa.list_(pa.float32())),
     ]
     return pa.schema(fields, metadata={"shapedb.schema_version": str(SCHEMA_VERSION)})
 
@@ -193,6 +196,10 @@ class ShapeRecord:
         Feature of the shape's sparse view (:mod:`shapedb.view`), when the store
         keeps views (``CloudConfig.view_cells > 0``) and the shape is not itself a
         sparse point cloud; None otherwise.
+    light_field : (fields, 10, d) float32 or None
+        The balls' light fields (:func:`shapedb.lightfield.ball_light_field` under
+        ``config.light_field``), when the store keeps them
+        (``config.stores_light_fields``); None otherwise and in rows older than them.
     """
 
     name: str
@@ -208,6 +215,7 @@ class ShapeRecord:
     created_at: datetime = field(default_factory=_now)
     id: int | None = None
     view_feature: NDArray[np.float32] | None = None
+    light_field: NDArray[np.float32] | None = None
 
     @property
     def n_balls(self) -> int:
@@ -310,6 +318,10 @@ def shapes_table(records: Sequence[ShapeRecord], dim: int) -> pa.Table:
         "created_at": [r.created_at for r in records],
         "feature": pa.FixedSizeListArray.from_arrays(pa.array(feats.ravel()), dim),
         "view_feature": views,
+        "light_field": [
+            None if r.light_field is None else np.asarray(r.light_field, np.float32).ravel()
+            for r in records
+        ],
     }
     schema = shapes_schema(dim)
     arrays = [
@@ -456,4 +468,12 @@ def record_from_rows(row: Mapping[str, Any], balls: pa.Table, edges: pa.Table) -
             if row.get("view_feature") is None
             else np.asarray(row["view_feature"], dtype=np.float32)
         ),
+        light_field=_light_field(row.get("light_field"), config),
     )
+
+
+def _light_field(value: Any, config: Config) -> NDArray[np.float32] | None:
+    """(fields, 10, d) float32 from a ``light_field`` cell; None when absent."""
+    if value is None:
+        return None
+    return np.asarray(value, dtype=np.float32).reshape(config.light_field.n_fields, 10, -1)

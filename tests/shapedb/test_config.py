@@ -12,6 +12,8 @@ from shapedb.config import (
     Config,
     DescriptorConfig,
     KernelConfig,
+    LightFieldConfig,
+    LightFieldFusionConfig,
     MDBDConfig,
     PartConfig,
     RerankConfig,
@@ -41,7 +43,9 @@ def test_each_concern_is_its_own_section() -> None:
     assert cfg.descriptor == DescriptorConfig(version=1)
     assert cfg.cloud == CloudConfig(view_cells=4.0, reconstruct_depth=6)
     assert cfg.rerank == RerankConfig(power=2.0)
-    assert set(cfg.to_dict()) == {"layout", "mdbd", "kernel", "descriptor", "cloud", "rerank"}
+    assert set(cfg.to_dict()) == {
+        "layout", "mdbd", "kernel", "descriptor", "cloud", "rerank", "light_field", "lf_fusion"
+    }  # fmt: skip
     kernel_fields = {f.name for f in dataclasses.fields(KernelConfig)}
     assert kernel_fields == {"n_r", "t", "w", "la", "lb", "lam", "method"}
 
@@ -54,7 +58,10 @@ def test_every_flat_option_names_one_field() -> None:
     assert OPTIONS["rerank_candidates"] == ("rerank", "candidates")
     typed = parse_options(["rerank=adaptive", "rerank_ratio=0.4", "rerank_candidates=50"])
     assert typed == {"rerank": "adaptive", "rerank_ratio": 0.4, "rerank_candidates": 50}
-    sections = (MDBDConfig, KernelConfig, DescriptorConfig, CloudConfig, RerankConfig)
+    assert OPTIONS["lf_resolution"] == ("light_field", "resolution")
+    assert OPTIONS["lf_weight"] == ("lf_fusion", "weight")
+    sections = (MDBDConfig, KernelConfig, DescriptorConfig, CloudConfig, RerankConfig,
+                LightFieldConfig, LightFieldFusionConfig)  # fmt: skip
     assert len(OPTIONS) == sum(len(dataclasses.fields(c)) for c in sections)
     options = Config().options()
     assert set(options) == set(OPTIONS) and options["descriptor"] == 4

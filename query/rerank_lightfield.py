@@ -1,0 +1,211 @@
+"""The ``"lightfield"`` re-ranking scorer: the balls' light fields fused with the stored distance.
+
+A store created with ``rerank="lightfield"`` keeps each record's light fields (the
+``light_field`` column: :func:`shapedb.lightfield.record_light_field` of its balls under
+``Config.light_field``). The scorer (:class:`LightFieldFusion`, registered through
+:data:`query.rerank.SCORER_MODULES`) re-ranks a query's candidates by the gated
+reciprocal rank fusion of :class:`shapedb.config.LightFieldFusionConfig`: the stored
+distance's rank plus the light field distance's rank, the latter weighted by a gate that
+is high where both agree about the query's nearest candidates and off where the light
+field spreads the candidates more than the stored distance does (jointed subjects, whose
+silhouettes all look alike).
+
+The candidates' light fields are read by id (``Candidates.arrays``); the query's are
+read by its id when it is a stored shape, else taken from ``Candidates.query_arrays``
+(computed from the query's own decomposition: :func:`query_light_fields`).
+
+Records without light fields (a store written before the column, or with another scorer
+when the records were built): the query's row keeps the stored-distance order (the
+stage's default) and a warning is logged once per scorer.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from query.rerank import Candidates, register_scorer
+
+if TYPE_CHECKING:
+    from shapedb.config import Config
+
+__all__ = ["LightFieldFusion", "StoredArrays", "query_light_fields", "COLUMN"]
+
+log = logging.getLogger(__name__)
+
+#: The per-record column (and ``Candidates.query_arrays`` key) of the light fields.
+COLUMN = "light_field"
+
+
+def _calibration(config: Config) -> float:
+    """``c``: stored distances over ``c`` are in version 4's calibrated units."""
+    if config.kernel.method != "mdbd":
+        return 1.0
+    from shapedb.descriptor import LAYOUTS
+
+    return float(np.log(10.0) / sum(b[3] for b in LAYOUTS[config.descriptor.version]))
+
+
+def _ranks(d: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(c,) rank of each entry (0 first), ties in list order."""
+    r = np.empty(len(d))
+    r[np.argsort(d, kind="stable")] = np.arange(len(d), dtype=np.float64)
+    return r
+
+
+class LightFieldFusion:
+    """Scorer ``"lightfield"``: ``(1 + w) / o - (1 / (o + rank_d) + w g(q) / (o + rank_l))``.
+
+    The study's fused similarity turned into a distance >= 0 (0 for a candidate first
+    by both distances with ``g = 1``), so the order is the study's.
+
+    The formula, the gate ``g(q)`` and the spread are those of
+    :class:`shapedb.config.LightFieldFusionConfig` (``config.lf_fusion``); ranks and
+    the neighbourhoods are taken among the query's valid candidates in their list
+    order (stored distance, ties by ascending id).
+
+    Parameters
+    ----------
+    config : Config
+        Reads ``config.lf_fusion``, ``config.light_field`` and the descriptor's layout.
+    """
+
+    def __init__(self, config: Config) -> None:
+        self.fusion = config.lf_fusion
+        self.calibration = _calibration(config)
+        self._warned = False
+
+    def _warn(self, why: str) -> None:
+        if not self._warned:
+            log.warning("lightfield re-ranking: %s; those queries keep the stored order", why)
+            self._warned = True
+
+    def fuse(
+        self, d: NDArray[np.float64], dl: NDArray[np.float64], own: NDArray[np.bool_]
+    ) -> NDArray[np.float64]:
+        """Fused scores (c,) of one query's candidates.
+
+        Parameters
+        ----------
+        d : (c,) float64
+            Stored distances, in list order (non-decreasing).
+        dl : (c,) float64
+            Light field distances.
+        own : (c,) bool
+            The query itself among the candidates (left out of the gate).
+        """
+        f = self.fusion
+        d4 = d / self.calibration
+        others = np.flatnonzero(~own)
+        g = 0.0
+        if len(others):
+            m = min(f.neighbours, len(others))
+            a = others[np.argsort(d4[others], kind="stable")[:m]]
+            b = others[np.argsort(dl[others], kind="stable")[:m]]
+            g = (len(np.intersect1d(a, b)) / m) ** f.power
+            if f.ceiling > 0:
+                near = others[np.argsort(d4[others], kind="stable")[: f.spread_candidates]]
+                spread = np.median(dl[near]) / f.typical
+                spread /= max(float(np.median(d4[near])), 1e-300)
+                g *= float(np.clip((f.ceiling - spread) / f.ramp, 0.0, 1.0))
+        fused = 1.0 / (f.offset + _ranks(d4)) + f.weight * g / (f.offset + _ranks(dl))
+        return (1.0 + f.weight) / f.offset - fused
+
+    def score(self, batch: Candidates) -> NDArray[np.float64]:
+        """Fused distances, (q, c); rows without light fields keep the stored distances."""
+        from shapedb.lightfield import light_field_distance
+
+        out = np.array(batch.distances, dtype=np.float64, copy=True)
+        valid = batch.valid
+        wanted = np.unique(
+            np.concatenate([batch.ids[valid], batch.query_ids[batch.query_ids >= 0]])
+        )
+        stored = None if batch.arrays is None else batch.arrays(COLUMN, wanted)
+        if stored is None:
+            self._warn("the store keeps no light fields")
+            return out
+        pos = {int(i): k for k, i in enumerate(wanted)}
+        given = (batch.query_arrays or {}).get(COLUMN)
+        for row in range(len(batch.ids)):
+            cols = np.flatnonzero(valid[row])
+            if not len(cols):
+                continue
+            lq = None
+            if given is not None and np.all(np.isfinite(given[row])):
+                lq = given[row]
+            elif batch.query_ids[row] >= 0:
+                lq = stored[pos[int(batch.query_ids[row])]]
+            lc = stored[[pos[int(i)] for i in batch.ids[row, cols]]]
+            if lq is None or not np.all(np.isfinite(lq)) or not np.all(np.isfinite(lc)):
+                self._warn("a query or a candidate has no stored light fields")
+                continue
+            dl = light_field_distance(lq[None], lc)[0]
+            own = batch.ids[row, cols] == batch.query_ids[row]
+            if batch.query_ids[row] < 0:  # an outside query's stored copy counts as itself
+                own |= dl == 0.0
+            out[row, cols] = self.fuse(batch.distances[row, cols], dl, own)
+        return out
+
+
+register_scorer("lightfield", LightFieldFusion)
+
+
+class StoredArrays:
+    """Reads a store's per-record ``light_field`` column by ids (an ``ArrayReader``).
+
+    Parameters
+    ----------
+    db : shapedb.Database
+    preload : bool
+        Read the whole column on the first call (evaluation: every shape is asked for).
+    """
+
+    def __init__(self, db: Any, *, preload: bool = False) -> None:
+        self.db = db
+        self.preload = preload
+        self._cache: dict[int, NDArray[np.float64]] = {}
+        self._shape = (int(db.config.light_field.n_fields), 10, -1)
+
+    def _read(self, ids: NDArray[np.int64] | None) -> None:
+        t = self.db.store.shapes(["id", COLUMN], ids=None if ids is None else ids.tolist())
+        for i, v in zip(t.column("id").to_pylist(), t.column(COLUMN).to_pylist(), strict=True):
+            if v is not None:
+                self._cache[int(i)] = np.asarray(v, np.float64).reshape(self._shape)
+
+    def __call__(self, name: str, ids: NDArray[np.int64]) -> NDArray[np.float64] | None:
+        """(m, fields, 10, d) float64 light fields of ``ids``; NaN for records without.
+
+        None when ``name`` is not ``"light_field"`` or no record of ``ids`` has one.
+        """
+        if name != COLUMN:
+            return None
+        ids = np.asarray(ids, np.int64)
+        missing = [int(i) for i in ids if int(i) not in self._cache]
+        if missing:
+            self._read(None if self.preload else np.asarray(missing, np.int64))
+            self.preload = False
+        found = [self._cache.get(int(i)) for i in ids]
+        first = next((f for f in found if f is not None), None)
+        if first is None:
+            return None
+        nan = np.full(first.shape, np.nan)
+        return np.stack([nan if f is None or f.shape != first.shape else f for f in found])
+
+
+def query_light_fields(config: Config, decompositions: list[Any]) -> NDArray[np.float64]:
+    """(q, fields, 10, d) light fields of queries' decompositions; NaN rows for None.
+
+    ``decompositions[i]`` is a :class:`shapedb.mdbd.Decomposition`, or None for a query
+    that is a stored shape (its light fields are read by id) or has no decomposition.
+    """
+    from shapedb.lightfield import light_field_dim, record_light_field
+
+    cfg = config.light_field
+    out = np.full((len(decompositions), cfg.n_fields, 10, light_field_dim(cfg)), np.nan)
+    for k, d in enumerate(decompositions):
+        if d is not None and d.n_balls:
+            out[k] = record_light_field(d.centers, d.radii, cfg)
+    return out

@@ -1,0 +1,149 @@
+"""Configuration of the balls' light fields and of the ``"lightfield"`` re-ranking scorer.
+
+Two sections of :class:`shapedb.config.Config` (re-exported from :mod:`shapedb.config`):
+
+* :class:`LightFieldConfig` (``Config.light_field``): the light field descriptor of a
+  ball union (:mod:`shapedb.lightfield`); a store whose ``RerankConfig.scorer`` is
+  ``"lightfield"`` stores each record's light fields under it;
+* :class:`LightFieldFusionConfig` (``Config.lf_fusion``): how the ``"lightfield"``
+  scorer (:mod:`query.rerank_lightfield`) fuses the light field distance with the
+  stored vector's distance.
+
+Flat options (``connect(path, **options)``, ``--set``) are ``lf_<field>`` for both.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from shapedb.config_checks import check as _check
+from shapedb.config_checks import is_int as _is_int
+
+__all__ = ["LightFieldConfig", "LightFieldFusionConfig", "product_light_field"]
+
+
+@dataclass(frozen=True)
+class LightFieldConfig:
+    """Light fields of a shape (:mod:`shapedb.lightfield`, Chen et al. 2003).
+
+    Attributes
+    ----------
+    n_fields : int
+        Light fields (dodecahedra turned in fixed ways), 1-10; each is 10 views.
+    resolution : int
+        Image side, pixels, in [16, 256]; the image spans the unit disc.
+    zernike_order : int
+        Largest Zernike order, in [2, 16] (order 10: 36 magnitudes per image).
+    fourier : int
+        Fourier descriptors of the silhouette's centroid distance, 0 to ``angles // 2``.
+    angles : int
+        Samples of the centroid distance around the contour, >= 8.
+    fourier_weight : float
+        Weight of the Fourier block against the Zernike block, >= 0.
+    depth_weight : float
+        0: silhouettes only. Positive: each view also has the Zernike magnitudes of its
+        two depth images (front and back, combined as their sum and absolute
+        difference), times this weight (ball unions only).
+    seed : int
+        Seed of the light fields' turns.
+    """
+
+    n_fields: int = 10
+    resolution: int = 64
+    zernike_order: int = 10
+    fourier: int = 10
+    angles: int = 64
+    fourier_weight: float = 1.0
+    depth_weight: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        ints = {"n_fields": (1, 10), "resolution": (16, 256), "zernike_order": (2, 16)}
+        for name, (lo, hi) in ints.items():
+            v = getattr(self, name)
+            _check(_is_int(v) and lo <= v <= hi, name, v, f"must be an integer in [{lo}, {hi}]")
+        _check(_is_int(self.angles) and self.angles >= 8, "angles", self.angles, "must be >= 8")
+        _check(
+            _is_int(self.fourier) and 0 <= self.fourier <= self.angles // 2,
+            "fourier", self.fourier, "must be an integer in [0, angles // 2]",
+        )  # fmt: skip
+        for name in ("fourier_weight", "depth_weight"):
+            v = getattr(self, name)
+            _check(isinstance(v, (int, float)) and v >= 0, name, v, "must be a number >= 0")
+        _check(_is_int(self.seed), "seed", self.seed, "must be an integer")
+
+
+def product_light_field() -> LightFieldConfig:
+    """The light fields a store keeps: 64 px, 3 light fields, silhouettes only."""
+    return LightFieldConfig(n_fields=3, resolution=64, depth_weight=0.0)
+
+
+@dataclass(frozen=True)
+class LightFieldFusionConfig:
+    """The ``"lightfield"`` scorer: a gated reciprocal rank fusion with a spread ceiling.
+
+    Among a query's candidates (the store's ``RerankConfig.candidates`` nearest by the
+    stored distance ``d``; the query itself, when stored, among them), with ``rank_d``
+    and ``rank_l`` each candidate's rank (0 first) by ``d`` and by the light field
+    distance ``l`` (:func:`shapedb.lightfield.light_field_distance`), the scorer's
+    distance is ``-(1 / (offset + rank_d) + weight * g(q) / (offset + rank_l))``, with
+
+    ``g(q) = (|A ∩ B| / neighbours) ** power * clip((ceiling - s_q) / ramp, 0, 1)``:
+    ``A`` and ``B`` the query's ``neighbours`` nearest candidates by ``d`` and by ``l``
+    (itself left out), ``s_q`` the median of ``l / typical`` over the median of ``d /
+    c`` among its first ``spread_candidates`` candidates (itself left out), ``c =
+    ln(10) / (sum of the descriptor's block weights)`` (the calibrated units of
+    version 4). The defaults are those chosen on the validation splits
+    (docs/results.md, "Light fields from the balls").
+
+    Attributes
+    ----------
+    weight : float
+        Weight of the light field's rank term at ``g = 1``, in [0, 1000].
+    neighbours : int
+        Size of the neighbourhoods whose overlap gates the term, in [1, 1000].
+    power : float
+        Exponent of the overlap, in [0, 8].
+    ceiling : float
+        The spread ``s_q`` above which the term is off; 0 disables the ceiling. In [0, 10].
+    ramp : float
+        Width of the fade below the ceiling, in (0, 10].
+    typical : float
+        Typical light field distance (median over the validation sets), > 0.
+    offset : float
+        Rank offset of the reciprocal rank fusion, > 0.
+    spread_candidates : int
+        Candidates the spread is measured over, in [1, 100000].
+    """
+
+    weight: float = 8.0
+    neighbours: int = 5
+    power: float = 3.0
+    ceiling: float = 0.09
+    ramp: float = 0.02
+    typical: float = 18.03
+    offset: float = 60.0
+    spread_candidates: int = 100
+
+    def __post_init__(self) -> None:
+        def number(v: object) -> bool:
+            return isinstance(v, (int, float)) and not isinstance(v, bool) and v == v
+
+        ok = number(self.weight) and 0.0 <= self.weight <= 1000.0
+        _check(ok, "lf_weight", self.weight, "must be a number in [0, 1000]")
+        ok = _is_int(self.neighbours) and 1 <= self.neighbours <= 1000
+        _check(ok, "lf_neighbours", self.neighbours, "must be an integer in [1, 1000]")
+        ok = number(self.power) and 0.0 <= self.power <= 8.0
+        _check(ok, "lf_power", self.power, "must be a number in [0, 8]")
+        ok = number(self.ceiling) and 0.0 <= self.ceiling <= 10.0
+        _check(ok, "lf_ceiling", self.ceiling, "must be a number in [0, 10]")
+        ok = number(self.ramp) and 0.0 < self.ramp <= 10.0
+        _check(ok, "lf_ramp", self.ramp, "must be a number in (0, 10]")
+        ok = number(self.typical) and 0.0 < self.typical < float("inf")
+        _check(ok, "lf_typical", self.typical, "must be a finite number > 0")
+        ok = number(self.offset) and 0.0 < self.offset < float("inf")
+        _check(ok, "lf_offset", self.offset, "must be a finite number > 0")
+        ok = _is_int(self.spread_candidates) and 1 <= self.spread_candidates <= 100_000
+        _check(
+            ok, "lf_spread_candidates", self.spread_candidates, "must be an integer in [1, 100000]"
+        )

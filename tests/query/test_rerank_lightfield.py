@@ -1,0 +1,187 @@
+"""The "lightfield" re-ranking scorer: the study's fusion, stored light fields, search and eval."""
+
+from __future__ import annotations
+
+import json
+import logging
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from conftest import _forget
+from query_helpers import CONFIG
+
+from bench.studies.lightfield_balls import fuse
+from query import rerank
+from query.evaluate import evaluate, retrieval_scores
+from query.index import FeatureIndex
+from query.rerank_lightfield import COLUMN, LightFieldFusion
+from shapedb.config import Config
+from shapedb.errors import ConfigError
+from shapedb.implicit import Box, Capsule, Cylinder, Sphere, Torus
+from shapedb.kernel import weights
+from shapedb.lightfield import light_field_distance
+
+STAGE = CONFIG.with_options(rerank="lightfield", rerank_candidates=6)
+
+
+def _study_case(n: int = 40, seed: int = 0) -> tuple[Config, np.ndarray, np.ndarray, np.ndarray]:
+    """A v4 store's vectors, light fields and a typical distance that opens some gates."""
+    rng = np.random.default_rng(seed)
+    config = Config().with_options(rerank="lightfield", rerank_candidates=n)
+    x = rng.random((n, config.dim))
+    classes = rng.random((4, 3, 10, 46))
+    lf = classes[np.arange(n) % 4] + 0.3 * rng.random((n, 3, 10, 46))
+    return config, x, lf, light_field_distance(lf)
+
+
+def test_with_every_shape_a_candidate_the_scorer_ranks_as_the_study() -> None:
+    config, x, lf, dl = _study_case()
+    w = weights(config)
+    d = np.abs(x[:, None, :] - x[None, :, :]) @ w
+    cal = np.log(10.0) / sum(b[3] for b in __import__("shapedb.descriptor").descriptor.LAYOUTS[4])
+    d4 = d / cal
+    # a typical distance that puts the queries' spreads about the ceiling: some gates open
+    near = np.argsort(d4 + np.eye(len(x)) * 1e300, axis=1)[:, :-1]
+    ratio = np.median(np.take_along_axis(dl, near, 1), 1) / np.median(
+        np.take_along_axis(d4, near, 1), 1
+    )
+    typical = float(np.median(ratio) / 0.09)
+    config = config.with_options(lf_typical=typical)
+    f = config.lf_fusion
+    study = fuse("adrank", f.weight, d4, dl, typical, f.neighbours, f.power, f.ceiling, f.ramp)
+    index = FeatureIndex(kind="flat").fit(np.arange(len(x)), x.astype(np.float32), w)
+
+    def arrays(name: str, ids: np.ndarray) -> np.ndarray | None:
+        return lf[ids] if name == COLUMN else None
+
+    got, _ = rerank.search(
+        index, index.features_.astype(np.float64), len(x), config=config,
+        query_ids=np.arange(len(x)), arrays=arrays,
+    )  # fmt: skip
+    want = np.argsort(study, axis=1, kind="stable")
+    plain = np.argsort(d, axis=1, kind="stable")
+    assert np.array_equal(got, want)
+    assert not np.array_equal(want, plain)  # the fusion moved some rankings
+
+
+def test_without_light_fields_the_stored_order_is_kept_with_a_warning(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    config, x, _, _ = _study_case(12)
+    index = FeatureIndex(kind="flat").fit(np.arange(12), x.astype(np.float32), weights(config))
+    q = index.features_.astype(np.float64)
+    with caplog.at_level(logging.WARNING, logger="query.rerank_lightfield"):
+        got, _ = rerank.search(index, q, 12, config=config, query_ids=np.arange(12))
+    assert np.array_equal(got, index.search(q, 12)[0])
+    assert "keeps no light fields" in caplog.text
+
+
+def test_bad_fusion_values_name_the_field() -> None:
+    for option, value in [("lf_weight", -1.0), ("lf_neighbours", 0), ("lf_ramp", 0.0),
+                          ("lf_typical", 0.0), ("lf_spread_candidates", 0), ("lf_n_fields", 11)]:  # fmt: skip
+        with pytest.raises(ConfigError, match=option.removeprefix("lf_")):
+            Config().with_options(**{option: value})
+    assert Config().with_options(lf_weight=2.0).lf_fusion.weight == 2.0
+    assert Config.from_json(STAGE.to_json()) == STAGE
+
+
+def _shapes() -> dict[str, Any]:
+    return {
+        "box_a": Box((0, 0, 0), (2.0, 1.0, 1.0)),
+        "box_b": Box((0, 0, 0), (2.4, 1.0, 0.9)),
+        "rod_a": Capsule((0, 0, 0), (3.0, 0, 0), 0.4),
+        "rod_b": Cylinder((0, 0, 0), (3.2, 0, 0), 0.45),
+        "ring_a": Torus((0, 0, 0), 1.0, 0.3),
+        "ring_b": Torus((0, 0, 0), 1.1, 0.35),
+        "ball": Sphere((0, 0, 0), 1.0),
+    }
+
+
+@pytest.fixture(scope="module")
+def lf_db(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
+    """Seven analytic shapes ingested by a store with the "lightfield" scorer (K = 6)."""
+    import shapedb.database as database
+
+    db = database.connect(tmp_path_factory.mktemp("lf") / "store", config=STAGE)
+    shapes = _shapes()
+    labels = {n: n.split("_")[0] for n in shapes}
+    db.ingest([(n, labels[n], g) for n, g in shapes.items()], workers=1)
+    yield db
+    _forget(db)
+
+
+def test_ingest_stores_the_light_fields_and_a_reopened_store_searches_the_same(
+    lf_db: Any,
+) -> None:
+    import shapedb.database as database
+
+    t = lf_db.store.shapes(["name", COLUMN])
+    assert t.num_rows == 7
+    assert {len(v) for v in t.column(COLUMN).to_pylist()} == {3 * 10 * 46}
+    rec = lf_db.get("ring_a")
+    assert rec.light_field is not None and rec.light_field.shape == (3, 10, 46)
+    names = ["box_a", "rod_b", "ring_a"]
+    before = [[(h.id, h.distance) for h in row] for row in lf_db.search_batch(names, k=7)]
+    again = database.connect(lf_db.store.path)
+    assert again.config == STAGE
+    after = [[(h.id, h.distance) for h in row] for row in again.search_batch(names, k=7)]
+    assert after == before
+    assert [h.name for h in again.search("box_a", k=2)] == ["box_a", "box_b"]
+
+
+def test_a_stored_query_and_the_same_shape_from_outside_rank_alike(lf_db: Any) -> None:
+    for name, shape in _shapes().items():
+        inside = [h.id for h in lf_db.search(name, k=7)]
+        outside = [h.id for h in lf_db.search(shape, k=7)]
+        assert outside == inside, name
+
+
+def test_evaluation_ranks_as_search_does(lf_db: Any) -> None:
+    ids, _ = lf_db.store.features()
+    labels = lf_db.store.shapes(["label"]).column("label").to_pylist()
+    hits = lf_db.search_batch([int(i) for i in ids], k=len(ids))
+    ranks = np.empty((len(ids), len(ids)))
+    for row, found in enumerate(hits):
+        ranks[row, np.searchsorted(ids, [h.id for h in found])] = np.arange(len(ids))
+    want = retrieval_scores(ranks, labels, ids=ids, distance=True).to_dict()
+    got = evaluate(lf_db).to_dict()
+    for key in ("nn", "first_tier", "dcg"):
+        assert got[key] == pytest.approx(want[key], abs=1e-12)
+
+
+def test_a_store_written_before_the_column_searches_in_the_stored_order(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    import shapedb.database as database
+
+    db = database.connect(tmp_path / "old", config=STAGE)
+    db.ingest([(n, g) for n, g in list(_shapes().items())[:4]], workers=1)
+    _forget(db)
+    for seg in (tmp_path / "old").rglob("*.parquet"):
+        if "shapes" in str(seg):
+            pq.write_table(pq.read_table(seg).drop_columns([COLUMN]), seg)
+    manifest = json.loads((tmp_path / "old" / "manifest.json").read_text())
+    for segments in manifest["tables"].values():
+        for seg in segments:
+            seg.pop("bytes", None)
+            seg.pop("sha256", None)
+    (tmp_path / "old" / "manifest.json").write_text(json.dumps(manifest))
+    old = database.connect(tmp_path / "old")
+    assert old.get("box_a").light_field is None
+    with caplog.at_level(logging.WARNING, logger="query.rerank_lightfield"):
+        hits = old.search("box_a", k=4)
+    assert "keeps no light fields" in caplog.text
+    plain = old.config.with_options(rerank="none")
+    index = __import__("query.index").index.open_index(old)
+    want, _ = index.search(index.features_of(hits[0].id)[None], 4)
+    assert [h.id for h in hits] == want[0].tolist() and plain.rerank.scorer == "none"
+    _forget(old)
+
+
+def test_the_scorer_is_registered_by_its_module() -> None:
+    assert isinstance(rerank.scorer_for(STAGE), LightFieldFusion)
+    assert "lightfield" in rerank.scorers()
