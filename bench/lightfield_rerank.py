@@ -1,0 +1,238 @@
+"""The ``"lightfield"`` re-ranking stage measured through the product path.
+
+Usage (from the repository root)::
+
+    python -m bench.lightfield_rerank                       # validation, six sets
+    python -m bench.lightfield_rerank --split test
+    python -m bench.lightfield_rerank --cost                # per-query db.search time
+
+For each set's split (meshes; the cached decompositions the light field study reads,
+:func:`bench.studies.lightfield_balls.load`; nothing is decomposed), every shape queries a
+flat :class:`query.index.FeatureIndex` through :func:`query.rerank.search` with ``k =
+n`` (the product's search path), its own id given, as ``db.search(id)`` does. Rows, in
+the same run:
+
+* ``v4``: the default store (version 4's vector, no stage);
+* ``adaptive (v7)``: version 7's vector with the adaptive views stage at
+  :class:`shapedb.config.RerankConfig`'s defaults (``rerank="adaptive"``);
+* ``lightfield``: version 4's vector with ``rerank="lightfield"`` at its defaults
+  (:class:`shapedb.config.LightFieldFusionConfig`, K = 100), the candidates' light
+  fields read by id as a store keeps them (float32,
+  :func:`shapedb.lightfield.record_light_field` of the balls).
+
+Check against the study: with every shape a candidate (K = n) the scorer must rank
+every query exactly as :func:`bench.studies.lightfield_balls.fuse` (``adrank``, the
+chosen setting) ranks it; the table gives the queries whose whole ranking is identical.
+
+``--cost`` builds three stores of the web validation shapes (v4 without a stage, v4 with
+``rerank="lightfield"``, v7 with ``rerank="adaptive"``), times ``db.search(id, k=10)``
+for every shape, interleaved, and prints medians and ratios to the plain store.
+Written to bench/results/lightfield_rerank_<split>.json (``lightfield_rerank_cost.json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.common import format_table, retrieval_scores, write_json
+from bench.features import kernel_features
+from bench.studies.lightfield_balls import fuse, load
+from query import rerank
+from query.index import FeatureIndex
+from shapedb.config import Config
+from shapedb.descriptor import LAYOUTS
+from shapedb.lightfield import ball_light_field, light_field_distance, record_light_field
+
+RESULTS = Path(__file__).resolve().parent / "results"
+SETS = ("web", "generic", "capod", "figures", "parts", "people")
+_MEASURES = ("nn", "first_tier", "dcg")
+_CHUNK = 32
+
+
+def _index(x: np.ndarray) -> FeatureIndex:
+    """A flat index over pre-weighted vectors (plain L1 is the stored distance)."""
+    return FeatureIndex(kind="flat").fit(
+        np.arange(len(x)), x.astype(np.float32), np.ones(x.shape[1])
+    )
+
+
+def _reader(lf: np.ndarray) -> Any:
+    def arrays(name: str, ids: np.ndarray) -> np.ndarray | None:
+        return np.asarray(lf[ids], np.float64) if name == "light_field" else None
+
+    return arrays
+
+
+def rankings(index: FeatureIndex, config: Config, lf: np.ndarray | None = None) -> np.ndarray:
+    """(n, n) ids in the order the product returns them, every shape querying by its id."""
+    x = np.asarray(index.features_, np.float64)
+    n = len(x)
+    out = np.empty((n, n), np.int64)
+    arrays = None if lf is None else _reader(lf)
+    for lo in range(0, n, _CHUNK):
+        q = slice(lo, min(lo + _CHUNK, n))
+        out[q], _ = rerank.search(
+            index, x[q], n, config=config, query_ids=np.arange(n)[q], arrays=arrays
+        )
+    return out
+
+
+def _scores(order: np.ndarray, labels: np.ndarray) -> dict[str, float]:
+    ranks = np.empty(order.shape)
+    np.put_along_axis(ranks, order, np.arange(order.shape[1], dtype=float)[None, :], 1)
+    return retrieval_scores(-ranks, labels)
+
+
+def light_fields(balls: Sequence[Any], config: Config) -> np.ndarray:
+    """(n, fields, 10, d) float32 light fields as a store keeps them."""
+    return np.stack([record_light_field(b.centers, b.radii, config.light_field) for b in balls])
+
+
+def measure(args: argparse.Namespace) -> dict[str, Any]:
+    """Rows per set, the study check, the table; returns the JSON written."""
+    lf_cfg = Config().with_options(rerank="lightfield")
+    adaptive = Config().with_options(descriptor=7, rerank="adaptive")
+    table: dict[str, dict[str, Any]] = {"v4": {}, "adaptive (v7)": {}, "lightfield": {}}
+    checks: dict[str, Any] = {}
+    for name in args.datasets:
+        t0 = time.perf_counter()
+        ds, balls = load(name, args.split)
+        labels = np.asarray(ds.labels)
+        v4 = kernel_features(balls, Config())
+        lf = light_fields(balls, lf_cfg)
+        i4 = _index(v4)
+        table["v4"][name] = _scores(rankings(i4, Config()), labels)
+        if not args.no_adaptive:
+            v7 = kernel_features(balls, Config().with_options(descriptor=7))
+            table["adaptive (v7)"][name] = _scores(rankings(_index(v7), adaptive), labels)
+        table["lightfield"][name] = _scores(rankings(i4, lf_cfg, lf), labels)
+        # the study's formula on the whole collection against the scorer with K = n
+        n = len(v4)
+        whole = lf_cfg.with_options(rerank_candidates=n)
+        d4 = np.abs(v4[:, None, :] - v4[None, :, :]).sum(-1)
+        d4 /= np.log(10.0) / sum(b[3] for b in LAYOUTS[4])
+        f = whole.lf_fusion
+        for kind, arr in (("float64", None), ("float32", lf)):
+            fields = (
+                np.stack([ball_light_field(b.centers, b.radii, whole.light_field) for b in balls])
+                if arr is None
+                else arr.astype(np.float64)
+            )
+            dl = light_field_distance(fields)
+            study = np.argsort(
+                fuse("adrank", f.weight, d4, dl, f.typical, f.neighbours, f.power, f.ceiling,
+                     f.ramp), axis=1, kind="stable",
+            )  # fmt: skip
+            got = rankings(_index(v4), whole, fields)
+            same = int(np.all(got == study, axis=1).sum())
+            checks.setdefault(name, {})[kind] = {"identical_rankings": same, "queries": n}
+        print(f"  {name}: {n} models, study check {checks[name]} "
+              f"({time.perf_counter() - t0:.0f} s)", flush=True)  # fmt: skip
+    sets = list(args.datasets)
+    rows = []
+    for row, per in table.items():
+        if not per:
+            continue
+        obj = float(np.mean([sum(per[s][m] for m in _MEASURES) / 3 for s in sets]))
+        per["objective"] = obj
+        cells = [
+            f"{per[s]['nn']:.3f} / {per[s]['first_tier']:.3f} / {per[s]['dcg']:.3f}" for s in sets
+        ]
+        rows.append([row, *cells, f"{obj:.4f}"])
+    print()
+    print(format_table(
+        f"re-ranking stages through query.rerank.search, {args.split} splits (NN / 1-T / DCG)",
+        ("row", *sets, "objective"), rows,
+    ))  # fmt: skip
+    print("identical rankings to the study's formula (K = n): " + ", ".join(
+        f"{s} {c['float64']['identical_rankings']}/{c['float64']['queries']} (float64), "
+        f"{c['float32']['identical_rankings']} (float32 as stored)" for s, c in checks.items()
+    ))  # fmt: skip
+    return {"split": args.split, "table": table, "study_check": checks}
+
+
+def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
+    """Median per-query ``db.search`` seconds of three web validation stores, same run."""
+    import shapedb
+    from shapedb.kernel import features
+    from shapedb.schema import ShapeRecord
+
+    ds, balls = load("web", "validation")
+    configs = {
+        "none (v4)": Config(),
+        "lightfield (v4)": Config().with_options(rerank="lightfield"),
+        "adaptive (v7)": Config().with_options(descriptor=7, rerank="adaptive"),
+    }
+    out: dict[str, Any] = {"models": len(balls)}
+    with tempfile.TemporaryDirectory() as tmp:
+        dbs = {}
+        for k, (label, cfg) in enumerate(configs.items()):
+            x = np.stack([features(b.decomposition(), cfg) for b in balls])
+            lf = light_fields(balls, cfg) if cfg.stores_light_fields else None
+            db = shapedb.connect(Path(tmp) / f"s{k}", config=cfg)
+            db.commit([
+                ShapeRecord(name=m.name, decomposition=b.decomposition(),
+                            feature=x[j].astype(np.float32), config=cfg,
+                            content_hash=hashlib.sha256(m.name.encode()).hexdigest(),
+                            representation="mesh", label=m.label,
+                            light_field=None if lf is None else lf[j])
+                for j, (m, b) in enumerate(zip(ds.models, balls, strict=True))
+            ])  # fmt: skip
+            dbs[label] = db
+            got = db.evaluate()
+            out[f"evaluate {label}"] = {m: float(getattr(got, m)) for m in _MEASURES}
+            print(f"  db.evaluate {label}: {got.nn:.3f} / {got.first_tier:.3f} / {got.dcg:.3f}")
+        ids = [int(i) for i in dbs["none (v4)"].store.features()[0]]
+        for db in dbs.values():
+            db.search(ids[0], k=10)  # warm: index built and loaded
+        times: dict[str, list[float]] = {label: [] for label in dbs}
+        for _ in range(repeats):
+            for sid in ids:  # interleaved, so load changes hit every store alike
+                for label, db in dbs.items():
+                    t = time.perf_counter()
+                    db.search(sid, k=10)
+                    times[label].append(time.perf_counter() - t)
+    med = {k: float(np.median(v)) for k, v in times.items()}
+    base = med["none (v4)"]
+    out["median_s"] = med
+    out["ratio"] = {k: v / base for k, v in med.items()}
+    print(format_table(
+        f"db.search per query, k = 10, {len(ids)} stored web shapes, {repeats} x {len(ids)} queries",
+        ("stage", "median ms", "ratio"),
+        [[k, f"{v * 1e3:.2f}", f"{v / base:.2f}"] for k, v in med.items()],
+    ))  # fmt: skip
+    return out
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point; returns the exit status."""
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.lightfield_rerank", description=__doc__.split("\n")[0]
+    )
+    ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=SETS)
+    ap.add_argument("--split", default="validation", choices=["validation", "test"])
+    ap.add_argument("--no-adaptive", action="store_true", help="leave out the v7 adaptive row")
+    ap.add_argument("--cost", action="store_true", help="only time db.search of three stores")
+    ap.add_argument("--out", type=Path, default=None)
+    args = ap.parse_args(argv)
+    if args.cost:
+        write_json(args.out or RESULTS / "lightfield_rerank_cost.json", cost(args))
+        return 0
+    result = measure(args)
+    out = args.out or RESULTS / f"lightfield_rerank_{args.split}.json"
+    write_json(out, result)
+    print(f"written {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
