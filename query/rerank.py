@@ -28,6 +28,12 @@ Built in:
   with ``weight`` at the block's own weight by the stored vector. With
   ``ratio > 0``, ``g(q)`` also fades out where the block spreads the candidates more
   than the rest does (median block part over median base above ``ratio``).
+
+In a module of its own (:data:`SCORER_MODULES`):
+
+* ``"lightfield"`` (:mod:`query.rerank_lightfield`): the balls' light fields, stored per
+  record, in a gated reciprocal rank fusion with the stored distance; it reads them
+  through ``Candidates.arrays`` and ``Candidates.query_arrays``.
 """
 
 from __future__ import annotations
