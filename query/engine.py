@@ -243,10 +243,10 @@ def _stored_arrays(db: Database, resolved: list[_Query]) -> tuple[Any, Any]:
     """
     if not db.config.stores_light_fields:
         return None, None
-    from query.rerank_lightfield import COLUMN, StoredArrays, query_light_fields
+    from query.rerank_lightfield import COLUMN, query_light_fields, stored_arrays
 
     own = [r.decomposition if r.sid < 0 else None for r in resolved]
-    return StoredArrays(db), {COLUMN: query_light_fields(db.config, own)}
+    return stored_arrays(db), {COLUMN: query_light_fields(db.config, own)}
 
 
 def _resolve(db: Database, query: Any, index: Any) -> _Query:

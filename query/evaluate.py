@@ -313,9 +313,9 @@ def _kernel_distance_rows(
         if stage is not None:
             arrays = None
             if db.config.stores_light_fields:
-                from query.rerank_lightfield import StoredArrays
+                from query.rerank_lightfield import stored_arrays
 
-                arrays = StoredArrays(db, preload=True)
+                arrays = stored_arrays(db, preload=True)
             yield from _reranked_rows(
                 stage, db.config, ids, x, np.asarray(w, np.float64), arrays=arrays
             )
