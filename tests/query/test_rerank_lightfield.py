@@ -11,7 +11,6 @@ from typing import Any
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from conftest import _forget
 from query_helpers import CONFIG
 
 from bench.studies.lightfield_balls import fuse
@@ -19,13 +18,21 @@ from query import rerank
 from query.evaluate import evaluate, retrieval_scores
 from query.index import FeatureIndex
 from query.rerank_lightfield import COLUMN, LightFieldFusion
-from shapedb.config import Config
+from shapedb.config import Config, parse_options
 from shapedb.errors import ConfigError
 from shapedb.implicit import Box, Capsule, Cylinder, Sphere, Torus
 from shapedb.kernel import weights
 from shapedb.lightfield import light_field_distance
 
 STAGE = CONFIG.with_options(rerank="lightfield", rerank_candidates=6)
+
+
+def _forget(db: Any) -> None:
+    """Drop the process's caches of ``db`` (as tests/query/conftest.py does)."""
+    import importlib
+
+    index = importlib.import_module("query.index")
+    index._forget(db)
 
 
 def _study_case(n: int = 40, seed: int = 0) -> tuple[Config, np.ndarray, np.ndarray, np.ndarray]:
@@ -86,6 +93,10 @@ def test_bad_fusion_values_name_the_field() -> None:
         with pytest.raises(ConfigError, match=option.removeprefix("lf_")):
             Config().with_options(**{option: value})
     assert Config().with_options(lf_weight=2.0).lf_fusion.weight == 2.0
+    typed = parse_options(["rerank=lightfield", "lf_weight=2", "lf_n_fields=10"])
+    assert typed == {"rerank": "lightfield", "lf_weight": 2.0, "lf_n_fields": 10}
+    assert Config().with_options(**typed).stores_light_fields
+    assert not Config().stores_light_fields
     assert Config.from_json(STAGE.to_json()) == STAGE
 
 
