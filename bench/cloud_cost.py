@@ -9,7 +9,8 @@ falls on them alike; wall seconds, one thread (the Poisson solve too).
 
 :func:`profile_cloud_query` splits a cloud query into its stages (the cloud's own
 field, packing and refinement; the Poisson solve; the reconstruction's
-decomposition; features and search), as ``query.engine`` runs them.
+decomposition; their features), as ``query.engine`` runs them;
+``python -m bench.cloud_cost [--sets ...] [--n 4]`` prints its medians per set.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ import numpy as np
 
 from bench.datasets import Model, mesh_arrays, min_cloud_points, point_cloud, stable_seed
 
-__all__ = ["measure", "profile_cloud_query"]
+__all__ = ["main", "measure", "profile_cloud_query"]
 
 
 def _geometries(model: Model) -> tuple[Any, Any]:
@@ -86,7 +87,7 @@ def measure(
 def profile_cloud_query(model: Model, *, depth: int = 8) -> dict[str, float]:
     """Wall seconds of each stage of a cloud query of ``model``'s paper cloud (and its mesh's).
 
-    Keys: ``mesh`` (the mesh's decomposition), ``cloud frame``, ``cloud sdf``,
+    Keys: ``mesh`` (the mesh's decomposition and feature), ``cloud frame``, ``cloud sdf``,
     ``cloud packing`` and ``cloud refine`` (its own decomposition), ``poisson``,
     ``recon decomposition``, ``features`` (the two features of the cloud).
     """
@@ -96,7 +97,7 @@ def profile_cloud_query(model: Model, *, depth: int = 8) -> dict[str, float]:
 
     mesh, cloud = _geometries(model)
     t0 = time.perf_counter()
-    decompose(mesh)
+    features(decompose(mesh))
     out = {"mesh": time.perf_counter() - t0}
     d = decompose(cloud)
     t = d.timings
@@ -122,3 +123,43 @@ def profile_cloud_query(model: Model, *, depth: int = 8) -> dict[str, float]:
         features(r)
     out["features"] = time.perf_counter() - t0
     return out
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print the median stage seconds of cloud queries (:func:`profile_cloud_query`)."""
+    import argparse
+
+    from bench.common import format_table, write_json
+    from bench.representations import build
+
+    ap = argparse.ArgumentParser(description="Where a cloud query's time goes, per set.")
+    ap.add_argument("--sets", nargs="+", default=["people", "capod", "figures", "parts"])
+    ap.add_argument("--split", default="validation", choices=("test", "validation"))
+    ap.add_argument("--n", type=int, default=4, help="models per set")
+    ap.add_argument("--depth", type=int, nargs="+", default=[8, 7])
+    ap.add_argument("--out", type=Path, default=OUT)
+    args = ap.parse_args(argv)
+    rows, out = [], {}
+    for ds in build(args.sets, args.split):
+        for depth in args.depth:
+            runs = [profile_cloud_query(m, depth=depth) for m in ds.models[: args.n]]
+            med = {k: float(np.median([r[k] for r in runs])) for k in runs[0]}
+            cloud = sum(v for k, v in med.items() if k != "mesh")
+            rows.append([ds.name, depth, *med.values(), cloud, cloud / med["mesh"]])
+            out[f"{ds.name} depth {depth}"] = med
+    keys = list(next(iter(out.values())))
+    print(
+        format_table(
+            f"Stages of a cloud query, median wall s of {args.n} models per set (one thread)",
+            ("set", "Poisson depth", *keys, "cloud query", "x mesh"),
+            rows,
+        )
+    )
+    write_json(args.out, {"split": args.split, "n": args.n, "stages": out})
+
+
+#: Where :func:`main` writes its JSON.
+OUT = Path(__file__).resolve().parent / "results" / "cloud_cost_profile.json"
+
+if __name__ == "__main__":
+    main()
