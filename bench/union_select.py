@@ -118,7 +118,7 @@ def cost(per_set: int = 8) -> dict[str, dict[str, float]]:
     return out
 
 
-def _read_older_cache(commit: str) -> None:
+def read_older_cache(commit: str) -> None:
     """Make :func:`bench.common.decompose_all` fall back to ``commit``'s cache keys."""
     import bench.common as common
 
@@ -160,7 +160,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "generic": generic, "capod": capod, "articulated": articulated, "parts": parts, "web": web
     }  # fmt: skip
     if args.engine_commit:
-        _read_older_cache(args.engine_commit)
+        read_older_cache(args.engine_commit)
     mats = {}
     for name in args.datasets:
         ds = makers[name]().split(args.split)

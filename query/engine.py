@@ -24,6 +24,11 @@ reconstruction and the dense shape's own feature. A sparse geometry or file quer
 costs a Poisson reconstruction and its decomposition; a dense one in a store with
 views and sparse clouds one more (point-cloud) decomposition.
 
+A store whose ``RerankConfig.scorer`` is not ``"none"`` re-ranks the first
+``RerankConfig.candidates`` results with that exact scorer (:mod:`query.rerank`),
+except in searches that compare sparse clouds or views (stores with sparse clouds or
+``view_cells``), which rank by the stored distance.
+
 A stored query is *not* excluded from its own results: it ranks first, with
 similarity 1.0 (distance 0), unless another shape has an identical feature and a
 smaller id. Ties are broken by ascending id everywhere.
@@ -143,8 +148,13 @@ def search_batch(
     ):
         ids, dist = _search_with_views(db, index, resolved, int(k), allowed, learned)
     else:
+        from query.rerank import search as rerank_search
+
         vectors = np.stack([r.feature for r in resolved])
-        ids, dist = index.search(vectors, int(k), allowed=allowed)
+        qids = np.array([r.sid for r in resolved], np.int64)
+        ids, dist = rerank_search(
+            index, vectors, int(k), config=db.config, query_ids=qids, allowed=allowed
+        )
     catalog = _catalog(db, index.version_)
     lam = float(db.config.kernel.lam)
     out: list[list[Hit]] = []
@@ -206,11 +216,13 @@ class _Query:
     (:mod:`shapedb.view`), a sparse cloud's reconstruction (:mod:`shapedb.reconstruct`);
     or a function computing it (only called when the search needs it), or None when
     the query has none (a raw vector, a decomposition, a rejected reconstruction).
+    ``sid`` is the stored shape's id when the query is one, else -1.
     """
 
     feature: NDArray[np.float64]
     sparse: bool = False
     view: Any = None
+    sid: int = -1
 
     def view_feature(self) -> NDArray[np.float64] | None:
         if callable(self.view):
@@ -295,9 +307,10 @@ def _stored(db: Database, sid: int, index: Any) -> _Query:
         pos = min(int(np.searchsorted(catalog.sparse, sid)), max(len(catalog.sparse) - 1, 0))
         sparse = bool(len(catalog.sparse) and catalog.sparse[pos] == sid)
         if not (sparse or db.config.cloud.view_cells):
-            return _Query(v)  # a dense shape's second feature is a view: none here
+            return _Query(v, sid=sid)  # a dense shape's second feature is a view: none here
         view = open_index(db, view=True).features_of(sid)  # own feature where none
-        return _Query(v, sparse, None if view is None or np.array_equal(view, v) else view)
+        own = None if view is None or np.array_equal(view, v) else view
+        return _Query(v, sparse, own, sid)
     columns = ["feature", "sampling", "spacing", "view_feature"]
     table = db.store.shapes(columns, ids=[sid])
     if table.num_rows == 0:
@@ -309,6 +322,7 @@ def _stored(db: Database, sid: int, index: Any) -> _Query:
         feature,
         is_sparse(float(row["sampling"] or 0.0), float(row["spacing"])),
         None if view is None else np.asarray(view, dtype=np.float64),
+        sid,
     )
 
 

@@ -286,10 +286,13 @@ def _kernel_distance_rows(
     metric's); a pair of a sparse cloud and a dense shape is as far apart as the
     nearest of own-own and either side's second feature (its view or reconstruction;
     its own feature where it has none) against the other's own (:mod:`query.engine`).
-    Each call of the returned function yields ``(row indices, (rows, n) distances)``.
+    A store with a re-ranking stage (``RerankConfig``, :mod:`query.rerank`) and neither
+    sparse clouds nor views ranks as its search does: each row holds the ranks of
+    :func:`query.rerank.rerank_candidates` over the stored-distance order. Each call of the returned function yields ``(row indices, (rows, n) distances)``.
     """
     from scipy.spatial.distance import cdist
 
+    from query.rerank import scorer_for
     from shapedb.kernel import weights
 
     n = len(ids)
@@ -304,7 +307,12 @@ def _kernel_distance_rows(
         pos = np.searchsorted(vid, ids)
         vw = np.asarray(views[pos], np.float64) * w
 
+    stage = None if vw is not None or db.config.cloud.view_cells else scorer_for(db.config)
+
     def rows() -> Iterator[tuple[NDArray[np.intp], NDArray[np.float64]]]:
+        if stage is not None:
+            yield from _reranked_rows(stage, db.config, ids, x, np.asarray(w, np.float64))
+            return
         step = max(1, _CHUNK_CELLS // max(n, 1))
         for lo in range(0, n, step):
             idx = np.arange(lo, min(lo + step, n))
@@ -316,3 +324,34 @@ def _kernel_distance_rows(
             yield idx, d
 
     return rows
+
+
+def _reranked_rows(
+    scorer: Any, config: Any, ids: NDArray[np.int64], x: NDArray[np.float64], w: NDArray[np.float64]
+) -> Iterator[tuple[NDArray[np.intp], NDArray[np.float64]]]:
+    """Rows of ranks (0 = first) in the order a search with the re-ranking stage returns.
+
+    Stored distances are computed as the index re-ranks them (``|x - q| @ w`` in
+    float64), ordered with ties by ascending id, and handed to
+    :func:`query.rerank.rerank_candidates` whole, the query among them, as a search
+    for every shape would see them.
+    """
+    from query.rerank import Candidates, rerank_candidates
+
+    n, dim = x.shape
+    sorter = np.argsort(ids)
+    step = max(1, _CHUNK_CELLS // max(n * dim, 1))
+    for lo in range(0, n, step):
+        idx = np.arange(lo, min(lo + step, n))
+        d = np.abs(x[None, :, :] - x[idx, None, :]) @ w  # (b, n), as FeatureIndex re-ranks
+        order = np.lexsort((np.broadcast_to(ids, d.shape), d), axis=-1)
+        batch = Candidates(
+            ids[idx], x[idx], ids[order], x[order], w, np.take_along_axis(d, order, 1), config
+        )
+        got, _ = rerank_candidates(scorer, batch, n)
+        cols = sorter[np.searchsorted(ids, got, sorter=sorter)]
+        ranks = np.empty((len(idx), n))
+        np.put_along_axis(
+            ranks, cols, np.broadcast_to(np.arange(n, dtype=np.float64), cols.shape), 1
+        )
+        yield idx, ranks

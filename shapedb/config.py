@@ -5,7 +5,8 @@ A :class:`Config` composes the settings that determine a store's records:
 * :class:`MDBDConfig`: the decomposition and its contact graph;
 * :class:`KernelConfig`: the paper's Eq. 1-3 random-walk kernel and the feature method;
 * :class:`DescriptorConfig`: the version of shapedb's own descriptor (method "mdbd");
-* :class:`CloudConfig`: what a store keeps for sparse point clouds (views, reconstructions).
+* :class:`CloudConfig`: what a store keeps for sparse point clouds (views, reconstructions);
+* :class:`RerankConfig`: how a search re-ranks the candidates of the index.
 
 :class:`PartConfig` (substructure matching) embeds a :class:`KernelConfig` of its own.
 
@@ -16,7 +17,7 @@ fields) are read through :mod:`shapedb.migrations`, the only module that knows t
 
 On the command line and in :func:`shapedb.connect` every setting is one flat option
 (:data:`OPTIONS`): the field's name, except ``descriptor`` for
-``DescriptorConfig.version``.
+``DescriptorConfig.version`` and ``rerank`` / ``rerank_<field>`` for :class:`RerankConfig`.
 """
 
 from __future__ import annotations
@@ -35,6 +36,8 @@ __all__ = [
     "KernelConfig",
     "DescriptorConfig",
     "CloudConfig",
+    "LightFieldConfig",
+    "RerankConfig",
     "PartConfig",
     "Config",
     "OPTIONS",
@@ -291,6 +294,124 @@ class CloudConfig:
         )
 
 
+@dataclass(frozen=True)
+class LightFieldConfig:
+    """Light fields of a shape (:mod:`shapedb.lightfield`, Chen et al. 2003).
+
+    Attributes
+    ----------
+    n_fields : int
+        Light fields (dodecahedra turned in fixed ways), 1-10; each is 10 views.
+    resolution : int
+        Image side, pixels, in [16, 256]; the image spans the unit disc.
+    zernike_order : int
+        Largest Zernike order, in [2, 16] (order 10: 36 magnitudes per image).
+    fourier : int
+        Fourier descriptors of the silhouette's centroid distance, 0 to ``angles // 2``.
+    angles : int
+        Samples of the centroid distance around the contour, >= 8.
+    fourier_weight : float
+        Weight of the Fourier block against the Zernike block, >= 0.
+    depth_weight : float
+        0: silhouettes only. Positive: each view also has the Zernike magnitudes of its
+        two depth images (front and back, combined as their sum and absolute
+        difference), times this weight (ball unions only).
+    seed : int
+        Seed of the light fields' turns.
+    """
+
+    n_fields: int = 10
+    resolution: int = 64
+    zernike_order: int = 10
+    fourier: int = 10
+    angles: int = 64
+    fourier_weight: float = 1.0
+    depth_weight: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        ints = {"n_fields": (1, 10), "resolution": (16, 256), "zernike_order": (2, 16)}
+        for name, (lo, hi) in ints.items():
+            v = getattr(self, name)
+            _check(_is_int(v) and lo <= v <= hi, name, v, f"must be an integer in [{lo}, {hi}]")
+        _check(_is_int(self.angles) and self.angles >= 8, "angles", self.angles, "must be >= 8")
+        _check(
+            _is_int(self.fourier) and 0 <= self.fourier <= self.angles // 2,
+            "fourier", self.fourier, "must be an integer in [0, angles // 2]",
+        )  # fmt: skip
+        for name in ("fourier_weight", "depth_weight"):
+            v = getattr(self, name)
+            _check(isinstance(v, (int, float)) and v >= 0, name, v, "must be a number >= 0")
+        _check(_is_int(self.seed), "seed", self.seed, "must be an integer")
+
+
+@dataclass(frozen=True)
+class RerankConfig:
+    """How a search re-ranks the candidates the index proposes (:mod:`query.rerank`).
+
+    The index proposes the ``candidates`` nearest shapes by the stored vector's L1
+    distance; a named exact scorer re-ranks them; past them, results keep the
+    stored-vector order. Search and evaluation rank alike. The defaults of the
+    adaptive fusion's fields are the setting chosen on the validation splits
+    (``python -m bench.rerank_select --grid ratio``); the stage itself is opt-in.
+
+    Attributes
+    ----------
+    scorer : str
+        ``"none"``: no stage, the stored vector's distance decides. ``"adaptive"``:
+        the distance without ``block`` plus ``weight * g(q)`` times ``block``'s,
+        ``g(q)`` the overlap of the query's ``neighbours`` nearest candidates by either
+        part, to the power ``power``. Other names are scorers registered with
+        :func:`query.rerank.register_scorer`.
+    candidates : int
+        K, candidates re-ranked per query, in [1, 100000].
+    neighbours : int
+        Neighbourhood size of ``g(q)`` among the candidates, in [1, 1000].
+    power : float
+        Exponent of the overlap in ``g(q)``, in [0, 8]; 0 ignores the overlap (the
+        ``ratio`` ceiling alone then gates the block).
+    weight : float
+        Weight of ``block`` at ``g = 1``, in the units of the descriptor's block weights
+        (:data:`shapedb.descriptor.LAYOUTS`: the stored vector has ``block`` at its own
+        weight), in [0, 1000].
+    block : str
+        The descriptor block ``g(q)`` scales (a layout without it: the stored distance).
+    ratio : float
+        0, or a ceiling on ``r``, the median of the candidates' ``block`` distances over
+        the median of their other distances: ``g(q)`` is then also multiplied by
+        ``clip((ratio - r) / 0.1, 0, 1)``, so the block counts less where it spreads the
+        candidates more than the rest does (a pose changing its silhouettes). In [0, 10].
+    """
+
+    scorer: str = "none"
+    candidates: int = 100
+    neighbours: int = 10
+    power: float = 0.0
+    weight: float = 16.0
+    block: str = "views"
+    ratio: float = 0.35
+
+    def __post_init__(self) -> None:
+        name_ok = isinstance(self.scorer, str) and self.scorer.replace("_", "a").isalnum()
+        _check(name_ok, "rerank", self.scorer, "must be a scorer's name, e.g. 'none' or 'adaptive'")
+        _check(
+            _is_int(self.candidates) and 1 <= self.candidates <= 100_000,
+            "rerank_candidates",
+            self.candidates,
+            "must be an integer in [1, 100000]",
+        )
+        _check(
+            _is_int(self.neighbours) and 1 <= self.neighbours <= 1000,
+            "rerank_neighbours",
+            self.neighbours,
+            "must be an integer in [1, 1000]",
+        )
+        _check(0.0 <= self.power <= 8.0, "rerank_power", self.power, "must be in [0, 8]")
+        _check(0.0 <= self.weight <= 1000.0, "rerank_weight", self.weight, "must be in [0, 1000]")
+        _check(isinstance(self.block, str), "rerank_block", self.block, "must be a block name")
+        _check(0.0 <= self.ratio <= 10.0, "rerank_ratio", self.ratio, "must be in [0, 10]")
+
+
 def _part_kernel() -> KernelConfig:
     return KernelConfig(n_r=10, method="paper")
 
@@ -409,13 +530,24 @@ _SECTIONS: dict[str, type] = {
     "kernel": KernelConfig,
     "descriptor": DescriptorConfig,
     "cloud": CloudConfig,
+    "rerank": RerankConfig,
 }
+
+
+def _option(section: str, name: str) -> str:
+    if section == "descriptor":
+        return "descriptor"
+    if section == "rerank":
+        return "rerank" if name == "scorer" else f"rerank_{name}"
+    return name
+
 
 #: Every flat option (``connect(path, **options)``, ``--set KEY=VALUE``) and the
 #: ``(section, field)`` of :class:`Config` it sets: a field's own name, except
-#: ``descriptor`` for ``DescriptorConfig.version``.
+#: ``descriptor`` for ``DescriptorConfig.version``, ``rerank`` for ``RerankConfig.scorer``
+#: and ``rerank_<field>`` for its other fields.
 OPTIONS: dict[str, tuple[str, str]] = {
-    ("descriptor" if section == "descriptor" else f.name): (section, f.name)
+    _option(section, f.name): (section, f.name)
     for section, cls in _SECTIONS.items()
     for f in fields(cls)
 }
@@ -435,12 +567,15 @@ class Config:
         The version of the "mdbd" descriptor.
     cloud : CloudConfig
         Sparse views and reconstructions of sparse point clouds.
+    rerank : RerankConfig
+        How a search re-ranks the index's candidates (changes no record).
     """
 
     mdbd: MDBDConfig = field(default_factory=MDBDConfig)
     kernel: KernelConfig = field(default_factory=KernelConfig)
     descriptor: DescriptorConfig = field(default_factory=DescriptorConfig)
     cloud: CloudConfig = field(default_factory=CloudConfig)
+    rerank: RerankConfig = field(default_factory=RerankConfig)
 
     @property
     def dim(self) -> int:

@@ -13,6 +13,8 @@ Store configuration layouts (``Config.to_dict()``):
   version), ``view_cells``, ``reconstruct`` and ``reconstruct_depth`` (the sparse-cloud
   policy), each added over time.
 * **2**: ``{"layout": 2, "mdbd", "kernel", "descriptor": {"version"}, "cloud"}``.
+* **3**: layout 2 plus ``"rerank"`` (how a search re-ranks, ``RerankConfig``); a store of
+  an earlier layout searched without a re-ranking stage (:data:`SECTIONS_ADDED`).
 
 Part-index configuration layouts (``PartConfig.to_dict()``):
 
@@ -34,6 +36,7 @@ __all__ = [
     "LAYOUT",
     "PART_LAYOUT",
     "ADDED",
+    "SECTIONS_ADDED",
     "PART_ADDED",
     "upgrade_config",
     "upgrade_part_config",
@@ -43,7 +46,7 @@ __all__ = [
 ]
 
 #: The layout :meth:`Config.to_dict` writes.
-LAYOUT = 2
+LAYOUT = 3
 #: The layout :meth:`PartConfig.to_dict` writes.
 PART_LAYOUT = 2
 
@@ -59,7 +62,14 @@ ADDED: dict[str, dict[str, Any]] = {
     "descriptor": {"version": 1},
     # before each field: no sparse views, no reconstructions, Poisson depth 8
     "cloud": {"view_cells": 0.0, "reconstruct": False, "reconstruct_depth": 8},
+    # before the section: no re-ranking stage
+    "rerank": {"scorer": "none"},
 }
+
+#: Sections added to the store configuration, by the first layout that writes them:
+#: a configuration of an earlier layout gets the section with the values of
+#: :data:`ADDED` (what its store did), never today's defaults.
+SECTIONS_ADDED: dict[str, int] = {"rerank": 3}
 
 #: Decomposition fields added after ``Config.fingerprint`` was first stored, and the
 #: value at which the fingerprint leaves them out, so that stores written before each
@@ -87,8 +97,9 @@ def upgrade_config(data: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
     -------
     dict
         ``{section: {field: value}}`` for the sections ``mdbd``, ``kernel``,
-        ``descriptor``, ``cloud`` that ``data`` stores (without ``layout``); fields a
-        stored section predates are filled in from :data:`ADDED`. Unknown keys are
+        ``descriptor``, ``cloud``, ``rerank`` that ``data`` stores (without ``layout``),
+        and the sections its layout predates (:data:`SECTIONS_ADDED`); fields a stored
+        section predates are filled in from :data:`ADDED`. Unknown keys are
         passed on, for the caller to refuse.
     """
     data = dict(data)
@@ -97,6 +108,9 @@ def upgrade_config(data: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
         sections = _layout1_sections(data)
     else:
         sections = {name: dict(section) for name, section in data.items()}
+    for name, first in SECTIONS_ADDED.items():
+        if layout < first and name not in sections:
+            sections[name] = {}
     for name, section in sections.items():
         if isinstance(section, dict):
             for key, legacy in ADDED.get(name, {}).items():

@@ -14,6 +14,8 @@ from shapedb.config import (
     KernelConfig,
     MDBDConfig,
     PartConfig,
+    RerankConfig,
+    parse_options,
     with_options,
 )
 from shapedb.errors import ConfigError
@@ -32,13 +34,14 @@ def test_json_round_trip_and_fingerprint() -> None:
 
 def test_each_concern_is_its_own_section() -> None:
     cfg = Config().with_options(
-        tie_cells=0.0, lam=2.0, descriptor=1, view_cells=4.0, reconstruct_depth=6
+        tie_cells=0.0, lam=2.0, descriptor=1, view_cells=4.0, reconstruct_depth=6, rerank_power=2
     )
     assert cfg.mdbd == MDBDConfig(tie_cells=0.0)
     assert cfg.kernel == KernelConfig(lam=2.0)
     assert cfg.descriptor == DescriptorConfig(version=1)
     assert cfg.cloud == CloudConfig(view_cells=4.0, reconstruct_depth=6)
-    assert set(cfg.to_dict()) == {"layout", "mdbd", "kernel", "descriptor", "cloud"}
+    assert cfg.rerank == RerankConfig(power=2.0)
+    assert set(cfg.to_dict()) == {"layout", "mdbd", "kernel", "descriptor", "cloud", "rerank"}
     kernel_fields = {f.name for f in dataclasses.fields(KernelConfig)}
     assert kernel_fields == {"n_r", "t", "w", "la", "lb", "lam", "method"}
 
@@ -47,7 +50,11 @@ def test_every_flat_option_names_one_field() -> None:
     assert OPTIONS["descriptor"] == ("descriptor", "version")
     assert OPTIONS["view_cells"] == ("cloud", "view_cells")
     assert OPTIONS["tie_rule"] == ("mdbd", "tie_rule")
-    sections = (MDBDConfig, KernelConfig, DescriptorConfig, CloudConfig)
+    assert OPTIONS["rerank"] == ("rerank", "scorer")
+    assert OPTIONS["rerank_candidates"] == ("rerank", "candidates")
+    typed = parse_options(["rerank=adaptive", "rerank_ratio=0.4", "rerank_candidates=50"])
+    assert typed == {"rerank": "adaptive", "rerank_ratio": 0.4, "rerank_candidates": 50}
+    sections = (MDBDConfig, KernelConfig, DescriptorConfig, CloudConfig, RerankConfig)
     assert len(OPTIONS) == sum(len(dataclasses.fields(c)) for c in sections)
     options = Config().options()
     assert set(options) == set(OPTIONS) and options["descriptor"] == 4

@@ -175,3 +175,14 @@ def test_stores_written_before_sheets_never_thicken_and_keep_their_fingerprint(
         and Config().fingerprint
         != replace(Config(), mdbd=replace(Config().mdbd, sheet_cells=0.0)).fingerprint
     )
+
+
+def test_stores_of_earlier_layouts_search_without_a_reranking_stage() -> None:
+    stored = Config().with_options(rerank="adaptive", rerank_candidates=50).to_dict()
+    assert stored["layout"] == 3 and Config.from_dict(stored).rerank.scorer == "adaptive"
+    del stored["rerank"]
+    stored["layout"] = 2
+    assert Config.from_dict(stored).rerank.scorer == "none"
+    assert Config.from_json(LAST_FLAT).rerank.scorer == "none"
+    with pytest.raises(ConfigError, match="candidates"):
+        Config.from_dict({**Config().to_dict(), "rerank": {"candidates": 0}})

@@ -1,4 +1,7 @@
-"""The light field descriptor baseline (bench.lightfield) on analytic shapes."""
+"""The light field descriptor baseline (bench.lightfield: mesh splats) on analytic shapes.
+
+The dodecahedron, the features and the distance are tested in tests/shapedb/test_lightfield.py.
+"""
 
 from __future__ import annotations
 
@@ -13,25 +16,11 @@ from bench.lightfield import (
     lfd_distance,
     render_silhouettes,
     silhouette_features,
-    view_permutations,
 )
 
 trimesh = pytest.importorskip("trimesh")
 
 SMALL = LFDConfig(n_fields=3, resolution=48, n_points=8000)
-
-
-def test_the_sixty_rotations_map_the_dodecahedron_onto_itself() -> None:
-    rots = dodecahedron_rotations()
-    assert rots.shape == (60, 3, 3) and np.allclose(rots[0], np.eye(3))
-    assert np.allclose(np.einsum("kji,kjl->kil", rots, rots), np.eye(3))
-    assert np.allclose(np.linalg.det(rots), 1.0)
-    assert len({tuple(np.round(r, 6).ravel()) for r in rots}) == 60
-    views = dodecahedron_views()
-    for r, perm in zip(rots, view_permutations(), strict=True):
-        assert sorted(perm) == list(range(10))
-        # view v goes to view perm[v] or to its opposite
-        assert np.allclose(np.abs(np.sum((views @ r.T) * views[perm], axis=1)), 1.0)
 
 
 def test_a_sphere_has_disc_silhouettes_and_round_features() -> None:
@@ -91,3 +80,15 @@ def test_a_sheet_has_a_silhouette_like_its_box() -> None:
 def test_shape_mismatch_is_refused() -> None:
     with pytest.raises(ValueError, match="do not match"):
         lfd_distance(np.zeros((2, 1, 10, 46)), np.zeros((2, 1, 10, 45)))
+
+
+def test_numbers_are_those_of_the_baseline_before_its_core_moved_to_shapedb() -> None:
+    # values of bench/lightfield.py at commit 2abcda4, before shapedb.lightfield existed
+    bar = trimesh.creation.box(extents=(3.0, 1.0, 0.5))
+    cyl = trimesh.creation.cylinder(radius=0.5, height=2.0)
+    d = np.stack([lfd_descriptor(m.vertices, m.faces, SMALL) for m in (bar, cyl)])
+    assert np.allclose(d[0, 1, 2, [0, 1, 5, 36, 40]],
+                       [0.34317785, 0.00229082, 0.0013356, 0.00137438, 0.00161546])  # fmt: skip
+    assert np.allclose(d[1, 2, 7, [0, 3, 9, 37, 45]],
+                       [0.55262133, 0.381792261, 0.0, 0.211380077, 0.00482219845], atol=1e-8)  # fmt: skip
+    assert np.isclose(lfd_distance(d)[0, 1], 17.171553759513092)

@@ -1,0 +1,396 @@
+"""The light field descriptor computed from the balls, alone and fused with version 4.
+
+For each set's split (meshes), from the cached decompositions (nothing is decomposed:
+a decomposition missing under today's engine key is read under the keys of the
+engines in :data:`ENGINE_COMMITS`, which differ only where the sets are unaffected):
+
+* ``v4``: shapedb's default descriptor, L1 in version 4's calibrated units;
+* ``lfb <config>``: :func:`shapedb.lightfield.ball_light_field` of the balls under
+  each configuration of ``--configs`` (``res/fields/depth weight``), distance
+  :func:`shapedb.lightfield.light_field_distance`;
+* fusions of v4 with one light field configuration (``--fuse``):
+
+  - ``sum w``: ``d4 + w * dl / typical`` (``typical``: the geometric mean over the sets
+    of the median pairwise light field distance, measured on the split unless given);
+  - ``rank w``: reciprocal rank fusion, ``1 / (60 + rank4) + w / (60 + rankl)``;
+  - ``adapt w``: ``d4 + w * a_q^p * dl / typical`` with ``a_q`` the overlap of the
+    query's ``--top`` nearest under v4 and under the light field (query-adaptive,
+    ``p = --power``);
+  - ``adrank w``: rank fusion with the light field's term gated the same way,
+    ``1 / (60 + rank4) + w * a_q^p / (60 + rankl)``;
+  - with ``--ceiling c`` the gate of ``adapt`` and ``adrank`` is also multiplied by
+    ``clip((c - s_q) / --ramp, 0, 1)``, ``s_q`` the median of ``dl / typical`` over the
+    median of ``d4`` among the query's 100 nearest by v4 (the candidates a re-ranking
+    stage would see): the light field's spread relative to v4's, high where every
+    silhouette looks alike (the people, the figures);
+
+* with ``--queries pointcloud`` (or another cached variant): the queries are that
+  variant's decompositions, compared with every model's mesh (its own mesh left out, as
+  :func:`bench.common.retrieval_scores` leaves out the diagonal);
+* with ``--baselines``: the mesh light field descriptor (``bench.lightfield``) and D2
+  (``bench.baselines``) in the same run.
+
+Per row NN / 1-T / DCG per set and the objective (mean over the sets of (NN + 1-T +
+DCG) / 3). A fusion passes when no set's NN, 1-T or DCG is more than two queries below
+v4. Usage::
+
+    python -m bench.studies.lightfield_balls                    # validation, all six sets
+    python -m bench.studies.lightfield_balls --split test --baselines --typical 17.2 \\
+        --fuse 64/3/0 --configs 64/10/0 --sum 0.5 --rank --adapt 8 --adrank 2
+
+``--cost N`` times the decomposition, version 4 and the light fields of N models per
+set (CAPOD, generic, web) in one process, and the re-ranking of 100 candidates.
+Light field distance matrices are cached under ``$SHAPEDB_BENCH_CACHE/lightfield_balls``
+(keyed by the set's models, the configuration and the code of shapedb/lightfield.py).
+Results go to bench/results/studies/lightfield_balls_<split>.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from bench.common import (
+    Balls,
+    cache_path,
+    format_table,
+    load_balls,
+    retrieval_scores,
+    write_json,
+)
+from bench.datasets import CACHE_DIR, Dataset, capod, generic, mesh_arrays, parts, web
+from bench.datasets import articulated as figures
+from bench.representations import build
+from shapedb.config import Config, DescriptorConfig, LightFieldConfig, MDBDConfig
+from shapedb.descriptor import LAYOUTS
+from shapedb.lightfield import ball_light_field, light_field_distance
+
+FloatArray = NDArray[np.float64]
+OUT = Path(__file__).resolve().parents[1] / "results" / "studies"
+#: Older engines whose cached decompositions are read where today's key has none
+#: (b95b2be: test splits, differs only in how flat quads are thickened; f031e22: the
+#: people set, before the sheet rule, which leaves closed solids unchanged).
+ENGINE_COMMITS = ("b95b2be", "f031e22")
+SETS = ("web", "generic", "capod", "figures", "parts", "people")
+TOP = 5
+
+
+def load(name: str, split: str, variants: Sequence[str] = ("mesh",)) -> tuple[Dataset, list[Any]]:
+    """The split's models decomposed (cached) in every variant, and their balls.
+
+    Returns the models and, per model, its Balls (one variant) or a tuple of Balls.
+    """
+    if name == "people":
+        (ds,) = build(["people"], split)
+    else:
+        ds = {"web": web, "generic": generic, "capod": capod, "figures": figures,
+              "parts": parts}[name]().split(split)  # fmt: skip
+    cfg = MDBDConfig()
+    keep, balls = [], []
+    for i, m in enumerate(ds.models):
+        found = []
+        for variant in variants:
+            paths = [cache_path(m, variant, cfg)]
+            paths += [cache_path(m, variant, cfg, engine_commit=c) for c in ENGINE_COMMITS]
+            found.append(next((p for p in paths if p.exists()), None))
+        if all(p is not None for p in found):
+            keep.append(i)
+            got = [load_balls(p, cfg.contact_tol_cells) for p in found if p is not None]
+            balls.append(got[0] if len(got) == 1 else tuple(got))
+    if len(keep) < len(ds):
+        print(f"  {name}: {len(ds) - len(keep)} of {len(ds)} models not cached, left out")
+    return Dataset(ds.name, tuple(ds.models[i] for i in keep)), balls
+
+
+def parse_config(text: str) -> LightFieldConfig:
+    """``res/fields/depth`` -> :class:`LightFieldConfig`."""
+    res, fields, depth = text.split("/")
+    return LightFieldConfig(resolution=int(res), n_fields=int(fields), depth_weight=float(depth))
+
+
+def _l1(x: FloatArray) -> FloatArray:
+    out = np.empty((len(x), len(x)))
+    for i in range(len(x)):
+        out[i] = np.abs(x - x[i]).sum(axis=1)
+    return out
+
+
+def v4_distances(balls: list[Balls], queries: list[Balls] | None = None) -> FloatArray:
+    """Version 4's L1 distances (queries x balls) in its calibrated units."""
+    from bench.features import kernel_features
+
+    cfg = Config(descriptor=DescriptorConfig(version=4))
+    f = kernel_features(balls, cfg)
+    cal = np.log(10.0) / sum(b[3] for b in LAYOUTS[4])
+    if queries is None:
+        return _l1(f) / cal
+    q = kernel_features(queries, cfg)
+    return np.abs(q[:, None, :] - f[None, :, :]).sum(axis=-1) / cal
+
+
+def light_field_matrix(
+    name: str,
+    ds: Dataset,
+    balls: list[Balls],
+    text: str,
+    queries: list[Balls] | None = None,
+    variant: str = "mesh",
+) -> tuple[FloatArray, float, float]:
+    """Ball light field distances (queries x balls; cached), CPU s per model and of the distances."""
+    code = (Path(__file__).resolve().parents[2] / "shapedb" / "lightfield.py").read_bytes()
+    key = hashlib.sha256(
+        code
+        + text.encode()
+        + "\n".join(m.name + m.source for m in ds.models).encode()
+        + (b"" if queries is None else variant.encode())
+    ).hexdigest()[:16]
+    path = CACHE_DIR / "lightfield_balls" / f"{name}_{key}.npz"
+    if path.exists():
+        z = np.load(path)
+        return z["d"], float(z["per_model"]), float(z["dist_s"])
+    cfg = parse_config(text)
+    t = time.process_time()
+    lf = np.stack([ball_light_field(b.centers, b.radii, cfg) for b in balls])
+    per_model = (time.process_time() - t) / len(balls)
+    t = time.process_time()
+    if queries is None:
+        d = light_field_distance(lf)
+    else:
+        lq = np.stack([ball_light_field(b.centers, b.radii, cfg) for b in queries])
+        d = light_field_distance(lq, lf)
+    dist_s = time.process_time() - t
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, d=d, per_model=per_model, dist_s=dist_s)
+    return d, per_model, dist_s
+
+
+def mesh_baselines(ds: Dataset) -> dict[str, FloatArray]:
+    """Mesh light field descriptor and D2 distances of the split's models."""
+    from bench.baselines import D2Config, d2_descriptor
+    from bench.lightfield import LFDConfig, lfd_descriptor, lfd_distance
+
+    arrays = [mesh_arrays(m) for m in ds.models]
+    lfd = np.stack([lfd_descriptor(v, f, LFDConfig()) for v, f in arrays])
+    d2 = np.stack([d2_descriptor(v, f, D2Config(n_pairs=262144)) for v, f in arrays])
+    return {"LFD (mesh)": lfd_distance(lfd), "D2 (mesh)": _l1(d2)}
+
+
+def _ranks(d: FloatArray) -> FloatArray:
+    r = np.empty_like(d)
+    order = np.argsort(d, axis=1, kind="stable")
+    np.put_along_axis(r, order, np.arange(d.shape[1], dtype=np.float64)[None, :], axis=1)
+    return r
+
+
+def overlap(d4: FloatArray, dl: FloatArray, top: int = TOP) -> FloatArray:
+    """(n,) share of each query's ``top`` nearest (itself left out) common to both distances."""
+    n = len(d4)
+    big = np.eye(n) * 1e300
+    a = np.argsort(d4 + big, axis=1, kind="stable")[:, :top]
+    b = np.argsort(dl + big, axis=1, kind="stable")[:, :top]
+    return np.array([len(set(a[i]) & set(b[i])) / top for i in range(n)])
+
+
+def spread(d4: FloatArray, dl: FloatArray, typical: float, candidates: int = 100) -> FloatArray:
+    """(n,) median ``dl / typical`` over median ``d4`` among each query's nearest by ``d4``."""
+    n = len(d4)
+    near = np.argsort(d4 + np.eye(n) * 1e300, axis=1, kind="stable")[:, : min(candidates, n - 1)]
+    num = np.median(np.take_along_axis(dl, near, axis=1), axis=1) / typical
+    return num / np.maximum(np.median(np.take_along_axis(d4, near, axis=1), axis=1), 1e-300)
+
+
+def fuse(
+    kind: str,
+    w: float,
+    d4: FloatArray,
+    dl: FloatArray,
+    typical: float,
+    top: int = TOP,
+    power: float = 3.0,
+    ceiling: float = 0.0,
+    ramp: float = 0.02,
+) -> FloatArray:
+    """A fused distance (rows are queries)."""
+    if kind == "sum":
+        return d4 + w * dl / typical
+    if kind == "rank":
+        return -(1.0 / (60.0 + _ranks(d4)) + w / (60.0 + _ranks(dl)))
+    if kind in ("adapt", "adrank"):
+        a = overlap(d4, dl, top) ** power
+        if ceiling > 0:
+            a = a * np.clip((ceiling - spread(d4, dl, typical)) / ramp, 0.0, 1.0)
+    if kind == "adapt":
+        return d4 + w * a[:, None] * dl / typical
+    if kind == "adrank":
+        return -(1.0 / (60.0 + _ranks(d4)) + w * a[:, None] / (60.0 + _ranks(dl)))
+    raise ValueError(f"fusion {kind!r} is unknown")
+
+
+def cost(per_set: int, text: str, candidates: int = 100) -> dict[str, dict[str, float]]:
+    """Median CPU seconds per model: decomposition, v4, ball light fields; re-ranking K.
+
+    Decomposes the first ``per_set`` validation models (one per class) of CAPOD,
+    generic and web in this process; the re-ranking time is one query's
+    :func:`light_field_distance` against ``candidates`` light fields.
+    """
+    from shapedb.descriptor import describe
+    from shapedb.graph import ContactGraph
+    from shapedb.lightfield import light_field_dim
+    from shapedb.mdbd import decompose
+    from shapedb.mesh import TriangleMesh
+
+    cfg = parse_config(text)
+    out = {}
+    for ds in (capod().split("validation"), generic().split("validation"),
+               web().split("validation")):  # fmt: skip
+        rows, fields = [], []
+        for m in ds.head(per_class=1).models[:per_set]:
+            t = time.process_time()
+            d = decompose(TriangleMesh(*mesh_arrays(m)))
+            td = time.process_time() - t
+            t = time.process_time()
+            describe(ContactGraph(d.centers, d.radii, d.edges), 4)
+            t4 = time.process_time() - t
+            t = time.process_time()
+            fields.append(ball_light_field(d.centers, d.radii, cfg))
+            rows.append((td, t4, time.process_time() - t))
+        td, t4, tl = np.median(np.asarray(rows), axis=0)
+        bank = np.stack([fields[i % len(fields)] for i in range(candidates)])
+        t = time.process_time()
+        for q in fields:
+            light_field_distance(q[None], bank)
+        tq = (time.process_time() - t) / len(fields)
+        out[ds.name] = {"decompose": td, "v4": t4, "light_field": tl, "extra": tl / (td + t4),
+                        f"rerank_{candidates}": tq,
+                        "bytes_float32": 4 * cfg.n_fields * 10 * light_field_dim(cfg)}  # fmt: skip
+        print(f"{ds.name}: median CPU s decompose {td:.3f}, v4 {t4:.4f}, light fields {tl:.4f} "
+              f"(+{tl / (td + t4):.1%}); re-rank {candidates} candidates {tq * 1e3:.1f} ms; "
+              f"{out[ds.name]['bytes_float32']} bytes (float32)")  # fmt: skip
+    return out
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point; returns the exit status."""
+    ap = argparse.ArgumentParser(prog="python -m bench.studies.lightfield_balls")
+    ap.add_argument("--split", default="validation", choices=["validation", "test"])
+    ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=SETS)
+    ap.add_argument("--configs", nargs="+", default=["64/10/0", "64/10/1", "32/10/0", "64/3/0",
+                                                      "64/1/0"])  # fmt: skip
+    ap.add_argument("--fuse", default="64/10/0", help="configuration fused with v4")
+    ap.add_argument("--sum", type=float, nargs="*", default=[0.5, 1, 2, 4, 8])
+    ap.add_argument("--rank", type=float, nargs="*", default=[0.5, 1, 2])
+    ap.add_argument("--adapt", type=float, nargs="*", default=[1, 2, 4, 8, 16])
+    ap.add_argument("--adrank", type=float, nargs="*", default=[0.5, 1, 2, 4])
+    ap.add_argument("--top", type=int, default=TOP, help="neighbours of the adaptive gate")
+    ap.add_argument("--power", type=float, default=3.0, help="power of the adaptive gate")
+    ap.add_argument("--ceiling", type=float, default=0.0, help="spread ceiling (0: none)")
+    ap.add_argument("--ramp", type=float, default=0.02, help="width of the ceiling's fade")
+    ap.add_argument("--typical", type=float, default=None)
+    ap.add_argument("--baselines", action="store_true", help="mesh LFD and D2 in the same run")
+    ap.add_argument(
+        "--queries", default="mesh", help="variant of the queries (e.g. pointcloud) against meshes"
+    )
+    ap.add_argument("--out", type=Path, default=None, help="JSON path (default: by split)")
+    ap.add_argument("--cost", type=int, default=0, help="only time N models per set (--fuse)")
+    args = ap.parse_args(argv)
+    if args.cost:
+        write_json(OUT / "lightfield_balls_cost.json", cost(args.cost, args.fuse))
+        return 0
+
+    sets: dict[str, dict[str, Any]] = {}
+    cpu: dict[str, dict[str, float]] = {}
+    for name in args.datasets:
+        t0 = time.perf_counter()
+        queries = None
+        if args.queries == "mesh":
+            ds, balls = load(name, args.split)
+        else:
+            ds, pairs = load(name, args.split, ("mesh", args.queries))
+            balls, queries = [p[0] for p in pairs], [p[1] for p in pairs]
+        mats: dict[str, FloatArray] = {"v4": v4_distances(balls, queries)}
+        cpu[name] = {}
+        for text in dict.fromkeys([*args.configs, args.fuse]):
+            d, per_model, dist_s = light_field_matrix(name, ds, balls, text, queries, args.queries)
+            mats[f"lfb {text}"] = d
+            cpu[name][text] = per_model
+            cpu[name][f"{text} distances s/pair"] = dist_s / max(len(d) * (len(d) - 1) / 2, 1)
+        if args.baselines:
+            mats.update(mesh_baselines(ds))
+        sets[name] = {"labels": np.asarray(ds.labels), "mats": mats}
+        print(f"  {name}: {len(ds)} models ({time.perf_counter() - t0:.0f} s)", flush=True)
+
+    key = f"lfb {args.fuse}"
+    medians = {
+        n: float(np.median(s["mats"][key][np.triu_indices(len(s["labels"]), 1)]))
+        for n, s in sets.items()
+    }
+    typical = args.typical or float(np.exp(np.mean(np.log(list(medians.values())))))
+    rows_spec: list[tuple[str, str, float]] = [("v4", "", 0.0)]
+    rows_spec += [(f"lfb {c}", "", 0.0) for c in dict.fromkeys([*args.configs, args.fuse])]
+    if args.baselines:
+        rows_spec += [("LFD (mesh)", "", 0.0), ("D2 (mesh)", "", 0.0)]
+    for kind in ("sum", "rank", "adapt", "adrank"):
+        rows_spec += [(f"{kind} {w:g}", kind, w) for w in getattr(args, kind)]
+
+    table, rows = [], []
+    base: dict[str, dict[str, float]] = {}
+    for label, kind, w in rows_spec:
+        entry: dict[str, Any] = {"row": label}
+        obj = []
+        for n, s in sets.items():
+            m = s["mats"]
+            d = (
+                fuse(
+                    kind, w, m["v4"], m[key], typical, args.top, args.power, args.ceiling, args.ramp
+                )
+                if kind
+                else m[label]
+            )
+            sc = retrieval_scores(-d, s["labels"])
+            entry[n] = sc
+            obj.append((sc["nn"] + sc["first_tier"] + sc["dcg"]) / 3)
+        entry["objective"] = float(np.mean(obj))
+        if label == "v4":
+            base = {n: entry[n] for n in sets}
+        entry["passes"] = all(
+            entry[n][k] >= base[n][k] - 2.0 / len(sets[n]["labels"]) - 1e-12
+            for n in sets
+            for k in ("nn", "first_tier", "dcg")
+        )
+        table.append(entry)
+        cells = [f"{entry[n]['nn']:.3f}/{entry[n]['first_tier']:.3f}/{entry[n]['dcg']:.3f}"
+                 for n in sets]  # fmt: skip
+        rows.append([label, *cells, f"{entry['objective']:.4f}", "yes" if entry["passes"] else ""])
+    kinds = ("sum", "rank", "adapt", "adrank")
+    fused = [e for e in table if e["passes"] and e["row"].split()[0] in kinds]
+    chosen = max(fused, key=lambda e: e["objective"])["row"] if fused else None
+    print()
+    print(format_table(
+        f"light fields from the balls, {args.split} splits, {args.queries} queries (NN/1-T/DCG), "
+        f"fused: {args.fuse}, "
+        f"typical {typical:.4g}, gate: top {args.top}, power {args.power:g}, "
+        f"ceiling {args.ceiling:g}, ramp {args.ramp:g}",
+        ("row", *sets, "objective", "passes"), rows,
+    ))  # fmt: skip
+    print(f"medians {medians}; chosen {chosen}")
+    print(f"CPU s per model / per pair: {cpu}")
+    out = args.out or OUT / f"lightfield_balls_{args.split}.json"
+    write_json(out, {"split": args.split, "queries": args.queries, "fuse": args.fuse,
+                     "typical": typical,
+                     "top": args.top, "power": args.power, "ceiling": args.ceiling,
+                     "ramp": args.ramp,
+                     "medians": medians, "table": table, "chosen": chosen, "cpu": cpu,
+                     "sizes": {n: len(s["labels"]) for n, s in sets.items()}})  # fmt: skip
+    print(f"written {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

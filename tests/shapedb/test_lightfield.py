@@ -1,0 +1,120 @@
+"""The light field descriptor of shapedb.lightfield on analytic ball sets."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from shapedb.config import LightFieldConfig
+from shapedb.errors import ConfigError
+from shapedb.lightfield import (
+    ball_light_field,
+    dodecahedron_rotations,
+    dodecahedron_views,
+    field_directions,
+    light_field_dim,
+    light_field_distance,
+    render_discs,
+    view_permutations,
+    zernike_magnitudes,
+)
+
+SMALL = LightFieldConfig(n_fields=3, resolution=48)
+
+
+def _turn(seed: int) -> np.ndarray:
+    q, r = np.linalg.qr(np.random.default_rng(seed).normal(size=(3, 3)))
+    q = q * np.sign(np.diag(r))
+    return q if np.linalg.det(q) > 0 else -q
+
+
+def _shapes() -> list[tuple[np.ndarray, np.ndarray]]:
+    """A dumbbell, an L of three balls, a flat ring of eight: (centres, radii)."""
+    dumbbell = (np.array([[0, 0, 0], [3.0, 0, 0], [1.5, 0, 0]]), np.array([1.0, 1.0, 0.4]))
+    ell = (np.array([[0, 0, 0], [2.0, 0, 0], [0, 2.0, 0]]), np.array([1.0, 0.8, 0.8]))
+    t = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    ring = (np.stack([3 * np.cos(t), 3 * np.sin(t), 0 * t], axis=1), np.full(8, 1.0))
+    return [dumbbell, ell, ring]
+
+
+def test_the_sixty_rotations_map_the_dodecahedron_onto_itself() -> None:
+    rots = dodecahedron_rotations()
+    assert rots.shape == (60, 3, 3) and np.allclose(rots[0], np.eye(3))
+    assert np.allclose(np.einsum("kji,kjl->kil", rots, rots), np.eye(3))
+    assert np.allclose(np.linalg.det(rots), 1.0)
+    assert len({tuple(np.round(r, 6).ravel()) for r in rots}) == 60
+    views = dodecahedron_views()
+    for r, perm in zip(rots, view_permutations(), strict=True):
+        assert sorted(perm) == list(range(10))
+        # view v goes to view perm[v] or to its opposite
+        assert np.allclose(np.abs(np.sum((views @ r.T) * views[perm], axis=1)), 1.0)
+
+
+def test_a_single_ball_is_a_centred_disc_from_every_side() -> None:
+    dirs = field_directions(2, 0)
+    sil, depth = render_discs([[5.0, -2.0, 1.0]], [3.0], dirs, 64, depth=True)
+    assert sil.shape == (20, 64, 64) and depth is not None and depth.shape == (20, 2, 64, 64)
+    # the unit disc (plus half a pixel of slack), the same image from every direction
+    c = (np.arange(64) + 0.5) / 32 - 1.0
+    disc = np.hypot(*np.meshgrid(c, c)) <= 1.0 + 1.0 / 64
+    assert all(np.array_equal(s, disc) for s in sil)
+    # depth: the hemisphere's height, 1 at the centre, 1/2 at the rim, front = back
+    assert np.allclose(depth[:, 0], depth[:, 1])
+    assert depth[0, 0, 31:33, 31:33].min() > 0.99 and depth[0, 0][~disc].max() == 0.0
+    z = zernike_magnitudes(sil, 10)
+    # only the rotation-symmetric moments (m = 0) of a centred disc are non-zero
+    orders = [(n, m) for n in range(11) for m in range(n % 2, n + 1, 2)]
+    m = np.array([m for _, m in orders])
+    assert np.all(z[:, 0] > 0.98)
+    assert np.all(z[:, m % 4 != 0] < 1e-9)  # exact: the pixel grid has the square's symmetry
+    assert np.all(z[:, (m > 0) & (m % 4 == 0)] < 0.03)  # the square grid's aliasing only
+    f = ball_light_field([[5.0, -2.0, 1.0]], [3.0], SMALL)
+    assert f.shape == (3, 10, light_field_dim(SMALL))
+    assert np.allclose(f[..., -SMALL.fourier :], 0.0, atol=0.02)  # a circle's contour is flat
+
+
+@pytest.mark.parametrize("depth_weight", [0.0, 1.0])
+def test_a_moved_turned_scaled_copy_is_at_distance_about_zero(depth_weight: float) -> None:
+    cfg = LightFieldConfig(n_fields=10, resolution=64, depth_weight=depth_weight)
+    shapes = _shapes()
+    lf = [ball_light_field(c, r, cfg) for c, r in shapes]
+    moved = []
+    for k, (c, r) in enumerate(shapes):
+        turn = dodecahedron_rotations()[7 + k]  # a symmetry of the views: exact up to pixels
+        moved.append(ball_light_field(2.5 * c @ turn.T + [1.0, -4.0, 2.0], 2.5 * r, cfg))
+    d = light_field_distance(np.stack(lf + moved))
+    assert np.allclose(d, d.T) and np.allclose(np.diag(d), 0.0)
+    between = d[:3, :3][~np.eye(3, dtype=bool)].min()
+    for k in range(3):
+        assert d[k, 3 + k] < 0.15 * between
+        assert np.argmin(d[3 + k, :3]) == k
+    # an arbitrary turn: the ten light fields bound the error
+    c, r = shapes[1]
+    other = ball_light_field(c @ _turn(3).T, r, cfg)
+    far = light_field_distance(np.stack(lf), other[None])[:, 0]
+    assert np.argmin(far) == 1 and far[1] < 0.5 * far[[0, 2]].min()
+
+
+def test_the_distance_is_symmetric_between_query_and_candidates() -> None:
+    rng = np.random.default_rng(0)
+    a = rng.random((4, 3, 10, 46))
+    b = rng.random((5, 2, 10, 46))
+    ab = light_field_distance(a, b, chunk=2)
+    assert ab.shape == (4, 5)
+    assert np.allclose(ab, light_field_distance(b, a).T)
+    full = light_field_distance(a)
+    assert np.allclose(full, light_field_distance(a, a)) and np.allclose(full, full.T)
+    # a rotation of the views (a permutation of the 10 images) costs nothing
+    turned = a[:, :, view_permutations()[11]]
+    assert np.allclose(np.diag(light_field_distance(a, turned)), 0.0)
+
+
+def test_errors_name_the_reason() -> None:
+    with pytest.raises(ValueError, match="do not match"):
+        light_field_distance(np.zeros((2, 1, 10, 46)), np.zeros((2, 1, 10, 45)))
+    with pytest.raises(ValueError, match="no ball"):
+        ball_light_field(np.zeros((2, 3)), np.zeros(2))
+    with pytest.raises(ConfigError, match="n_fields"):
+        LightFieldConfig(n_fields=0)
+    with pytest.raises(ConfigError, match="fourier"):
+        LightFieldConfig(fourier=40, angles=64)
