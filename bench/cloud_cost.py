@@ -130,17 +130,24 @@ def main(argv: list[str] | None = None) -> None:
     import argparse
 
     from bench.common import format_table, write_json
-    from bench.representations import build
+    from bench.datasets import articulated, capod, parts, people
+
+    makers = {"people": people, "capod": capod, "figures": articulated, "parts": parts}
 
     ap = argparse.ArgumentParser(description="Where a cloud query's time goes, per set.")
-    ap.add_argument("--sets", nargs="+", default=["people", "capod", "figures", "parts"])
+    ap.add_argument(
+        "--sets",
+        nargs="+",
+        default=["people", "capod", "figures", "parts"],
+        choices=["people", "capod", "figures", "parts"],
+    )
     ap.add_argument("--split", default="validation", choices=("test", "validation"))
     ap.add_argument("--n", type=int, default=4, help="models per set")
     ap.add_argument("--depth", type=int, nargs="+", default=[8, 7])
     ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args(argv)
     rows, out = [], {}
-    for ds in build(args.sets, args.split):
+    for ds in (makers[name]().split(args.split) for name in args.sets):
         for depth in args.depth:
             runs = [profile_cloud_query(m, depth=depth) for m in ds.models[: args.n]]
             med = {k: float(np.median([r[k] for r in runs])) for k in runs[0]}
