@@ -36,7 +36,7 @@ from bench.datasets import (
     point_cloud,
     stable_seed,
 )
-from shapedb.config import MDBDConfig
+from shapedb.config import CloudConfig, MDBDConfig
 
 __all__ = [
     "format_table",
@@ -45,6 +45,8 @@ __all__ = [
     "retrieval_scores",
     "Balls",
     "VARIANTS",
+    "RECON_BASE_DEPTH",
+    "recon_variant",
     "decompose_all",
     "mdbd_config",
 ]
@@ -225,6 +227,19 @@ CLOUD_TURN_DEGREES = 1.0
 
 #: Surface samples of the ``pointcloud_dense`` variant.
 DENSE_SAMPLES = 20_000
+
+#: Poisson octree depth of the unsuffixed ``*_recon`` variants (``*_recon_d<depth>``:
+#: another depth). Fixed, not the store default, so that cached files keep their meaning.
+RECON_BASE_DEPTH = 8
+
+
+def recon_variant(base: str = "pointcloud", depth: int | None = None) -> str:
+    """The variant of ``base``'s reconstructions at Poisson ``depth``.
+
+    ``depth`` None: a default store's (``CloudConfig.reconstruct_depth``).
+    """
+    d = CloudConfig().reconstruct_depth if depth is None else depth
+    return f"{base}_recon" if d == RECON_BASE_DEPTH else f"{base}_recon_d{d}"
 
 
 @dataclass(frozen=True, eq=False)
@@ -472,8 +487,9 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
     sampled uniformly by area on the surface (no normals); ``mesh_shift`` the mesh translated by
     (0.37, 0.21, 0.43) grid cells; ``mesh_rotate`` randomly rotated (seeded);
     ``mesh_decimate`` decimated to 25 % of its faces (fast-simplification);
-    ``pointcloud_recon`` the screened Poisson surface of the paper's point cloud
-    (``pointcloud_noisy_recon``, ``pointcloud_partial_recon``: of those clouds)
+    ``pointcloud_recon`` the screened Poisson surface (depth :data:`RECON_BASE_DEPTH`)
+    of the paper's point cloud (``pointcloud_noisy_recon``, ``pointcloud_partial_recon``:
+    of those clouds)
     (:func:`shapedb.reconstruct.reconstruct`, decomposed as a mesh; whether it is kept
     is decided against the cloud's own packing, :func:`shapedb.reconstruct.volumes_agree`),
     ``pointcloud_recon_d<depth>`` the same at another octree depth;
@@ -496,10 +512,10 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
         spacing = _mesh_spacing(model, config)
         return view_geometry(TriangleMesh(v, f, name=model.name), spacing, float(variant[5:]))
     if "_recon" in variant and variant.startswith("pointcloud"):
-        from shapedb.reconstruct import DEPTH, reconstruct
+        from shapedb.reconstruct import reconstruct
 
         base, _, rest = variant.partition("_recon")
-        depth = int(rest.removeprefix("_d")) if rest.startswith("_d") else DEPTH
+        depth = int(rest.removeprefix("_d")) if rest.startswith("_d") else RECON_BASE_DEPTH
         # in the cloud's frame, as shapedb.reconstruct.reconstructed does
         surface = reconstruct(_framed_cloud(model, v, f, config, base), depth=depth)
         if surface is None:

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.common import Balls, decompose_all
+from bench.common import Balls, decompose_all, recon_variant
 from bench.datasets import Dataset, stable_seed
 from shapedb import kernel
 from shapedb.config import Config, KernelConfig, MDBDConfig
@@ -56,13 +56,16 @@ def reconstructions(
     mdbd: MDBDConfig,
     *,
     workers: int = 2,
-    variant: str = "pointcloud_recon",
+    variant: str | None = None,
 ) -> list[Balls | None]:
     """Each cloud's kept reconstruction (:mod:`shapedb.reconstruct`), else the cloud itself.
 
+    ``variant``: the reconstructions' decomposition variant (default: the paper
+    cloud's at a default store's Poisson depth, :func:`bench.common.recon_variant`).
+
     The cloud itself adds no comparison to the nearest-of rule (``query.engine``).
     """
-    found = decompose_all(models, variant, mdbd, workers=workers)
+    found = decompose_all(models, variant or recon_variant(), mdbd, workers=workers)
     return [
         r if r is not None and c is not None and volumes_agree(c.radii, r.radii) else c
         for r, c in zip(found, clouds, strict=True)

@@ -34,14 +34,23 @@ and the candidates a run adds (``--methods``): ``mean`` (the default store, a sp
 cloud's own and kept reconstruction's features averaged instead of the nearer of
 the two taken), ``pose-free`` (the default descriptor without its pose blocks
 ``d2c_mean`` and ``inertia``), ``pose-free mean`` (both), ``v6`` (a store with
-descriptor version 6: ``pose-free`` as a descriptor version, rescaled, same ranking).
-Cost: median seconds per mesh ingest (decomposition) and per cloud query (the cloud's decomposition, plus its
-reconstruction's, Poisson solve included, when the method uses it), and their ratio
-to ``default``; wall clock on a shared machine, so compare ratios within one run.
+descriptor version 6: ``pose-free`` as a descriptor version, rescaled, same ranking),
+``own`` / ``d8`` / ``d7`` (a store without reconstructions, or with them at Poisson
+depth 8 / 7) and ``v6 own`` / ``v6 d8`` / ``v6 d7`` (the same with version 6).
+Cost columns: median seconds of the cached decompositions' own stages per mesh and
+per cloud query (the cloud's, plus its reconstruction's, Poisson solve included,
+when the method uses it), and their ratio to the first method; they come from
+different runs, so only the live cost rows below compare like with like.
+
+Cost rows (``--cost N``, default 6): the first N models of each set through the
+facade in one run (:mod:`bench.cloud_cost`): median wall seconds of ``db.ingest`` of
+a mesh, ``db.search`` of a mesh and ``db.search`` of its 20 % cloud, and the
+per-model ratio cloud / mesh query, for the default store and the cloud
+configurations of :data:`COST_CONFIGS`.
 
 Usage: ``python -m bench.representations [--sets people capod figures parts]
-[--split test] [--kinds cloud noisy partial] [--workers 2] [--cached [--engine-commits C ...]]
-[--out PATH]``.
+[--split test] [--kinds cloud noisy partial] [--methods default v6 ...] [--workers 2]
+[--cost N] [--cached [--engine-commits C ...]] [--out PATH]``.
 Decompositions come from :func:`bench.common.decompose_all` (cached).
 """
 
@@ -66,6 +75,7 @@ from bench.common import (
     format_table,
     load_balls,
     mdbd_config,
+    recon_variant,
     retrieval_scores,
     variant_geometry,
     write_json,
@@ -86,12 +96,20 @@ from shapedb.config import Config, KernelConfig, MDBDConfig
 
 OUT = Path(__file__).resolve().parent / "results" / "representations.json"
 
-#: Query kinds and the decomposition variants of their clouds and reconstructions.
+#: Query kinds and the decomposition variants of their clouds and reconstructions
+#: (at Poisson depth 8; :func:`kind_recon` for others).
 KINDS = {
     "cloud": ("pointcloud", "pointcloud_recon"),
     "noisy": ("pointcloud_noisy", "pointcloud_noisy_recon"),
     "partial": ("pointcloud_partial", "pointcloud_partial_recon"),
 }
+
+
+def kind_recon(kind: str, depth: int) -> str:
+    """The decomposition variant of a ``kind``'s reconstructions at Poisson ``depth``."""
+    return recon_variant(KINDS[kind][0], depth)
+
+
 #: Point pairs of the D2 baseline (fewer than Osada's 2^20: it ranks alike and is 4x faster).
 D2_PAIRS = 1 << 18
 
@@ -100,15 +118,15 @@ D2_PAIRS = 1 << 18
 class SetData:
     """One split of one set: its models, mesh balls and per-kind cloud balls.
 
-    ``clouds[kind]`` and ``recons[kind]`` hold one entry per model; a recon entry is
-    None where the store keeps no reconstruction (dense cloud, failed solve, volume
-    disagreement).
+    ``clouds[kind]`` and ``recons[depth][kind]`` (Poisson octree ``depth``) hold one
+    entry per model; a recon entry is None where the store keeps no reconstruction
+    (dense cloud, failed solve, volume disagreement).
     """
 
     ds: Dataset
     mesh: list[Balls]
     clouds: dict[str, list[Balls]]
-    recons: dict[str, list[Balls | None]]
+    recons: dict[int, dict[str, list[Balls | None]]]
 
     @property
     def labels(self) -> NDArray[Any]:
@@ -130,13 +148,19 @@ def cached_only(models: Sequence[Model], variant: str, mdbd: MDBDConfig) -> list
 
 
 def load_set(
-    ds: Dataset, mdbd: MDBDConfig, kinds: Sequence[str], workers: int, *, cached: bool = False
+    ds: Dataset,
+    mdbd: MDBDConfig,
+    kinds: Sequence[str],
+    workers: int,
+    *,
+    cached: bool = False,
+    depths: Sequence[int] = (8,),
 ) -> SetData:
     """Decompose (or read from the cache) every variant the requested ``kinds`` need.
 
-    Models whose mesh or cloud decomposition failed (``cached``: is not in the cache)
-    are left out of every row; with ``cached`` a reconstruction not in the cache
-    counts as not kept.
+    Reconstructions at each Poisson octree depth of ``depths``. Models whose mesh or
+    cloud decomposition failed (``cached``: is not in the cache) are left out of
+    every row; with ``cached`` a reconstruction not in the cache counts as not kept.
     """
     from shapedb.reconstruct import volumes_agree
     from shapedb.view import is_sparse
@@ -156,24 +180,19 @@ def load_set(
     if len(keep) < len(ds):
         print(f"  {ds.name}: {len(ds) - len(keep)} model(s) left out (a decomposition failed)")
     sub = Dataset(ds.name, tuple(ds.models[i] for i in keep))
-    recons: dict[str, list[Balls | None]] = {}
+    recons: dict[int, dict[str, list[Balls | None]]] = {d: {} for d in depths}
     for k in kinds:
         sparse = [is_sparse(raw[k][i].sampling, raw[k][i].spacing) for i in keep]  # type: ignore[union-attr]
         todo = [m for m, s in zip(sub.models, sparse, strict=True) if s]
-        found = dict(
-            zip(
-                [m.name for m in todo],
-                get(todo, KINDS[k][1]),
-                strict=True,
-            )
-        )
-        out: list[Balls | None] = []
-        for i, m in zip(keep, sub.models, strict=True):
-            r = found.get(m.name)
-            c = raw[k][i]
-            ok = r is not None and c is not None and volumes_agree(c.radii, r.radii)
-            out.append(r if ok else None)
-        recons[k] = out
+        for depth in depths:
+            found = dict(zip([m.name for m in todo], get(todo, kind_recon(k, depth)), strict=True))
+            out: list[Balls | None] = []
+            for i, m in zip(keep, sub.models, strict=True):
+                r = found.get(m.name)
+                c = raw[k][i]
+                ok = r is not None and c is not None and volumes_agree(c.radii, r.radii)
+                out.append(r if ok else None)
+            recons[depth][k] = out
     return SetData(
         sub,
         [mesh[i] for i in keep],  # type: ignore[misc]
@@ -224,17 +243,25 @@ def pose_free_mask(config: KernelConfig) -> NDArray[np.float64]:
     return np.asarray(cols)
 
 
+def default_depth() -> int | None:
+    """The Poisson depth of a default store's reconstructions; None when it keeps none."""
+    cloud = Config().cloud
+    return cloud.reconstruct_depth if cloud.reconstruct else None
+
+
 def store_rule(
     data: SetData,
     config: KernelConfig | Config,
     *,
     reconstruct: bool = True,
+    depth: int | None = None,
     combine: str = "nearest",
     mask: NDArray[np.float64] | None = None,
 ) -> Distances:
     """Distances as a store with ``config`` compares a cloud and its reconstruction.
 
-    ``combine`` ``"nearest"`` (the store's rule): the nearer of the cloud's own
+    ``reconstruct``: whether clouds have reconstructions, at Poisson ``depth``
+    (default: the default store's, :func:`default_depth`). ``combine`` ``"nearest"`` (the store's rule): the nearer of the cloud's own
     feature and its kept reconstruction's; ``"mean"``: the mean of the two features
     (two packings of the query averaged). ``mask`` (dim,) multiplies every feature
     (e.g. :func:`pose_free_mask`).
@@ -248,7 +275,7 @@ def store_rule(
         d = l1_matrix(fc, fm)
         secs = np.array([cost(b) + per for b in balls])
         if reconstruct:
-            rec = data.recons[k]
+            rec = data.recons[depth or default_depth() or 8][k]
             idx = [i for i, r in enumerate(rec) if r is not None]
             if idx:
                 fr = kernel_features([rec[i] for i in idx], config) * scale  # type: ignore[misc]
@@ -272,7 +299,18 @@ def store_rule(
 
 def default_method(data: SetData) -> Distances:
     """Today's default store."""
-    return store_rule(data, KernelConfig())
+    return store_rule(data, KernelConfig(), reconstruct=default_depth() is not None)
+
+
+def recon_method(depth: int | None, descriptor: int = 4) -> Callable[[SetData], Distances]:
+    """A store with descriptor ``descriptor`` and reconstructions at ``depth`` (None: none)."""
+
+    def method(data: SetData) -> Distances:
+        config = Config().with_options(descriptor=descriptor)
+        return store_rule(data, config, reconstruct=depth is not None, depth=depth)
+
+    method.__doc__ = f"descriptor {descriptor}, reconstructions at depth {depth}"
+    return method
 
 
 def mean_method(data: SetData) -> Distances:
@@ -292,7 +330,8 @@ def pose_free_mean_method(data: SetData) -> Distances:
 
 def v6_method(data: SetData) -> Distances:
     """A store with descriptor version 6 (no pose blocks; opt-in)."""
-    return store_rule(data, Config().with_options(descriptor=6))
+    depth = default_depth()
+    return store_rule(data, Config().with_options(descriptor=6), reconstruct=depth is not None)
 
 
 def paper_method(data: SetData) -> Distances:
@@ -344,7 +383,22 @@ METHODS: dict[str, Callable[[SetData], Distances]] = {
     "paper": paper_method,
     "D2": d2_method,
     "v6": v6_method,
+    "own": recon_method(None),
+    "d8": recon_method(8),
+    "d7": recon_method(7),
+    "v6 own": recon_method(None, 6),
+    "v6 d8": recon_method(8, 6),
+    "v6 d7": recon_method(7, 6),
 }
+
+
+def method_depths(methods: Sequence[str]) -> list[int]:
+    """The Poisson depths whose reconstructions ``methods`` read."""
+    out = {default_depth() or 8}
+    for m in methods:
+        if m.endswith(("d8", "d7")):
+            out.add(int(m[-1]))
+    return sorted(out)
 
 
 # --------------------------------------------------------------------------------------
@@ -391,6 +445,66 @@ def build(names: Sequence[str], split: str) -> list[Dataset]:
     return [makers[n]().split(split) for n in names]
 
 
+#: Store configurations whose query cost ``--cost`` measures (``shapedb.connect`` options).
+COST_CONFIGS: dict[str, dict[str, Any]] = {
+    "default": {},
+    "reconstruct_depth=8": {"reconstruct": True, "reconstruct_depth": 8},
+    "reconstruct_depth=7": {"reconstruct": True, "reconstruct_depth": 7},
+    "reconstruct=False": {"reconstruct": False},
+}
+
+
+def cost_table(ds: Dataset, n: int) -> tuple[str, list[list[Any]]]:
+    """Live cost rows (:func:`bench.cloud_cost.measure`) of the first ``n`` models of ``ds``.
+
+    Per configuration of :data:`COST_CONFIGS` (those equal to the default left out):
+    median wall seconds of a mesh ingest, a mesh query and a cloud query, the median
+    of the per-model ratios cloud / mesh query, and the cloud query's median against
+    the default's.
+    """
+    from bench.cloud_cost import measure
+
+    base = Config()
+    configs = {
+        k: v
+        for k, v in COST_CONFIGS.items()
+        if k == "default" or Config().with_options(**v) != base
+    }
+    got = measure(ds.models[:n], configs)
+    rows: list[list[Any]] = []
+    ref = float(np.median(got["default"]["cloud"]))
+    for name, t in got.items():
+        ratio = np.asarray(t["cloud"]) / np.asarray(t["mesh"])
+        cloud = float(np.median(t["cloud"]))
+        rows.append(
+            [
+                name,
+                float(np.median(t["ingest"])),
+                float(np.median(t["mesh"])),
+                cloud,
+                float(np.median(ratio)),
+                float(np.max(ratio)),
+                cloud / ref,
+            ]
+        )
+    title = (
+        f"{ds.name}: cost of the first {n} models through the facade, one run, wall s "
+        "(db.ingest of a mesh, db.search of a mesh, db.search of its 20 % cloud)"
+    )
+    return title, rows
+
+
+COST_COLUMNS = (
+    "store",
+    "mesh ingest",
+    "mesh query",
+    "cloud query",
+    "cloud/mesh (median)",
+    "cloud/mesh (max)",
+    "x default",
+)
+
+
 def run(
     datasets: Sequence[Dataset],
     methods: Sequence[str],
@@ -399,12 +513,16 @@ def run(
     mdbd: MDBDConfig,
     workers: int,
     cached: bool = False,
+    cost_models: int = 0,
 ) -> dict[str, Any]:
-    """Every set's table (printed) and the JSON-ready results."""
+    """Every set's table (printed) and the JSON-ready results.
+
+    ``cost_models`` > 0 adds each set's live cost rows (:func:`cost_table`).
+    """
     out: dict[str, Any] = {}
     columns = ("method", "query", "NN", "1-T", "DCG", "own-first", "cost s", "x default")
     for ds in datasets:
-        data = load_set(ds, mdbd, kinds, workers, cached=cached)
+        data = load_set(ds, mdbd, kinds, workers, cached=cached, depths=method_depths(methods))
         rows: list[list[Any]] = []
         base: dict[str, float] = {}
         for name in methods:
@@ -423,6 +541,11 @@ def run(
         )
         print()
         out[ds.name] = {"n": len(data.ds), "columns": list(columns), "table": rows}
+        if cost_models > 0:
+            title, crows = cost_table(data.ds, cost_models)
+            print(format_table(title, COST_COLUMNS, crows))
+            print()
+            out[ds.name]["cost"] = {"columns": list(COST_COLUMNS), "table": crows}
     return out
 
 
@@ -438,6 +561,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--kinds", nargs="+", default=list(KINDS), choices=list(KINDS))
     ap.add_argument("--methods", nargs="+", default=["default", "paper", "D2"])
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument(
+        "--cost",
+        type=int,
+        default=6,
+        metavar="N",
+        help="live cost rows on the first N models of each set (0: none)",
+    )
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument(
         "--cached", action="store_true", help="decompose nothing: use what is in the cache"
@@ -461,6 +591,7 @@ def main(argv: list[str] | None = None) -> None:
         mdbd=mdbd,
         workers=args.workers,
         cached=args.cached,
+        cost_models=args.cost,
     )
     write_json(
         args.out,

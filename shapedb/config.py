@@ -267,12 +267,14 @@ class CloudConfig:
         dense shapes' own features; dense shapes pay nothing.
     reconstruct_depth : int
         Octree depth of the reconstructions' Poisson solve (2^depth cells along the
-        cloud's box at the finest level), in [4, 12].
+        cloud's box at the finest level), in [4, 12]. Default 7 (chosen on the
+        validation splits, ``docs/results.md``, "Issue 26: the cost of a cloud
+        query"); stores that do not record it read 8.
     """
 
     view_cells: float = 0.0
     reconstruct: bool = True
-    reconstruct_depth: int = 8
+    reconstruct_depth: int = 7
 
     def __post_init__(self) -> None:
         _check(

@@ -34,8 +34,8 @@ __all__ = ["DEPTH", "VOLUME_TOLERANCE", "reconstruct", "reconstructed", "volumes
 
 log = logging.getLogger(__name__)
 
-#: Default octree depth of the Poisson solve (2^8 cells along the box at the finest
-#: level; the 20 % clouds have 2,000-5,000 samples); stores record theirs as
+#: Default octree depth of the Poisson solve (2^7 cells along the box at the finest
+#: level; the 20 % clouds have 1,400-5,000 samples); stores record theirs as
 #: ``CloudConfig.reconstruct_depth``.
 DEPTH: int = CloudConfig.reconstruct_depth
 #: Largest ratio between the ball volumes of a cloud's packing and of its

@@ -74,15 +74,15 @@ def test_store_rule_mean_averages_a_cloud_and_its_reconstruction() -> None:
     mesh = [_balls(1.0, 0.0), _balls(0.8, 0.0)]
     cloud = [_balls(0.9, 0.0), _balls(0.7, 0.0)]
     recon = [_balls(1.1, 0.0), None]
-    data = SetData(Dataset("toy", models), mesh, {"cloud": cloud}, {"cloud": recon})
+    data = SetData(Dataset("toy", models), mesh, {"cloud": cloud}, {8: {"cloud": recon}})
     cfg = KernelConfig()
     mask = pose_free_mask(cfg)
     fm, fc = kernel_features(mesh, cfg) * mask, kernel_features(cloud, cfg) * mask
     fr = kernel_features([recon[0]], cfg) * mask
-    got = store_rule(data, cfg, combine="mean", mask=mask).cloud["cloud"]
+    got = store_rule(data, cfg, depth=8, combine="mean", mask=mask).cloud["cloud"]
     np.testing.assert_allclose(got[0], np.abs(fm - 0.5 * (fc[0] + fr[0])).sum(axis=1))
     np.testing.assert_allclose(got[1], np.abs(fm - fc[1]).sum(axis=1))  # no reconstruction
-    nearest = store_rule(data, cfg, mask=mask).cloud["cloud"]
+    nearest = store_rule(data, cfg, depth=8, mask=mask).cloud["cloud"]
     np.testing.assert_allclose(
         nearest[0], np.minimum(np.abs(fm - fc[0]).sum(1), np.abs(fm - fr[0]).sum(1))
     )
