@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +40,12 @@ def _forget(db: Any) -> None:
     cached = sql._CONNECTIONS.pop(key, None)
     if cached is not None:
         cached[1].close()
+
+
+@pytest.fixture(scope="session")
+def forget() -> Callable[[Any], None]:
+    """Drop the process's caches of a store (index, catalog, SQL connection), as a new process would."""
+    return _forget
 
 
 @pytest.fixture()

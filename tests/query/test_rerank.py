@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from conftest import _forget
 from query_helpers import CONFIG
 
 from query import rerank
@@ -145,7 +144,9 @@ STAGE = CONFIG.with_options(
 
 
 @pytest.fixture()
-def stage_db(tmp_path: Path, example_records: list[ShapeRecord]) -> Iterator[Any]:
+def stage_db(
+    tmp_path: Path, example_records: list[ShapeRecord], forget: Callable[[Any], None]
+) -> Iterator[Any]:
     """The 14 example shapes in a store of version 7 with the adaptive stage (K = 6)."""
     import shapedb.database as database
 
@@ -159,7 +160,7 @@ def stage_db(tmp_path: Path, example_records: list[ShapeRecord]) -> Iterator[Any
         ]
     )
     yield db
-    _forget(db)
+    forget(db)
 
 
 def _rank_matrix(db: Any) -> tuple[np.ndarray, np.ndarray, list[Any]]:
@@ -185,18 +186,20 @@ def test_evaluation_ranks_as_search_does(stage_db: Any) -> None:
     assert not np.array_equal(np.argsort(ranks, axis=1), np.argsort(plain, axis=1, kind="stable"))
 
 
-def test_a_reopened_store_searches_the_same_way(stage_db: Any) -> None:
+def test_a_reopened_store_searches_the_same_way(
+    stage_db: Any, forget: Callable[[Any], None]
+) -> None:
     import shapedb.database as database
 
     some = [int(i) for i in stage_db.store.features()[0][[0, 3, 9]]]
     before = [[(h.id, h.distance) for h in row] for row in stage_db.search_batch(some, k=8)]
     path = stage_db.store.path
-    _forget(stage_db)
+    forget(stage_db)
     again = database.connect(path)
     assert again.config.rerank == STAGE.rerank and again.config == STAGE
     after = [[(h.id, h.distance) for h in row] for row in again.search_batch(some, k=8)]
     assert after == before
-    _forget(again)
+    forget(again)
 
 
 def test_a_scorer_of_its_own_module_is_imported_on_first_use(

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -25,14 +25,6 @@ from shapedb.kernel import weights
 from shapedb.lightfield import light_field_distance
 
 STAGE = CONFIG.with_options(rerank="lightfield", rerank_candidates=6)
-
-
-def _forget(db: Any) -> None:
-    """Drop the process's caches of ``db`` (as tests/query/conftest.py does)."""
-    import importlib
-
-    index = importlib.import_module("query.index")
-    index._forget(db)
 
 
 def _study_case(n: int = 40, seed: int = 0) -> tuple[Config, np.ndarray, np.ndarray, np.ndarray]:
@@ -113,7 +105,7 @@ def _shapes() -> dict[str, Any]:
 
 
 @pytest.fixture(scope="module")
-def lf_db(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
+def lf_db(tmp_path_factory: pytest.TempPathFactory, forget: Callable[[Any], None]) -> Iterator[Any]:
     """Seven analytic shapes ingested by a store with the "lightfield" scorer (K = 6)."""
     import shapedb.database as database
 
@@ -122,7 +114,7 @@ def lf_db(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
     labels = {n: n.split("_")[0] for n in shapes}
     db.ingest([(n, labels[n], g) for n, g in shapes.items()], workers=1)
     yield db
-    _forget(db)
+    forget(db)
 
 
 def test_ingest_stores_the_light_fields_and_a_reopened_store_searches_the_same(
@@ -165,13 +157,13 @@ def test_evaluation_ranks_as_search_does(lf_db: Any) -> None:
 
 
 def test_a_store_written_before_the_column_searches_in_the_stored_order(
-    tmp_path: Path, caplog: pytest.LogCaptureFixture
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, forget: Callable[[Any], None]
 ) -> None:
     import shapedb.database as database
 
     db = database.connect(tmp_path / "old", config=STAGE)
     db.ingest([(n, g) for n, g in list(_shapes().items())[:4]], workers=1)
-    _forget(db)
+    forget(db)
     for seg in (tmp_path / "old").rglob("*.parquet"):
         if "shapes" in str(seg):
             pq.write_table(pq.read_table(seg).drop_columns([COLUMN]), seg)
@@ -190,7 +182,7 @@ def test_a_store_written_before_the_column_searches_in_the_stored_order(
     index = __import__("query.index").index.open_index(old)
     want, _ = index.search(index.features_of(hits[0].id)[None], 4)
     assert [h.id for h in hits] == want[0].tolist() and plain.rerank.scorer == "none"
-    _forget(old)
+    forget(old)
 
 
 def test_the_scorer_is_registered_by_its_module() -> None:

@@ -10,14 +10,13 @@ shape's own feature.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 import trimesh
-from conftest import _forget
 
 import shapedb
 from query.evaluate import retrieval_scores
@@ -51,7 +50,9 @@ def _cloud(mesh: TriangleMesh, name: str, n: int = 600) -> PointCloud:
 
 
 @pytest.fixture(scope="module")
-def view_db(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
+def view_db(
+    tmp_path_factory: pytest.TempPathFactory, forget: Callable[[Any], None]
+) -> Iterator[Any]:
     """Six meshes and one sparse cloud (of capsule-b), ingested with views."""
     meshes = _meshes()
     names = [*meshes, "cloud-capsule-b"]
@@ -61,7 +62,7 @@ def view_db(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
     report = db.ingest(geoms, names=names, labels=labels, workers=1)
     assert len(report.failed) == 0, report.failed
     yield db
-    _forget(db)
+    forget(db)
 
 
 def _table(db: Any) -> dict[str, Any]:
@@ -200,7 +201,9 @@ def test_a_learned_metric_weighs_views_too(view_db: Any) -> None:
     assert fitted.fingerprint == view_db.config.fingerprint
 
 
-def test_store_without_views_keeps_meshes_to_one_feature(tmp_path: Path) -> None:
+def test_store_without_views_keeps_meshes_to_one_feature(
+    tmp_path: Path, forget: Callable[[Any], None]
+) -> None:
     """Without views a mesh has one feature; a sparse cloud still has its reconstruction."""
     cfg = Config().with_options(resolution=32, n_balls=48)
     db = shapedb.connect(tmp_path / "plain", config=cfg)
@@ -224,7 +227,7 @@ def test_store_without_views_keeps_meshes_to_one_feature(tmp_path: Path) -> None
             int(i): round(float(w), 4) for i, w in zip(ids, want, strict=True)
         }
     finally:
-        _forget(db)
+        forget(db)
 
 
 def _forget_checksums(root: Path) -> None:
@@ -238,7 +241,9 @@ def _forget_checksums(root: Path) -> None:
     (root / "manifest.json").write_text(json.dumps(manifest))
 
 
-def test_rows_written_before_the_view_column_read_as_null(tmp_path: Path) -> None:
+def test_rows_written_before_the_view_column_read_as_null(
+    tmp_path: Path, forget: Callable[[Any], None]
+) -> None:
     """A store whose first Parquet file predates ``view_feature`` (the column is absent)."""
     import pyarrow.parquet as pq
 
@@ -262,11 +267,11 @@ def test_rows_written_before_the_view_column_read_as_null(tmp_path: Path) -> Non
         assert counts == [{"n": 2, "v": 1}]
         assert {h.name for h in db.search(_cloud(meshes["disc-a"][1], "q"), k=2)} == {"old", "new"}
     finally:
-        _forget(db)
+        forget(db)
 
 
 def test_a_shape_whose_view_fails_is_stored_without_one(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, forget: Callable[[Any], None]
 ) -> None:
     import shapedb.view as view_module
     from shapedb.errors import DegenerateGeometryError
@@ -282,10 +287,12 @@ def test_a_shape_whose_view_fails_is_stored_without_one(
         assert len(report.ingested) == 1 and not report.failed
         assert db.get("box").view_feature is None
     finally:
-        _forget(db)
+        forget(db)
 
 
-def test_implicit_and_voxel_shapes_get_views_too(tmp_path: Path) -> None:
+def test_implicit_and_voxel_shapes_get_views_too(
+    tmp_path: Path, forget: Callable[[Any], None]
+) -> None:
     from shapedb.implicit import Capsule
     from shapedb.voxels import VoxelGrid
 
@@ -304,7 +311,7 @@ def test_implicit_and_voxel_shapes_get_views_too(tmp_path: Path) -> None:
             assert record.view_feature is not None, name
             assert not np.allclose(record.view_feature, record.feature)
     finally:
-        _forget(db)
+        forget(db)
 
 
 def test_merged_lists_keep_each_shape_once_at_its_smallest_distance() -> None:
@@ -325,7 +332,9 @@ def test_merged_lists_keep_each_shape_once_at_its_smallest_distance() -> None:
     assert ids.tolist() == [3, -1] and dist[1] == np.inf
 
 
-def test_a_cloud_decomposes_alike_however_it_was_handled(tmp_path: Path) -> None:
+def test_a_cloud_decomposes_alike_however_it_was_handled(
+    tmp_path: Path, forget: Callable[[Any], None]
+) -> None:
     """Hashing, ingesting and reconstructing a cloud leave no state that changes its packing."""
     cfg = Config().with_options(resolution=32, n_balls=48)
     mesh = _meshes()["box-a"][1]
@@ -340,7 +349,7 @@ def test_a_cloud_decomposes_alike_however_it_was_handled(tmp_path: Path) -> None
         assert first.name == again.name == "cloud"
         assert first.distance == again.distance == pytest.approx(0.0, abs=1e-5)
     finally:
-        _forget(db)
+        forget(db)
 
 
 def test_asking_for_a_clouds_normals_first_changes_nothing() -> None:
@@ -354,7 +363,7 @@ def test_asking_for_a_clouds_normals_first_changes_nothing() -> None:
 
 
 def test_a_failed_reconstruction_leaves_the_cloud_with_one_feature(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, forget: Callable[[Any], None]
 ) -> None:
     import shapedb.reconstruct as rec
 
@@ -370,10 +379,12 @@ def test_a_failed_reconstruction_leaves_the_cloud_with_one_feature(
         assert db.get("cloud").view_feature is None
         assert db.search("cloud", k=1)[0].name == "cloud"
     finally:
-        _forget(db)
+        forget(db)
 
 
-def test_reconstructions_can_be_turned_off_and_old_stores_read_without(tmp_path: Path) -> None:
+def test_reconstructions_can_be_turned_off_and_old_stores_read_without(
+    tmp_path: Path, forget: Callable[[Any], None]
+) -> None:
     cfg = Config().with_options(resolution=32, n_balls=48, reconstruct=False)
     db = shapedb.connect(tmp_path / "plain", config=cfg)
     mesh = _meshes()["box-a"][1]
@@ -387,7 +398,7 @@ def test_reconstructions_can_be_turned_off_and_old_stores_read_without(tmp_path:
         for sid, d in zip(ids, np.abs(own - f).sum(1), strict=True):  # own features only
             assert got[int(sid)] == pytest.approx(d, rel=1e-5, abs=1e-6)
     finally:
-        _forget(db)
+        forget(db)
     stored = Config().to_dict()
     del stored["cloud"]["reconstruct"]  # a store written before reconstructions
     assert Config.from_dict(stored).cloud.reconstruct is False
@@ -395,7 +406,7 @@ def test_reconstructions_can_be_turned_off_and_old_stores_read_without(tmp_path:
 
 
 def test_the_stores_poisson_depth_reaches_ingest_and_search(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, forget: Callable[[Any], None]
 ) -> None:
     import shapedb.reconstruct as rec
 
@@ -414,7 +425,7 @@ def test_the_stores_poisson_depth_reaches_ingest_and_search(
         db.ingest([mesh, _cloud(mesh, "c")], names=["box", "cloud"], workers=1)
         db.search(_cloud(mesh, "q"), k=1)
     finally:
-        _forget(db)
+        forget(db)
     assert depths == [6, 6]  # the stored cloud, then the query
     stored = Config().to_dict()
     del stored["cloud"]["reconstruct_depth"]  # written before the depth was stored
@@ -423,7 +434,9 @@ def test_the_stores_poisson_depth_reaches_ingest_and_search(
         Config().with_options(reconstruct_depth=20)
 
 
-def test_a_store_of_meshes_never_builds_a_second_index(tmp_path: Path) -> None:
+def test_a_store_of_meshes_never_builds_a_second_index(
+    tmp_path: Path, forget: Callable[[Any], None]
+) -> None:
     cfg = Config().with_options(resolution=32, n_balls=48)
     db = shapedb.connect(tmp_path / "meshes", config=cfg)
     meshes = _meshes()
@@ -433,7 +446,7 @@ def test_a_store_of_meshes_never_builds_a_second_index(tmp_path: Path) -> None:
         db.search(meshes["disc-a"][1], k=2)
         assert not (db.store.path / "index_view").exists()
     finally:
-        _forget(db)
+        forget(db)
 
 
 @pytest.mark.parametrize("query", ["cloud-capsule-b", "capsule-b", "disc-a"])
