@@ -7,7 +7,7 @@ Usage (from the repository root)::
     python -m bench.lightfield_rerank --cost                # per-query db.search time
 
 For each set's split (meshes; the cached decompositions the light field study reads,
-:func:`bench.studies.lightfield_balls.load`; nothing is decomposed), every shape queries a
+:func:`bench.cached.load`; nothing is decomposed), every shape queries a
 flat :class:`query.index.FeatureIndex` through :func:`query.rerank.search` with ``k =
 n`` (the product's search path), its own id given, as ``db.search(id)`` does. Rows, in
 the same run:
@@ -20,9 +20,8 @@ the same run:
   fields read by id as a store keeps them (float32,
   :func:`shapedb.lightfield.record_light_field` of the balls).
 
-Check against the study: with every shape a candidate (K = n) the scorer must rank
-every query exactly as :func:`bench.studies.lightfield_balls.fuse` (``adrank``, the
-chosen setting) ranks it; the table gives the queries whose whole ranking is identical.
+That the scorer ranks as the study's formula does is checked by the study
+(``python -m bench.studies.lightfield_balls --check-product``).
 
 ``--cost`` builds three stores of the web validation shapes (v4 without a stage, v4 with
 ``rerank="lightfield"``, v7 with ``rerank="adaptive"``), times ``db.search(id, k=10)``
@@ -43,14 +42,13 @@ from typing import Any
 
 import numpy as np
 
+from bench.cached import load
 from bench.common import format_table, retrieval_scores, write_json
 from bench.features import kernel_features
-from bench.studies.lightfield_balls import fuse, load
 from query import rerank
 from query.index import FeatureIndex
 from shapedb.config import Config
-from shapedb.descriptor import LAYOUTS
-from shapedb.lightfield import ball_light_field, light_field_distance, record_light_field
+from shapedb.lightfield import record_light_field
 
 RESULTS = Path(__file__).resolve().parent / "results"
 SETS = ("web", "generic", "capod", "figures", "parts", "people")
@@ -58,7 +56,7 @@ _MEASURES = ("nn", "first_tier", "dcg")
 _CHUNK = 32
 
 
-def _index(x: np.ndarray) -> FeatureIndex:
+def index_of(x: np.ndarray) -> FeatureIndex:
     """A flat index over pre-weighted vectors (plain L1 is the stored distance)."""
     return FeatureIndex(kind="flat").fit(
         np.arange(len(x)), x.astype(np.float32), np.ones(x.shape[1])
@@ -102,41 +100,19 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     lf_cfg = Config().with_options(rerank="lightfield")
     adaptive = Config().with_options(descriptor=7, rerank="adaptive")
     table: dict[str, dict[str, Any]] = {"v4": {}, "adaptive (v7)": {}, "lightfield": {}}
-    checks: dict[str, Any] = {}
     for name in args.datasets:
         t0 = time.perf_counter()
         ds, balls = load(name, args.split)
         labels = np.asarray(ds.labels)
         v4 = kernel_features(balls, Config())
         lf = light_fields(balls, lf_cfg)
-        i4 = _index(v4)
+        i4 = index_of(v4)
         table["v4"][name] = _scores(rankings(i4, Config()), labels)
         if not args.no_adaptive:
             v7 = kernel_features(balls, Config().with_options(descriptor=7))
-            table["adaptive (v7)"][name] = _scores(rankings(_index(v7), adaptive), labels)
+            table["adaptive (v7)"][name] = _scores(rankings(index_of(v7), adaptive), labels)
         table["lightfield"][name] = _scores(rankings(i4, lf_cfg, lf), labels)
-        # the study's formula on the whole collection against the scorer with K = n
-        n = len(v4)
-        whole = lf_cfg.with_options(rerank_candidates=n)
-        d4 = np.abs(v4[:, None, :] - v4[None, :, :]).sum(-1)
-        d4 /= np.log(10.0) / sum(b[3] for b in LAYOUTS[4])
-        f = whole.lf_fusion
-        for kind, arr in (("float64", None), ("float32", lf)):
-            fields = (
-                np.stack([ball_light_field(b.centers, b.radii, whole.light_field) for b in balls])
-                if arr is None
-                else arr.astype(np.float64)
-            )
-            dl = light_field_distance(fields)
-            study = np.argsort(
-                fuse("adrank", f.weight, d4, dl, f.typical, f.neighbours, f.power, f.ceiling,
-                     f.ramp), axis=1, kind="stable",
-            )  # fmt: skip
-            got = rankings(_index(v4), whole, fields)
-            same = int(np.all(got == study, axis=1).sum())
-            checks.setdefault(name, {})[kind] = {"identical_rankings": same, "queries": n}
-        print(f"  {name}: {n} models, study check {checks[name]} "
-              f"({time.perf_counter() - t0:.0f} s)", flush=True)  # fmt: skip
+        print(f"  {name}: {len(v4)} models ({time.perf_counter() - t0:.0f} s)", flush=True)
     sets = list(args.datasets)
     rows = []
     for row, per in table.items():
@@ -153,11 +129,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         f"re-ranking stages through query.rerank.search, {args.split} splits (NN / 1-T / DCG)",
         ("row", *sets, "objective"), rows,
     ))  # fmt: skip
-    print("identical rankings to the study's formula (K = n): " + ", ".join(
-        f"{s} {c['float64']['identical_rankings']}/{c['float64']['queries']} (float64), "
-        f"{c['float32']['identical_rankings']} (float32 as stored)" for s, c in checks.items()
-    ))  # fmt: skip
-    return {"split": args.split, "table": table, "study_check": checks}
+    return {"split": args.split, "table": table}
 
 
 def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:

@@ -2,7 +2,7 @@
 
 For each set's split (meshes), from the cached decompositions (nothing is decomposed:
 a decomposition missing under today's engine key is read under the keys of the
-engines in :data:`ENGINE_COMMITS`, which differ only where the sets are unaffected):
+engines in :data:`bench.cached.ENGINE_COMMITS`, which differ only where the sets are unaffected):
 
 * ``v4``: shapedb's default descriptor, L1 in version 4's calibrated units;
 * ``lfb <config>``: :func:`shapedb.lightfield.ball_light_field` of the balls under
@@ -57,56 +57,21 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from bench.cached import SETS, load
 from bench.common import (
     Balls,
-    cache_path,
     format_table,
-    load_balls,
     retrieval_scores,
     write_json,
 )
-from bench.datasets import CACHE_DIR, Dataset, capod, generic, mesh_arrays, parts, web
-from bench.datasets import articulated as figures
-from bench.representations import build
-from shapedb.config import Config, DescriptorConfig, LightFieldConfig, MDBDConfig
+from bench.datasets import CACHE_DIR, Dataset, capod, generic, mesh_arrays, web
+from shapedb.config import Config, DescriptorConfig, LightFieldConfig
 from shapedb.descriptor import LAYOUTS
 from shapedb.lightfield import ball_light_field, light_field_distance
 
 FloatArray = NDArray[np.float64]
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies"
-#: Older engines whose cached decompositions are read where today's key has none
-#: (b95b2be: test splits, differs only in how flat quads are thickened; f031e22: the
-#: people set, before the sheet rule, which leaves closed solids unchanged).
-ENGINE_COMMITS = ("b95b2be", "f031e22")
-SETS = ("web", "generic", "capod", "figures", "parts", "people")
 TOP = 5
-
-
-def load(name: str, split: str, variants: Sequence[str] = ("mesh",)) -> tuple[Dataset, list[Any]]:
-    """The split's models decomposed (cached) in every variant, and their balls.
-
-    Returns the models and, per model, its Balls (one variant) or a tuple of Balls.
-    """
-    if name == "people":
-        (ds,) = build(["people"], split)
-    else:
-        ds = {"web": web, "generic": generic, "capod": capod, "figures": figures,
-              "parts": parts}[name]().split(split)  # fmt: skip
-    cfg = MDBDConfig()
-    keep, balls = [], []
-    for i, m in enumerate(ds.models):
-        found = []
-        for variant in variants:
-            paths = [cache_path(m, variant, cfg)]
-            paths += [cache_path(m, variant, cfg, engine_commit=c) for c in ENGINE_COMMITS]
-            found.append(next((p for p in paths if p.exists()), None))
-        if all(p is not None for p in found):
-            keep.append(i)
-            got = [load_balls(p, cfg.contact_tol_cells) for p in found if p is not None]
-            balls.append(got[0] if len(got) == 1 else tuple(got))
-    if len(keep) < len(ds):
-        print(f"  {name}: {len(ds) - len(keep)} of {len(ds)} models not cached, left out")
-    return Dataset(ds.name, tuple(ds.models[i] for i in keep)), balls
 
 
 def parse_config(text: str) -> LightFieldConfig:
@@ -276,6 +241,38 @@ def cost(per_set: int, text: str, candidates: int = 100) -> dict[str, dict[str, 
     return out
 
 
+def check_product(datasets: Sequence[str], split: str) -> dict[str, Any]:
+    """Queries the product's ``"lightfield"`` scorer ranks exactly as :func:`fuse` does.
+
+    With every shape a candidate (K = n), per set: light fields in float64 and in float32
+    as a store keeps them; returns ``{set: {kind: {"identical_rankings", "queries"}}}``.
+    """
+    from bench.features import kernel_features
+    from bench.lightfield_rerank import index_of, rankings
+    from shapedb.lightfield import ball_light_field
+
+    out: dict[str, Any] = {}
+    for name in datasets:
+        _, balls = load(name, split)
+        v4 = kernel_features(balls, Config())
+        whole = Config().with_options(rerank="lightfield", rerank_candidates=len(v4))
+        d4 = np.abs(v4[:, None, :] - v4[None, :, :]).sum(-1)
+        d4 /= np.log(10.0) / sum(b[3] for b in LAYOUTS[4])
+        f = whole.lf_fusion
+        exact = np.stack([ball_light_field(b.centers, b.radii, whole.light_field) for b in balls])
+        for kind, fields in (("float64", exact), ("float32", exact.astype(np.float32))):
+            fields = fields.astype(np.float64)
+            study = np.argsort(
+                fuse("adrank", f.weight, d4, light_field_distance(fields), f.typical,
+                     f.neighbours, f.power, f.ceiling, f.ramp), axis=1, kind="stable",
+            )  # fmt: skip
+            got = rankings(index_of(v4), whole, fields)
+            same = int(np.all(got == study, axis=1).sum())
+            out.setdefault(name, {})[kind] = {"identical_rankings": same, "queries": len(v4)}
+        print(f"  {name}: {out[name]}", flush=True)
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
     ap = argparse.ArgumentParser(prog="python -m bench.studies.lightfield_balls")
@@ -299,7 +296,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     ap.add_argument("--out", type=Path, default=None, help="JSON path (default: by split)")
     ap.add_argument("--cost", type=int, default=0, help="only time N models per set (--fuse)")
+    ap.add_argument("--check-product", action="store_true",
+                    help="only check that rerank='lightfield' ranks as the chosen fusion")  # fmt: skip
     args = ap.parse_args(argv)
+    if args.check_product:
+        checks = check_product(args.datasets, args.split)
+        write_json(args.out or OUT / f"lightfield_product_check_{args.split}.json", checks)
+        return 0
     if args.cost:
         write_json(OUT / "lightfield_balls_cost.json", cost(args.cost, args.fuse))
         return 0
