@@ -158,8 +158,8 @@ def register_scorer(name: str, factory: ScorerFactory) -> None:
 
 
 def scorers() -> tuple[str, ...]:
-    """Names of the registered scorers, ``"none"`` first."""
-    return ("none", *sorted(_REGISTRY))
+    """Names of the known scorers (registered or importable by name), ``"none"`` first."""
+    return ("none", *sorted(set(_REGISTRY) | set(SCORER_MODULES)))
 
 
 def scorer_for(config: Config) -> Scorer | None:

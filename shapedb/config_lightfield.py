@@ -61,16 +61,18 @@ class LightFieldConfig:
         ints = {"n_fields": (1, 10), "resolution": (16, 256), "zernike_order": (2, 16)}
         for name, (lo, hi) in ints.items():
             v = getattr(self, name)
-            _check(_is_int(v) and lo <= v <= hi, name, v, f"must be an integer in [{lo}, {hi}]")
-        _check(_is_int(self.angles) and self.angles >= 8, "angles", self.angles, "must be >= 8")
+            _check(
+                _is_int(v) and lo <= v <= hi, f"lf_{name}", v, f"must be an integer in [{lo}, {hi}]"
+            )
+        _check(_is_int(self.angles) and self.angles >= 8, "lf_angles", self.angles, "must be >= 8")
         _check(
             _is_int(self.fourier) and 0 <= self.fourier <= self.angles // 2,
-            "fourier", self.fourier, "must be an integer in [0, angles // 2]",
+            "lf_fourier", self.fourier, "must be an integer in [0, lf_angles // 2]",
         )  # fmt: skip
         for name in ("fourier_weight", "depth_weight"):
             v = getattr(self, name)
-            _check(isinstance(v, (int, float)) and v >= 0, name, v, "must be a number >= 0")
-        _check(_is_int(self.seed), "seed", self.seed, "must be an integer")
+            _check(isinstance(v, (int, float)) and v >= 0, f"lf_{name}", v, "must be a number >= 0")
+        _check(_is_int(self.seed), "lf_seed", self.seed, "must be an integer")
 
 
 def product_light_field() -> LightFieldConfig:

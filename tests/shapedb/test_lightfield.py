@@ -114,7 +114,7 @@ def test_errors_name_the_reason() -> None:
         light_field_distance(np.zeros((2, 1, 10, 46)), np.zeros((2, 1, 10, 45)))
     with pytest.raises(ValueError, match="no ball"):
         ball_light_field(np.zeros((2, 3)), np.zeros(2))
-    with pytest.raises(ConfigError, match="n_fields"):
+    with pytest.raises(ConfigError, match="lf_n_fields"):
         LightFieldConfig(n_fields=0)
     with pytest.raises(ConfigError, match="fourier"):
         LightFieldConfig(fourier=40, angles=64)
