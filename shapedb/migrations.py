@@ -72,8 +72,12 @@ ADDED: dict[str, dict[str, Any]] = {
     # before the section no light fields were stored; the product's light fields;
     # before the fills, silhouettes were the plain union of the discs
     "light_field": {
-        "n_fields": 3, "resolution": 64, "depth_weight": 0.0,
-        "edges": False, "dilate_px": 0.0, "close_px": 0,
+        "n_fields": 3,
+        "resolution": 64,
+        "depth_weight": 0.0,
+        "edges": False,
+        "dilate_px": 0.0,
+        "close_px": 0,
     },
 }
 

@@ -23,6 +23,7 @@ Three parts, each from the cached decompositions (:func:`bench.cached.load`):
 Fills are ``plain``, ``edges`` (each contact edge fills the convex hull of its two
 balls), ``dilate<p>`` (discs grow by p pixels), ``close<p>`` (closing by a disc of p
 pixels), joined by ``+`` (e.g. ``edges+close1``); every one at 64 px, 3 light fields.
+In the ranking only, ``top<n>`` keeps the packing's first n balls (``top256+edges``).
 Usage::
 
     python -m bench.studies.lightfield_fill --diagnose 40 --images /tmp/lffill
@@ -60,6 +61,18 @@ from shapedb.lightfield import (
 
 FloatArray = NDArray[np.float64]
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies"
+
+
+def _load(name: str, split: str, n_balls: int) -> tuple[Dataset, list[Balls]]:
+    """The split's cached balls, or (``n_balls`` > 0) decompositions with that many balls."""
+    if not n_balls:
+        return load(name, split)
+    from bench.common import decompose_all
+
+    ds, _ = load(name, split)
+    got = decompose_all(ds.models, "mesh", MDBDConfig(n_balls=n_balls), workers=1)
+    keep = [i for i, b in enumerate(got) if b is not None]
+    return Dataset(ds.name, tuple(ds.models[i] for i in keep)), [got[i] for i in keep]  # type: ignore[misc]
 
 
 def fill_config(text: str, base: LightFieldConfig | None = None) -> LightFieldConfig:
@@ -150,11 +163,13 @@ def _save(path: Path, mesh: NDArray[np.bool_], panels: list[NDArray[np.bool_]]) 
     img.save(path)
 
 
-def diagnose(n: int, fills: Sequence[str], images: Path | None) -> dict[str, Any]:
+def diagnose(n: int, fills: Sequence[str], images: Path | None, n_balls: int = 0) -> dict[str, Any]:
     """Per fill (and the grid's inside), mean per-view agreement with the mesh silhouette."""
     from bench.lightfield import render_silhouettes
 
     ds, balls = load("web", "validation")
+    if n_balls:
+        ds, balls = _load("web", "validation", n_balls)
     labels = list(ds.labels)
     first = [i for i, lab in enumerate(labels) if labels.index(lab) == i]
     order = (first + [i for i in range(len(ds)) if i not in set(first)])[:n]
@@ -202,17 +217,26 @@ def _scores(d: FloatArray, labels: Sequence[str]) -> dict[str, float]:
     return retrieval_scores(-d, np.asarray(labels))
 
 
-def fill_matrix(name: str, ds: Dataset, balls: list[Balls], text: str) -> tuple[FloatArray, float]:
+def fill_matrix(
+    name: str, ds: Dataset, balls: list[Balls], text: str, n_balls: int = 0
+) -> tuple[FloatArray, float]:
     """Light field distances of a fill (cached) and CPU s per model of the light fields."""
     code = (Path(__file__).resolve().parents[2] / "shapedb" / "lightfield.py").read_bytes()
     key = hashlib.sha256(
-        code + text.encode() + "\n".join(m.name + m.source for m in ds.models).encode()
+        code
+        + text.encode()
+        + "\n".join(m.name + m.source for m in ds.models).encode()
+        + (f"n_balls={n_balls}".encode() if n_balls else b"")
     ).hexdigest()[:16]
     path = CACHE_DIR / "lightfield_fill" / f"{name}_{key}.npz"
     if path.exists():
         z = np.load(path)
         return z["d"], float(z["per_model"])
-    cfg = fill_config(text)
+    parts = text.split("+")
+    top = [int(p[3:]) for p in parts if p.startswith("top")]
+    cfg = fill_config("+".join(p for p in parts if not p.startswith("top")) or "plain")
+    if top:
+        balls = [b.truncate(top[0]) for b in balls]
     t = time.process_time()
     lf = np.stack([ball_light_field(b.centers, b.radii, cfg, edges=b.edges) for b in balls])
     per_model = (time.process_time() - t) / len(balls)
@@ -250,7 +274,9 @@ def voxels(split: str) -> dict[str, Any]:
     return out
 
 
-def rank_fills(split: str, datasets: Sequence[str], fills: Sequence[str]) -> dict[str, Any]:
+def rank_fills(
+    split: str, datasets: Sequence[str], fills: Sequence[str], n_balls: int = 0
+) -> dict[str, Any]:
     """The balls' light fields alone per fill, and the mesh LFD, per set."""
     from bench.rerank_select import lfd_matrix
 
@@ -258,10 +284,10 @@ def rank_fills(split: str, datasets: Sequence[str], fills: Sequence[str]) -> dic
     cpu: dict[str, dict[str, float]] = {}
     for name in datasets:
         t0 = time.perf_counter()
-        ds, balls = load(name, split)
+        ds, balls = _load(name, split, n_balls)
         cpu[name] = {}
         for text in fills:
-            d, per_model = fill_matrix(name, ds, balls, text)
+            d, per_model = fill_matrix(name, ds, balls, text, n_balls)
             table[text][name] = _scores(d, ds.labels)
             cpu[name][text] = per_model
         if name != "people":
@@ -287,15 +313,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--diagnose", type=int, default=0, help="compare N web silhouettes")
     ap.add_argument("--images", type=Path, default=None, help="folder of PNGs (--diagnose)")
     ap.add_argument("--voxels", action="store_true", help="LFD of the grid's inside (web)")
+    ap.add_argument("--n-balls", type=int, default=0,
+                    help="decompose with this many balls (cached) instead of the defaults'")  # fmt: skip
+    ap.add_argument("--out", type=Path, default=None, help="JSON path of the ranking")
     args = ap.parse_args(argv)
     if args.diagnose:
-        got = diagnose(args.diagnose, args.fills, args.images)
+        got = diagnose(args.diagnose, args.fills, args.images, args.n_balls)
         write_json(OUT / "lightfield_fill_diagnose_validation.json", got)
     elif args.voxels:
         write_json(OUT / f"lightfield_fill_voxels_{args.split}.json", voxels(args.split))
     else:
-        got = rank_fills(args.split, args.datasets, args.fills)
-        write_json(OUT / f"lightfield_fill_{args.split}.json", got)
+        got = rank_fills(args.split, args.datasets, args.fills, args.n_balls)
+        write_json(args.out or OUT / f"lightfield_fill_{args.split}.json", got)
     return 0
 
 
