@@ -315,11 +315,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--voxels", action="store_true", help="LFD of the grid's inside (web)")
     ap.add_argument("--n-balls", type=int, default=0,
                     help="decompose with this many balls (cached) instead of the defaults'")  # fmt: skip
-    ap.add_argument("--out", type=Path, default=None, help="JSON path of the ranking")
+    ap.add_argument("--out", type=Path, default=None, help="JSON path (default by part and split)")
     args = ap.parse_args(argv)
     if args.diagnose:
         got = diagnose(args.diagnose, args.fills, args.images, args.n_balls)
-        write_json(OUT / "lightfield_fill_diagnose_validation.json", got)
+        write_json(args.out or OUT / "lightfield_fill_diagnose_validation.json", got)
     elif args.voxels:
         write_json(OUT / f"lightfield_fill_voxels_{args.split}.json", voxels(args.split))
     else:
