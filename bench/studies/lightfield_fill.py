@@ -18,7 +18,11 @@ Three parts, each from the cached decompositions (:func:`bench.cached.load`):
   ball of half a cell) on the web validation split: an upper bound of what a packing
   of that field can give.
 * default: the balls' light fields alone per fill (``--fills``) on each set's split,
-  with the mesh light field descriptor (10 fields, descriptors cached) in the same run.
+  with the mesh light field descriptor (10 fields, descriptors cached) in the same run;
+  with ``--n-balls N`` the split is decomposed with N balls (cached) instead;
+* ``--fused --n-balls N``: version 4 of today's balls fused with the light fields of
+  today's balls and of the N-ball packing (the product's gated rank fusion, at
+  :class:`shapedb.config.LightFieldFusionConfig`'s defaults).
 
 Fills are ``plain``, ``edges`` (each contact edge fills the convex hull of its two
 balls), ``dilate<p>`` (discs grow by p pixels), ``close<p>`` (closing by a disc of p
@@ -303,6 +307,44 @@ def rank_fills(
     return {"table": table, "cpu": cpu}
 
 
+def fused_longer(split: str, datasets: Sequence[str], n_balls: int) -> dict[str, Any]:
+    """Version 4 of today's balls fused (``adrank 8``, the product's gate) with the light
+    fields of a longer packing (``n_balls``), against the same fusion with today's."""
+    from bench.studies.lightfield_balls import fuse, v4_distances
+    from shapedb.config import LightFieldFusionConfig
+
+    f = LightFieldFusionConfig()
+    table: dict[str, dict[str, Any]] = {"v4": {}, "fused, 512 balls": {},
+                                        f"fused, {n_balls} balls": {}}  # fmt: skip
+    for name in datasets:
+        ds, balls = load(name, split)
+        dl, _ = fill_matrix(name, ds, balls, "plain")
+        longer, more = _load(name, split, n_balls)
+        keep = {m.name: i for i, m in enumerate(longer.models)}
+        idx = [i for i, m in enumerate(ds.models) if m.name in keep]
+        ds = Dataset(ds.name, tuple(ds.models[i] for i in idx))
+        balls = [balls[i] for i in idx]
+        dl = dl[np.ix_(idx, idx)]
+        dm, _ = fill_matrix(name, longer, more, "plain", n_balls)
+        order = [keep[m.name] for m in ds.models]
+        dm = dm[np.ix_(order, order)]
+        d4 = v4_distances(balls)
+        args = (f.typical, f.neighbours, f.power, f.ceiling, f.ramp)
+        table["v4"][name] = _scores(d4, ds.labels)
+        table["fused, 512 balls"][name] = _scores(
+            fuse("adrank", f.weight, d4, dl, *args), ds.labels
+        )
+        table[f"fused, {n_balls} balls"][name] = _scores(
+            fuse("adrank", f.weight, d4, dm, *args), ds.labels
+        )
+        print(f"  {name}: {len(ds)} models", flush=True)
+    rows = [[k, *(f"{v[n]['nn']:.3f}/{v[n]['first_tier']:.3f}/{v[n]['dcg']:.3f}" for n in datasets)]
+            for k, v in table.items()]  # fmt: skip
+    print(format_table(f"v4 fused with the balls' light fields, {split} (NN/1-T/DCG)",
+                       ("row", *datasets), rows))  # fmt: skip
+    return table
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
     ap = argparse.ArgumentParser(prog="python -m bench.studies.lightfield_fill")
@@ -315,11 +357,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--voxels", action="store_true", help="LFD of the grid's inside (web)")
     ap.add_argument("--n-balls", type=int, default=0,
                     help="decompose with this many balls (cached) instead of the defaults'")  # fmt: skip
+    ap.add_argument("--fused", action="store_true",
+                    help="v4 fused with the light fields of --n-balls balls")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None, help="JSON path (default by part and split)")
     args = ap.parse_args(argv)
     if args.diagnose:
         got = diagnose(args.diagnose, args.fills, args.images, args.n_balls)
         write_json(args.out or OUT / "lightfield_fill_diagnose_validation.json", got)
+    elif args.fused:
+        got = fused_longer(args.split, args.datasets, args.n_balls)
+        write_json(args.out or OUT / f"lightfield_fill_fused_{args.split}.json", got)
     elif args.voxels:
         write_json(OUT / f"lightfield_fill_voxels_{args.split}.json", voxels(args.split))
     else:
