@@ -29,7 +29,7 @@ validation, the rest to test; parameter studies see only the validation split):
     kind, random yaw and some arbitrary rotations; sources carry
     :func:`bench.web_shapes.web_version`, so caches key on the generator's code.
 ``webplus``
-    A held-out web-like set from :mod:`bench.webplus_shapes`: 32 kinds that neither
+    A held-out web-like set from :mod:`bench.webplus_shapes`: 39 kinds that neither
     ``web`` nor ``generic`` has (close man-made families, animals in many poses,
     plants), built and oriented as ``web``; every model is in the test split (nobody
     tunes on it). Sources carry :func:`bench.webplus_shapes.webplus_version`.

@@ -1,8 +1,9 @@
 """Builders of the ``webplus`` set's natural kinds (see :mod:`bench.webplus_shapes`).
 
 Category-level classes in many poses, as a held-out web benchmark has them: a biped
-dinosaur and an ape (standing, walking, knuckle-walking or sitting), an elephant and a
-giraffe (walking, grazing, drinking, a leg or the trunk raised), a spider and an insect
+dinosaur, a kangaroo and an ape (standing, walking, hopping, knuckle-walking, sitting,
+grazing), an elephant, a rhinoceros and a giraffe (walking, grazing, drinking, a leg or
+the trunk raised), an ostrich (neck up, forward or grazing, wings folded or spread), a spider and an insect
 (legs splayed or raised), a snake (coiled, S-curved, head raised), a penguin (standing,
 leaning or on its belly), a whale (bent while swimming, diving or breaching), and three
 plants (palm tree, cactus, potted plant). Built as web models are: ellipsoids and rods
@@ -199,6 +200,105 @@ def giraffe(rng: Rng) -> list[Part]:
     t = rng.uniform(-1.4, -0.3)
     parts.append(rod((-0.5 * length, 0, z + br), (-0.5 * length + 0.4 * length * np.cos(t) * -1, 0,
                      z + br + 0.4 * length * np.sin(t)), 0.012 * length, n=4))  # fmt: skip
+    return parts
+
+
+def rhinoceros(rng: Rng) -> list[Part]:
+    length = vary(rng, 3.5, 0.3)
+    z, br = length * vary(rng, 0.28, 0.25), length * vary(rng, 0.2, 0.2)
+    pose = int(rng.choice(2, p=[0.7, 0.3]))
+    parts = [ellipsoid((0, 0, z + 0.8 * br), (0.5 * length, br, 1.05 * br))]
+    parts += _quadruped_legs(rng, (-0.3 * length, 0.3 * length), 0.55 * br, z + 0.4 * br,
+                             z + 0.4 * br, 0.07 * length, pose)  # fmt: skip
+    dip = rng.uniform(-0.7, 0.2)  # head lowered (grazing) to raised
+    neck = np.array([0.45 * length, 0, z + 1.0 * br])
+    head = neck + 0.5 * br * _dir(0, dip)
+    hl = 0.35 * length * vary(rng, 1.0, 0.2)
+    e = ellipsoid((0, 0, 0), (hl / 2, 0.45 * br, 0.5 * br))
+    parts.append((e[0] @ rotation(1, -dip).T + head, e[1]))
+    snout = head + 0.45 * hl * _dir(0, dip)
+    for k in range(int(rng.integers(1, 3))):  # horns
+        base = snout - 0.25 * k * hl * _dir(0, dip) + [0, 0, 0.35 * br]
+        parts.append(revolve(np.array([0, vary(rng, 0.35, 0.4) * br * (1 - 0.4 * k)]),
+                             np.array([0.12 * br, 0.01]), n=8, c=(0, 0)))  # fmt: skip
+        parts[-1] = (parts[-1][0] + base, parts[-1][1])
+    for sy in (-1, 1):  # ears
+        ear = head - 0.3 * hl * _dir(0, dip) + [0, sy * 0.3 * br, 0.45 * br]
+        parts.append(
+            sheet((ear, ear + [-0.1 * br, sy * 0.1 * br, 0.35 * br], ear + [0.1 * br, 0, 0]))
+        )
+    parts.append(
+        rod((-0.5 * length, 0, z + br), (-0.55 * length, 0, z + 0.3 * br), 0.015 * length, n=4)
+    )
+    return parts
+
+
+def kangaroo(rng: Rng) -> list[Part]:
+    h = vary(rng, 1.5, 0.3)
+    pose = int(rng.choice(3, p=[0.45, 0.35, 0.2]))  # upright, hopping, grazing
+    lean = {0: rng.uniform(0.0, 0.4), 1: rng.uniform(0.9, 1.3), 2: rng.uniform(1.2, 1.5)}[pose]
+    hip = np.array([0, 0, (0.3 if pose != 1 else 0.45) * h])
+    up = np.array([np.sin(lean), 0, np.cos(lean)])
+    tl = 0.4 * h
+    parts = [ellipsoid(hip + 0.45 * tl * up, (0.3 * tl, 0.25 * tl, 0.55 * tl))]
+    parts[0] = ((parts[0][0] - hip - 0.45 * tl * up) @ rotation(1, lean).T + hip + 0.45 * tl * up,
+                parts[0][1])  # fmt: skip
+    chest = hip + tl * up
+    head = chest + 0.12 * h * _dir(0, np.pi / 2 - lean + rng.uniform(-0.4, 0.4)) + [0.04 * h, 0, 0]
+    parts.append(ellipsoid(head + [0.04 * h, 0, 0], (0.09 * h, 0.045 * h, 0.05 * h)))
+    tail = [hip, hip + [-0.3 * h, 0, -0.15 * h if pose != 1 else 0.0]]
+    tail.append(tail[-1] + [-0.35 * h, 0, rng.uniform(-0.3, 0.1) * h])
+    tail[-1][2] = max(tail[-1][2], 0.02)
+    parts += tube(np.asarray(tail), np.array([0.06, 0.035]) * h)
+    for sy in (-1, 1):
+        parts.append(sheet((head + [0, sy * 0.02 * h, 0.03 * h], head + [-0.02 * h, sy * 0.04 * h, 0.15 * h],
+                            head + [-0.05 * h, sy * 0.02 * h, 0.03 * h])))  # ears  # fmt: skip
+        hp = hip + [0, sy * 0.08 * h, 0]
+        if pose == 1:  # legs stretched back in a hop
+            knee = hp + [0.15 * h, 0, -0.25 * h]
+            parts += tube(
+                np.array([hp, knee, knee + [-0.35 * h, 0, -0.15 * h]]), np.array([0.06, 0.03]) * h
+            )
+        else:  # folded, long feet flat on the ground
+            knee = hp + [0.2 * h, 0, -0.12 * h]
+            heel = np.array([hp[0] - 0.1 * h, hp[1], 0.03 * h])
+            parts += tube(np.array([hp, knee, heel, heel + [0.3 * h, 0, -0.02 * h]]), 0.045 * h)
+        sh = chest + [0.02 * h, sy * 0.07 * h, -0.05 * h]
+        reach = 0.25 * h if pose != 2 else None
+        if reach is None:  # grazing: forepaws on the ground
+            parts += tube(np.array([sh, [sh[0] + 0.05 * h, sh[1], 0.0]]), 0.02 * h)
+        else:
+            parts += limb(sh, [_dir(0, rng.uniform(-1.4, 0.3)), _dir(0, rng.uniform(-1.4, 0.6))],
+                          [reach / 2, reach / 2], 0.02 * h)  # fmt: skip
+    return parts
+
+
+def ostrich(rng: Rng) -> list[Part]:
+    h = vary(rng, 2.2, 0.2)
+    leg = 0.45 * h * vary(rng, 1.0, 0.15)
+    body = np.array([0, 0, leg + 0.1 * h])
+    tilt = rng.uniform(-0.2, 0.3)
+    e = ellipsoid((0, 0, 0), (0.2 * h, 0.13 * h, 0.12 * h))
+    parts = [(e[0] @ rotation(1, -tilt).T + body, e[1])]
+    neck_a = rng.choice([rng.uniform(1.2, 1.5), rng.uniform(0.3, 0.8), rng.uniform(-1.3, -0.9)])
+    base = body + [0.15 * h, 0, 0.05 * h]
+    top = base + 0.4 * h * _dir(rng.normal(0, 0.2), neck_a)
+    top[2] = max(top[2], 0.04 * h)
+    parts += tube(np.array([base, 0.5 * (base + top) + [0, 0, 0.03 * h], top]), 0.02 * h)
+    parts.append(ellipsoid(top + [0.03 * h, 0, 0], (0.04 * h, 0.025 * h, 0.025 * h)))
+    parts.append(rod(top + [0.05 * h, 0, 0], top + [0.1 * h, 0, -0.01 * h], 0.008 * h, n=4))
+    for sy in (-1, 1):
+        hp = body + [0, sy * 0.06 * h, -0.05 * h]
+        parts += _leg_to_ground(rng, hp, leg + 0.05 * h, 0.025 * h, rng.uniform(-0.4, 0.4),
+                                lift=rng.uniform(0, 0.4) if rng.random() < 0.3 else 0.0)  # fmt: skip
+        spread = rng.uniform(0.0, 1.3)  # folded to spread wings
+        root = body + [0.05 * h, sy * 0.12 * h, 0.04 * h]
+        tip = root + 0.3 * h * np.array(
+            [-np.cos(spread), sy * np.sin(spread), 0.3 * np.sin(spread)]
+        )
+        parts.append(sheet((root + [0.08 * h, 0, 0], tip, root - [0.12 * h, 0, 0.02 * h])))
+    parts.append(sheet((body - [0.18 * h, 0, 0], body + [-0.32 * h, -0.06 * h, 0.08 * h],
+                        body + [-0.32 * h, 0.06 * h, 0.08 * h])))  # tail plumes  # fmt: skip
     return parts
 
 
@@ -425,7 +525,8 @@ def potted_plant(rng: Rng) -> list[Part]:
 
 #: Builders of this module by kind name.
 BUILDERS = {
-    "dinosaur": dinosaur, "ape": ape, "elephant": elephant, "giraffe": giraffe,
+    "dinosaur": dinosaur, "kangaroo": kangaroo, "ape": ape, "elephant": elephant,
+    "rhinoceros": rhinoceros, "giraffe": giraffe, "ostrich": ostrich,
     "spider": spider, "insect": insect, "snake": snake, "penguin": penguin, "whale": whale,
     "palm_tree": palm_tree, "cactus": cactus, "potted_plant": potted_plant,
 }  # fmt: skip
