@@ -57,7 +57,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.cached import SETS, load
+from bench.cached import CHOICES, SETS, load
 from bench.common import (
     Balls,
     format_table,
@@ -145,6 +145,18 @@ def mesh_baselines(ds: Dataset) -> dict[str, FloatArray]:
     lfd = np.stack([lfd_descriptor(v, f, LFDConfig()) for v, f in arrays])
     d2 = np.stack([d2_descriptor(v, f, D2Config(n_pairs=262144)) for v, f in arrays])
     return {"LFD (mesh)": lfd_distance(lfd), "D2 (mesh)": _l1(d2)}
+
+
+def class_nn(d: FloatArray, labels: NDArray[np.str_]) -> dict[str, float]:
+    """Per class, the fraction of its queries whose nearest other model shares its class.
+
+    ``d``: (n, n) distances (the diagonal is ignored); ``labels``: (n,) classes.
+    Ties go to the lower index, as :func:`numpy.argmin` breaks them.
+    """
+    d = np.array(d, dtype=np.float64)
+    np.fill_diagonal(d, np.inf)
+    hit = labels[np.argmin(d, axis=1)] == labels
+    return {str(k): float(hit[labels == k].mean()) for k in dict.fromkeys(labels.tolist())}
 
 
 def _ranks(d: FloatArray) -> FloatArray:
@@ -277,7 +289,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
     ap = argparse.ArgumentParser(prog="python -m bench.studies.lightfield_balls")
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
-    ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=SETS)
+    ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
     ap.add_argument("--configs", nargs="+", default=["64/10/0", "64/10/1", "32/10/0", "64/3/0",
                                                       "64/1/0"])  # fmt: skip
     ap.add_argument("--fuse", default="64/10/0", help="configuration fused with v4")
@@ -294,6 +306,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument(
         "--queries", default="mesh", help="variant of the queries (e.g. pointcloud) against meshes"
     )
+    ap.add_argument("--per-kind", nargs="*", default=[], metavar="ROW",
+                    help="rows (e.g. v4 'LFD (mesh)') whose NN is also given per class")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None, help="JSON path (default: by split)")
     ap.add_argument("--cost", type=int, default=0, help="only time N models per set (--fuse)")
     ap.add_argument("--check-product", action="store_true",
@@ -344,6 +358,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     table, rows = [], []
     base: dict[str, dict[str, float]] = {}
+    per_kind: dict[str, dict[str, dict[str, float]]] = {}
     for label, kind, w in rows_spec:
         entry: dict[str, Any] = {"row": label}
         obj = []
@@ -358,6 +373,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             )
             sc = retrieval_scores(-d, s["labels"])
             entry[n] = sc
+            if label in args.per_kind:
+                per_kind.setdefault(n, {})[label] = class_nn(d, s["labels"])
             obj.append((sc["nn"] + sc["first_tier"] + sc["dcg"]) / 3)
         entry["objective"] = float(np.mean(obj))
         if label == "v4":
@@ -382,6 +399,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"ceiling {args.ceiling:g}, ramp {args.ramp:g}",
         ("row", *sets, "objective", "passes"), rows,
     ))  # fmt: skip
+    for n, got in per_kind.items():
+        kinds_of = list(dict.fromkeys(sets[n]["labels"].tolist()))
+        print()
+        print(format_table(
+            f"{n}: NN per class", ("class", *got),
+            [[k, *(f"{got[r][k]:.2f}" for r in got)] for k in kinds_of],
+        ))  # fmt: skip
     print(f"medians {medians}; chosen {chosen}")
     print(f"CPU s per model / per pair: {cpu}")
     out = args.out or OUT / f"lightfield_balls_{args.split}.json"
@@ -390,6 +414,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                      "top": args.top, "power": args.power, "ceiling": args.ceiling,
                      "ramp": args.ramp,
                      "medians": medians, "table": table, "chosen": chosen, "cpu": cpu,
+                     "per_kind_nn": per_kind,
                      "sizes": {n: len(s["labels"]) for n, s in sets.items()}})  # fmt: skip
     print(f"written {out}")
     return 0
