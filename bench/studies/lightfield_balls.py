@@ -60,6 +60,7 @@ from numpy.typing import NDArray
 from bench.cached import CHOICES, SETS, load
 from bench.common import (
     Balls,
+    class_nn,
     format_table,
     retrieval_scores,
     write_json,
@@ -145,18 +146,6 @@ def mesh_baselines(ds: Dataset) -> dict[str, FloatArray]:
     lfd = np.stack([lfd_descriptor(v, f, LFDConfig()) for v, f in arrays])
     d2 = np.stack([d2_descriptor(v, f, D2Config(n_pairs=262144)) for v, f in arrays])
     return {"LFD (mesh)": lfd_distance(lfd), "D2 (mesh)": _l1(d2)}
-
-
-def class_nn(d: FloatArray, labels: NDArray[np.str_]) -> dict[str, float]:
-    """Per class, the fraction of its queries whose nearest other model shares its class.
-
-    ``d``: (n, n) distances (the diagonal is ignored); ``labels``: (n,) classes.
-    Ties go to the lower index, as :func:`numpy.argmin` breaks them.
-    """
-    d = np.array(d, dtype=np.float64)
-    np.fill_diagonal(d, np.inf)
-    hit = labels[np.argmin(d, axis=1)] == labels
-    return {str(k): float(hit[labels == k].mean()) for k in dict.fromkeys(labels.tolist())}
 
 
 def _ranks(d: FloatArray) -> FloatArray:

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.studies.lightfield_balls import class_nn, fuse, overlap, spread
+from bench.common import class_nn
+from bench.studies.lightfield_balls import fuse, overlap, spread
 
 
 def _points(seed: int, n: int = 12) -> np.ndarray:
