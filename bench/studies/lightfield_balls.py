@@ -199,6 +199,22 @@ def fuse(
     raise ValueError(f"fusion {kind!r} is unknown")
 
 
+def gate_stats(d4: FloatArray, dl: FloatArray, typical: float, top: int, power: float,
+               ceiling: float, ramp: float) -> dict[str, float]:  # fmt: skip
+    """How open the adaptive gate of ``adapt`` / ``adrank`` is over a set's queries.
+
+    Returns the median spread ``s_q`` (:func:`spread`), the shares of queries whose
+    ceiling factor is above 0 and equal to 1 (both 1 without a ceiling), the mean
+    overlap term ``a_q^p`` and the mean gate (their product).
+    """
+    a = overlap(d4, dl, top) ** power
+    s = spread(d4, dl, typical)
+    c = np.clip((ceiling - s) / ramp, 0.0, 1.0) if ceiling > 0 else np.ones(len(s))
+    return {"median_spread": float(np.median(s)), "ceiling_open": float(np.mean(c > 0)),
+            "ceiling_full": float(np.mean(c >= 1)), "mean_overlap_term": float(np.mean(a)),
+            "mean_gate": float(np.mean(a * c))}  # fmt: skip
+
+
 def cost(per_set: int, text: str, candidates: int = 100) -> dict[str, dict[str, float]]:
     """Median CPU seconds per model: decomposition, v4, ball light fields; re-ranking K.
 
@@ -338,6 +354,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         for n, s in sets.items()
     }
     typical = args.typical or float(np.exp(np.mean(np.log(list(medians.values())))))
+    gates = {n: gate_stats(s["mats"]["v4"], s["mats"][key], typical, args.top, args.power,
+                           args.ceiling, args.ramp) for n, s in sets.items()}  # fmt: skip
     rows_spec: list[tuple[str, str, float]] = [("v4", "", 0.0)]
     rows_spec += [(f"lfb {c}", "", 0.0) for c in dict.fromkeys([*args.configs, args.fuse])]
     if args.baselines:
@@ -396,6 +414,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             [[k, *(f"{got[r][k]:.2f}" for r in got)] for k in kinds_of],
         ))  # fmt: skip
     print(f"medians {medians}; chosen {chosen}")
+    print(f"gates {gates}")
     print(f"CPU s per model / per pair: {cpu}")
     out = args.out or OUT / f"lightfield_balls_{args.split}.json"
     write_json(out, {"split": args.split, "queries": args.queries, "fuse": args.fuse,
@@ -403,7 +422,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                      "top": args.top, "power": args.power, "ceiling": args.ceiling,
                      "ramp": args.ramp,
                      "medians": medians, "table": table, "chosen": chosen, "cpu": cpu,
-                     "per_kind_nn": per_kind,
+                     "per_kind_nn": per_kind, "gates": gates,
                      "sizes": {n: len(s["labels"]) for n, s in sets.items()}})  # fmt: skip
     print(f"written {out}")
     return 0
