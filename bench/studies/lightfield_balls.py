@@ -75,13 +75,30 @@ OUT = Path(__file__).resolve().parents[1] / "results" / "studies"
 TOP = 5
 
 
+def fill_config(text: str, base: LightFieldConfig | None = None) -> LightFieldConfig:
+    """``plain`` / ``edges`` / ``dilate<p>`` / ``close<p>`` joined by ``+`` -> config."""
+    from dataclasses import replace
+
+    cfg = base or LightFieldConfig(n_fields=3, resolution=64)
+    for part in text.split("+"):
+        if part == "plain":
+            continue
+        if part == "edges":
+            cfg = replace(cfg, edges=True)
+        elif part.startswith("dilate"):
+            cfg = replace(cfg, dilate_px=float(part[6:]))
+        elif part.startswith("close"):
+            cfg = replace(cfg, close_px=int(part[5:]))
+        else:
+            raise ValueError(f"fill {part!r} is unknown")
+    return cfg
+
+
 def parse_config(text: str) -> LightFieldConfig:
     """``res/fields/depth[/fill]`` -> :class:`LightFieldConfig`.
 
-    ``fill`` as in :func:`bench.studies.lightfield_fill.fill_config` (e.g. ``edges+close1``).
+    ``fill`` as in :func:`fill_config` (e.g. ``edges+close1``).
     """
-    from bench.studies.lightfield_fill import fill_config
-
     res, fields, depth, *fill = text.split("/")
     cfg = LightFieldConfig(resolution=int(res), n_fields=int(fields), depth_weight=float(depth))
     return fill_config(fill[0], cfg) if fill else cfg

@@ -54,7 +54,8 @@ from numpy.typing import NDArray
 from bench.cached import SETS, load
 from bench.common import Balls, format_table, retrieval_scores, write_json
 from bench.datasets import CACHE_DIR, Dataset, mesh_arrays
-from shapedb.config import LightFieldConfig, MDBDConfig
+from bench.studies.lightfield_balls import fill_config
+from shapedb.config import MDBDConfig
 from shapedb.config_lightfield import product_light_field
 from shapedb.lightfield import (
     ball_light_field,
@@ -77,25 +78,6 @@ def _load(name: str, split: str, n_balls: int) -> tuple[Dataset, list[Balls]]:
     got = decompose_all(ds.models, "mesh", MDBDConfig(n_balls=n_balls), workers=1)
     keep = [i for i, b in enumerate(got) if b is not None]
     return Dataset(ds.name, tuple(ds.models[i] for i in keep)), [got[i] for i in keep]  # type: ignore[misc]
-
-
-def fill_config(text: str, base: LightFieldConfig | None = None) -> LightFieldConfig:
-    """``plain`` / ``edges`` / ``dilate<p>`` / ``close<p>`` joined by ``+`` -> config."""
-    from dataclasses import replace
-
-    cfg = base or product_light_field()
-    for part in text.split("+"):
-        if part == "plain":
-            continue
-        if part == "edges":
-            cfg = replace(cfg, edges=True)
-        elif part.startswith("dilate"):
-            cfg = replace(cfg, dilate_px=float(part[6:]))
-        elif part.startswith("close"):
-            cfg = replace(cfg, close_px=int(part[5:]))
-        else:
-            raise ValueError(f"fill {part!r} is unknown")
-    return cfg
 
 
 def _frame(b: Balls) -> tuple[FloatArray, float]:

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from bench.studies.lightfield_balls import parse_config
-from bench.studies.lightfield_fill import fill_config
+from bench.studies.lightfield_balls import fill_config, parse_config
 
 
 def test_fills_are_spelled_as_the_config_fields() -> None:
