@@ -86,7 +86,7 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
             )
         )
         t_load = time.perf_counter() - t0
-        decomposition = decompose(geometry, config=config.mdbd)
+        decomposition = decompose(geometry, config=config.mdbd, tail_balls=config.light_field_tail)
         if decomposition.n_balls == 0:
             from shapedb.errors import DegenerateGeometryError
 
@@ -102,13 +102,10 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
             timings["view"] = time.perf_counter() - t2
         light_field = None
         if config.stores_light_fields:
-            from shapedb.lightfield import record_light_field
+            from shapedb.lightfield import decomposition_light_field
 
             t3 = time.perf_counter()
-            light_field = record_light_field(
-                decomposition.centers, decomposition.radii, config.light_field,
-                edges=decomposition.edges,
-            )  # fmt: skip
+            light_field = decomposition_light_field(decomposition, config.light_field)
             timings["light_field"] = time.perf_counter() - t3
         timings["load"] = t_load
         timings["features"] = t2 - t1

@@ -360,7 +360,7 @@ def _from_geometry(db: Database, geometry: Any) -> _Query:
     from shapedb.view import is_sparse, view_geometry
 
     config = db.config
-    d = decompose(geometry, config=config.mdbd)
+    d = decompose(geometry, config=config.mdbd, tail_balls=config.light_field_tail)
     sparse = is_sparse(d.sampling, d.spacing)
     if sparse:
         from shapedb.reconstruct import reconstructed

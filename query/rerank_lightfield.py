@@ -235,12 +235,15 @@ def query_light_fields(config: Config, decompositions: list[Any]) -> NDArray[np.
 
     ``decompositions[i]`` is a :class:`shapedb.mdbd.Decomposition`, or None for a query
     that is a stored shape (its light fields are read by id) or has no decomposition.
+    A decomposition's light fields are those of its balls and its tail
+    (:func:`shapedb.lightfield.decomposition_light_field`): a query decomposed with
+    ``tail_balls=config.light_field_tail`` is seen as ingest saw the records.
     """
-    from shapedb.lightfield import light_field_dim, record_light_field
+    from shapedb.lightfield import decomposition_light_field, light_field_dim
 
     cfg = config.light_field
     out = np.full((len(decompositions), cfg.n_fields, 10, light_field_dim(cfg)), np.nan)
     for k, d in enumerate(decompositions):
         if d is not None and d.n_balls:
-            out[k] = record_light_field(d.centers, d.radii, cfg, edges=d.edges)
+            out[k] = decomposition_light_field(d, cfg)
     return out

@@ -482,6 +482,17 @@ class Config:
         return self.rerank.scorer == "lightfield"
 
     @property
+    def light_field_tail(self) -> int:
+        """Balls the packing continues for past the decomposition's, for the light fields only.
+
+        ``LightFieldConfig.n_balls - MDBDConfig.n_balls`` when the store keeps light
+        fields and that is positive, else 0 (``tail_balls`` of :func:`shapedb.mdbd.decompose`).
+        """
+        if not self.stores_light_fields:
+            return 0
+        return max(0, self.light_field.n_balls - self.mdbd.n_balls)
+
+    @property
     def dim(self) -> int:
         """Length of the feature vector: the descriptor's for "mdbd", 2 * n_r for "paper"."""
         if self.kernel.method == "mdbd":

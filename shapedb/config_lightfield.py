@@ -53,6 +53,14 @@ class LightFieldConfig:
         Every ball's disc grows by this many pixels, in [0, 8].
     close_px : int
         Morphological closing of every silhouette by a disc of this many pixels, in [0, 8].
+    n_balls : int
+        Balls of the packing the light fields are rendered from, 0 or in [1, 100000].
+        0, or at most ``MDBDConfig.n_balls``: the decomposition's balls. More: the
+        greedy packing continues past the decomposition's balls on the same field,
+        without off-grid refinement, up to this many balls in all
+        (:func:`shapedb.mdbd.decompose`'s ``tail_balls``, :attr:`Config.light_field_tail`);
+        the decomposition, its contact graph and its feature stay those of
+        ``MDBDConfig.n_balls``.
     """
 
     n_fields: int = 10
@@ -66,6 +74,7 @@ class LightFieldConfig:
     edges: bool = False
     dilate_px: float = 0.0
     close_px: int = 0
+    n_balls: int = 0
 
     def __post_init__(self) -> None:
         ints = {"n_fields": (1, 10), "resolution": (16, 256), "zernike_order": (2, 16)}
@@ -88,6 +97,8 @@ class LightFieldConfig:
         _check(ok, "lf_dilate_px", self.dilate_px, "must be a number in [0, 8]")
         ok = _is_int(self.close_px) and 0 <= self.close_px <= 8
         _check(ok, "lf_close_px", self.close_px, "must be an integer in [0, 8]")
+        ok = _is_int(self.n_balls) and 0 <= self.n_balls <= 100_000
+        _check(ok, "lf_n_balls", self.n_balls, "must be an integer in [0, 100000]")
 
 
 def product_light_field() -> LightFieldConfig:

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import functools
 from math import factorial
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
@@ -43,6 +44,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from shapedb.config import LightFieldConfig
 from shapedb.union import centred_balls
+
+if TYPE_CHECKING:
+    from shapedb.mdbd import Decomposition
 
 __all__ = [
     "dodecahedron_views",
@@ -56,6 +60,7 @@ __all__ = [
     "render_discs",
     "ball_light_field",
     "record_light_field",
+    "decomposition_light_field",
     "light_field_dim",
     "light_field_distance",
 ]
@@ -502,6 +507,37 @@ def record_light_field(
 
     with threadpool_limits(limits=1, user_api="blas"):
         return ball_light_field(centers, radii, config, edges=edges).astype(np.float32)
+
+
+def decomposition_light_field(
+    decomposition: Decomposition, config: LightFieldConfig | None = None
+) -> NDArray[np.float32]:
+    """:func:`record_light_field` of a decomposition's balls and its tail, if any.
+
+    The balls are :meth:`shapedb.mdbd.Decomposition.longer_packing` (the decomposition's
+    balls, then the tail that ``decompose(tail_balls=...)`` packed past them; with
+    ``LightFieldConfig.n_balls`` the ingest and an outside query decompose with the same
+    tail). With ``config.edges`` and a tail, the contact edges are those of all the
+    balls at the decomposition's contact tolerance; without a tail, its own edges.
+
+    Returns
+    -------
+    (config.n_fields, 10, dim) float32
+
+    Raises
+    ------
+    ValueError
+        If no ball has a positive radius.
+    """
+    centers, radii = decomposition.longer_packing()
+    edges = decomposition.edges
+    cfg = config or LightFieldConfig()
+    if cfg.edges and len(radii) > decomposition.n_balls:
+        from shapedb.graph import contact_edges
+
+        tol = decomposition.config.contact_tol_cells * decomposition.spacing
+        edges = contact_edges(centers, radii, tol)
+    return record_light_field(centers, radii, cfg, edges=edges)
 
 
 # --------------------------------------------------------------------------------------

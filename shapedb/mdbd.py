@@ -46,7 +46,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from shapedb.config import MDBDConfig, with_options
-from shapedb.errors import DegenerateGeometryError, InvalidShapeError
+from shapedb.errors import ConfigError, DegenerateGeometryError, InvalidShapeError
 from shapedb.frame import canonical_frame, frame_grid
 from shapedb.geometry import Geometry, Grid
 from shapedb.refine import Refiner
@@ -98,6 +98,13 @@ class Decomposition:
         Homogeneous map from the grid's frame to model coordinates (rotation whose
         columns are the principal axes, and the centroid); identity without the
         canonical frame.
+    tail_centers : (t, 3) float64
+        Balls the packing found after its ``n_balls`` (``decompose(tail_balls=...)``),
+        model units, sorted by decreasing radius; (0, 3) without a tail. They are not
+        part of the decomposition (no contact edges, no feature): only the light
+        fields of a longer packing read them.
+    tail_radii : (t,) float64
+        Their radii, non-increasing, model units.
     """
 
     centers: NDArray[np.float64]
@@ -110,11 +117,22 @@ class Decomposition:
     sampling: float = 0.0
     timings: dict[str, float] = field(default_factory=dict)
     frame: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
+    tail_centers: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
+    tail_radii: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
 
     @property
     def n_balls(self) -> int:
         """Number of balls n."""
         return int(len(self.radii))
+
+    def longer_packing(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The balls followed by the tail: ((n + t, 3) centres, (n + t,) radii), model units."""
+        if len(self.tail_radii) == 0:
+            return self.centers, self.radii
+        return (
+            np.vstack([self.centers, self.tail_centers]),
+            np.concatenate([self.radii, self.tail_radii]),
+        )
 
     @cached_property
     def graph(self) -> ContactGraph:
@@ -364,28 +382,43 @@ def pack_balls(
     *,
     naive: bool,
     stats: dict[str, float] | None = None,
+    tail: int = 0,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Run the decomposition on the field F (modified in place); balls in found order.
 
     ``stats``, when given, receives "refine" (seconds spent in precise queries and
-    the surrogate search) and "queries" (number of precise query calls).
+    the surrogate search), "queries" (number of precise query calls) and "main" (how
+    many of the returned balls are the decomposition's).
+
+    ``tail`` > 0 continues the greedy packing after the ``cfg.n_balls`` balls (or
+    after it stopped) on the same field for at most ``tail`` more balls, without
+    off-grid refinement (each tail ball is its grid cell and the field's value
+    there). The first ``stats["main"]`` balls are exactly those of ``tail=0``.
     """
     h = grid.spacing
     min_r = cfg.min_radius_cells * h
     tie = cfg.tie_cells * h
     middle = cfg.tie_rule == "middle"
     origin = np.asarray(grid.origin, dtype=np.float64)
-    centers = np.empty((cfg.n_balls, 3))
-    radii = np.empty(cfg.n_balls)
+    centers = np.empty((cfg.n_balls + tail, 3))
+    radii = np.empty(cfg.n_balls + tail)
     n = 0
     refiner = Refiner(geometry, grid, F.copy()) if cfg.refine else None
     if naive:
         x, y, z = grid.axes()
     else:
         bmax = _block_maxima(F, BLOCK)
-    for _ in range(4 * cfg.n_balls + 64):  # rejections are rare; this only bounds them
-        if n == cfg.n_balls:
-            break
+    main = -1
+    budget = 4 * cfg.n_balls + 64  # rejections are rare; this only bounds them
+    stop = cfg.n_balls
+    while True:
+        if n == stop or budget == 0:
+            if main >= 0 or tail == 0:
+                break
+            main, stop, refiner_main, refiner = n, n + tail, refiner, None
+            budget = tail  # the tail rejects nothing
+            continue
+        budget -= 1
         if naive:
             flat, top = _naive_argmax(F, tie, min_r, middle)
         else:
@@ -420,10 +453,13 @@ def pack_balls(
             np.minimum(F, d.astype(np.float32), out=F)
         else:
             _carve(F, bmax, BLOCK, origin, h, c, r, reach)
+    if main < 0:
+        main, refiner_main = n, refiner
     centers, radii = centers[:n], radii[:n]
     if stats is not None:
-        stats["refine"] = refiner.seconds if refiner is not None else 0.0
-        stats["queries"] = float(refiner.queries if refiner is not None else 0)
+        stats["refine"] = refiner_main.seconds if refiner_main is not None else 0.0
+        stats["queries"] = float(refiner_main.queries if refiner_main is not None else 0)
+        stats["main"] = float(main)
     return centers, radii
 
 
@@ -518,6 +554,7 @@ def _finish(
     centers: NDArray[np.float64],
     radii: NDArray[np.float64],
     timings: dict[str, float],
+    tail: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
 ) -> Decomposition:
     from shapedb.graph import contact_edges
 
@@ -529,10 +566,19 @@ def _finish(
             "than the grid: increase resolution",
             source=repr(geometry),
         )
-    order = np.argsort(-radii, kind="stable")
-    centers, radii = prep.scale * centers[order], prep.scale * radii[order]
+
+    def to_model(
+        c: NDArray[np.float64], r: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        order = np.argsort(-r, kind="stable")
+        c, r = prep.scale * c[order], prep.scale * r[order]
+        return c @ prep.frame[:3, :3].T + prep.frame[:3, 3], r  # back to model coordinates
+
+    centers, radii = to_model(centers, radii)
+    tail_centers, tail_radii = (
+        to_model(*tail) if tail is not None else (np.zeros((0, 3)), np.zeros(0))
+    )
     spacing = prep.scale * grid.spacing
-    centers = centers @ prep.frame[:3, :3].T + prep.frame[:3, 3]  # back to model coordinates
     t0 = time.perf_counter()
     edges = contact_edges(centers, radii, cfg.contact_tol_cells * spacing)
     timings["graph"] = time.perf_counter() - t0
@@ -547,22 +593,32 @@ def _finish(
         sampling=float(getattr(geometry, "surface_sampling", 0.0)),
         timings=timings,
         frame=prep.frame,
+        tail_centers=tail_centers,
+        tail_radii=tail_radii,
     )
 
 
-def _run(geometry: Geometry, cfg: MDBDConfig, *, naive: bool) -> Decomposition:
+def _run(geometry: Geometry, cfg: MDBDConfig, *, naive: bool, tail: int = 0) -> Decomposition:
     prep = prepare_field(geometry, cfg)
     stats: dict[str, float] = {}
     t0 = time.perf_counter()
-    centers, radii = pack_balls(prep.local, prep.grid, prep.F, cfg, naive=naive, stats=stats)
+    centers, radii = pack_balls(
+        prep.local, prep.grid, prep.F, cfg, naive=naive, stats=stats, tail=tail
+    )
     timings = dict(prep.timings)
     timings["decompose"] = time.perf_counter() - t0
     timings["refine"] = stats["refine"]
-    return _finish(geometry, prep, cfg, centers, radii, timings)
+    main = int(stats["main"])
+    rest = (centers[main:], radii[main:]) if tail > 0 else None
+    return _finish(geometry, prep, cfg, centers[:main], radii[:main], timings, rest)
 
 
 def decompose(
-    geometry: Geometry, *, config: MDBDConfig | None = None, **options: Any
+    geometry: Geometry,
+    *,
+    config: MDBDConfig | None = None,
+    tail_balls: int = 0,
+    **options: Any,
 ) -> Decomposition:
     """Truncated MDBD of ``geometry``, with its contact graph.
 
@@ -572,6 +628,11 @@ def decompose(
         Any representation (mesh, point cloud, voxels, implicit...).
     config : MDBDConfig, optional
         Parameters; defaults to ``MDBDConfig()``.
+    tail_balls : int, optional
+        Continue the greedy packing past ``n_balls`` for at most this many balls,
+        without off-grid refinement, kept apart in ``tail_centers`` / ``tail_radii``
+        (the light fields of a longer packing, ``LightFieldConfig.n_balls``). The
+        decomposition's own balls are those of ``tail_balls=0``. Default 0.
     **options
         Overrides of ``config`` fields, e.g. ``resolution=64, n_balls=256``.
 
@@ -589,7 +650,9 @@ def decompose(
         When no ball of the minimum radius fits inside the solid.
     """
     cfg = _resolve_config(config, options)
-    out = _run(geometry, cfg, naive=False)
+    if isinstance(tail_balls, bool) or not isinstance(tail_balls, int) or tail_balls < 0:
+        raise ConfigError(f"tail_balls={tail_balls!r}: must be an integer >= 0")
+    out = _run(geometry, cfg, naive=False, tail=tail_balls)
     logger.debug("decomposed %r: %d balls, timings %s", geometry, out.n_balls, out.timings)
     return out
 

@@ -70,7 +70,8 @@ ADDED: dict[str, dict[str, Any]] = {
     # before the section: no re-ranking stage
     "rerank": {"scorer": "none"},
     # before the section no light fields were stored; the product's light fields;
-    # before the fills, silhouettes were the plain union of the discs
+    # before the fills, silhouettes were the plain union of the discs; before n_balls,
+    # the light fields were those of the decomposition's balls
     "light_field": {
         "n_fields": 3,
         "resolution": 64,
@@ -78,6 +79,7 @@ ADDED: dict[str, dict[str, Any]] = {
         "edges": False,
         "dilate_px": 0.0,
         "close_px": 0,
+        "n_balls": 0,
     },
 }
 

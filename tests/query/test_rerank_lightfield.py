@@ -214,3 +214,33 @@ def test_a_store_with_filled_silhouettes_fills_its_records_and_its_queries(
         assert [h.id for h in again.search(shape, k=3)] == [h.id for h in again.search(name, k=3)]
     forget(db)
     forget(again)
+
+
+def test_a_store_with_a_longer_packing_renders_records_and_queries_from_it(
+    tmp_path: Path, forget: Callable[[Any], None]
+) -> None:
+    import shapedb.database as database
+    from shapedb.lightfield import decomposition_light_field, record_light_field
+    from shapedb.mdbd import decompose
+
+    longer = STAGE.with_options(lf_n_balls=STAGE.mdbd.n_balls + 200)
+    db = database.connect(tmp_path / "store", config=longer)
+    shapes = {n: g for n, g in _shapes().items() if n in ("box_a", "box_b", "rod_a", "ring_a")}
+    db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
+    again = database.connect(tmp_path / "store")
+    assert again.config.light_field.n_balls == longer.light_field.n_balls
+    box = decompose(shapes["box_a"], config=longer.mdbd, tail_balls=200)
+    today = decompose(shapes["box_a"], config=longer.mdbd)
+    assert len(box.tail_radii) > 0
+    rec = again.get("box_a")
+    assert np.array_equal(rec.decomposition.radii, today.radii)  # the record's balls: today's
+    got = rec.light_field
+    want = decomposition_light_field(box, longer.light_field)
+    assert got is not None and np.array_equal(got, want)
+    assert not np.array_equal(
+        got, record_light_field(today.centers, today.radii, longer.light_field)
+    )
+    for name, shape in shapes.items():  # a query from outside gets the same tail
+        assert [h.id for h in again.search(shape, k=3)] == [h.id for h in again.search(name, k=3)]
+    forget(db)
+    forget(again)

@@ -213,3 +213,31 @@ def test_dilation_and_closing_only_add_pixels() -> None:
         LightFieldConfig(dilate_px=-1.0)
     with pytest.raises(ConfigError, match="lf_edges"):
         LightFieldConfig(edges=1)  # type: ignore[arg-type]
+
+
+def test_the_light_fields_of_a_longer_packing_are_those_of_the_balls_and_the_tail() -> None:
+    from shapedb.implicit import Box, Capsule
+    from shapedb.lightfield import decomposition_light_field, record_light_field
+    from shapedb.mdbd import decompose
+
+    g = Box([0, 0, 0], [2.0, 2.0, 2.0]) | Capsule([0.9, 0, 0], [2.8, 0, 0], 0.1)
+    today = decompose(g, resolution=48, n_balls=16)
+    longer = decompose(g, resolution=48, n_balls=16, tail_balls=300)
+    plain = decomposition_light_field(today, SMALL)
+    assert np.array_equal(plain, record_light_field(today.centers, today.radii, SMALL))
+    got = decomposition_light_field(longer, SMALL)
+    assert np.array_equal(got, record_light_field(*longer.longer_packing(), SMALL))
+    # the tail adds the rod the 16 balls miss: nearer to a dense packing of the solid
+    dense = decompose(g, resolution=48, n_balls=1500)
+    ref = record_light_field(dense.centers, dense.radii, SMALL)
+    d = light_field_distance(np.stack([ref, got, plain]))
+    assert d[0, 1] < 0.5 * d[0, 2]
+    # filled silhouettes of a tail use the contacts of all the balls
+    filled = LightFieldConfig(n_fields=3, resolution=48, edges=True)
+    assert decomposition_light_field(longer, filled).shape == got.shape
+
+
+def test_the_packing_length_is_checked() -> None:
+    with pytest.raises(ConfigError, match="lf_n_balls"):
+        LightFieldConfig(n_balls=-1)
+    assert LightFieldConfig(n_balls=1024).n_balls == 1024

@@ -236,3 +236,39 @@ def test_other_representations_decompose_in_the_frame() -> None:
         moved.signed_distance(d.centers[:3] @ np.eye(3)[[1, 2, 0]].T + [1, 2, 3]),
         vox.signed_distance(d.centers[:3]),
     )
+
+
+def _box_with_rod() -> Implicit:
+    """A cube of side 2 with a rod of radius 0.1 sticking out along x to x = 2.8."""
+    from shapedb.implicit import Box, Capsule
+
+    return Box([0, 0, 0], [2.0, 2.0, 2.0]) | Capsule([0.9, 0, 0], [2.8, 0, 0], 0.1)
+
+
+def test_a_tail_continues_the_packing_and_leaves_the_balls_unchanged() -> None:
+    g = _box_with_rod()
+    today = decompose(g, resolution=48, n_balls=16)
+    d = decompose(g, resolution=48, n_balls=16, tail_balls=200)
+    assert np.array_equal(d.centers, today.centers) and np.array_equal(d.radii, today.radii)
+    assert np.array_equal(d.edges, today.edges) and len(today.tail_radii) == 0
+    assert len(d.tail_radii) == 200 and d.tail_centers.shape == (200, 3)
+    assert np.all(np.diff(d.tail_radii) <= 0) and d.tail_radii[0] <= d.radii[-1] + 1e-12
+    # the 16 balls never reach the rod; the tail does
+    assert d.centers[:, 0].max() < 1.0 and (d.tail_centers[:, 0] > 1.2).sum() >= 4
+    c, r = d.longer_packing()
+    assert np.all(g.signed_distance(c) >= r - 1e-6), "tail balls lie inside"
+    gap = np.linalg.norm(c[:, None] - c[None], axis=2) - r[:, None] - r[None]
+    np.fill_diagonal(gap, np.inf)
+    assert gap.min() >= -1e-6, "tail balls are disjoint from every ball"
+
+
+def test_a_tail_stops_where_the_packing_would(box: Implicit) -> None:
+    d = decompose(box, resolution=24, n_balls=8, tail_balls=100000)
+    assert 0 < len(d.tail_radii) < 100000
+    assert d.tail_radii.min() >= d.config.min_radius_cells * d.spacing * (1 - 1e-9)
+
+
+@pytest.mark.parametrize("bad", [-1, 1.5, True])
+def test_a_bad_tail_is_refused(sphere: Sphere, bad: object) -> None:
+    with pytest.raises(ConfigError, match="tail_balls"):
+        decompose(sphere, resolution=24, n_balls=4, tail_balls=bad)  # type: ignore[arg-type]

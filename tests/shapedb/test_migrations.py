@@ -202,3 +202,16 @@ def test_light_fields_stored_before_the_fills_read_as_the_plain_discs() -> None:
     stored["layout"] = 3
     before = Config.from_dict(stored).light_field
     assert (before.edges, before.dilate_px, before.close_px) == (False, 0.0, 0)
+
+
+def test_light_fields_stored_before_the_longer_packing_read_as_the_decompositions_balls() -> None:
+    longer = Config().with_options(rerank="lightfield", lf_n_balls=1024)
+    assert longer.light_field.n_balls == 1024 and longer.light_field_tail == 1024 - 512
+    stored = longer.to_dict()
+    assert Config.from_dict(stored) == longer
+    del stored["light_field"]["n_balls"]
+    old = Config.from_dict(stored)
+    assert old.light_field.n_balls == 0 and old.light_field_tail == 0
+    # no light fields stored: no tail, whatever the section says
+    assert longer.with_options(rerank="none").light_field_tail == 0
+    assert longer.with_options(lf_n_balls=300).light_field_tail == 0
