@@ -18,7 +18,11 @@ the same run:
 * ``lightfield``: version 4's vector with ``rerank="lightfield"`` at its defaults
   (:class:`shapedb.config.LightFieldFusionConfig`, K = 100), the candidates' light
   fields read by id as a store keeps them (float32,
-  :func:`shapedb.lightfield.record_light_field` of the balls).
+  :func:`shapedb.lightfield.record_light_field` of the balls), and the stored local
+  spreads computed over the set as a store computes them
+  (:func:`query.lightfield_spread.local_spreads`);
+* ``lightfield (before)``: the same with the stage's settings before the pooled spread
+  and the contrast floor (what a store written then reads).
 
 That the scorer ranks as the study's formula does is checked by the study
 (``python -m bench.studies.lightfield_balls --check-product``).
@@ -47,6 +51,8 @@ from bench.common import format_table, retrieval_scores, write_json
 from bench.features import kernel_features
 from query import rerank
 from query.index import FeatureIndex
+from query.lightfield_spread import local_spreads
+from query.rerank_lightfield import COLUMN, SPREAD
 from shapedb.config import Config
 from shapedb.lightfield import record_light_field
 
@@ -54,6 +60,9 @@ RESULTS = Path(__file__).resolve().parent / "results"
 SETS = ("web", "generic", "capod", "figures", "parts", "people")
 _MEASURES = ("nn", "first_tier", "dcg")
 _CHUNK = 32
+#: The stage's settings before the pooled spread and the contrast floor.
+LEGACY = {"lf_weight": 8.0, "lf_power": 3.0, "lf_ceiling": 0.09, "lf_spread_candidates": 100,
+          "lf_pool": 0, "lf_contrast_floor": 0.0}  # fmt: skip
 
 
 def index_of(x: np.ndarray) -> FeatureIndex:
@@ -63,9 +72,18 @@ def index_of(x: np.ndarray) -> FeatureIndex:
     )
 
 
-def _reader(lf: np.ndarray) -> Any:
+def _reader(lf: np.ndarray, index: FeatureIndex, config: Config) -> Any:
+    """The light fields by id, and the stored local spreads as a store computes them."""
+    spreads: dict[str, np.ndarray] = {}
+
     def arrays(name: str, ids: np.ndarray) -> np.ndarray | None:
-        return np.asarray(lf[ids], np.float64) if name == "light_field" else None
+        if name == COLUMN:
+            return np.asarray(lf[ids], np.float64)
+        if name == SPREAD:
+            if "s" not in spreads:  # the index's ids are 0..n-1
+                spreads["s"] = local_spreads(index, arrays, config)[1]
+            return spreads["s"][ids]
+        return None
 
     return arrays
 
@@ -75,7 +93,7 @@ def rankings(index: FeatureIndex, config: Config, lf: np.ndarray | None = None) 
     x = np.asarray(index.features_, np.float64)
     n = len(x)
     out = np.empty((n, n), np.int64)
-    arrays = None if lf is None else _reader(lf)
+    arrays = None if lf is None else _reader(lf, index, config)
     for lo in range(0, n, _CHUNK):
         q = slice(lo, min(lo + _CHUNK, n))
         out[q], _ = rerank.search(
@@ -99,7 +117,10 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     """Rows per set, the study check, the table; returns the JSON written."""
     lf_cfg = Config().with_options(rerank="lightfield")
     adaptive = Config().with_options(descriptor=7, rerank="adaptive")
-    table: dict[str, dict[str, Any]] = {"v4": {}, "adaptive (v7)": {}, "lightfield": {}}
+    before = lf_cfg.with_options(**LEGACY)
+    table: dict[str, dict[str, Any]] = {
+        "v4": {}, "adaptive (v7)": {}, "lightfield": {}, "lightfield (before)": {},
+    }  # fmt: skip
     for name in args.datasets:
         t0 = time.perf_counter()
         ds, balls = load(name, args.split)
@@ -112,6 +133,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             v7 = kernel_features(balls, Config().with_options(descriptor=7))
             table["adaptive (v7)"][name] = _scores(rankings(index_of(v7), adaptive), labels)
         table["lightfield"][name] = _scores(rankings(i4, lf_cfg, lf), labels)
+        table["lightfield (before)"][name] = _scores(rankings(i4, before, lf), labels)
         print(f"  {name}: {len(v4)} models ({time.perf_counter() - t0:.0f} s)", flush=True)
     sets = list(args.datasets)
     rows = []

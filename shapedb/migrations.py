@@ -71,6 +71,8 @@ ADDED: dict[str, dict[str, Any]] = {
     "rerank": {"scorer": "none"},
     # before the section no light fields were stored; the product's light fields
     "light_field": {"n_fields": 3, "resolution": 64, "depth_weight": 0.0},
+    # before the pooled spread and the contrast floor: the query's own spread, no floor
+    "lf_fusion": {"pool": 0, "contrast_floor": 0.0},
 }
 
 #: Sections added to the store configuration, by the first layout that writes them:
