@@ -331,7 +331,38 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
     )
     _print(rows, stores, args.split)
     return {"split": args.split, "rows": rows, "defaults": dataclasses.asdict(default),
+            "statistics": statistics(stores, default),
             "sizes": {k: len(st.rows) for k, st in stores.items()}}  # fmt: skip
+
+
+def statistics(stores: dict[str, Store], f: Any) -> dict[str, dict[str, dict[str, list[float]]]]:
+    """5 / 50 / 95 % of the gate's statistics per set in each store (printed as a table).
+
+    ``spread 100``: the query's own spread over its 100 candidates (the gate before);
+    ``local``: the local spread over ``f.spread_candidates``; ``pooled``: its median over
+    the first ``f.pool`` candidates; ``contrast``: the contrast of the floor.
+    """
+    out: dict[str, dict[str, dict[str, list[float]]]] = {}
+    table = []
+    for name, st in stores.items():
+        local = local_spreads(st, f.spread_candidates, f.typical)
+        d = st.others(st.D)
+        far = d[:, min(f.contrast_depth, d.shape[1]) - 1]
+        stats = {
+            "spread 100": local_spreads(st, 100, f.typical),
+            "local": local,
+            "pooled": np.median(local[st.cand[:, : f.pool]], axis=1),
+            "contrast": np.median(d[:, : f.neighbours], 1) / np.maximum(far, 1e-300),
+        }
+        for s in dict.fromkeys(st.sets):
+            rows = st.sets == s
+            q = {k: np.quantile(v[rows], [0.05, 0.5, 0.95]).tolist() for k, v in stats.items()}
+            out.setdefault(name, {})[str(s)] = q
+            table.append([s if (name,) == (s,) else f"{s} in {name}",
+                          *("/".join(f"{x:.3f}" for x in q[k]) for k in stats)])  # fmt: skip
+    print(format_table("the gate's statistics, 5 / 50 / 95 % of the queries",
+                       ("set", "spread 100", "local", "pooled", "contrast"), table))  # fmt: skip
+    return out
 
 
 def _print(rows: dict[str, dict[str, Any]], stores: dict[str, Store], split: str) -> None:

@@ -28,8 +28,10 @@ That the scorer ranks as the study's formula does is checked by the study
 (``python -m bench.studies.lightfield_balls --check-product``).
 
 ``--cost`` builds three stores of the web validation shapes (v4 without a stage, v4 with
-``rerank="lightfield"``, v7 with ``rerank="adaptive"``), times ``db.search(id, k=10)``
-for every shape, interleaved, and prints medians and ratios to the plain store.
+``rerank="lightfield"``, v7 with ``rerank="adaptive"``), times the lightfield store's
+local spreads (the index-time statistic, read from the light field column), then
+``db.search(id, k=10)`` for every shape, interleaved, and prints medians and ratios to
+the plain store.
 Written to bench/results/lightfield_rerank_<split>.json (``lightfield_rerank_cost.json``).
 """
 
@@ -182,6 +184,16 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
                 for j, (m, b) in enumerate(zip(ds.models, balls, strict=True))
             ])  # fmt: skip
             dbs[label] = db
+            if cfg.rerank.scorer == "lightfield":  # the index-time statistic, timed alone
+                from query.index import open_index
+                from query.lightfield_spread import store_spreads
+                from query.rerank_lightfield import stored_arrays
+
+                open_index(db)
+                t = time.perf_counter()
+                store_spreads(db, stored_arrays(db))
+                out["spreads_s"] = time.perf_counter() - t
+                print(f"  local spreads of {len(balls)} shapes: {out['spreads_s']:.2f} s")
             got = db.evaluate()
             out[f"evaluate {label}"] = {m: float(getattr(got, m)) for m in _MEASURES}
             print(f"  db.evaluate {label}: {got.nn:.3f} / {got.first_tier:.3f} / {got.dcg:.3f}")
