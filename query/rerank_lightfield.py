@@ -181,7 +181,8 @@ class LightFieldFusion:
                 lq = given[row]
             elif batch.query_ids[row] >= 0:
                 lq = stored[pos[int(batch.query_ids[row])]]
-            lc = stored[[pos[int(i)] for i in batch.ids[row, cols]]]
+            at = [pos[int(i)] for i in batch.ids[row, cols]]
+            lc = stored[at]
             if lq is None or not np.all(np.isfinite(lq)) or not np.all(np.isfinite(lc)):
                 self._warn("a query or a candidate has no stored light fields")
                 continue
@@ -189,7 +190,7 @@ class LightFieldFusion:
             own = batch.ids[row, cols] == batch.query_ids[row]
             if batch.query_ids[row] < 0:  # an outside query's stored copy counts as itself
                 own |= dl == 0.0
-            sp = None if spreads is None else spreads[[pos[int(i)] for i in batch.ids[row, cols]]]
+            sp = None if spreads is None else spreads[at]
             out[row, cols] = self.fuse(batch.distances[row, cols], dl, own, sp)
         return out
 
@@ -219,6 +220,7 @@ class StoredArrays:
         self._absent: set[int] = set()  # read, and null (rows older than the column)
         self._complete = False
         self._shape = (int(db.config.light_field.n_fields), 10, -1)
+        self._spreads: dict[int, float] | None = None
 
     def _read(self, ids: list[int] | None) -> None:
         t = self.db.store.shapes(["id", COLUMN], ids=ids)
@@ -238,7 +240,9 @@ class StoredArrays:
         None when ``name`` is neither or no record of ``ids`` has light fields.
         """
         if name == SPREAD:
-            table = store_spreads(self.db, self)
+            if self._spreads is None:  # this reader's store version: read once
+                self._spreads = store_spreads(self.db, self)
+            table = self._spreads
             return np.array([table.get(int(i), np.nan) for i in np.asarray(ids).ravel()])
         if name != COLUMN:
             return None
