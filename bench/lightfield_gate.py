@@ -267,6 +267,10 @@ GRID = {
     "contrast_ramp": (0.05, 0.1, 0.2),
     "contrast_depth": (20, 30),
 }
+#: ``--around``: values of one field each, the others at the defaults.
+AROUND = {"weight": (2.0, 8.0), "ceiling": (0.09, 0.13, 0.15), "pool": (5, 10, 40),
+          "spread_candidates": (10,), "contrast_floor": (0.0, 0.25, 0.35),
+          "contrast_ramp": (0.1, 0.2), "contrast_depth": (20, 50)}  # fmt: skip
 LEGACY = {"weight": 8.0, "power": 3.0, "ceiling": 0.09, "spread_candidates": 100, "pool": 0,
           "contrast_floor": 0.0}  # fmt: skip
 
@@ -336,6 +340,13 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
     rows["stage now (LightFieldFusionConfig defaults)"] = _row(
         stores, {k: gate_weights(st, default) for k, st in stores.items()}, base
     )
+    if args.around:  # one field of the defaults moved at a time
+        for field, values in AROUND.items():
+            for v in values:
+                f = dataclasses.replace(default, **{field: v})  # type: ignore[arg-type]
+                rows[f"defaults, {field} {v:g}"] = _row(
+                    stores, {k: gate_weights(st, f) for k, st in stores.items()}, base
+                )
     _print(rows, stores, args.split)
     return {"split": args.split, "rows": rows, "defaults": dataclasses.asdict(default),
             "statistics": statistics(stores, default),
@@ -396,6 +407,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
     ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
     ap.add_argument("--no-grid", action="store_true", help="only the fixed rows")
+    ap.add_argument("--around", action="store_true", help="the defaults, one field moved")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
     result = select(args)
