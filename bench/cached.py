@@ -2,7 +2,9 @@
 
 :func:`load` gives a split's models and their balls from ``SHAPEDB_BENCH_CACHE`` (today's
 engine, else the older engines of :data:`ENGINE_COMMITS`); models not cached are left out
-and counted. Used by the benches that re-rank or fuse stored balls.
+and counted. Used by the benches that re-rank or fuse stored balls. :data:`SETS` are the
+sets they iterate by default; :data:`HELD_OUT` (``webplus``, a test split only) is read
+on request, to check settings chosen on the others.
 """
 
 from __future__ import annotations
@@ -11,18 +13,22 @@ from collections.abc import Sequence
 from typing import Any
 
 from bench.common import cache_path, load_balls
-from bench.datasets import Dataset, capod, generic, parts, web
+from bench.datasets import Dataset, capod, generic, parts, web, webplus
 from bench.datasets import articulated as figures
 from bench.representations import build
 from shapedb.config import MDBDConfig
 
-__all__ = ["ENGINE_COMMITS", "SETS", "load"]
+__all__ = ["ENGINE_COMMITS", "SETS", "HELD_OUT", "CHOICES", "load"]
 
 #: Older engines whose cached decompositions are read where today's key has none
 #: (b95b2be: test splits, differs only in how flat quads are thickened; f031e22: the
 #: people set, before the sheet rule, which leaves closed solids unchanged).
 ENGINE_COMMITS = ("b95b2be", "f031e22")
 SETS = ("web", "generic", "capod", "figures", "parts", "people")
+#: Held-out sets (test split only), never in a default run: nothing is tuned on them.
+HELD_OUT = ("webplus",)
+#: Every set :func:`load` reads.
+CHOICES = SETS + HELD_OUT
 
 
 def load(name: str, split: str, variants: Sequence[str] = ("mesh",)) -> tuple[Dataset, list[Any]]:
@@ -34,7 +40,7 @@ def load(name: str, split: str, variants: Sequence[str] = ("mesh",)) -> tuple[Da
         (ds,) = build(["people"], split)
     else:
         ds = {"web": web, "generic": generic, "capod": capod, "figures": figures,
-              "parts": parts}[name]().split(split)  # fmt: skip
+              "parts": parts, "webplus": webplus}[name]().split(split)  # fmt: skip
     cfg = MDBDConfig()
     keep, balls = [], []
     for i, m in enumerate(ds.models):

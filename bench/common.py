@@ -43,6 +43,7 @@ __all__ = [
     "write_json",
     "log_margin",
     "retrieval_scores",
+    "class_nn",
     "Balls",
     "VARIANTS",
     "RECON_BASE_DEPTH",
@@ -150,6 +151,18 @@ def _psb_scores(similarity: NDArray[np.float64], labels: NDArray[Any]) -> dict[s
         sums["dcg"] += (rel * disc).sum() / disc[:k].sum()
         counted += 1
     return {m: sums[m] / max(counted, 1) for m in MEASURES}
+
+
+def class_nn(d: NDArray[np.float64], labels: NDArray[np.str_]) -> dict[str, float]:
+    """Per class, the fraction of its queries whose nearest other model shares its class.
+
+    ``d``: (n, n) distances (the diagonal is ignored); ``labels``: (n,) classes.
+    Ties go to the lower index, as :func:`numpy.argmin` breaks them.
+    """
+    d = np.array(d, dtype=np.float64)
+    np.fill_diagonal(d, np.inf)
+    hit = labels[np.argmin(d, axis=1)] == labels
+    return {str(k): float(hit[labels == k].mean()) for k in dict.fromkeys(labels.tolist())}
 
 
 def log_margin(d: NDArray[np.float64], labels: NDArray[Any]) -> float:

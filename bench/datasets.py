@@ -28,6 +28,11 @@ validation, the rest to test; parameter studies see only the validation split):
     (seats, tables, buildings, vehicles, aircraft, ...), large variation within a
     kind, random yaw and some arbitrary rotations; sources carry
     :func:`bench.web_shapes.web_version`, so caches key on the generator's code.
+``webplus``
+    A held-out web-like set from :mod:`bench.webplus_shapes`: 39 kinds that neither
+    ``web`` nor ``generic`` has (close man-made families, animals in many poses,
+    plants), built and oriented as ``web``; every model is in the test split (nobody
+    tunes on it). Sources carry :func:`bench.webplus_shapes.webplus_version`.
 
 Point-cloud versions follow the paper: a random 20 % of the mesh vertices, seeded by
 the model name; meshes so coarse that this gives fewer than ``min_points`` points are
@@ -62,6 +67,7 @@ __all__ = [
     "parts",
     "generic",
     "web",
+    "webplus",
     "load_dataset",
     "build_sets",
     "mesh_arrays",
@@ -311,8 +317,31 @@ def web(per_kind: int = 20, kinds: Sequence[str] | None = None) -> Dataset:
     return Dataset("web", split_by_model(models))
 
 
+def webplus(per_kind: int = 16, kinds: Sequence[str] | None = None) -> Dataset:
+    """The held-out web-like set: one class per kind of :mod:`bench.webplus_shapes`.
+
+    Every model is in the ``"test"`` split (the validation split is empty: the set
+    checks settings chosen on the other sets and is never tuned on). Sources are
+    ``"webplus:<kind>:<seed>:<webplus_version>"``, so no cache serves stale models.
+    """
+    from bench.webplus_shapes import KINDS, webplus_version
+
+    kinds = tuple(kinds) if kinds else KINDS
+    version = webplus_version()
+    models = [
+        Model(name=f"{k}_{i:02d}", label=k, source=f"webplus:{k}:{i}:{version}", split="test")
+        for k in kinds
+        for i in range(per_kind)
+    ]
+    return Dataset("webplus", tuple(models))
+
+
 def load_dataset(name: str) -> Dataset:
-    """One of ``capod``, ``articulated``, ``people``, ``parts``, ``generic``, ``web`` (default size)."""
+    """A set by name, at its default size.
+
+    One of ``capod``, ``articulated``, ``people``, ``parts``, ``generic``, ``web``,
+    ``webplus``; ValueError for another name.
+    """
     makers = {
         "capod": capod,
         "articulated": articulated,
@@ -320,6 +349,7 @@ def load_dataset(name: str) -> Dataset:
         "parts": parts,
         "generic": generic,
         "web": web,
+        "webplus": webplus,
     }
     if name not in makers:
         raise ValueError(f"unknown data set {name!r}: choose from {sorted(makers)}")
@@ -353,6 +383,9 @@ def build_sets(
             out.append(ds.head(per_class=6) if quick else ds)
         elif name == "web":
             ds = web()
+            out.append(ds.head(per_class=6) if quick else ds)
+        elif name == "webplus":
+            ds = webplus()
             out.append(ds.head(per_class=6) if quick else ds)
         else:
             raise SystemExit(f"unknown data set {name!r}")
@@ -406,6 +439,16 @@ def mesh_arrays(
                 f"{model.name}: made by web generator {version}, this code is {web_version()}"
             )
         return web_mesh(kind, int(seed))
+    if model.source.startswith("webplus:"):
+        from bench.webplus_shapes import webplus_mesh, webplus_version
+
+        _, kind, seed, version = model.source.split(":")
+        if version != webplus_version():
+            raise ValueError(
+                f"{model.name}: made by webplus generator {version}, "
+                f"this code is {webplus_version()}"
+            )
+        return webplus_mesh(kind, int(seed))
     if not model.source.startswith(("figure:", "part:", "person:")):
         import trimesh
 
@@ -478,7 +521,7 @@ def families(models: Sequence[Model]) -> NDArray[np.str_]:
     for m in models:
         if m.source.startswith(("figure:", "person:")):
             keys.append(m.source.rsplit(":", 1)[0])
-        elif m.source.startswith(("part:", "generic:", "web:")):
+        elif m.source.startswith(("part:", "generic:", "web:", "webplus:")):
             keys.append(m.source)
         else:
             faces = np.ascontiguousarray(mesh_arrays(m)[1], dtype=np.int64)

@@ -4,6 +4,7 @@ Usage (from the repository root)::
 
     python -m bench.lightfield_rerank                       # validation, six sets
     python -m bench.lightfield_rerank --split test
+    python -m bench.lightfield_rerank --split test --datasets webplus   # the held-out set
     python -m bench.lightfield_rerank --cost                # per-query db.search time
 
 For each set's split (meshes; the cached decompositions the light field study reads,
@@ -23,6 +24,11 @@ the same run:
   (:func:`query.lightfield_spread.local_spreads`);
 * ``lightfield (before)``: the same with the stage's settings before the pooled spread
   and the contrast floor (what a store written then reads).
+
+With ``--baselines``, in the same run: the balls' light fields alone (``light fields
+(balls)``, :func:`shapedb.lightfield.light_field_distance` of the stored light fields),
+and on the meshes the light field descriptor (:mod:`bench.lightfield`) and D2
+(:mod:`bench.baselines`, 2^18 pairs). ``--per-kind`` adds every row's NN per class.
 
 That the scorer ranks as the study's formula does is checked by the study
 (``python -m bench.studies.lightfield_balls --check-product``).
@@ -48,15 +54,15 @@ from typing import Any
 
 import numpy as np
 
-from bench.cached import load
-from bench.common import format_table, retrieval_scores, write_json
+from bench.cached import CHOICES, load
+from bench.common import class_nn, format_table, retrieval_scores, write_json
 from bench.features import kernel_features
 from query import rerank
 from query.index import FeatureIndex
 from query.lightfield_spread import local_spreads
 from query.rerank_lightfield import COLUMN, SPREAD
 from shapedb.config import Config
-from shapedb.lightfield import record_light_field
+from shapedb.lightfield import light_field_distance, record_light_field
 
 RESULTS = Path(__file__).resolve().parent / "results"
 SETS = ("web", "generic", "capod", "figures", "parts", "people")
@@ -104,10 +110,28 @@ def rankings(index: FeatureIndex, config: Config, lf: np.ndarray | None = None) 
     return out
 
 
-def _scores(order: np.ndarray, labels: np.ndarray) -> dict[str, float]:
+def _ranks(order: np.ndarray) -> np.ndarray:
+    """(n, n) rank of each shape in each query's list (0 first)."""
     ranks = np.empty(order.shape)
     np.put_along_axis(ranks, order, np.arange(order.shape[1], dtype=float)[None, :], 1)
-    return retrieval_scores(-ranks, labels)
+    return ranks
+
+
+def _scores(order: np.ndarray, labels: np.ndarray) -> dict[str, float]:
+    return retrieval_scores(-_ranks(order), labels)
+
+
+def mesh_baselines(ds: Any) -> dict[str, np.ndarray]:
+    """(n, n) distances of the light field descriptor and D2 (2^18 pairs) on the meshes."""
+    from bench.baselines import D2Config, d2_descriptor
+    from bench.datasets import mesh_arrays
+    from bench.lightfield import LFDConfig, lfd_descriptor, lfd_distance
+
+    arrays = [mesh_arrays(m) for m in ds.models]
+    lfd = np.stack([lfd_descriptor(v, f, LFDConfig()) for v, f in arrays])
+    d2 = np.stack([d2_descriptor(v, f, D2Config(n_pairs=262144)) for v, f in arrays])
+    l1 = np.stack([np.abs(d2 - row).sum(axis=1) for row in d2])
+    return {"LFD (mesh)": lfd_distance(lfd), "D2 (mesh)": l1}
 
 
 def light_fields(balls: Sequence[Any], config: Config) -> np.ndarray:
@@ -123,6 +147,15 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     table: dict[str, dict[str, Any]] = {
         "v4": {}, "adaptive (v7)": {}, "lightfield": {}, "lightfield (before)": {},
     }  # fmt: skip
+    if args.baselines:
+        table.update({"light fields (balls)": {}, "LFD (mesh)": {}, "D2 (mesh)": {}})
+    per_kind: dict[str, dict[str, dict[str, float]]] = {}
+
+    def add(row: str, name: str, d: np.ndarray, labels: np.ndarray) -> None:
+        table[row][name] = retrieval_scores(-d, labels)
+        if args.per_kind:
+            per_kind.setdefault(name, {})[row] = class_nn(d, labels)
+
     for name in args.datasets:
         t0 = time.perf_counter()
         ds, balls = load(name, args.split)
@@ -130,12 +163,16 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         v4 = kernel_features(balls, Config())
         lf = light_fields(balls, lf_cfg)
         i4 = index_of(v4)
-        table["v4"][name] = _scores(rankings(i4, Config()), labels)
+        add("v4", name, _ranks(rankings(i4, Config())), labels)
         if not args.no_adaptive:
             v7 = kernel_features(balls, Config().with_options(descriptor=7))
-            table["adaptive (v7)"][name] = _scores(rankings(index_of(v7), adaptive), labels)
-        table["lightfield"][name] = _scores(rankings(i4, lf_cfg, lf), labels)
-        table["lightfield (before)"][name] = _scores(rankings(i4, before, lf), labels)
+            add("adaptive (v7)", name, _ranks(rankings(index_of(v7), adaptive)), labels)
+        add("lightfield", name, _ranks(rankings(i4, lf_cfg, lf)), labels)
+        add("lightfield (before)", name, _ranks(rankings(i4, before, lf)), labels)
+        if args.baselines:
+            add("light fields (balls)", name, light_field_distance(lf.astype(np.float64)), labels)
+            for row, d in mesh_baselines(ds).items():
+                add(row, name, d, labels)
         print(f"  {name}: {len(v4)} models ({time.perf_counter() - t0:.0f} s)", flush=True)
     sets = list(args.datasets)
     rows = []
@@ -153,7 +190,12 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         f"re-ranking stages through query.rerank.search, {args.split} splits (NN / 1-T / DCG)",
         ("row", *sets, "objective"), rows,
     ))  # fmt: skip
-    return {"split": args.split, "table": table}
+    for name, got in per_kind.items():
+        kinds = list(dict.fromkeys(got[next(iter(got))]))
+        print()
+        print(format_table(f"{name}: NN per class", ("class", *got),
+                           [[k, *(f"{got[r][k]:.2f}" for r in got)] for k in kinds]))  # fmt: skip
+    return {"split": args.split, "table": table, "per_kind_nn": per_kind}
 
 
 def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
@@ -224,9 +266,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m bench.lightfield_rerank", description=__doc__.split("\n")[0]
     )
-    ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=SETS)
+    ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
     ap.add_argument("--no-adaptive", action="store_true", help="leave out the v7 adaptive row")
+    ap.add_argument("--baselines", action="store_true",
+                    help="the balls' light fields alone, mesh LFD and D2 in the same run")  # fmt: skip
+    ap.add_argument("--per-kind", action="store_true", help="every row's NN per class")
     ap.add_argument("--cost", action="store_true", help="only time db.search of three stores")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)

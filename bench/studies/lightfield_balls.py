@@ -57,9 +57,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.cached import SETS, load
+from bench.cached import CHOICES, SETS, load
 from bench.common import (
     Balls,
+    class_nn,
     format_table,
     retrieval_scores,
     write_json,
@@ -198,6 +199,22 @@ def fuse(
     raise ValueError(f"fusion {kind!r} is unknown")
 
 
+def gate_stats(d4: FloatArray, dl: FloatArray, typical: float, top: int, power: float,
+               ceiling: float, ramp: float) -> dict[str, float]:  # fmt: skip
+    """How open the adaptive gate of ``adapt`` / ``adrank`` is over a set's queries.
+
+    Returns the median spread ``s_q`` (:func:`spread`), the shares of queries whose
+    ceiling factor is above 0 and equal to 1 (both 1 without a ceiling), the mean
+    overlap term ``a_q^p`` and the mean gate (their product).
+    """
+    a = overlap(d4, dl, top) ** power
+    s = spread(d4, dl, typical)
+    c = np.clip((ceiling - s) / ramp, 0.0, 1.0) if ceiling > 0 else np.ones(len(s))
+    return {"median_spread": float(np.median(s)), "ceiling_open": float(np.mean(c > 0)),
+            "ceiling_full": float(np.mean(c >= 1)), "mean_overlap_term": float(np.mean(a)),
+            "mean_gate": float(np.mean(a * c))}  # fmt: skip
+
+
 def cost(per_set: int, text: str, candidates: int = 100) -> dict[str, dict[str, float]]:
     """Median CPU seconds per model: decomposition, v4, ball light fields; re-ranking K.
 
@@ -277,7 +294,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
     ap = argparse.ArgumentParser(prog="python -m bench.studies.lightfield_balls")
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
-    ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=SETS)
+    ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
     ap.add_argument("--configs", nargs="+", default=["64/10/0", "64/10/1", "32/10/0", "64/3/0",
                                                       "64/1/0"])  # fmt: skip
     ap.add_argument("--fuse", default="64/10/0", help="configuration fused with v4")
@@ -294,6 +311,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument(
         "--queries", default="mesh", help="variant of the queries (e.g. pointcloud) against meshes"
     )
+    ap.add_argument("--per-kind", nargs="*", default=[], metavar="ROW",
+                    help="rows (e.g. v4 'LFD (mesh)') whose NN is also given per class")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None, help="JSON path (default: by split)")
     ap.add_argument("--cost", type=int, default=0, help="only time N models per set (--fuse)")
     ap.add_argument("--check-product", action="store_true",
@@ -335,6 +354,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         for n, s in sets.items()
     }
     typical = args.typical or float(np.exp(np.mean(np.log(list(medians.values())))))
+    gates = {n: gate_stats(s["mats"]["v4"], s["mats"][key], typical, args.top, args.power,
+                           args.ceiling, args.ramp) for n, s in sets.items()}  # fmt: skip
     rows_spec: list[tuple[str, str, float]] = [("v4", "", 0.0)]
     rows_spec += [(f"lfb {c}", "", 0.0) for c in dict.fromkeys([*args.configs, args.fuse])]
     if args.baselines:
@@ -344,6 +365,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     table, rows = [], []
     base: dict[str, dict[str, float]] = {}
+    per_kind: dict[str, dict[str, dict[str, float]]] = {}
     for label, kind, w in rows_spec:
         entry: dict[str, Any] = {"row": label}
         obj = []
@@ -358,6 +380,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             )
             sc = retrieval_scores(-d, s["labels"])
             entry[n] = sc
+            if label in args.per_kind:
+                per_kind.setdefault(n, {})[label] = class_nn(d, s["labels"])
             obj.append((sc["nn"] + sc["first_tier"] + sc["dcg"]) / 3)
         entry["objective"] = float(np.mean(obj))
         if label == "v4":
@@ -382,7 +406,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"ceiling {args.ceiling:g}, ramp {args.ramp:g}",
         ("row", *sets, "objective", "passes"), rows,
     ))  # fmt: skip
+    for n, got in per_kind.items():
+        kinds_of = list(dict.fromkeys(sets[n]["labels"].tolist()))
+        print()
+        print(format_table(
+            f"{n}: NN per class", ("class", *got),
+            [[k, *(f"{got[r][k]:.2f}" for r in got)] for k in kinds_of],
+        ))  # fmt: skip
     print(f"medians {medians}; chosen {chosen}")
+    print(f"gates {gates}")
     print(f"CPU s per model / per pair: {cpu}")
     out = args.out or OUT / f"lightfield_balls_{args.split}.json"
     write_json(out, {"split": args.split, "queries": args.queries, "fuse": args.fuse,
@@ -390,6 +422,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                      "top": args.top, "power": args.power, "ceiling": args.ceiling,
                      "ramp": args.ramp,
                      "medians": medians, "table": table, "chosen": chosen, "cpu": cpu,
+                     "per_kind_nn": per_kind, "gates": gates,
                      "sizes": {n: len(s["labels"]) for n, s in sets.items()}})  # fmt: skip
     print(f"written {out}")
     return 0

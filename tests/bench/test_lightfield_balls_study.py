@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench.common import class_nn
 from bench.studies.lightfield_balls import fuse, overlap, spread
 
 
@@ -39,3 +40,11 @@ def test_a_closed_gate_ranks_by_v4_and_an_open_one_moves_the_order() -> None:
     assert np.array_equal(
         np.argsort(heavy + np.eye(12) * 1e9, axis=1, kind="stable")[:, :3], order_l[:, :3]
     )
+
+
+def test_class_nn_is_the_per_class_share_of_right_nearest_neighbours() -> None:
+    # points on a line: a a b b b; the b at 2.4 is nearer the a at 2.0 than the other b's
+    x = np.array([0.0, 2.0, 2.4, 5.0, 6.0])
+    labels = np.array(["a", "a", "b", "b", "b"])
+    got = class_nn(np.abs(x[:, None] - x[None, :]), labels)
+    assert got == {"a": 0.5, "b": 2 / 3}
