@@ -136,7 +136,8 @@ def mesh_baselines(ds: Any) -> dict[str, np.ndarray]:
 
 def light_fields(balls: Sequence[Any], config: Config) -> np.ndarray:
     """(n, fields, 10, d) float32 light fields as a store keeps them."""
-    return np.stack([record_light_field(b.centers, b.radii, config.light_field) for b in balls])
+    cfg = config.light_field
+    return np.stack([record_light_field(b.centers, b.radii, cfg, edges=b.edges) for b in balls])
 
 
 def measure(args: argparse.Namespace) -> dict[str, Any]:

@@ -106,8 +106,9 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
 
             t3 = time.perf_counter()
             light_field = record_light_field(
-                decomposition.centers, decomposition.radii, config.light_field
-            )
+                decomposition.centers, decomposition.radii, config.light_field,
+                edges=decomposition.edges,
+            )  # fmt: skip
             timings["light_field"] = time.perf_counter() - t3
         timings["load"] = t_load
         timings["features"] = t2 - t1

@@ -295,5 +295,5 @@ def query_light_fields(config: Config, decompositions: list[Any]) -> NDArray[np.
     out = np.full((len(decompositions), cfg.n_fields, 10, light_field_dim(cfg)), np.nan)
     for k, d in enumerate(decompositions):
         if d is not None and d.n_balls:
-            out[k] = record_light_field(d.centers, d.radii, cfg)
+            out[k] = record_light_field(d.centers, d.radii, cfg, edges=d.edges)
     return out

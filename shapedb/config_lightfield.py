@@ -46,6 +46,13 @@ class LightFieldConfig:
         difference), times this weight (ball unions only).
     seed : int
         Seed of the light fields' turns.
+    edges : bool
+        Fill the silhouettes from the contact graph: each contact edge also covers the
+        convex hull of its two balls (which closes the gap between touching balls).
+    dilate_px : float
+        Every ball's disc grows by this many pixels, in [0, 8].
+    close_px : int
+        Morphological closing of every silhouette by a disc of this many pixels, in [0, 8].
     """
 
     n_fields: int = 10
@@ -56,6 +63,9 @@ class LightFieldConfig:
     fourier_weight: float = 1.0
     depth_weight: float = 0.0
     seed: int = 0
+    edges: bool = False
+    dilate_px: float = 0.0
+    close_px: int = 0
 
     def __post_init__(self) -> None:
         ints = {"n_fields": (1, 10), "resolution": (16, 256), "zernike_order": (2, 16)}
@@ -73,6 +83,11 @@ class LightFieldConfig:
             v = getattr(self, name)
             _check(isinstance(v, (int, float)) and v >= 0, f"lf_{name}", v, "must be a number >= 0")
         _check(_is_int(self.seed), "lf_seed", self.seed, "must be an integer")
+        _check(isinstance(self.edges, bool), "lf_edges", self.edges, "must be true or false")
+        ok = isinstance(self.dilate_px, (int, float)) and 0 <= self.dilate_px <= 8
+        _check(ok, "lf_dilate_px", self.dilate_px, "must be a number in [0, 8]")
+        ok = _is_int(self.close_px) and 0 <= self.close_px <= 8
+        _check(ok, "lf_close_px", self.close_px, "must be an integer in [0, 8]")
 
 
 def product_light_field() -> LightFieldConfig:

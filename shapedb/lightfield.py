@@ -248,11 +248,13 @@ def light_field_dim(config: LightFieldConfig | None = None) -> int:
 def _splat_discs(
     x: NDArray[np.float32],
     r: NDArray[np.float32],
+    edges: NDArray[np.int64],
     u: NDArray[np.float32],
     w: NDArray[np.float32],
     d: NDArray[np.float32],
     res: int,
     depth: bool,
+    grow: float,
 ) -> tuple[NDArray[np.bool_], NDArray[np.float32], NDArray[np.float32]]:
     m, n = u.shape[0], x.shape[0]
     sil = np.zeros((m, res, res), dtype=np.bool_)
@@ -260,21 +262,23 @@ def _splat_discs(
     front = np.full(shape, -2.0, dtype=np.float32)
     back = np.full(shape, -2.0, dtype=np.float32)
     half = np.float32(0.5 * res)
-    slack = np.float32(1.0 / res)  # half a pixel, in image units
+    slack = np.float32(1.0 / res + grow)  # half a pixel (plus the growth), image units
+    pu = np.empty(n, dtype=np.float32)
+    pw = np.empty(n, dtype=np.float32)
     for k in range(m):
         for i in range(n):
-            pu = x[i, 0] * u[k, 0] + x[i, 1] * u[k, 1] + x[i, 2] * u[k, 2]
-            pw = x[i, 0] * w[k, 0] + x[i, 1] * w[k, 1] + x[i, 2] * w[k, 2]
+            pu[i] = x[i, 0] * u[k, 0] + x[i, 1] * u[k, 1] + x[i, 2] * u[k, 2]
+            pw[i] = x[i, 0] * w[k, 0] + x[i, 1] * w[k, 1] + x[i, 2] * w[k, 2]
             pd = x[i, 0] * d[k, 0] + x[i, 1] * d[k, 1] + x[i, 2] * d[k, 2]
             reach = r[i] + slack
-            c0 = max(int((pu - reach + 1.0) * half), 0)
-            c1 = min(int((pu + reach + 1.0) * half), res - 1)
-            r0 = max(int((pw - reach + 1.0) * half), 0)
-            r1 = min(int((pw + reach + 1.0) * half), res - 1)
+            c0 = max(int((pu[i] - reach + 1.0) * half), 0)
+            c1 = min(int((pu[i] + reach + 1.0) * half), res - 1)
+            r0 = max(int((pw[i] - reach + 1.0) * half), 0)
+            r1 = min(int((pw[i] + reach + 1.0) * half), res - 1)
             for row in range(r0, r1 + 1):
-                yw = (row + 0.5) / half - 1.0 - pw
+                yw = (row + 0.5) / half - 1.0 - pw[i]
                 for col in range(c0, c1 + 1):
-                    xu = (col + 0.5) / half - 1.0 - pu
+                    xu = (col + 0.5) / half - 1.0 - pu[i]
                     rho2 = xu * xu + yw * yw
                     if rho2 > reach * reach:
                         continue
@@ -283,6 +287,38 @@ def _splat_discs(
                         h = np.sqrt(max(r[i] * r[i] - rho2, 0.0))
                         front[k, row, col] = max(front[k, row, col], pd + h)
                         back[k, row, col] = max(back[k, row, col], -pd + h)
+        for e in range(edges.shape[0]):
+            # the convex hull of the two discs: pixels p with |p - a_t| <= r_t + slack for
+            # some t in [0, 1] (a_t, r_t interpolate the two discs); the excess
+            # |p - a_t| - r_t is convex in t, its minimum in closed form
+            i, j = edges[e, 0], edges[e, 1]
+            au, aw, bu, bw = pu[i], pw[i], pu[j], pw[j]
+            ra, rb = r[i] + slack, r[j] + slack
+            eu, ew = bu - au, bw - aw
+            length = np.sqrt(eu * eu + ew * ew)
+            dr = rb - ra
+            if length <= abs(dr) + 1e-12:
+                continue  # one disc holds the other: nothing beyond the discs
+            eu, ew = eu / length, ew / length
+            k_ = dr / length
+            tan = k_ / np.sqrt(1.0 - k_ * k_)
+            c0 = max(int((min(au - ra, bu - rb) + 1.0) * half), 0)
+            c1 = min(int((max(au + ra, bu + rb) + 1.0) * half), res - 1)
+            r0 = max(int((min(aw - ra, bw - rb) + 1.0) * half), 0)
+            r1 = min(int((max(aw + ra, bw + rb) + 1.0) * half), res - 1)
+            for row in range(r0, r1 + 1):
+                yw = (row + 0.5) / half - 1.0 - aw
+                for col in range(c0, c1 + 1):
+                    if sil[k, row, col]:
+                        continue
+                    xu = (col + 0.5) / half - 1.0 - au
+                    s = xu * eu + yw * ew
+                    hh = abs(xu * ew - yw * eu)
+                    t = min(max((s + tan * hh) / length, 0.0), 1.0)
+                    du, dw = xu - t * length * eu, yw - t * length * ew
+                    rt = ra + t * dr
+                    if du * du + dw * dw <= rt * rt:
+                        sil[k, row, col] = True
     return sil, front, back
 
 
@@ -295,6 +331,31 @@ def _unit_balls(centers: ArrayLike, radii: ArrayLike) -> tuple[FloatArray, Float
     return x / extent, r / extent
 
 
+def _kept_edges(radii: ArrayLike, edges: ArrayLike | None) -> NDArray[np.int64]:
+    """(k, 2) contact edges among the balls of positive radius, indexed in that subset."""
+    r = np.asarray(radii, dtype=np.float64).reshape(-1)
+    if edges is None:
+        return np.zeros((0, 2), dtype=np.int64)
+    e = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    if len(e) and (e.min() < 0 or e.max() >= len(r)):
+        raise ValueError(f"contact edges index balls outside 0..{len(r) - 1}")
+    keep = r > 0
+    new = np.cumsum(keep) - 1
+    e = e[keep[e[:, 0]] & keep[e[:, 1]]]
+    return np.ascontiguousarray(new[e], dtype=np.int64)
+
+
+def _closed(sil: NDArray[np.bool_], px: int) -> NDArray[np.bool_]:
+    """Morphological closing of each image by a disc of ``px`` pixels (image edge padded)."""
+    from scipy import ndimage
+
+    yy, xx = np.mgrid[-px : px + 1, -px : px + 1]
+    disc = (xx * xx + yy * yy <= px * px + px)[None]
+    pad = np.pad(sil, ((0, 0), (px, px), (px, px)))
+    out = ndimage.binary_erosion(ndimage.binary_dilation(pad, disc), disc)
+    return np.asarray(out[:, px:-px, px:-px] | sil)
+
+
 def render_discs(
     centers: ArrayLike,
     radii: ArrayLike,
@@ -302,6 +363,9 @@ def render_discs(
     resolution: int,
     *,
     depth: bool = False,
+    edges: ArrayLike | None = None,
+    dilate_px: float = 0.0,
+    close_px: int = 0,
 ) -> tuple[NDArray[np.bool_], NDArray[np.float32] | None]:
     """Orthographic images of the union of balls, in the unit-sphere frame of the module.
 
@@ -317,6 +381,14 @@ def render_discs(
         Image side, pixels; the image spans [-1, 1]^2 along :func:`image_axes`.
     depth : bool
         Also return the depth images.
+    edges : (e, 2) int, optional
+        Contact edges (indices into ``centers``): each also fills the convex hull of its
+        two balls' discs (the projection of the two balls' convex hull), which closes
+        the gap between touching balls. Silhouettes only: depth images show the discs.
+    dilate_px : float
+        Every disc (and hull) grows by this many pixels, >= 0.
+    close_px : int
+        Morphological closing of each silhouette by a disc of this many pixels, >= 0.
 
     Returns
     -------
@@ -328,14 +400,22 @@ def render_discs(
     Raises
     ------
     ValueError
-        If no ball has a positive radius, or the arrays' shapes disagree.
+        If no ball has a positive radius, the arrays' shapes disagree, an edge names
+        a ball that does not exist, or ``dilate_px`` / ``close_px`` is negative.
     """
+    if not dilate_px >= 0 or close_px < 0:
+        raise ValueError(f"dilate_px {dilate_px} and close_px {close_px} must be >= 0")
     x, r = _unit_balls(centers, radii)
+    e = _kept_edges(radii, edges)
     d = np.asarray(directions, dtype=np.float32).reshape(-1, 3)
     u, w = image_axes(d)
+    res = int(resolution)
     sil, front, back = _splat_discs(
-        x.astype(np.float32), r.astype(np.float32), u, w, d, int(resolution), bool(depth)
-    )
+        x.astype(np.float32), r.astype(np.float32), e, u, w, d, res, bool(depth),
+        float(dilate_px) * 2.0 / res,
+    )  # fmt: skip
+    if close_px > 0:
+        sil = _closed(sil, int(close_px))
     if not depth:
         return sil, None
     img = np.stack([front, back], axis=1)
@@ -343,7 +423,11 @@ def render_discs(
 
 
 def ball_light_field(
-    centers: ArrayLike, radii: ArrayLike, config: LightFieldConfig | None = None
+    centers: ArrayLike,
+    radii: ArrayLike,
+    config: LightFieldConfig | None = None,
+    *,
+    edges: ArrayLike | None = None,
 ) -> FloatArray:
     """The light fields of a ball union: (n_fields, 10, :func:`light_field_dim`) float64.
 
@@ -354,7 +438,11 @@ def ball_light_field(
     radii : (n,) float
         Ball radii, same units.
     config : LightFieldConfig, optional
-        Fields, resolution, orders, weights.
+        Fields, resolution, orders, weights, and how silhouettes are filled
+        (``edges``, ``dilate_px``, ``close_px``: :func:`render_discs`).
+    edges : (e, 2) int, optional
+        The decomposition's contact edges; needed when ``config.edges``, ignored
+        otherwise.
 
     Returns
     -------
@@ -368,12 +456,17 @@ def ball_light_field(
     Raises
     ------
     ValueError
-        If no ball has a positive radius.
+        If no ball has a positive radius, or ``config.edges`` is set without ``edges``.
     """
     cfg = config or LightFieldConfig()
+    if cfg.edges and edges is None:
+        raise ValueError("light fields with lf_edges need the decomposition's contact edges")
     depth = cfg.depth_weight > 0
     dirs = field_directions(cfg.n_fields, cfg.seed)
-    sil, dep = render_discs(centers, radii, dirs, cfg.resolution, depth=depth)
+    sil, dep = render_discs(
+        centers, radii, dirs, cfg.resolution, depth=depth,
+        edges=edges if cfg.edges else None, dilate_px=cfg.dilate_px, close_px=cfg.close_px,
+    )  # fmt: skip
     feats = silhouette_features(sil, cfg)
     if dep is not None:
         m, res = len(dirs), cfg.resolution
@@ -384,7 +477,11 @@ def ball_light_field(
 
 
 def record_light_field(
-    centers: ArrayLike, radii: ArrayLike, config: LightFieldConfig | None = None
+    centers: ArrayLike,
+    radii: ArrayLike,
+    config: LightFieldConfig | None = None,
+    *,
+    edges: ArrayLike | None = None,
 ) -> NDArray[np.float32]:
     """:func:`ball_light_field` as a store keeps it: float32, computed with one BLAS thread.
 
@@ -399,12 +496,12 @@ def record_light_field(
     Raises
     ------
     ValueError
-        If no ball has a positive radius.
+        If no ball has a positive radius, or ``config.edges`` is set without ``edges``.
     """
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1, user_api="blas"):
-        return ball_light_field(centers, radii, config).astype(np.float32)
+        return ball_light_field(centers, radii, config, edges=edges).astype(np.float32)
 
 
 # --------------------------------------------------------------------------------------

@@ -72,8 +72,16 @@ ADDED: dict[str, dict[str, Any]] = {
     "cloud": {"view_cells": 0.0, "reconstruct": False, "reconstruct_depth": 8},
     # before the section: no re-ranking stage
     "rerank": {"scorer": "none"},
-    # before the section no light fields were stored; the product's light fields
-    "light_field": {"n_fields": 3, "resolution": 64, "depth_weight": 0.0},
+    # before the section no light fields were stored; the product's light fields;
+    # before the fills, silhouettes were the plain union of the discs
+    "light_field": {
+        "n_fields": 3,
+        "resolution": 64,
+        "depth_weight": 0.0,
+        "edges": False,
+        "dilate_px": 0.0,
+        "close_px": 0,
+    },
 }
 
 #: Fields added to a section after stores first wrote that section, and the value that

@@ -75,10 +75,33 @@ OUT = Path(__file__).resolve().parents[1] / "results" / "studies"
 TOP = 5
 
 
+def fill_config(text: str, base: LightFieldConfig | None = None) -> LightFieldConfig:
+    """``plain`` / ``edges`` / ``dilate<p>`` / ``close<p>`` joined by ``+`` -> config."""
+    from dataclasses import replace
+
+    cfg = base or LightFieldConfig(n_fields=3, resolution=64)
+    for part in text.split("+"):
+        if part == "plain":
+            continue
+        if part == "edges":
+            cfg = replace(cfg, edges=True)
+        elif part.startswith("dilate"):
+            cfg = replace(cfg, dilate_px=float(part[6:]))
+        elif part.startswith("close"):
+            cfg = replace(cfg, close_px=int(part[5:]))
+        else:
+            raise ValueError(f"fill {part!r} is unknown")
+    return cfg
+
+
 def parse_config(text: str) -> LightFieldConfig:
-    """``res/fields/depth`` -> :class:`LightFieldConfig`."""
-    res, fields, depth = text.split("/")
-    return LightFieldConfig(resolution=int(res), n_fields=int(fields), depth_weight=float(depth))
+    """``res/fields/depth[/fill]`` -> :class:`LightFieldConfig`.
+
+    ``fill`` as in :func:`fill_config` (e.g. ``edges+close1``).
+    """
+    res, fields, depth, *fill = text.split("/")
+    cfg = LightFieldConfig(resolution=int(res), n_fields=int(fields), depth_weight=float(depth))
+    return fill_config(fill[0], cfg) if fill else cfg
 
 
 def _l1(x: FloatArray) -> FloatArray:
@@ -123,13 +146,13 @@ def light_field_matrix(
         return z["d"], float(z["per_model"]), float(z["dist_s"])
     cfg = parse_config(text)
     t = time.process_time()
-    lf = np.stack([ball_light_field(b.centers, b.radii, cfg) for b in balls])
+    lf = np.stack([ball_light_field(b.centers, b.radii, cfg, edges=b.edges) for b in balls])
     per_model = (time.process_time() - t) / len(balls)
     t = time.process_time()
     if queries is None:
         d = light_field_distance(lf)
     else:
-        lq = np.stack([ball_light_field(b.centers, b.radii, cfg) for b in queries])
+        lq = np.stack([ball_light_field(b.centers, b.radii, cfg, edges=b.edges) for b in queries])
         d = light_field_distance(lq, lf)
     dist_s = time.process_time() - t
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -241,7 +264,7 @@ def cost(per_set: int, text: str, candidates: int = 100) -> dict[str, dict[str, 
             describe(ContactGraph(d.centers, d.radii, d.edges), 4)
             t4 = time.process_time() - t
             t = time.process_time()
-            fields.append(ball_light_field(d.centers, d.radii, cfg))
+            fields.append(ball_light_field(d.centers, d.radii, cfg, edges=d.edges))
             rows.append((td, t4, time.process_time() - t))
         td, t4, tl = np.median(np.asarray(rows), axis=0)
         bank = np.stack([fields[i % len(fields)] for i in range(candidates)])
@@ -276,7 +299,8 @@ def check_product(datasets: Sequence[str], split: str) -> dict[str, Any]:
         d4 = np.abs(v4[:, None, :] - v4[None, :, :]).sum(-1)
         d4 /= np.log(10.0) / sum(b[3] for b in LAYOUTS[4])
         f = whole.lf_fusion
-        exact = np.stack([ball_light_field(b.centers, b.radii, whole.light_field) for b in balls])
+        exact = np.stack([ball_light_field(b.centers, b.radii, whole.light_field, edges=b.edges)
+                          for b in balls])  # fmt: skip
         for kind, fields in (("float64", exact), ("float32", exact.astype(np.float32))):
             fields = fields.astype(np.float64)
             study = np.argsort(

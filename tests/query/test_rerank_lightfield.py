@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import logging
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -205,3 +206,28 @@ def test_a_store_written_before_the_column_searches_in_the_stored_order(
 def test_the_scorer_is_registered_by_its_module() -> None:
     assert isinstance(rerank.scorer_for(STAGE), LightFieldFusion)
     assert "lightfield" in rerank.scorers()
+
+
+def test_a_store_with_filled_silhouettes_fills_its_records_and_its_queries(
+    tmp_path: Path, forget: Callable[[Any], None]
+) -> None:
+    import shapedb.database as database
+    from shapedb.lightfield import record_light_field
+    from shapedb.mdbd import decompose
+
+    filled = STAGE.with_options(lf_edges=True)
+    db = database.connect(tmp_path / "store", config=filled)
+    shapes = {n: g for n, g in _shapes().items() if n in ("box_a", "rod_a", "ring_a")}
+    db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
+    again = database.connect(tmp_path / "store")
+    assert again.config.light_field.edges is True
+    ring = decompose(shapes["ring_a"], config=filled.mdbd)
+    assert len(ring.edges) > 0
+    want = record_light_field(ring.centers, ring.radii, filled.light_field, edges=ring.edges)
+    plain = record_light_field(ring.centers, ring.radii, replace(filled.light_field, edges=False))
+    got = again.get("ring_a").light_field
+    assert got is not None and np.array_equal(got, want) and not np.array_equal(got, plain)
+    for name, shape in shapes.items():  # a query from outside is filled the same way
+        assert [h.id for h in again.search(shape, k=3)] == [h.id for h in again.search(name, k=3)]
+    forget(db)
+    forget(again)

@@ -118,3 +118,98 @@ def test_errors_name_the_reason() -> None:
         LightFieldConfig(n_fields=0)
     with pytest.raises(ConfigError, match="fourier"):
         LightFieldConfig(fourier=40, angles=64)
+
+
+def _pixel_centres(res: int) -> np.ndarray:
+    return (np.arange(res) + 0.5) / res * 2.0 - 1.0
+
+
+def test_a_contact_edge_fills_the_waist_between_two_touching_balls() -> None:
+    # two unit balls touching at the origin, seen from the side: two discs meeting in a point
+    c, r = np.array([[-1.0, 0, 0], [1.0, 0, 0]]), np.array([1.0, 1.0])
+    view = np.array([[0.0, 0.0, 1.0]])  # image rows along -x, columns along +y
+    res = 64
+    plain, _ = render_discs(c, r, view, res)
+    filled, _ = render_discs(c, r, view, res, edges=[[0, 1]])
+    # the frame: centred on the origin, the far sides at radius 1 (balls of radius 1/2)
+    x = -_pixel_centres(res)  # each row's x
+    y = _pixel_centres(res)
+    waist = np.argmin(np.abs(x))
+    # every pixel on the segment between the centres is covered in both
+    on_axis = np.argmin(np.abs(y))
+    assert plain[0, np.abs(x) <= 0.5, on_axis].all() and filled[0, np.abs(x) <= 0.5, on_axis].all()
+    # with the edge the waist is as wide as the balls (the hull: a 1 x 1 square between
+    # the centres); without it the two discs meet in a point (widened by the half pixel
+    # of slack: a third of the balls' width at the row nearest the contact)
+    assert filled[0, waist, np.abs(y) <= 0.5].all()
+    assert plain[0, waist].sum() < 0.4 * filled[0, waist].sum()
+    inside = (np.abs(x)[:, None] <= 0.5) & (np.abs(y)[None, :] <= 0.5)
+    assert filled[0][inside].all() and not plain[0][inside].all()
+    # nothing beyond the hull (of the discs widened by the half pixel of slack)
+    reach = 0.5 + 1.0 / res
+    square = (np.abs(x)[:, None] <= 0.5) & (np.abs(y)[None, :] <= reach)
+    hull = square | (np.hypot(np.abs(x)[:, None] - 0.5, y[None, :]) <= reach)
+    assert not (filled[0] & ~hull).any()
+
+
+def test_filled_unions_of_moved_turned_scaled_copies_are_at_distance_about_zero() -> None:
+    cfg = LightFieldConfig(n_fields=10, resolution=64, edges=True, close_px=1)
+    shapes = _shapes()
+    edges = [np.array([[0, 2], [1, 2]]), np.array([[0, 1], [0, 2]]),
+             np.stack([np.arange(8), (np.arange(8) + 1) % 8], axis=1)]  # fmt: skip
+    lf = [ball_light_field(c, r, cfg, edges=e) for (c, r), e in zip(shapes, edges, strict=True)]
+    moved = []
+    for k, ((c, r), e) in enumerate(zip(shapes, edges, strict=True)):
+        turn = dodecahedron_rotations()[7 + k]
+        moved.append(ball_light_field(2.5 * c @ turn.T + [1.0, -4.0, 2.0], 2.5 * r, cfg, edges=e))
+    d = light_field_distance(np.stack(lf + moved))
+    assert np.allclose(np.diag(d), 0.0)
+    between = d[:3, :3][~np.eye(3, dtype=bool)].min()
+    for k in range(3):
+        assert d[k, 3 + k] < 0.15 * between and np.argmin(d[3 + k, :3]) == k
+
+
+def test_the_edge_fill_closes_a_string_of_beads() -> None:
+    # a bent rod of beads with gaps between them (contacts given): filled, a rod
+    t = np.linspace(0.0, 1.0, 12)
+    c = np.stack([6 * t, 2 * np.sin(3 * t), 0 * t], axis=1)
+    gap = np.linalg.norm(np.diff(c, axis=0), axis=1)
+    r = np.full(12, 0.3 * gap.max())
+    edges = np.stack([np.arange(11), np.arange(1, 12)], axis=1)
+    cfg = LightFieldConfig(n_fields=10, resolution=64, edges=True)
+    plain = ball_light_field(c, r, LightFieldConfig(n_fields=10, resolution=64))
+    filled = ball_light_field(c, r, cfg, edges=edges)
+    turn = dodecahedron_rotations()[9]
+    moved = ball_light_field(3.0 * c @ turn.T + [4.0, 1.0, -2.0], 3.0 * r, cfg, edges=edges)
+    d = light_field_distance(np.stack([plain, filled, moved]))
+    # a thin rod's pixels move with the pose: its copy is far nearer than the beads are
+    assert d[1, 2] < 0.25 * d[0, 1]
+    sil, _ = render_discs(c, r, field_directions(1, 0), 64, edges=edges)
+    beads, _ = render_discs(c, r, field_directions(1, 0), 64)
+    assert sil.sum() > 1.2 * beads.sum() and (sil >= beads).all()
+    with pytest.raises(ValueError, match="contact edges"):
+        ball_light_field(c, r, cfg)
+    with pytest.raises(ValueError, match="outside"):
+        ball_light_field(c, r, cfg, edges=[[0, 12]])
+
+
+def test_balls_of_zero_radius_are_left_out_with_their_edges() -> None:
+    c = np.array([[0.0, 0, 0], [5.0, 0, 0], [1.0, 0, 0]])
+    r = np.array([0.5, 0.0, 0.5])
+    view = np.array([[0.0, 0.0, 1.0]])
+    got, _ = render_discs(c, r, view, 32, edges=[[0, 1], [0, 2], [1, 2]])
+    want, _ = render_discs(c[[0, 2]], r[[0, 2]], view, 32, edges=[[0, 1]])
+    assert np.array_equal(got, want)
+
+
+def test_dilation_and_closing_only_add_pixels() -> None:
+    c, r = _shapes()[2]
+    dirs = field_directions(1, 0)
+    plain, _ = render_discs(c, r, dirs, 48)
+    for kw in ({"dilate_px": 1.0}, {"close_px": 2}):
+        grown, _ = render_discs(c, r, dirs, 48, **kw)  # type: ignore[arg-type]
+        assert (grown >= plain).all() and grown.sum() > plain.sum()
+    with pytest.raises(ConfigError, match="lf_dilate_px"):
+        LightFieldConfig(dilate_px=-1.0)
+    with pytest.raises(ConfigError, match="lf_edges"):
+        LightFieldConfig(edges=1)  # type: ignore[arg-type]

@@ -186,3 +186,19 @@ def test_stores_of_earlier_layouts_search_without_a_reranking_stage() -> None:
     assert Config.from_json(LAST_FLAT).rerank.scorer == "none"
     with pytest.raises(ConfigError, match="candidates"):
         Config.from_dict({**Config().to_dict(), "rerank": {"candidates": 0}})
+
+
+def test_light_fields_stored_before_the_fills_read_as_the_plain_discs() -> None:
+    filled = Config().with_options(rerank="lightfield", lf_edges=True, lf_close_px=1)
+    stored = filled.to_dict()
+    assert Config.from_dict(stored).light_field == filled.light_field
+    for name in ("edges", "dilate_px", "close_px"):
+        del stored["light_field"][name]
+    old = Config.from_dict(stored).light_field
+    assert (old.edges, old.dilate_px, old.close_px) == (False, 0.0, 0)
+    assert old.n_fields == filled.light_field.n_fields
+    # a store of a layout before the light fields: the plain discs too
+    del stored["light_field"], stored["lf_fusion"]
+    stored["layout"] = 3
+    before = Config.from_dict(stored).light_field
+    assert (before.edges, before.dilate_px, before.close_px) == (False, 0.0, 0)

@@ -1,0 +1,20 @@
+"""The fill study's spellings of a light field configuration."""
+
+from __future__ import annotations
+
+import pytest
+
+from bench.studies.lightfield_balls import fill_config, parse_config
+
+
+def test_fills_are_spelled_as_the_config_fields() -> None:
+    cfg = fill_config("edges+dilate0.5+close1")
+    assert (cfg.edges, cfg.dilate_px, cfg.close_px) == (True, 0.5, 1)
+    assert (cfg.n_fields, cfg.resolution) == (3, 64)
+    plain = fill_config("plain")
+    assert (plain.edges, plain.dilate_px, plain.close_px) == (False, 0.0, 0)
+    got = parse_config("32/2/0/edges")
+    assert (got.resolution, got.n_fields, got.edges) == (32, 2, True)
+    assert parse_config("64/3/0").edges is False
+    with pytest.raises(ValueError, match="unknown"):
+        fill_config("blur2")
