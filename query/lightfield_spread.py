@@ -11,13 +11,15 @@ its gate (``LightFieldFusionConfig.pool``), so a query is judged by the region o
 store it falls in, not by itself alone, and a mixed store judges each region apart.
 
 The spreads depend on the whole store (a new shape changes its neighbours' lists), so
-they are computed for every stored shape when the store's index is brought up to date
-(the commit hook :func:`on_commit`, or the first search of a store version), kept in
-``<store>/index_lightfield/`` (a versioned directory like the index's: ``ids.npy``,
-``spreads.npy``, and the store version and the parameters they were computed with in
-``current.json``), read back while they match, and recomputed (deterministically, from
-the stored vectors and light fields) when they do not. Cost: ``spread_candidates`` light
-field distances per stored shape.
+they belong to a store version. They are computed on demand, for the shapes a search
+pools (a search costs the same whatever the store's size, and a commit costs nothing),
+kept in-process per store version, and written to ``<store>/index_lightfield/`` (a
+versioned directory like the index's: ``ids.npy``, ``spreads.npy``, and the store
+version and the parameters they were computed with in ``current.json``) once every
+stored shape has one (an evaluation, :func:`store_spreads`, or the commit hook of a
+store of at most :data:`FULL_AT_COMMIT` shapes); read back while they match. A spread
+computed for one shape or for all is the same number (deterministic, from the stored
+vectors and light fields). Cost: ``spread_candidates`` light field distances per shape.
 """
 
 from __future__ import annotations
@@ -38,14 +40,26 @@ if TYPE_CHECKING:
     from shapedb.config import Config
     from shapedb.database import Database
 
-__all__ = ["SPREAD_DIR", "calibration", "local_spreads", "store_spreads", "on_commit"]
+__all__ = [
+    "SPREAD_DIR",
+    "FULL_AT_COMMIT",
+    "SpreadTable",
+    "calibration",
+    "local_spreads",
+    "spread_table",
+    "store_spreads",
+    "on_commit",
+]
 
 log = logging.getLogger(__name__)
 
 SPREAD_DIR = "index_lightfield"
 _FORMAT = 1
 _CHUNK = 256
-_CACHE: dict[tuple[str, int], dict[int, float]] = {}
+#: A commit recomputes every spread only in stores of at most this many shapes (larger
+#: stores compute them as searches ask for them).
+FULL_AT_COMMIT = 2000
+_CACHE: dict[tuple[str, int], SpreadTable] = {}
 _LOCK = threading.Lock()
 
 
@@ -59,9 +73,9 @@ def calibration(config: Config) -> float:
 
 
 def local_spreads(
-    index: Any, fields: ArrayReader, config: Config
+    index: Any, fields: ArrayReader, config: Config, ids: NDArray[np.int64] | None = None
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Every indexed shape's local spread.
+    """Indexed shapes' local spreads (every alive shape's by default).
 
     Parameters
     ----------
@@ -72,22 +86,25 @@ def local_spreads(
         records without.
     config : Config
         ``lf_fusion.spread_candidates`` and ``typical``, and the descriptor (calibration).
+    ids : (k,) int64, optional
+        The shapes wanted; ids not alive in the index are left out.
 
     Returns
     -------
     ids : (n,) int64
-        Ascending.
+        Ascending, alive.
     spreads : (n,) float64
         NaN for a shape with no light fields or no neighbour with them.
     """
     from shapedb.lightfield import light_field_distance
 
     f = config.lf_fusion
-    ids = np.sort(np.asarray(index.ids_, np.int64)[np.asarray(index.alive_, bool)])
+    alive = np.sort(np.asarray(index.ids_, np.int64)[np.asarray(index.alive_, bool)])
+    ids = alive if ids is None else np.intersect1d(alive, np.asarray(ids, np.int64))
     out = np.full(len(ids), np.nan)
-    if len(ids) < 2:
+    if len(alive) < 2 or len(ids) == 0:
         return ids, out
-    m = min(int(f.spread_candidates), len(ids) - 1)
+    m = min(int(f.spread_candidates), len(alive) - 1)
     cal = calibration(config)
     x = np.asarray(index.features_, np.float64)[index.lookup(ids)]
     for lo in range(0, len(ids), _CHUNK):
@@ -125,13 +142,8 @@ def _meta(config: Config, version: int) -> dict[str, Any]:
     }
 
 
-def store_spreads(db: Database, fields: ArrayReader) -> dict[int, float]:
-    """The local spreads of the store's shapes at its current version, by id.
-
-    Read from ``<store>/index_lightfield/`` when it holds this version's spreads under
-    the store's parameters; else computed (:func:`local_spreads` over the store's
-    index, :func:`query.index.open_index`) and written there. Kept in-process per store
-    version.
+class SpreadTable:
+    """The local spreads of one store version, filled as they are asked for.
 
     Parameters
     ----------
@@ -139,52 +151,112 @@ def store_spreads(db: Database, fields: ArrayReader) -> dict[int, float]:
     fields : ArrayReader
         The store's light fields by id (:func:`query.rerank_lightfield.stored_arrays`).
     """
+
+    def __init__(self, db: Database, fields: ArrayReader) -> None:
+        from query.index import open_index
+
+        self.db, self.fields = db, fields
+        self.index = open_index(db)
+        v = self.index.version_
+        self.version = int(v if v is not None else db.store.version)
+        self.meta = _meta(db.config, self.version)
+        self.values: dict[int, float] = {}
+        self.complete = False
+        self._lock = threading.Lock()
+        self._read()
+
+    @property
+    def root(self) -> Path:
+        return Path(self.db.store.path) / SPREAD_DIR
+
+    def _read(self) -> None:
+        if not (self.root / POINTER).exists():
+            return
+        try:
+            stored, sub = current(self.root)
+            if all(stored.get(k) == v for k, v in self.meta.items()):
+                ids, spreads = np.load(sub / "ids.npy"), np.load(sub / "spreads.npy")
+                self.values = {int(i): float(s) for i, s in zip(ids, spreads, strict=True)}
+                self.complete = True
+        except (OSError, ValueError, KeyError) as exc:
+            log.warning("recomputing the light field spreads of %s: %s", self.db.store.path, exc)
+
+    def _write(self) -> None:
+        ids = np.array(sorted(self.values), np.int64)
+        spreads = np.array([self.values[int(i)] for i in ids], np.float64)
+
+        def write(sub: Path) -> None:
+            np.save(sub / "ids.npy", ids)
+            np.save(sub / "spreads.npy", spreads)
+
+        save_version(self.root, write, self.meta, version=self.version)
+        log.info("light field spreads of %d shapes at store version %s", len(ids), self.version)
+
+    def get(self, ids: NDArray[np.int64] | None = None) -> NDArray[np.float64]:
+        """(k,) spreads of ``ids`` (every alive shape's when None); NaN for ids without.
+
+        Computes the ids not known yet; once every alive shape has its spread, writes
+        the table for later processes.
+        """
+        with self._lock:
+            want = None if ids is None else np.asarray(ids, np.int64).ravel()
+            if not self.complete:
+                pending = want
+                if want is not None:
+                    pending = np.array(sorted({int(i) for i in want} - set(self.values)), np.int64)
+                if pending is None or len(pending):
+                    got_ids, got = local_spreads(self.index, self.fields, self.db.config, pending)
+                    self.values.update(
+                        {int(i): float(s) for i, s in zip(got_ids, got, strict=True)}
+                    )
+                    alive = np.asarray(self.index.ids_, np.int64)[self.index.alive_]
+                    if all(int(i) in self.values for i in alive):
+                        self.complete = True
+                        self._write()
+            if want is None:
+                want = np.array(sorted(self.values), np.int64)
+            return np.array([self.values.get(int(i), np.nan) for i in want])
+
+
+def spread_table(db: Database, fields: ArrayReader) -> SpreadTable:
+    """The shared :class:`SpreadTable` of ``db``'s store at its index's current version."""
     from query.index import open_index
 
     index = open_index(db)
     version = int(index.version_ if index.version_ is not None else db.store.version)
     key = (os.fspath(db.store.path), version)
     with _LOCK:
-        got = _CACHE.get(key)
-    if got is not None:
-        return got
-    root = Path(db.store.path) / SPREAD_DIR
-    meta = _meta(db.config, version)
-    ids = spreads = None
-    if (root / POINTER).exists():
-        try:
-            stored, sub = current(root)
-            if all(stored.get(k) == v for k, v in meta.items()):
-                ids, spreads = np.load(sub / "ids.npy"), np.load(sub / "spreads.npy")
-        except (OSError, ValueError, KeyError) as exc:
-            log.warning("recomputing the light field spreads: %s", exc)
-    if ids is None or spreads is None:
-        ids, spreads = local_spreads(index, fields, db.config)
-        a, b = ids, spreads
+        table = _CACHE.get(key)
+        if table is None:
+            table = _CACHE[key] = SpreadTable(db, fields)
+            for old in [k for k in _CACHE if k[0] == key[0] and k[1] != version]:
+                _CACHE.pop(old, None)
+    return table
 
-        def write(sub: Path) -> None:
-            np.save(sub / "ids.npy", a)
-            np.save(sub / "spreads.npy", b)
 
-        save_version(root, write, meta, version=version)
-        log.info("light field spreads of %d shapes at store version %s", len(ids), version)
-    out = {int(i): float(s) for i, s in zip(ids, spreads, strict=True)}
-    with _LOCK:
-        _CACHE[key] = out
-        for old in [k for k in _CACHE if k[0] == key[0] and k[1] != version]:
-            _CACHE.pop(old, None)
-    return out
+def store_spreads(db: Database, fields: ArrayReader) -> dict[int, float]:
+    """Every stored shape's local spread at the store's current version, by id.
+
+    Read from ``<store>/index_lightfield/`` when it holds this version's spreads under
+    the store's parameters; else computed (:func:`local_spreads`) and written there.
+    """
+    table = spread_table(db, fields)
+    table.get(None)
+    return dict(table.values)
 
 
 def on_commit(db: Database, fields: ArrayReader) -> None:
     """Bring the spreads up to date after a commit, for a store whose stage pools them.
 
     Only a store with the ``"lightfield"`` scorer, ``pool > 0`` and light fields stored,
-    and whose spreads were computed before (a store never searched gets them at its
-    first search).
+    whose spreads were written before, and of at most :data:`FULL_AT_COMMIT` shapes; a
+    larger store's searches compute the spreads they pool.
     """
     cfg = db.config
     if cfg.rerank.scorer != "lightfield" or cfg.lf_fusion.pool <= 0:
         return
-    if (Path(db.store.path) / SPREAD_DIR / POINTER).exists():
-        store_spreads(db, fields)
+    if not (Path(db.store.path) / SPREAD_DIR / POINTER).exists():
+        return
+    table = spread_table(db, fields)
+    if int(np.count_nonzero(table.index.alive_)) <= FULL_AT_COMMIT:
+        table.get(None)

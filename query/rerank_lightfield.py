@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from query.lightfield_spread import calibration, store_spreads
+from query.lightfield_spread import calibration, spread_table
 from query.rerank import Candidates, register_scorer
 
 if TYPE_CHECKING:
@@ -220,7 +220,6 @@ class StoredArrays:
         self._absent: set[int] = set()  # read, and null (rows older than the column)
         self._complete = False
         self._shape = (int(db.config.light_field.n_fields), 10, -1)
-        self._spreads: dict[int, float] | None = None
 
     def _read(self, ids: list[int] | None) -> None:
         t = self.db.store.shapes(["id", COLUMN], ids=ids)
@@ -236,14 +235,12 @@ class StoredArrays:
         """(m, fields, 10, d) float64 light fields of ``ids``; NaN for records without.
 
         With ``name`` :data:`SPREAD`, the (m,) local spreads of ``ids`` at the store's
-        version (:func:`query.lightfield_spread.store_spreads`; NaN for ids without).
+        version (:func:`query.lightfield_spread.spread_table`, computed for the ids not
+        known yet; NaN for ids without).
         None when ``name`` is neither or no record of ``ids`` has light fields.
         """
         if name == SPREAD:
-            if self._spreads is None:  # this reader's store version: read once
-                self._spreads = store_spreads(self.db, self)
-            table = self._spreads
-            return np.array([table.get(int(i), np.nan) for i in np.asarray(ids).ravel()])
+            return spread_table(self.db, self).get(np.asarray(ids, np.int64))
         if name != COLUMN:
             return None
         ids = np.asarray(ids, np.int64)

@@ -153,3 +153,40 @@ def test_the_spreads_are_kept_with_the_store_at_its_version(stores: dict[str, An
         np.load(root / meta["dir"] / "spreads.npy"),
     )
     assert dict(zip(ids.tolist(), spreads.tolist(), strict=True)) == first
+
+
+def test_spreads_asked_for_a_few_shapes_equal_the_whole_store_s() -> None:
+    config, index, lf, _ = _case()
+    _, whole = local_spreads(index, _reader(index, lf, config), config)
+    few = np.array([31, 3, 17, 99])  # 99 is not stored: left out
+    got_ids, got = local_spreads(index, _reader(index, lf, config), config, few)
+    assert got_ids.tolist() == [3, 17, 31]
+    assert np.array_equal(got, whole[[3, 17, 31]])
+
+
+def test_a_search_computes_only_the_spreads_it_pools(
+    stores: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import query.lightfield_spread as spread_module
+
+    db = stores["rigid"]
+    whole = store_spreads(db, stored_arrays(db))
+    asked: list[int] = []
+    real = spread_module.local_spreads
+
+    def counting(index: Any, fields: Any, config: Config, ids: Any = None) -> Any:
+        asked.append(-1 if ids is None else len(ids))
+        return real(index, fields, config, ids)
+
+    monkeypatch.setattr(spread_module, "local_spreads", counting)
+    spread_module._CACHE.clear()
+    table = spread_module.SpreadTable(db, stored_arrays(db))
+    assert table.complete and asked == []  # read back from the store, nothing computed
+    root = Path(db.store.path) / SPREAD_DIR
+    (root / "current.json").unlink()  # as if never written: computed on demand
+    table = spread_module.SpreadTable(db, stored_arrays(db))
+    got = table.get(np.array([2, 5]))
+    assert asked == [2] and not table.complete
+    assert got.tolist() == [whole[2], whole[5]]
+    table.get(np.array([5]))
+    assert asked == [2]  # known: not computed again
