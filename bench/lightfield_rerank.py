@@ -19,7 +19,11 @@ the same run:
 * ``lightfield``: version 4's vector with ``rerank="lightfield"`` at its defaults
   (:class:`shapedb.config.LightFieldFusionConfig`, K = 100), the candidates' light
   fields read by id as a store keeps them (float32,
-  :func:`shapedb.lightfield.record_light_field` of the balls).
+  :func:`shapedb.lightfield.record_light_field` of the balls), and the stored local
+  spreads computed over the set as a store computes them
+  (:func:`query.lightfield_spread.local_spreads`);
+* ``lightfield (before)``: the same with the stage's settings before the pooled spread
+  and the contrast floor (what a store written then reads).
 
 With ``--baselines``, in the same run: the balls' light fields alone (``light fields
 (balls)``, :func:`shapedb.lightfield.light_field_distance` of the stored light fields),
@@ -30,8 +34,10 @@ That the scorer ranks as the study's formula does is checked by the study
 (``python -m bench.studies.lightfield_balls --check-product``).
 
 ``--cost`` builds three stores of the web validation shapes (v4 without a stage, v4 with
-``rerank="lightfield"``, v7 with ``rerank="adaptive"``), times ``db.search(id, k=10)``
-for every shape, interleaved, and prints medians and ratios to the plain store.
+``rerank="lightfield"``, v7 with ``rerank="adaptive"``), times the lightfield store's
+local spreads (the index-time statistic, read from the light field column), then
+``db.search(id, k=10)`` for every shape, interleaved, and prints medians and ratios to
+the plain store.
 Written to bench/results/lightfield_rerank_<split>.json (``lightfield_rerank_cost.json``).
 """
 
@@ -53,6 +59,8 @@ from bench.common import class_nn, format_table, retrieval_scores, write_json
 from bench.features import kernel_features
 from query import rerank
 from query.index import FeatureIndex
+from query.lightfield_spread import local_spreads
+from query.rerank_lightfield import COLUMN, SPREAD
 from shapedb.config import Config
 from shapedb.lightfield import light_field_distance, record_light_field
 
@@ -60,6 +68,9 @@ RESULTS = Path(__file__).resolve().parent / "results"
 SETS = ("web", "generic", "capod", "figures", "parts", "people")
 _MEASURES = ("nn", "first_tier", "dcg")
 _CHUNK = 32
+#: The stage's settings before the pooled spread and the contrast floor.
+LEGACY = {"lf_weight": 8.0, "lf_power": 3.0, "lf_ceiling": 0.09, "lf_spread_candidates": 100,
+          "lf_pool": 0, "lf_contrast_floor": 0.0}  # fmt: skip
 
 
 def index_of(x: np.ndarray) -> FeatureIndex:
@@ -69,9 +80,18 @@ def index_of(x: np.ndarray) -> FeatureIndex:
     )
 
 
-def _reader(lf: np.ndarray) -> Any:
+def _reader(lf: np.ndarray, index: FeatureIndex, config: Config) -> Any:
+    """The light fields by id, and the stored local spreads as a store computes them."""
+    spreads: dict[str, np.ndarray] = {}
+
     def arrays(name: str, ids: np.ndarray) -> np.ndarray | None:
-        return np.asarray(lf[ids], np.float64) if name == "light_field" else None
+        if name == COLUMN:
+            return np.asarray(lf[ids], np.float64)
+        if name == SPREAD:
+            if "s" not in spreads:  # the index's ids are 0..n-1
+                spreads["s"] = local_spreads(index, arrays, config)[1]
+            return spreads["s"][ids]
+        return None
 
     return arrays
 
@@ -81,7 +101,7 @@ def rankings(index: FeatureIndex, config: Config, lf: np.ndarray | None = None) 
     x = np.asarray(index.features_, np.float64)
     n = len(x)
     out = np.empty((n, n), np.int64)
-    arrays = None if lf is None else _reader(lf)
+    arrays = None if lf is None else _reader(lf, index, config)
     for lo in range(0, n, _CHUNK):
         q = slice(lo, min(lo + _CHUNK, n))
         out[q], _ = rerank.search(
@@ -124,7 +144,10 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     """Rows per set, the study check, the table; returns the JSON written."""
     lf_cfg = Config().with_options(rerank="lightfield")
     adaptive = Config().with_options(descriptor=7, rerank="adaptive")
-    table: dict[str, dict[str, Any]] = {"v4": {}, "adaptive (v7)": {}, "lightfield": {}}
+    before = lf_cfg.with_options(**LEGACY)
+    table: dict[str, dict[str, Any]] = {
+        "v4": {}, "adaptive (v7)": {}, "lightfield": {}, "lightfield (before)": {},
+    }  # fmt: skip
     if args.baselines:
         table.update({"light fields (balls)": {}, "LFD (mesh)": {}, "D2 (mesh)": {}})
     per_kind: dict[str, dict[str, dict[str, float]]] = {}
@@ -146,6 +169,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             v7 = kernel_features(balls, Config().with_options(descriptor=7))
             add("adaptive (v7)", name, _ranks(rankings(index_of(v7), adaptive)), labels)
         add("lightfield", name, _ranks(rankings(i4, lf_cfg, lf)), labels)
+        add("lightfield (before)", name, _ranks(rankings(i4, before, lf)), labels)
         if args.baselines:
             add("light fields (balls)", name, light_field_distance(lf.astype(np.float64)), labels)
             for row, d in mesh_baselines(ds).items():
@@ -203,6 +227,16 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
                 for j, (m, b) in enumerate(zip(ds.models, balls, strict=True))
             ])  # fmt: skip
             dbs[label] = db
+            if cfg.rerank.scorer == "lightfield":  # the index-time statistic, timed alone
+                from query.index import open_index
+                from query.lightfield_spread import store_spreads
+                from query.rerank_lightfield import stored_arrays
+
+                open_index(db)
+                t = time.perf_counter()
+                store_spreads(db, stored_arrays(db))
+                out["spreads_s"] = time.perf_counter() - t
+                print(f"  local spreads of {len(balls)} shapes: {out['spreads_s']:.2f} s")
             got = db.evaluate()
             out[f"evaluate {label}"] = {m: float(getattr(got, m)) for m in _MEASURES}
             print(f"  db.evaluate {label}: {got.nn:.3f} / {got.first_tier:.3f} / {got.dcg:.3f}")

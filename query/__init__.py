@@ -50,10 +50,17 @@ __all__ = [
 def on_commit(db: Database, *args: object, **kwargs: object) -> None:
     """Store commit hook (entry point ``on_commit``): bring every built index up to date.
 
-    Whole-shape and part indexes that were already built are updated; a store never
-    searched gets its indexes lazily on first use.
+    Whole-shape and part indexes that were already built are updated, and so are the
+    light field spreads of a ``"lightfield"`` store that pools them
+    (:mod:`query.lightfield_spread`); a store never searched gets them lazily on first
+    use.
     """
     from query import index, parts_index
 
     index.on_commit(db, *args, **kwargs)
     parts_index.on_commit(db, *args, **kwargs)
+    if db.config.rerank.scorer == "lightfield":
+        from query import lightfield_spread
+        from query.rerank_lightfield import stored_arrays
+
+        lightfield_spread.on_commit(db, stored_arrays(db))

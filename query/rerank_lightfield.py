@@ -6,13 +6,15 @@ A store created with ``rerank="lightfield"`` keeps each record's light fields (t
 :data:`query.rerank.SCORER_MODULES`) re-ranks a query's candidates by the gated
 reciprocal rank fusion of :class:`shapedb.config.LightFieldFusionConfig`: the stored
 distance's rank plus the light field distance's rank, the latter weighted by a gate that
-is high where both agree about the query's nearest candidates and off where the light
-field spreads the candidates more than the stored distance does (jointed subjects, whose
-silhouettes all look alike).
+is off where the light field spreads near neighbours more than the stored distance does
+(jointed subjects, whose silhouettes change with the pose: the stored local spreads of
+the query's first candidates, :mod:`query.lightfield_spread`) and where the stored
+distance already sets the query's nearest apart (a low contrast).
 
 The candidates' light fields are read by id (``Candidates.arrays``); the query's are
 read by its id when it is a stored shape, else taken from ``Candidates.query_arrays``
-(computed from the query's own decomposition: :func:`query_light_fields`).
+(computed from the query's own decomposition: :func:`query_light_fields`). The stored
+local spreads are read by id too, as the array :data:`SPREAD`.
 
 Records without light fields (a store written before the column, or with another scorer
 when the records were built): the query's row keeps the stored-distance order (the
@@ -27,26 +29,28 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from query.lightfield_spread import calibration, spread_table
 from query.rerank import Candidates, register_scorer
 
 if TYPE_CHECKING:
     from shapedb.config import Config
 
-__all__ = ["LightFieldFusion", "StoredArrays", "stored_arrays", "query_light_fields", "COLUMN"]
+__all__ = [
+    "LightFieldFusion",
+    "StoredArrays",
+    "stored_arrays",
+    "query_light_fields",
+    "COLUMN",
+    "SPREAD",
+]
 
 log = logging.getLogger(__name__)
 
 #: The per-record column (and ``Candidates.query_arrays`` key) of the light fields.
 COLUMN = "light_field"
-
-
-def _calibration(config: Config) -> float:
-    """``c``: stored distances over ``c`` are in version 4's calibrated units."""
-    if config.kernel.method != "mdbd":
-        return 1.0
-    from shapedb.descriptor import LAYOUTS
-
-    return float(np.log(10.0) / sum(b[3] for b in LAYOUTS[config.descriptor.version]))
+#: The per-record array of the stored shapes' local light field spreads
+#: (:mod:`query.lightfield_spread`), read through ``Candidates.arrays`` like a column.
+SPREAD = "light_field_spread"
 
 
 def _ranks(d: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -75,7 +79,7 @@ class LightFieldFusion:
 
     def __init__(self, config: Config) -> None:
         self.fusion = config.lf_fusion
-        self.calibration = _calibration(config)
+        self.calibration = calibration(config)
         self._warned = False
 
     def _warn(self, why: str) -> None:
@@ -84,7 +88,11 @@ class LightFieldFusion:
             self._warned = True
 
     def fuse(
-        self, d: NDArray[np.float64], dl: NDArray[np.float64], own: NDArray[np.bool_]
+        self,
+        d: NDArray[np.float64],
+        dl: NDArray[np.float64],
+        own: NDArray[np.bool_],
+        spreads: NDArray[np.float64] | None = None,
     ) -> NDArray[np.float64]:
         """Fused scores (c,) of one query's candidates.
 
@@ -96,23 +104,55 @@ class LightFieldFusion:
             Light field distances.
         own : (c,) bool
             The query itself among the candidates (left out of the gate).
+        spreads : (c,) float64, optional
+            The candidates' stored local spreads (NaN: unknown), pooled when
+            ``LightFieldFusionConfig.pool > 0``; None there: the term is off.
         """
         f = self.fusion
         d4 = d / self.calibration
+        fused = 1.0 / (f.offset + _ranks(d4))
+        g = self.gate(d4, dl, own, spreads)
+        if g > 0:
+            fused = fused + f.weight * g / (f.offset + _ranks(dl))
+        return (1.0 + f.weight) / f.offset - fused
+
+    def gate(
+        self,
+        d4: NDArray[np.float64],
+        dl: NDArray[np.float64],
+        own: NDArray[np.bool_],
+        spreads: NDArray[np.float64] | None,
+    ) -> float:
+        """``g(q)`` in [0, 1]: overlap, spread ceiling and contrast floor (the config's).
+
+        ``d4`` in calibrated units, list order; the arguments as :meth:`fuse`'s.
+        """
+        f = self.fusion
         others = np.flatnonzero(~own)
-        g = 0.0
-        if len(others):
+        if not len(others):
+            return 0.0
+        others = others[np.argsort(d4[others], kind="stable")]  # nearest by d first
+        g = 1.0
+        if f.power > 0:
             m = min(f.neighbours, len(others))
-            a = others[np.argsort(d4[others], kind="stable")[:m]]
             b = others[np.argsort(dl[others], kind="stable")[:m]]
-            g = (len(np.intersect1d(a, b)) / m) ** f.power
-            if f.ceiling > 0:
-                near = others[np.argsort(d4[others], kind="stable")[: f.spread_candidates]]
+            g = (len(np.intersect1d(others[:m], b)) / m) ** f.power
+        if f.ceiling > 0:
+            if f.pool > 0:
+                pooled = None if spreads is None else spreads[: f.pool]
+                if pooled is None or not np.isfinite(pooled).any():
+                    return 0.0
+                spread = float(np.nanmedian(pooled))
+            else:
+                near = others[: f.spread_candidates]
                 spread = np.median(dl[near]) / f.typical
                 spread /= max(float(np.median(d4[near])), 1e-300)
-                g *= float(np.clip((f.ceiling - spread) / f.ramp, 0.0, 1.0))
-        fused = 1.0 / (f.offset + _ranks(d4)) + f.weight * g / (f.offset + _ranks(dl))
-        return (1.0 + f.weight) / f.offset - fused
+            g *= float(np.clip((f.ceiling - spread) / f.ramp, 0.0, 1.0))
+        if f.contrast_floor > 0:
+            far = d4[others[min(f.contrast_depth, len(others)) - 1]]
+            contrast = float(np.median(d4[others[: f.neighbours]])) / max(float(far), 1e-300)
+            g *= float(np.clip((contrast - f.contrast_floor) / f.contrast_ramp, 0.0, 1.0))
+        return float(g)
 
     def score(self, batch: Candidates) -> NDArray[np.float64]:
         """Fused distances, (q, c); rows without light fields keep the stored distances."""
@@ -128,6 +168,9 @@ class LightFieldFusion:
             self._warn("the store keeps no light fields")
             return out
         pos = {int(i): k for k, i in enumerate(wanted)}
+        spreads = None
+        if self.fusion.pool > 0 and self.fusion.ceiling > 0:
+            spreads = batch.arrays(SPREAD, wanted) if batch.arrays is not None else None
         given = (batch.query_arrays or {}).get(COLUMN)
         for row in range(len(batch.ids)):
             cols = np.flatnonzero(valid[row])
@@ -138,7 +181,8 @@ class LightFieldFusion:
                 lq = given[row]
             elif batch.query_ids[row] >= 0:
                 lq = stored[pos[int(batch.query_ids[row])]]
-            lc = stored[[pos[int(i)] for i in batch.ids[row, cols]]]
+            at = [pos[int(i)] for i in batch.ids[row, cols]]
+            lc = stored[at]
             if lq is None or not np.all(np.isfinite(lq)) or not np.all(np.isfinite(lc)):
                 self._warn("a query or a candidate has no stored light fields")
                 continue
@@ -146,7 +190,8 @@ class LightFieldFusion:
             own = batch.ids[row, cols] == batch.query_ids[row]
             if batch.query_ids[row] < 0:  # an outside query's stored copy counts as itself
                 own |= dl == 0.0
-            out[row, cols] = self.fuse(batch.distances[row, cols], dl, own)
+            sp = None if spreads is None else spreads[at]
+            out[row, cols] = self.fuse(batch.distances[row, cols], dl, own, sp)
         return out
 
 
@@ -189,8 +234,13 @@ class StoredArrays:
     def __call__(self, name: str, ids: NDArray[np.int64]) -> NDArray[np.float64] | None:
         """(m, fields, 10, d) float64 light fields of ``ids``; NaN for records without.
 
-        None when ``name`` is not ``"light_field"`` or no record of ``ids`` has one.
+        With ``name`` :data:`SPREAD`, the (m,) local spreads of ``ids`` at the store's
+        version (:func:`query.lightfield_spread.spread_table`, computed for the ids not
+        known yet; NaN for ids without).
+        None when ``name`` is neither or no record of ``ids`` has light fields.
         """
+        if name == SPREAD:
+            return spread_table(self.db, self).get(np.asarray(ids, np.int64))
         if name != COLUMN:
             return None
         ids = np.asarray(ids, np.int64)

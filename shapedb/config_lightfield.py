@@ -108,30 +108,45 @@ def product_light_field() -> LightFieldConfig:
 
 @dataclass(frozen=True)
 class LightFieldFusionConfig:
-    """The ``"lightfield"`` scorer: a gated reciprocal rank fusion with a spread ceiling.
+    """The ``"lightfield"`` scorer: a reciprocal rank fusion gated by spread and contrast.
 
     Among a query's candidates (the store's ``RerankConfig.candidates`` nearest by the
     stored distance ``d``; the query itself, when stored, among them), with ``rank_d``
     and ``rank_l`` each candidate's rank (0 first) by ``d`` and by the light field
     distance ``l`` (:func:`shapedb.lightfield.light_field_distance`), the scorer's
     distance is ``-(1 / (offset + rank_d) + weight * g(q) / (offset + rank_l))``, with
+    ``g(q)`` the product of three factors, each 1 when switched off:
 
-    ``g(q) = (|A ∩ B| / neighbours) ** power * clip((ceiling - s_q) / ramp, 0, 1)``:
-    ``A`` and ``B`` the query's ``neighbours`` nearest candidates by ``d`` and by ``l``
-    (itself left out), ``s_q`` the median of ``l / typical`` over the median of ``d /
-    c`` among its first ``spread_candidates`` candidates (itself left out), ``c =
-    ln(10) / (sum of the descriptor's block weights)`` (the calibrated units of
-    version 4). The defaults are those chosen on the validation splits
-    (docs/results.md, "Light fields from the balls").
+    * the overlap ``(|A ∩ B| / neighbours) ** power`` of the query's ``neighbours``
+      nearest candidates by ``d`` and by ``l`` (itself left out; ``power`` 0: off);
+    * the spread ceiling ``clip((ceiling - s_q) / ramp, 0, 1)`` (``ceiling`` 0: off).
+      A shape's *local spread* is the median of ``l / typical`` over the median of ``d /
+      c`` among its ``spread_candidates`` nearest others by ``d`` (``c = ln(10) / (sum of
+      the descriptor's block weights)``, version 4's calibrated units): high where
+      near neighbours by the stored vector look unlike (jointed subjects in other
+      poses). With ``pool > 0``, ``s_q`` is the median of the stored local spreads of the
+      query's first ``pool`` candidates (the query itself among them when stored; kept
+      per store version with the index, :mod:`query.lightfield_spread`); with ``pool``
+      0, the query's own local spread;
+    * the contrast floor ``clip((t_q - contrast_floor) / contrast_ramp, 0, 1)``
+      (``contrast_floor`` 0: off), ``t_q`` the median ``d`` of the query's
+      ``neighbours`` nearest others over ``d`` of its ``contrast_depth``-th nearest
+      other (the last when fewer): low where the stored vector already sets the
+      nearest apart, and the light field is kept out.
+
+    The defaults are those chosen on the validation splits (docs/results.md, "Gating
+    the light field by store and query"); stores written before ``pool`` and the
+    contrast read ``pool`` 0 and ``contrast_floor`` 0 (:mod:`shapedb.migrations`), and
+    their stored weight, power, ceiling and spread candidates.
 
     Attributes
     ----------
     weight : float
         Weight of the light field's rank term at ``g = 1``, in [0, 1000].
     neighbours : int
-        Size of the neighbourhoods whose overlap gates the term, in [1, 1000].
+        Size of the neighbourhoods of the overlap and of the contrast, in [1, 1000].
     power : float
-        Exponent of the overlap, in [0, 8].
+        Exponent of the overlap, in [0, 8]; 0: the overlap does not count.
     ceiling : float
         The spread ``s_q`` above which the term is off; 0 disables the ceiling. In [0, 10].
     ramp : float
@@ -141,17 +156,30 @@ class LightFieldFusionConfig:
     offset : float
         Rank offset of the reciprocal rank fusion, > 0.
     spread_candidates : int
-        Candidates the spread is measured over, in [1, 100000].
+        Nearest others a local spread is measured over, in [1, 100000].
+    pool : int
+        Candidates whose stored local spreads make ``s_q``, in [0, 100000]; 0: the
+        query's own local spread.
+    contrast_floor : float
+        The contrast ``t_q`` below which the term is off; 0 disables it. In [0, 1].
+    contrast_ramp : float
+        Width of the fade above the floor, in (0, 1].
+    contrast_depth : int
+        Rank of the far candidate of the contrast, in [2, 100000].
     """
 
-    weight: float = 8.0
+    weight: float = 4.0
     neighbours: int = 5
-    power: float = 3.0
-    ceiling: float = 0.09
+    power: float = 0.0
+    ceiling: float = 0.11
     ramp: float = 0.02
     typical: float = 18.03
     offset: float = 60.0
-    spread_candidates: int = 100
+    spread_candidates: int = 5
+    pool: int = 20
+    contrast_floor: float = 0.3
+    contrast_ramp: float = 0.05
+    contrast_depth: int = 30
 
     def __post_init__(self) -> None:
         def number(v: object) -> bool:
@@ -175,3 +203,11 @@ class LightFieldFusionConfig:
         _check(
             ok, "lf_spread_candidates", self.spread_candidates, "must be an integer in [1, 100000]"
         )
+        ok = _is_int(self.pool) and 0 <= self.pool <= 100_000
+        _check(ok, "lf_pool", self.pool, "must be an integer in [0, 100000]")
+        ok = number(self.contrast_floor) and 0.0 <= self.contrast_floor <= 1.0
+        _check(ok, "lf_contrast_floor", self.contrast_floor, "must be a number in [0, 1]")
+        ok = number(self.contrast_ramp) and 0.0 < self.contrast_ramp <= 1.0
+        _check(ok, "lf_contrast_ramp", self.contrast_ramp, "must be a number in (0, 1]")
+        ok = _is_int(self.contrast_depth) and 2 <= self.contrast_depth <= 100_000
+        _check(ok, "lf_contrast_depth", self.contrast_depth, "must be an integer in [2, 100000]")

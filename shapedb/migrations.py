@@ -28,8 +28,10 @@ Part-index configuration layouts (``PartConfig.to_dict()``):
 * **2**: ``{"layout": 2, "hops", "kernel": {...}, "size", "centre", "contact_tol_cells"}``.
 
 A field a stored section predates takes the value that reproduces what built the store
-(:data:`ADDED`, :data:`PART_ADDED`); a section not stored at all takes today's defaults
-(the upgraded dict leaves it out).
+(:data:`ADDED`, :data:`STORED_ADDED`, :data:`PART_ADDED`); a section not stored at all takes
+today's defaults (the upgraded dict leaves it out), but for :data:`ADDED`'s values. Layout 4
+stores wrote ``lf_fusion`` before its fields ``pool`` and ``contrast_floor``: such a section
+reads ``pool`` 0 and no floor (the gate it searched with).
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ __all__ = [
     "LAYOUT",
     "PART_LAYOUT",
     "ADDED",
+    "STORED_ADDED",
     "SECTIONS_ADDED",
     "PART_ADDED",
     "upgrade_config",
@@ -83,6 +86,14 @@ ADDED: dict[str, dict[str, Any]] = {
     },
 }
 
+#: Fields added to a section after stores first wrote that section, and the value that
+#: reproduces what a stored section without them did. Unlike :data:`ADDED`, only a
+#: stored section takes them: a section the layout predates keeps today's defaults.
+STORED_ADDED: dict[str, dict[str, Any]] = {
+    # before the pooled spread and the contrast floor: the query's own spread, no floor
+    "lf_fusion": {"pool": 0, "contrast_floor": 0.0},
+}
+
 #: Sections added to the store configuration, by the first layout that writes them:
 #: a configuration of an earlier layout gets the section with the values of
 #: :data:`ADDED` (what its store did), never today's defaults.
@@ -116,7 +127,7 @@ def upgrade_config(data: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
         ``{section: {field: value}}`` for the sections ``mdbd``, ``kernel``,
         ``descriptor``, ``cloud``, ``rerank``, ``light_field``, ``lf_fusion`` that ``data`` stores (without ``layout``),
         and the sections its layout predates (:data:`SECTIONS_ADDED`); fields a stored
-        section predates are filled in from :data:`ADDED`. Unknown keys are
+        section predates are filled in from :data:`ADDED` and :data:`STORED_ADDED`. Unknown keys are
         passed on, for the caller to refuse.
     """
     data = dict(data)
@@ -125,6 +136,10 @@ def upgrade_config(data: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
         sections = _layout1_sections(data)
     else:
         sections = {name: dict(section) for name, section in data.items()}
+    for name, later in STORED_ADDED.items():
+        if isinstance(sections.get(name), dict):
+            for key, legacy in later.items():
+                sections[name].setdefault(key, legacy)
     for name, first in SECTIONS_ADDED.items():
         if layout < first and name not in sections:
             sections[name] = {}

@@ -288,14 +288,14 @@ def check_product(datasets: Sequence[str], split: str) -> dict[str, Any]:
     as a store keeps them; returns ``{set: {kind: {"identical_rankings", "queries"}}}``.
     """
     from bench.features import kernel_features
-    from bench.lightfield_rerank import index_of, rankings
+    from bench.lightfield_rerank import LEGACY, index_of, rankings
     from shapedb.lightfield import ball_light_field
 
     out: dict[str, Any] = {}
     for name in datasets:
         _, balls = load(name, split)
         v4 = kernel_features(balls, Config())
-        whole = Config().with_options(rerank="lightfield", rerank_candidates=len(v4))
+        whole = Config().with_options(rerank="lightfield", rerank_candidates=len(v4), **LEGACY)
         d4 = np.abs(v4[:, None, :] - v4[None, :, :]).sum(-1)
         d4 /= np.log(10.0) / sum(b[3] for b in LAYOUTS[4])
         f = whole.lf_fusion

@@ -38,8 +38,23 @@ def _study_case(n: int = 40, seed: int = 0) -> tuple[Config, np.ndarray, np.ndar
     return config, x, lf, light_field_distance(lf)
 
 
-def test_with_every_shape_a_candidate_the_scorer_ranks_as_the_study() -> None:
+#: The stage's settings before the pooled spread and the contrast floor (issue 25's
+#: first product): what a store written then reads (shapedb.migrations).
+LEGACY = {"lf_weight": 8.0, "lf_power": 3.0, "lf_ceiling": 0.09, "lf_spread_candidates": 100,
+          "lf_pool": 0, "lf_contrast_floor": 0.0}  # fmt: skip
+
+
+def test_a_store_written_before_the_pool_reads_the_legacy_gate() -> None:
+    stored = json.loads(Config().with_options(rerank="lightfield", **LEGACY).to_json())
+    del stored["lf_fusion"]["pool"], stored["lf_fusion"]["contrast_floor"]
+    got = Config.from_json(json.dumps(stored)).lf_fusion
+    assert (got.pool, got.contrast_floor, got.weight, got.power) == (0, 0.0, 8.0, 3.0)
+    assert Config().lf_fusion.pool > 0 and Config().lf_fusion.contrast_floor > 0
+
+
+def test_with_every_shape_a_candidate_the_legacy_gate_ranks_as_the_study() -> None:
     config, x, lf, dl = _study_case()
+    config = config.with_options(**LEGACY)
     w = weights(config)
     d = np.abs(x[:, None, :] - x[None, :, :]) @ w
     cal = np.log(10.0) / sum(b[3] for b in __import__("shapedb.descriptor").descriptor.LAYOUTS[4])
@@ -82,7 +97,9 @@ def test_without_light_fields_the_stored_order_is_kept_with_a_warning(
 
 def test_bad_fusion_values_name_the_field() -> None:
     for option, value in [("lf_weight", -1.0), ("lf_neighbours", 0), ("lf_ramp", 0.0),
-                          ("lf_typical", 0.0), ("lf_spread_candidates", 0), ("lf_n_fields", 11)]:  # fmt: skip
+                          ("lf_typical", 0.0), ("lf_spread_candidates", 0), ("lf_n_fields", 11),
+                          ("lf_pool", -1), ("lf_contrast_floor", 1.5), ("lf_contrast_ramp", 0.0),
+                          ("lf_contrast_depth", 1)]:  # fmt: skip
         with pytest.raises(ConfigError, match=option.removeprefix("lf_")):
             Config().with_options(**{option: value})
     assert Config().with_options(lf_weight=2.0).lf_fusion.weight == 2.0

@@ -1,0 +1,421 @@
+"""How much the ``"lightfield"`` stage's light field should count, per store and per query.
+
+Usage (from the repository root)::
+
+    python -m bench.lightfield_gate                      # validation: the grid, the choice
+    python -m bench.lightfield_gate --split test         # test: the rows chosen on validation
+
+Every bench set's split (meshes; the cached balls of :func:`bench.cached.load`, nothing
+decomposed) is a store of its own, and so are the mixed stores of :data:`MIXES` (web +
+figures, web + people, generic + parts, all six). In each store every shape queries the
+others: its ``K = 100`` nearest by version 4's stored distance (ties by ascending id, the
+query among them, as ``query.rerank.search`` hands them over) are re-ranked by the gated
+reciprocal rank fusion of :class:`query.rerank_lightfield.LightFieldFusion`,
+``1 / (o + rank_d) + w g(q) / (o + rank_l)``, and scored (NN / 1-T / DCG) per set inside
+the store. Rows, in the same run: version 4 (no stage), the balls' light fields alone,
+the product's stage at its defaults, and the gates of :func:`gates`; the store-level
+statistic of each store is printed beside.
+
+The light field distances (the store's float32 light fields,
+:func:`shapedb.lightfield.record_light_field`, every pair of the split's six sets) are
+cached under ``$SHAPEDB_BENCH_CACHE/lightfield_gate`` keyed by the models and the code of
+``shapedb/lightfield.py``, so a changed silhouette (branch ``lffill``) re-computes them
+and the selection re-runs in one command. Written to
+bench/results/lightfield_gate_<split>.json. A held-out set that :mod:`bench.cached` knows
+(``webplus``) is run with ``--split test --no-grid --datasets webplus figures people`` (it
+and its mixes with the figures and the people).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import hashlib
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from bench import cached
+from bench.cached import load
+from bench.common import format_table, write_json
+from bench.datasets import CACHE_DIR
+from bench.features import kernel_features
+from shapedb.config import Config
+from shapedb.descriptor import LAYOUTS
+from shapedb.lightfield import light_field_distance, record_light_field
+
+FloatArray = NDArray[np.float64]
+RESULTS = Path(__file__).resolve().parent / "results"
+SETS = ("web", "generic", "capod", "figures", "parts", "people")
+MIXES = {
+    "web+figures": ("web", "figures"),
+    "web+people": ("web", "people"),
+    "generic+parts": ("generic", "parts"),
+    "all six": SETS,
+    "webplus+figures": ("webplus", "figures"),
+    "webplus+people": ("webplus", "people"),
+}
+#: Sets a run may name: the six, and the held-out ones :mod:`bench.cached` knows (``webplus``).
+CHOICES = tuple(getattr(cached, "CHOICES", SETS))
+MEASURES = ("nn", "first_tier", "dcg")
+
+
+class Split:
+    """Every set of one split together: names, set and class labels, v4 vectors, distances.
+
+    Attributes
+    ----------
+    sets : (n,) str
+        The set of each shape.
+    labels : (n,) str
+        ``set:class`` of each shape.
+    d4 : (n, n) float64
+        Version 4's stored distance (pre-weighted L1 of float32 vectors, as the index
+        holds them).
+    dl : (n, n) float64
+        Light field distances of the float32 light fields.
+    """
+
+    def __init__(self, split: str, names: Sequence[str] = SETS) -> None:
+        sets, labels, x, fields, keys = [], [], [], [], []
+        for name in names:
+            ds, balls = load(name, split)
+            cfg = Config().with_options(rerank="lightfield")
+            x.append(kernel_features(balls, Config()).astype(np.float32))
+            fields.append(
+                np.stack([record_light_field(b.centers, b.radii, cfg.light_field) for b in balls])
+            )
+            sets += [name] * len(balls)
+            labels += [f"{name}:{lab}" for lab in ds.labels]
+            keys += [m.name + m.source for m in ds.models]
+        self.split = split
+        self.sets = np.asarray(sets)
+        self.labels = np.asarray(labels)
+        v = np.concatenate(x).astype(np.float64)
+        self.d4 = np.empty((len(v), len(v)))
+        for i in range(len(v)):
+            self.d4[i] = np.abs(v - v[i]).sum(axis=1)
+        self.d4 /= np.log(10.0) / sum(b[3] for b in LAYOUTS[4])  # calibrated units
+        self.dl = _light_field_matrix(np.concatenate(fields), keys)
+
+    def store(self, names: Sequence[str]) -> NDArray[np.int64]:
+        """Row indices of a store made of these sets."""
+        return np.flatnonzero(np.isin(self.sets, list(names)))
+
+
+def _light_field_matrix(fields: NDArray[np.float32], keys: list[str]) -> FloatArray:
+    code = (Path(__file__).resolve().parents[1] / "shapedb" / "lightfield.py").read_bytes()
+    key = hashlib.sha256(code + "\n".join(keys).encode()).hexdigest()[:16]
+    path = CACHE_DIR / "lightfield_gate" / f"{key}.npy"
+    if path.exists():
+        return np.load(path)
+    t = time.perf_counter()
+    d = light_field_distance(fields.astype(np.float64))
+    print(f"  light field distances {d.shape}: {time.perf_counter() - t:.0f} s", flush=True)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.save(path, d)
+    return d
+
+
+class Store:
+    """One store's candidate lists and per-query statistics, for any gate at once.
+
+    Parameters
+    ----------
+    split : Split
+    rows : (n,) int
+        The store's shapes (indices into ``split``); ids are their positions.
+    candidates : int
+        K, the candidates re-ranked per query.
+    offset : float
+        The rank fusion's offset.
+
+    Attributes
+    ----------
+    cand : (n, K) int64
+        Each query's candidates by the stored distance (ties by id), itself among them.
+    rank_l : (n, K) float64
+        Rank of each candidate by the light field distance among the K (ties in list order).
+    """
+
+    def __init__(self, split: Split, rows: NDArray[np.int64], candidates: int = 100,
+                 offset: float = 60.0) -> None:  # fmt: skip
+        self.rows = rows
+        self.labels = split.labels[rows]
+        self.sets = split.sets[rows]
+        d4 = split.d4[np.ix_(rows, rows)]
+        dl = split.dl[np.ix_(rows, rows)]
+        n = len(rows)
+        k = min(candidates, n)
+        self.order = np.argsort(d4, axis=1, kind="stable")  # whole list, ties by id
+        self.cand = self.order[:, :k]
+        self.D = np.take_along_axis(d4, self.cand, 1)
+        self.L = np.take_along_axis(dl, self.cand, 1)
+        self.own = self.cand == np.arange(n)[:, None]
+        self.rank_l = np.empty((n, k))
+        np.put_along_axis(self.rank_l, np.argsort(self.L, axis=1, kind="stable"),
+                          np.arange(k, dtype=np.float64)[None, :], 1)  # fmt: skip
+        self.offset = offset
+        self.same = self.labels[:, None] == self.labels[None, :]
+        self.size = self.same.sum(axis=1) - 1  # relevant results per query
+
+    def others(self, x: FloatArray) -> FloatArray:
+        """(n, K - 1) ``x`` over each query's candidates without the query itself."""
+        return x[~self.own].reshape(len(x), -1) if self.own.any(axis=1).all() else x[:, 1:]
+
+    def overlap(self, m: int) -> FloatArray:
+        """(n,) share of the query's ``m`` nearest others common to both distances."""
+        cand = self.others(self.cand.astype(np.float64)).astype(np.int64)
+        ll = self.others(self.L)
+        a = cand[:, :m]
+        b = np.take_along_axis(cand, np.argsort(ll, axis=1, kind="stable")[:, :m], 1)
+        return np.array([len(np.intersect1d(x, y)) / m for x, y in zip(a, b, strict=True)])
+
+    def spread(self, typical: float = 18.03) -> FloatArray:
+        """(n,) the product's ``s_q``: median light field over median stored distance."""
+        return np.median(self.others(self.L), 1) / typical / np.median(self.others(self.D), 1)
+
+    def spearman(self) -> FloatArray:
+        """(n,) rank correlation of the two distances over the query's other candidates."""
+        a = np.argsort(np.argsort(self.others(self.D), 1, kind="stable"), 1).astype(float)
+        b = np.argsort(np.argsort(self.others(self.L), 1, kind="stable"), 1).astype(float)
+        a -= a.mean(1, keepdims=True)
+        b -= b.mean(1, keepdims=True)
+        return (a * b).sum(1) / np.sqrt((a * a).sum(1) * (b * b).sum(1))
+
+    def rankings(self, weight: FloatArray) -> NDArray[np.int64]:
+        """(n, n) each query's whole list (store positions) at per-query weights ``weight``.
+
+        ``weight`` (n,): the weight of the light field's rank term (``w g(q)``); inf
+        ranks by the light field alone among the candidates. Past the K candidates the
+        list keeps the stored-distance order.
+        """
+        n, k = self.cand.shape
+        rank_d = np.arange(k, dtype=np.float64)[None, :]
+        w = np.asarray(weight, np.float64)[:, None]
+        alone = np.isinf(w[:, 0])
+        fused = 1.0 / (self.offset + rank_d) + np.where(alone[:, None], 0.0,
+                                                       w / (self.offset + self.rank_l))  # fmt: skip
+        fused[alone] = 1.0 / (self.offset + self.rank_l[alone])
+        ids = self.cand
+        head = np.take_along_axis(ids, np.lexsort((ids, -fused), axis=-1), 1)
+        return np.concatenate([head, self.order[:, k:]], axis=1)
+
+    def measures(self, weight: FloatArray) -> FloatArray:
+        """(n, 3) NN, 1-T, DCG of every query at per-query weights ``weight`` (:meth:`rankings`)."""
+        n = len(self.cand)
+        full = self.rankings(weight)
+        hit = np.take_along_axis(self.same, full, 1)
+        hit[full == np.arange(n)[:, None]] = False
+        keep = full != np.arange(n)[:, None]
+        hit = hit[keep].reshape(n, -1)
+        c = np.maximum(self.size, 1)
+        disc = np.ones(n - 1)
+        disc[1:] = 1.0 / np.log2(np.arange(2, n))
+        ideal = np.cumsum(disc)
+        tier = np.array([hit[i, : c[i]].sum() for i in range(n)]) / c
+        out = np.stack([hit[:, 0].astype(float), tier, (hit * disc).sum(1) / ideal[c - 1]], 1)
+        out[self.size < 1] = np.nan
+        return out
+
+    def per_set(self, m: FloatArray) -> dict[str, dict[str, float]]:
+        """Mean NN, 1-T, DCG per set of the store."""
+        out = {}
+        for s in dict.fromkeys(self.sets):
+            rows = (self.sets == s) & np.isfinite(m[:, 0])
+            out[str(s)] = {k: float(m[rows, j].mean()) for j, k in enumerate(MEASURES)}
+        return out
+
+
+def local_spreads(st: Store, candidates: int, typical: float) -> FloatArray:
+    """(n,) each stored shape's local spread over its ``candidates`` nearest others."""
+    d, ll = st.others(st.D)[:, :candidates], st.others(st.L)[:, :candidates]
+    return np.median(ll, 1) / typical / np.maximum(np.median(d, 1), 1e-300)
+
+
+def gate_weights(st: Store, f: Any) -> FloatArray:
+    """(n,) ``weight * g(q)`` of :class:`shapedb.config.LightFieldFusionConfig` ``f``."""
+    n = len(st.rows)
+    g = np.ones(n)
+    if f.power > 0:
+        g *= st.overlap(f.neighbours) ** f.power
+    if f.ceiling > 0:
+        s = local_spreads(st, f.spread_candidates, f.typical)
+        if f.pool > 0:
+            s = np.median(s[st.cand[:, : f.pool]], axis=1)
+        g *= np.clip((f.ceiling - s) / f.ramp, 0.0, 1.0)
+    if f.contrast_floor > 0:
+        d = st.others(st.D)
+        far = d[:, min(f.contrast_depth, d.shape[1]) - 1]
+        t = np.median(d[:, : f.neighbours], 1) / np.maximum(far, 1e-300)
+        g *= np.clip((t - f.contrast_floor) / f.contrast_ramp, 0.0, 1.0)
+    return f.weight * g
+
+
+#: The grid of the selection (``LightFieldFusionConfig`` fields; power 0, neighbours 5).
+GRID = {
+    "weight": (2.0, 4.0, 8.0),
+    "ceiling": (0.11, 0.13, 0.15),
+    "spread_candidates": (5, 10),
+    "pool": (0, 5, 10, 20),
+    "contrast_floor": (0.0, 0.2, 0.25, 0.3, 0.35),
+    "contrast_ramp": (0.05, 0.1, 0.2),
+    "contrast_depth": (20, 30),
+}
+#: ``--around``: values of one field each, the others at the defaults.
+AROUND = {"weight": (2.0, 8.0), "ceiling": (0.09, 0.13, 0.15), "pool": (5, 10, 40),
+          "spread_candidates": (10,), "contrast_floor": (0.0, 0.25, 0.35),
+          "contrast_ramp": (0.1, 0.2), "contrast_depth": (20, 50)}  # fmt: skip
+LEGACY = {"weight": 8.0, "power": 3.0, "ceiling": 0.09, "spread_candidates": 100, "pool": 0,
+          "contrast_floor": 0.0}  # fmt: skip
+
+
+def _row(stores: dict[str, Store], weights: dict[str, FloatArray],
+         base: dict[str, dict[str, dict[str, float]]]) -> dict[str, Any]:  # fmt: skip
+    """Scores per store and set, the worst loss in queries against v4, the objective."""
+    entry: dict[str, Any] = {"stores": {}, "worst_queries": 0.0, "worst_at": None}
+    for name, st in stores.items():
+        per = st.per_set(st.measures(weights[name]))
+        entry["stores"][name] = per
+        for s, v in per.items():
+            n = int((st.sets == s).sum())
+            loss = min((v[m] - base[name][s][m]) * n for m in MEASURES)
+            if loss < entry["worst_queries"] - 1e-9:
+                entry["worst_queries"], entry["worst_at"] = float(loss), f"{name}: {s}"
+    entry["objective"] = float(np.mean(
+        [np.mean([entry["stores"][s][s][m] for m in MEASURES]) for s in CHOICES if s in stores]
+    ))  # fmt: skip
+    entry["passes"] = entry["worst_queries"] >= -2.0 - 1e-9
+    return entry
+
+
+def select(args: argparse.Namespace) -> dict[str, Any]:
+    """Rows of every store; on validation the grid and its choice; returns the JSON."""
+    import itertools
+
+    t0 = time.perf_counter()
+    split = Split(args.split, args.datasets)
+    names: dict[str, tuple[str, ...]] = {s: (s,) for s in args.datasets}
+    names.update({k: v for k, v in MIXES.items() if set(v) <= set(args.datasets)})
+    stores = {k: Store(split, split.store(v)) for k, v in names.items()}
+    print(f"  {len(split.sets)} shapes, {len(stores)} stores ({time.perf_counter() - t0:.0f} s)")
+    zero = {k: np.zeros(len(st.rows)) for k, st in stores.items()}
+    base = {k: st.per_set(st.measures(zero[k])) for k, st in stores.items()}
+    default = Config().lf_fusion
+    rows: dict[str, dict[str, Any]] = {
+        "v4 (no stage)": _row(stores, zero, base),
+        "light fields alone (K = 100)": _row(
+            stores, {k: np.full(len(st.rows), np.inf) for k, st in stores.items()}, base),
+        "rank fusion 0.5, ungated": _row(
+            stores, {k: np.full(len(st.rows), 0.5) for k, st in stores.items()}, base),
+    }  # fmt: skip
+    legacy = dataclasses.replace(default, **LEGACY)  # type: ignore[arg-type]
+    rows["stage before (overlap^3, own spread over 100)"] = _row(
+        stores, {k: gate_weights(st, legacy) for k, st in stores.items()}, base
+    )
+    settings = [dict(zip(GRID, c, strict=True)) for c in itertools.product(*GRID.values())]
+    settings = [s for s in settings if s["contrast_floor"] > 0 or s["contrast_ramp"] == 0.05]
+    if args.split == "validation" and not args.no_grid:
+        grid = []
+        for s in settings:
+            f = dataclasses.replace(default, power=0.0, **s)  # type: ignore[arg-type]
+            grid.append((s, _row(stores, {k: gate_weights(st, f) for k, st in stores.items()},
+                                 base)))  # fmt: skip
+        passing = [g for g in grid if g[1]["passes"]]
+        best = max(passing, key=lambda g: g[1]["objective"]) if passing else None
+        print(f"  grid: {len(grid)} settings, {len(passing)} pass; chosen {best and best[0]}")
+        for label, keep in (("own spread (pool 0)", lambda s: s["pool"] == 0),
+                            ("no contrast floor", lambda s: s["contrast_floor"] == 0)):  # fmt: skip
+            sub = [g for g in passing if keep(g[0])]
+            if sub:
+                top = max(sub, key=lambda g: g[1]["objective"])
+                rows[f"best with {label}: {top[0]}"] = top[1]
+        if best is not None:
+            rows[f"best of the grid: {best[0]}"] = best[1]
+    rows["stage now (LightFieldFusionConfig defaults)"] = _row(
+        stores, {k: gate_weights(st, default) for k, st in stores.items()}, base
+    )
+    if args.around:  # one field of the defaults moved at a time
+        for field, values in AROUND.items():
+            for v in values:
+                f = dataclasses.replace(default, **{field: v})  # type: ignore[arg-type]
+                rows[f"defaults, {field} {v:g}"] = _row(
+                    stores, {k: gate_weights(st, f) for k, st in stores.items()}, base
+                )
+    _print(rows, stores, args.split)
+    return {"split": args.split, "rows": rows, "defaults": dataclasses.asdict(default),
+            "statistics": statistics(stores, default),
+            "sizes": {k: len(st.rows) for k, st in stores.items()}}  # fmt: skip
+
+
+def statistics(stores: dict[str, Store], f: Any) -> dict[str, dict[str, dict[str, list[float]]]]:
+    """5 / 50 / 95 % of the gate's statistics per set in each store (printed as a table).
+
+    ``spread 100``: the query's own spread over its 100 candidates (the gate before);
+    ``local``: the local spread over ``f.spread_candidates``; ``pooled``: its median over
+    the first ``f.pool`` candidates; ``contrast``: the contrast of the floor.
+    """
+    out: dict[str, dict[str, dict[str, list[float]]]] = {}
+    table = []
+    for name, st in stores.items():
+        local = local_spreads(st, f.spread_candidates, f.typical)
+        d = st.others(st.D)
+        far = d[:, min(f.contrast_depth, d.shape[1]) - 1]
+        stats = {
+            "spread 100": local_spreads(st, 100, f.typical),
+            "local": local,
+            "pooled": np.median(local[st.cand[:, : f.pool]], axis=1),
+            "contrast": np.median(d[:, : f.neighbours], 1) / np.maximum(far, 1e-300),
+        }
+        for s in dict.fromkeys(st.sets):
+            rows = st.sets == s
+            q = {k: np.quantile(v[rows], [0.05, 0.5, 0.95]).tolist() for k, v in stats.items()}
+            out.setdefault(name, {})[str(s)] = q
+            table.append([s if (name,) == (s,) else f"{s} in {name}",
+                          *("/".join(f"{x:.3f}" for x in q[k]) for k in stats)])  # fmt: skip
+    print(format_table("the gate's statistics, 5 / 50 / 95 % of the queries",
+                       ("set", "spread 100", "local", "pooled", "contrast"), table))  # fmt: skip
+    return out
+
+
+def _print(rows: dict[str, dict[str, Any]], stores: dict[str, Store], split: str) -> None:
+    cols = [(k, s) for k, st in stores.items() for s in dict.fromkeys(st.sets)]
+    table = []
+    for label, e in rows.items():
+        cells = [
+            "{nn:.3f} / {first_tier:.3f} / {dcg:.3f}".format(**e["stores"][k][s]) for k, s in cols
+        ]
+        worst = f"{e['worst_queries']:+.1f} ({e['worst_at']})" if e["worst_at"] else "0"
+        table.append([label, *cells, f"{e['objective']:.4f}", worst])
+    heads = [k if (k,) == (s,) else f"{s} in {k}" for k, s in cols]
+    print(format_table(
+        f"the lightfield stage's gate, {split} splits, each set and mix a store (NN / 1-T / DCG)",
+        ("row", *heads, "objective", "worst (queries)"), table,
+    ))  # fmt: skip
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point; returns the exit status."""
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.lightfield_gate", description=__doc__.split("\n")[0]
+    )
+    ap.add_argument("--split", default="validation", choices=["validation", "test"])
+    ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
+    ap.add_argument("--no-grid", action="store_true", help="only the fixed rows")
+    ap.add_argument("--around", action="store_true", help="the defaults, one field moved")
+    ap.add_argument("--out", type=Path, default=None)
+    args = ap.parse_args(argv)
+    result = select(args)
+    out = args.out or RESULTS / f"lightfield_gate_{args.split}.json"
+    write_json(out, result)
+    print(f"written {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

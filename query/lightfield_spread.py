@@ -1,0 +1,262 @@
+"""The store's local light field spreads: an index-time statistic of the ``"lightfield"`` stage.
+
+A stored shape's *local spread* is the median light field distance (over
+``LightFieldFusionConfig.typical``) over the median stored distance (in version 4's
+calibrated units, :func:`calibration`) among its ``spread_candidates`` nearest other
+stored shapes by the stored distance (the index's exact order, ties by ascending id). It
+is high where near neighbours by the stored vector look unlike each other: jointed
+subjects in other poses, whose silhouettes change with the pose. The scorer
+(:mod:`query.rerank_lightfield`) pools the spreads of a query's first candidates into
+its gate (``LightFieldFusionConfig.pool``), so a query is judged by the region of the
+store it falls in, not by itself alone, and a mixed store judges each region apart.
+
+The spreads depend on the whole store (a new shape changes its neighbours' lists), so
+they belong to a store version. They are computed on demand, for the shapes a search
+pools (a search costs the same whatever the store's size, and a commit costs nothing),
+kept in-process per store version, and written to ``<store>/index_lightfield/`` (a
+versioned directory like the index's: ``ids.npy``, ``spreads.npy``, and the store
+version and the parameters they were computed with in ``current.json``) once every
+stored shape has one (an evaluation, :func:`store_spreads`, or the commit hook of a
+store of at most :data:`FULL_AT_COMMIT` shapes); read back while they match. A spread
+computed for one shape or for all is the same number (deterministic, from the stored
+vectors and light fields). Cost: ``spread_candidates`` light field distances per shape.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from query._versioned import POINTER, current, save_version
+
+if TYPE_CHECKING:
+    from query.rerank import ArrayReader
+    from shapedb.config import Config
+    from shapedb.database import Database
+
+__all__ = [
+    "SPREAD_DIR",
+    "FULL_AT_COMMIT",
+    "SpreadTable",
+    "calibration",
+    "local_spreads",
+    "spread_table",
+    "store_spreads",
+    "on_commit",
+]
+
+log = logging.getLogger(__name__)
+
+SPREAD_DIR = "index_lightfield"
+_FORMAT = 1
+_CHUNK = 256
+#: A commit recomputes every spread only in stores of at most this many shapes (larger
+#: stores compute them as searches ask for them).
+FULL_AT_COMMIT = 2000
+_CACHE: dict[tuple[str, int], SpreadTable] = {}
+_LOCK = threading.Lock()
+
+
+def calibration(config: Config) -> float:
+    """``c``: stored distances over ``c`` are in version 4's calibrated units."""
+    if config.kernel.method != "mdbd":
+        return 1.0
+    from shapedb.descriptor import LAYOUTS
+
+    return float(np.log(10.0) / sum(b[3] for b in LAYOUTS[config.descriptor.version]))
+
+
+def local_spreads(
+    index: Any, fields: ArrayReader, config: Config, ids: NDArray[np.int64] | None = None
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Indexed shapes' local spreads (every alive shape's by default).
+
+    Parameters
+    ----------
+    index : FeatureIndex
+        Fitted (:mod:`query.index`) over the stored vectors; its alive ids are the shapes.
+    fields : ArrayReader
+        Reads the ``"light_field"`` column by ids, (m, fields, 10, d), NaN rows for
+        records without.
+    config : Config
+        ``lf_fusion.spread_candidates`` and ``typical``, and the descriptor (calibration).
+    ids : (k,) int64, optional
+        The shapes wanted; ids not alive in the index are left out.
+
+    Returns
+    -------
+    ids : (n,) int64
+        Ascending, alive.
+    spreads : (n,) float64
+        NaN for a shape with no light fields or no neighbour with them.
+    """
+    from shapedb.lightfield import light_field_distance
+
+    f = config.lf_fusion
+    alive = np.sort(np.asarray(index.ids_, np.int64)[np.asarray(index.alive_, bool)])
+    ids = alive if ids is None else np.intersect1d(alive, np.asarray(ids, np.int64))
+    out = np.full(len(ids), np.nan)
+    if len(alive) < 2 or len(ids) == 0:
+        return ids, out
+    m = min(int(f.spread_candidates), len(alive) - 1)
+    cal = calibration(config)
+    x = np.asarray(index.features_, np.float64)[index.lookup(ids)]
+    for lo in range(0, len(ids), _CHUNK):
+        q = ids[lo : lo + _CHUNK]
+        near, dist = index.search(x[lo : lo + _CHUNK], m + 1)
+        wanted = np.unique(np.concatenate([q, near[near >= 0]]))
+        got = fields("light_field", wanted)
+        if got is None:
+            continue
+        pos = {int(i): k for k, i in enumerate(wanted)}
+        for row, sid in enumerate(q):
+            keep = (near[row] >= 0) & (near[row] != sid)
+            nb, d = near[row][keep][:m], dist[row][keep][:m]
+            lq = got[pos[int(sid)]]
+            lc = got[[pos[int(i)] for i in nb]]
+            ok = np.all(np.isfinite(lc.reshape(len(nb), -1)), axis=1)
+            if not np.all(np.isfinite(lq)) or not ok.any():
+                continue
+            dl = light_field_distance(lq[None], lc[ok])[0]
+            denom = max(float(np.median(d[ok])) / cal, 1e-300)
+            out[lo + row] = float(np.median(dl)) / f.typical / denom
+    return ids, out
+
+
+def _meta(config: Config, version: int) -> dict[str, Any]:
+    f, lf = config.lf_fusion, config.light_field
+    return {
+        "format": _FORMAT,
+        "version": version,
+        "spread_candidates": int(f.spread_candidates),
+        "typical": float(f.typical),
+        "light_field": repr(lf),
+        "descriptor": int(config.descriptor.version),
+        "method": config.kernel.method,
+    }
+
+
+class SpreadTable:
+    """The local spreads of one store version, filled as they are asked for.
+
+    Parameters
+    ----------
+    db : shapedb.Database
+    fields : ArrayReader
+        The store's light fields by id (:func:`query.rerank_lightfield.stored_arrays`).
+    """
+
+    def __init__(self, db: Database, fields: ArrayReader) -> None:
+        from query.index import open_index
+
+        self.db, self.fields = db, fields
+        self.index = open_index(db)
+        v = self.index.version_
+        self.version = int(v if v is not None else db.store.version)
+        self.meta = _meta(db.config, self.version)
+        self.values: dict[int, float] = {}
+        self.complete = False
+        self._lock = threading.Lock()
+        self._read()
+
+    @property
+    def root(self) -> Path:
+        return Path(self.db.store.path) / SPREAD_DIR
+
+    def _read(self) -> None:
+        if not (self.root / POINTER).exists():
+            return
+        try:
+            stored, sub = current(self.root)
+            if all(stored.get(k) == v for k, v in self.meta.items()):
+                ids, spreads = np.load(sub / "ids.npy"), np.load(sub / "spreads.npy")
+                self.values = {int(i): float(s) for i, s in zip(ids, spreads, strict=True)}
+                self.complete = True
+        except (OSError, ValueError, KeyError) as exc:
+            log.warning("recomputing the light field spreads of %s: %s", self.db.store.path, exc)
+
+    def _write(self) -> None:
+        ids = np.array(sorted(self.values), np.int64)
+        spreads = np.array([self.values[int(i)] for i in ids], np.float64)
+
+        def write(sub: Path) -> None:
+            np.save(sub / "ids.npy", ids)
+            np.save(sub / "spreads.npy", spreads)
+
+        save_version(self.root, write, self.meta, version=self.version)
+        log.info("light field spreads of %d shapes at store version %s", len(ids), self.version)
+
+    def get(self, ids: NDArray[np.int64] | None = None) -> NDArray[np.float64]:
+        """(k,) spreads of ``ids`` (every alive shape's when None); NaN for ids without.
+
+        Computes the ids not known yet; once every alive shape has its spread, writes
+        the table for later processes.
+        """
+        with self._lock:
+            want = None if ids is None else np.asarray(ids, np.int64).ravel()
+            if not self.complete:
+                pending = want
+                if want is not None:
+                    pending = np.array(sorted({int(i) for i in want} - set(self.values)), np.int64)
+                if pending is None or len(pending):
+                    got_ids, got = local_spreads(self.index, self.fields, self.db.config, pending)
+                    self.values.update(
+                        {int(i): float(s) for i, s in zip(got_ids, got, strict=True)}
+                    )
+                    alive = np.asarray(self.index.ids_, np.int64)[self.index.alive_]
+                    if all(int(i) in self.values for i in alive):
+                        self.complete = True
+                        self._write()
+            if want is None:
+                want = np.array(sorted(self.values), np.int64)
+            return np.array([self.values.get(int(i), np.nan) for i in want])
+
+
+def spread_table(db: Database, fields: ArrayReader) -> SpreadTable:
+    """The shared :class:`SpreadTable` of ``db``'s store at its index's current version."""
+    from query.index import open_index
+
+    index = open_index(db)
+    version = int(index.version_ if index.version_ is not None else db.store.version)
+    key = (os.fspath(db.store.path), version)
+    with _LOCK:
+        table = _CACHE.get(key)
+        if table is None:
+            table = _CACHE[key] = SpreadTable(db, fields)
+            for old in [k for k in _CACHE if k[0] == key[0] and k[1] != version]:
+                _CACHE.pop(old, None)
+    return table
+
+
+def store_spreads(db: Database, fields: ArrayReader) -> dict[int, float]:
+    """Every stored shape's local spread at the store's current version, by id.
+
+    Read from ``<store>/index_lightfield/`` when it holds this version's spreads under
+    the store's parameters; else computed (:func:`local_spreads`) and written there.
+    """
+    table = spread_table(db, fields)
+    table.get(None)
+    return dict(table.values)
+
+
+def on_commit(db: Database, fields: ArrayReader) -> None:
+    """Bring the spreads up to date after a commit, for a store whose stage pools them.
+
+    Only a store with the ``"lightfield"`` scorer, ``pool > 0`` and light fields stored,
+    whose spreads were written before, and of at most :data:`FULL_AT_COMMIT` shapes; a
+    larger store's searches compute the spreads they pool.
+    """
+    cfg = db.config
+    if cfg.rerank.scorer != "lightfield" or cfg.lf_fusion.pool <= 0:
+        return
+    if not (Path(db.store.path) / SPREAD_DIR / POINTER).exists():
+        return
+    table = spread_table(db, fields)
+    if int(np.count_nonzero(table.index.alive_)) <= FULL_AT_COMMIT:
+        table.get(None)

@@ -1,0 +1,192 @@
+"""The lightfield stage's pooled gate: stored local spreads, the selection bench's formula."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+import pytest
+
+from bench.lightfield_gate import Store, gate_weights
+from query import rerank
+from query.index import FeatureIndex
+from query.lightfield_spread import SPREAD_DIR, calibration, local_spreads, store_spreads
+from query.rerank_lightfield import COLUMN, SPREAD, LightFieldFusion, stored_arrays
+from shapedb.config import Config
+from shapedb.implicit import Box, Capsule, Sphere
+from shapedb.kernel import weights
+from shapedb.lightfield import light_field_distance
+
+
+def _case(n: int = 40, seed: int = 1) -> tuple[Config, FeatureIndex, np.ndarray, np.ndarray]:
+    """A v4 store of n vectors in 4 classes and their light fields; every shape a candidate."""
+    rng = np.random.default_rng(seed)
+    config = Config().with_options(rerank="lightfield", rerank_candidates=n)
+    x = rng.random((n, config.dim))
+    classes = rng.random((4, 3, 10, 46))
+    lf = classes[np.arange(n) % 4] + 0.3 * rng.random((n, 3, 10, 46))
+    index = FeatureIndex(kind="flat").fit(np.arange(n), x.astype(np.float32), weights(config))
+    return config, index, lf, light_field_distance(lf)
+
+
+def _reader(index: FeatureIndex, lf: np.ndarray, config: Config) -> Any:
+    spreads: dict[str, np.ndarray] = {}
+
+    def arrays(name: str, ids: np.ndarray) -> np.ndarray | None:
+        if name == COLUMN:
+            return lf[ids]
+        if name == SPREAD:
+            if "s" not in spreads:
+                spreads["s"] = local_spreads(index, arrays, config)[1]
+            return spreads["s"][ids]
+        return None
+
+    return arrays
+
+
+def test_the_pooled_gate_ranks_as_the_selection_bench() -> None:
+    config, index, lf, dl = _case()
+    x = np.asarray(index.features_, np.float64)
+    d = np.abs(x[:, None, :] - x[None, :, :]) @ index.weights_ / calibration(config)
+    # a typical distance and a contrast floor that open some gates and close others
+    probe = Store(SimpleNamespace(labels=np.arange(40) % 4, sets=np.zeros(40), d4=d, dl=dl),
+                  np.arange(40), candidates=40)  # fmt: skip
+    s = np.median(probe.others(probe.L)[:, :5], 1) / np.median(probe.others(probe.D)[:, :5], 1)
+    dd = probe.others(probe.D)
+    t = np.median(dd[:, :5], 1) / dd[:, 29]
+    config = config.with_options(lf_typical=float(np.median(s)) / 0.11,
+                                 lf_contrast_floor=float(np.median(t)) - 0.02)  # fmt: skip
+    want_w = gate_weights(probe, config.lf_fusion)
+    assert 0 < np.count_nonzero(want_w) < 40  # the gate decides
+    got, _ = rerank.search(index, x, 40, config=config, query_ids=np.arange(40),
+                           arrays=_reader(index, lf, config))  # fmt: skip
+    assert np.array_equal(got, probe.rankings(want_w))
+    assert not np.array_equal(got, probe.order)  # the light field moved some rankings
+
+
+def test_without_spreads_the_pooled_gate_keeps_the_stored_order() -> None:
+    config, index, lf, _ = _case(12)
+    config = config.with_options(rerank_candidates=12)
+    x = np.asarray(index.features_, np.float64)
+
+    def fields_only(name: str, ids: np.ndarray) -> np.ndarray | None:
+        return lf[ids] if name == COLUMN else None
+
+    got, _ = rerank.search(index, x, 12, config=config, query_ids=np.arange(12),
+                           arrays=fields_only)  # fmt: skip
+    assert np.array_equal(got, index.search(x, 12)[0])
+
+
+def _gates(db: Any) -> np.ndarray:
+    """g(q) of every stored shape querying the store, from the product's scorer."""
+    scorer = LightFieldFusion(db.config)
+    ids, x = db.store.features()
+    index = __import__("query.index").index.open_index(db)
+    reader = stored_arrays(db)
+    out = []
+    for sid in ids:
+        cand, dist = index.search(index.features_of(int(sid))[None], len(ids))
+        c = cand[0]
+        fields = reader(COLUMN, np.append(c, sid))
+        dl = light_field_distance(fields[-1][None], fields[:-1])[0]
+        spreads = reader(SPREAD, c)
+        d4 = dist[0] / calibration(db.config)
+        out.append(scorer.gate(d4, dl, c == sid, spreads))
+    return np.asarray(out)
+
+
+def _chain(angle: float, bend: float) -> Any:
+    """Four balls joined by rods, its two joints bent by ``angle`` and ``bend`` (radians)."""
+    pts = [np.zeros(3)]
+    heading = 0.0
+    for turn in (0.0, angle, bend):
+        heading += turn
+        pts.append(pts[-1] + 1.6 * np.array([np.cos(heading), np.sin(heading), 0.0]))
+    shape = Sphere(tuple(pts[0]), 0.45)
+    for a, b in zip(pts[:-1], pts[1:], strict=True):
+        shape = shape | Capsule(tuple(a), tuple(b), 0.25) | Sphere(tuple(b), 0.45)
+    return shape
+
+
+@pytest.fixture(scope="module")
+def stores(tmp_path_factory: pytest.TempPathFactory,
+           forget: Callable[[Any], None]) -> Iterator[dict[str, Any]]:  # fmt: skip
+    """Two stores at the stage's defaults: rigid boxes and rods, and one chain in 8 poses."""
+    import shapedb.database as database
+
+    config = Config().with_options(rerank="lightfield", resolution=48, n_balls=128)
+    root = tmp_path_factory.mktemp("spread")
+    rigid = database.connect(root / "rigid", config=config)
+    rigid.ingest([(f"box{k}", Box((0, 0, 0), (2.0 + 0.15 * k, 1.0, 0.6 + 0.05 * k)))
+                  for k in range(4)] + [(f"rod{k}", Capsule((0, 0, 0), (3.0 + 0.2 * k, 0, 0), 0.4))
+                                        for k in range(4)], workers=1)  # fmt: skip
+    chain = database.connect(root / "chain", config=config)
+    poses = [(a, b) for a in (0.0, 0.5, 1.0, 1.5) for b in (-0.8, 0.8)]
+    chain.ingest([(f"pose{k}", _chain(a, b)) for k, (a, b) in enumerate(poses)], workers=1)
+    yield {"rigid": rigid, "chain": chain}
+    forget(rigid)
+    forget(chain)
+
+
+def test_rigid_shapes_turn_the_light_field_on_and_a_chain_in_poses_turns_it_off(
+    stores: dict[str, Any],
+) -> None:
+    rigid, chain = _gates(stores["rigid"]), _gates(stores["chain"])
+    assert np.count_nonzero(rigid) >= 6, rigid
+    assert np.count_nonzero(chain) == 0, chain
+
+
+def test_the_spreads_are_kept_with_the_store_at_its_version(stores: dict[str, Any]) -> None:
+    db = stores["rigid"]
+    first = store_spreads(db, stored_arrays(db))
+    assert len(first) == 8 and all(np.isfinite(v) for v in first.values())
+    root = Path(db.store.path) / SPREAD_DIR
+    meta = json.loads((root / "current.json").read_text())
+    assert meta["version"] == db.store.version
+    assert meta["spread_candidates"] == db.config.lf_fusion.spread_candidates
+    ids, spreads = (
+        np.load(root / meta["dir"] / "ids.npy"),
+        np.load(root / meta["dir"] / "spreads.npy"),
+    )
+    assert dict(zip(ids.tolist(), spreads.tolist(), strict=True)) == first
+
+
+def test_spreads_asked_for_a_few_shapes_equal_the_whole_store_s() -> None:
+    config, index, lf, _ = _case()
+    _, whole = local_spreads(index, _reader(index, lf, config), config)
+    few = np.array([31, 3, 17, 99])  # 99 is not stored: left out
+    got_ids, got = local_spreads(index, _reader(index, lf, config), config, few)
+    assert got_ids.tolist() == [3, 17, 31]
+    assert np.array_equal(got, whole[[3, 17, 31]])
+
+
+def test_a_search_computes_only_the_spreads_it_pools(
+    stores: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import query.lightfield_spread as spread_module
+
+    db = stores["rigid"]
+    whole = store_spreads(db, stored_arrays(db))
+    asked: list[int] = []
+    real = spread_module.local_spreads
+
+    def counting(index: Any, fields: Any, config: Config, ids: Any = None) -> Any:
+        asked.append(-1 if ids is None else len(ids))
+        return real(index, fields, config, ids)
+
+    monkeypatch.setattr(spread_module, "local_spreads", counting)
+    spread_module._CACHE.clear()
+    table = spread_module.SpreadTable(db, stored_arrays(db))
+    assert table.complete and asked == []  # read back from the store, nothing computed
+    root = Path(db.store.path) / SPREAD_DIR
+    (root / "current.json").unlink()  # as if never written: computed on demand
+    table = spread_module.SpreadTable(db, stored_arrays(db))
+    got = table.get(np.array([2, 5]))
+    assert asked == [2] and not table.complete
+    assert got.tolist() == [whole[2], whole[5]]
+    table.get(np.array([5]))
+    assert asked == [2]  # known: not computed again
