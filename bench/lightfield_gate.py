@@ -23,7 +23,9 @@ cached under ``$SHAPEDB_BENCH_CACHE/lightfield_gate`` keyed by the models and th
 and the selection re-runs in one command. Written to
 bench/results/lightfield_gate_<split>.json. A held-out set that :mod:`bench.cached` knows
 (``webplus``) is run with ``--split test --no-grid --datasets webplus figures people`` (it
-and its mixes with the figures and the people).
+and its mixes with the figures and the people). ``--lf-n-balls N``: the light fields of
+the packing continued to N balls (``LightFieldConfig.n_balls``, decomposed and cached by
+:func:`bench.packings.longer`); version 4 stays that of the cached balls.
 """
 
 from __future__ import annotations
@@ -81,18 +83,26 @@ class Split:
         Light field distances of the float32 light fields.
     """
 
-    def __init__(self, split: str, names: Sequence[str] = SETS) -> None:
+    def __init__(self, split: str, names: Sequence[str] = SETS, lf_n_balls: int = 0) -> None:
         sets, labels, x, fields, keys = [], [], [], [], []
+        cfg = Config().with_options(rerank="lightfield", lf_n_balls=lf_n_balls)
         for name in names:
             ds, balls = load(name, split)
-            cfg = Config().with_options(rerank="lightfield")
             x.append(kernel_features(balls, Config()).astype(np.float32))
+            seen = balls
+            if cfg.light_field_tail:  # the light fields of the packing continued (ingest's)
+                from bench.packings import longer
+
+                got, more, _ = longer(name, split, cfg.light_field_tail)
+                by = dict(zip((m.name for m in got.models), more, strict=True))
+                seen = [by.get(m.name, b) for m, b in zip(ds.models, balls, strict=True)]
             fields.append(
-                np.stack([record_light_field(b.centers, b.radii, cfg.light_field) for b in balls])
+                np.stack([record_light_field(b.centers, b.radii, cfg.light_field) for b in seen])
             )
             sets += [name] * len(balls)
             labels += [f"{name}:{lab}" for lab in ds.labels]
-            keys += [m.name + m.source for m in ds.models]
+            keys += [m.name + m.source + (f"|n{lf_n_balls}" if cfg.light_field_tail else "")
+                     for m in ds.models]  # fmt: skip
         self.split = split
         self.sets = np.asarray(sets)
         self.labels = np.asarray(labels)
@@ -299,7 +309,7 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
     import itertools
 
     t0 = time.perf_counter()
-    split = Split(args.split, args.datasets)
+    split = Split(args.split, args.datasets, args.lf_n_balls)
     names: dict[str, tuple[str, ...]] = {s: (s,) for s in args.datasets}
     names.update({k: v for k, v in MIXES.items() if set(v) <= set(args.datasets)})
     stores = {k: Store(split, split.store(v)) for k, v in names.items()}
@@ -408,10 +418,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
     ap.add_argument("--no-grid", action="store_true", help="only the fixed rows")
     ap.add_argument("--around", action="store_true", help="the defaults, one field moved")
+    ap.add_argument("--lf-n-balls", type=int, default=0,
+                    help="light fields of the packing continued to N balls (LightFieldConfig.n_balls)")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
     result = select(args)
-    out = args.out or RESULTS / f"lightfield_gate_{args.split}.json"
+    tag = f"_n{args.lf_n_balls}" if args.lf_n_balls else ""
+    out = args.out or RESULTS / f"lightfield_gate_{args.split}{tag}.json"
     write_json(out, result)
     print(f"written {out}")
     return 0

@@ -1,0 +1,73 @@
+"""Decompositions continued past their balls (the light fields of a longer packing), cached.
+
+:func:`longer` gives a split's models (those :func:`bench.cached.load` has) decomposed as
+ingest does in a store whose ``LightFieldConfig.n_balls`` exceeds ``MDBDConfig.n_balls``:
+``shapedb.mdbd.decompose(tail_balls=...)``, the decomposition's balls then the tail (each
+part by decreasing radius). Cached under ``$SHAPEDB_BENCH_CACHE/lightfield_pack`` (keyed by
+the model, the default MDBD configuration, the engine's code and the tail).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.cached import load
+from bench.common import Balls, cache_path, variant_geometry
+from bench.datasets import CACHE_DIR, Dataset
+from shapedb.config import MDBDConfig
+
+__all__ = ["longer"]
+
+
+def _decompose_longer(args: tuple[Any, int, str]) -> str | None:
+    """Worker: decompose ``model`` with ``tail`` tail balls; write its balls and tail."""
+    from shapedb.mdbd import decompose
+
+    model, tail, path = args
+    try:
+        cfg = MDBDConfig()
+        d = decompose(variant_geometry(model, "mesh", cfg), config=cfg, tail_balls=tail)
+        c, r = d.longer_packing()
+        tmp = path + ".tmp.npz"
+        np.savez_compressed(tmp, centers=c, radii=r, main=np.int64(d.n_balls),
+                            spacing=np.float64(d.spacing))  # fmt: skip
+        Path(tmp).replace(path)
+    except Exception as exc:  # noqa: BLE001 - reported per model, the run goes on
+        return f"{model.name}: {type(exc).__name__}: {exc}"
+    return None
+
+
+def longer(
+    name: str, split: str, tail: int, *, workers: int = 2
+) -> tuple[Dataset, list[Balls], list[int]]:
+    """A split's models (those cached today) with the decomposition's balls then ``tail``
+    more (radius order inside each part), cached under ``$SHAPEDB_BENCH_CACHE/lightfield_pack``;
+    and each model's number of decomposition balls."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    ds, _ = load(name, split)
+    folder = CACHE_DIR / "lightfield_pack"
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = [folder / f"{cache_path(m, 'mesh', MDBDConfig()).stem}_t{tail}.npz" for m in ds.models]
+    todo = [(m, tail, str(p)) for m, p in zip(ds.models, paths, strict=True) if not p.exists()]
+    if todo:
+        t0 = time.perf_counter()
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            for err in pool.map(_decompose_longer, todo, chunksize=4):
+                if err:
+                    print(f"  failed {err}")
+        print(f"  {name} {split}: {len(todo)} decomposed with {tail} tail balls "
+              f"({time.perf_counter() - t0:.0f} s)", flush=True)  # fmt: skip
+    keep, balls, main = [], [], []
+    for i, p in enumerate(paths):
+        if p.exists():
+            with np.load(p) as z:
+                keep.append(i)
+                balls.append(Balls(z["centers"], z["radii"], np.zeros((0, 2), np.int64),
+                                   float(z["spacing"]), 0.0))  # fmt: skip
+                main.append(int(z["main"]))
+    return Dataset(ds.name, tuple(ds.models[i] for i in keep)), balls, main
