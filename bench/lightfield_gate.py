@@ -25,7 +25,8 @@ bench/results/lightfield_gate_<split>.json. A held-out set that :mod:`bench.cach
 (``webplus``) is run with ``--split test --no-grid --datasets webplus figures people`` (it
 and its mixes with the figures and the people). ``--lf-n-balls N``: the light fields of
 the packing continued to N balls (``LightFieldConfig.n_balls``, decomposed and cached by
-:func:`bench.packings.longer`); version 4 stays that of the cached balls.
+:func:`bench.packings.longer`; ``--lf-within M``: the first N by radius of the packing
+continued to M); version 4 stays that of the cached balls.
 """
 
 from __future__ import annotations
@@ -83,7 +84,9 @@ class Split:
         Light field distances of the float32 light fields.
     """
 
-    def __init__(self, split: str, names: Sequence[str] = SETS, lf_n_balls: int = 0) -> None:
+    def __init__(
+        self, split: str, names: Sequence[str] = SETS, lf_n_balls: int = 0, lf_within: int = 0
+    ) -> None:
         sets, labels, x, fields, keys = [], [], [], [], []
         cfg = Config().with_options(rerank="lightfield", lf_n_balls=lf_n_balls)
         for name in names:
@@ -93,7 +96,8 @@ class Split:
             if cfg.light_field_tail:  # the light fields of the packing continued (ingest's)
                 from bench.packings import longer
 
-                got, more, _ = longer(name, split, cfg.light_field_tail)
+                within = max(lf_within - cfg.mdbd.n_balls, 0)
+                got, more, _ = longer(name, split, cfg.light_field_tail, within=within)
                 by = dict(zip((m.name for m in got.models), more, strict=True))
                 seen = [by.get(m.name, b) for m, b in zip(ds.models, balls, strict=True)]
             fields.append(
@@ -101,8 +105,8 @@ class Split:
             )
             sets += [name] * len(balls)
             labels += [f"{name}:{lab}" for lab in ds.labels]
-            keys += [m.name + m.source + (f"|n{lf_n_balls}" if cfg.light_field_tail else "")
-                     for m in ds.models]  # fmt: skip
+            tag = f"|n{lf_n_balls}w{lf_within}" if cfg.light_field_tail else ""
+            keys += [m.name + m.source + tag for m in ds.models]
         self.split = split
         self.sets = np.asarray(sets)
         self.labels = np.asarray(labels)
@@ -309,7 +313,7 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
     import itertools
 
     t0 = time.perf_counter()
-    split = Split(args.split, args.datasets, args.lf_n_balls)
+    split = Split(args.split, args.datasets, args.lf_n_balls, args.lf_within)
     names: dict[str, tuple[str, ...]] = {s: (s,) for s in args.datasets}
     names.update({k: v for k, v in MIXES.items() if set(v) <= set(args.datasets)})
     stores = {k: Store(split, split.store(v)) for k, v in names.items()}
@@ -420,6 +424,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--around", action="store_true", help="the defaults, one field moved")
     ap.add_argument("--lf-n-balls", type=int, default=0,
                     help="light fields of the packing continued to N balls (LightFieldConfig.n_balls)")  # fmt: skip
+    ap.add_argument("--lf-within", type=int, default=0,
+                    help="take the --lf-n-balls prefix of the packing continued to this many")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
     result = select(args)

@@ -9,6 +9,7 @@ the model, the default MDBD configuration, the engine's code and the tail).
 
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 from typing import Any
@@ -32,7 +33,7 @@ def _decompose_longer(args: tuple[Any, int, str]) -> str | None:
         cfg = MDBDConfig()
         d = decompose(variant_geometry(model, "mesh", cfg), config=cfg, tail_balls=tail)
         c, r = d.longer_packing()
-        tmp = path + ".tmp.npz"
+        tmp = f"{path}.{os.getpid()}.tmp.npz"
         np.savez_compressed(tmp, centers=c, radii=r, main=np.int64(d.n_balls),
                             spacing=np.float64(d.spacing))  # fmt: skip
         Path(tmp).replace(path)
@@ -42,12 +43,20 @@ def _decompose_longer(args: tuple[Any, int, str]) -> str | None:
 
 
 def longer(
-    name: str, split: str, tail: int, *, workers: int = 2
+    name: str, split: str, tail: int, *, workers: int = 2, within: int = 0
 ) -> tuple[Dataset, list[Balls], list[int]]:
     """A split's models (those cached today) with the decomposition's balls then ``tail``
     more (radius order inside each part), cached under ``$SHAPEDB_BENCH_CACHE/lightfield_pack``;
-    and each model's number of decomposition balls."""
+    and each model's number of decomposition balls.
+
+    ``within`` > ``tail``: the first ``tail`` tail balls (by radius) of the packing
+    continued for ``within`` (one decomposition serves several lengths; near-ties of the
+    greedy order can make a few balls differ from a packing stopped at ``tail``).
+    """
     from concurrent.futures import ProcessPoolExecutor
+
+    keep_tail = tail
+    tail = max(tail, within)
 
     ds, _ = load(name, split)
     folder = CACHE_DIR / "lightfield_pack"
@@ -66,8 +75,9 @@ def longer(
     for i, p in enumerate(paths):
         if p.exists():
             with np.load(p) as z:
+                k = int(z["main"]) + keep_tail
                 keep.append(i)
-                balls.append(Balls(z["centers"], z["radii"], np.zeros((0, 2), np.int64),
+                balls.append(Balls(z["centers"][:k], z["radii"][:k], np.zeros((0, 2), np.int64),
                                    float(z["spacing"]), 0.0))  # fmt: skip
                 main.append(int(z["main"]))
     return Dataset(ds.name, tuple(ds.models[i] for i in keep)), balls, main
