@@ -48,6 +48,7 @@ from bench.cached import load
 from bench.common import format_table, write_json
 from bench.datasets import CACHE_DIR
 from bench.features import kernel_features
+from bench.packings import light_field_balls
 from shapedb.config import Config
 from shapedb.descriptor import LAYOUTS
 from shapedb.lightfield import light_field_distance, record_light_field
@@ -85,21 +86,21 @@ class Split:
     """
 
     def __init__(
-        self, split: str, names: Sequence[str] = SETS, lf_n_balls: int = 0, lf_within: int = 0
+        self,
+        split: str,
+        names: Sequence[str] = SETS,
+        lf_n_balls: int | None = None,
+        lf_within: int = 0,
     ) -> None:
         sets, labels, x, fields, keys = [], [], [], [], []
-        cfg = Config().with_options(rerank="lightfield", lf_n_balls=lf_n_balls)
+        cfg = Config().with_options(rerank="lightfield")  # the product's light fields
+        if lf_n_balls is not None:
+            cfg = cfg.with_options(lf_n_balls=lf_n_balls)
+        lf_n_balls = cfg.light_field.n_balls
         for name in names:
             ds, balls = load(name, split)
             x.append(kernel_features(balls, Config()).astype(np.float32))
-            seen = balls
-            if cfg.light_field_tail:  # the light fields of the packing continued (ingest's)
-                from bench.packings import longer
-
-                within = max(lf_within - cfg.mdbd.n_balls, 0)
-                got, more, _ = longer(name, split, cfg.light_field_tail, within=within)
-                by = dict(zip((m.name for m in got.models), more, strict=True))
-                seen = [by.get(m.name, b) for m, b in zip(ds.models, balls, strict=True)]
+            seen = light_field_balls(name, split, ds, balls, cfg, within=lf_within)
             fields.append(
                 np.stack([record_light_field(b.centers, b.radii, cfg.light_field) for b in seen])
             )
@@ -321,6 +322,10 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
     zero = {k: np.zeros(len(st.rows)) for k, st in stores.items()}
     base = {k: st.per_set(st.measures(zero[k])) for k, st in stores.items()}
     default = Config().lf_fusion
+    if args.fusion:  # the "stage now" row at other values (a setting chosen elsewhere)
+        pairs = dict(kv.split("=", 1) for kv in args.fusion)
+        default = dataclasses.replace(default, **{k: float(v) if "." in v else int(v)
+                                                  for k, v in pairs.items()})  # type: ignore[arg-type]  # fmt: skip
     rows: dict[str, dict[str, Any]] = {
         "v4 (no stage)": _row(stores, zero, base),
         "light fields alone (K = 100)": _row(
@@ -422,14 +427,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
     ap.add_argument("--no-grid", action="store_true", help="only the fixed rows")
     ap.add_argument("--around", action="store_true", help="the defaults, one field moved")
-    ap.add_argument("--lf-n-balls", type=int, default=0,
-                    help="light fields of the packing continued to N balls (LightFieldConfig.n_balls)")  # fmt: skip
+    ap.add_argument("--lf-n-balls", type=int, default=None,
+                    help="light fields of the packing continued to N balls (default: the product's)")  # fmt: skip
     ap.add_argument("--lf-within", type=int, default=0,
                     help="take the --lf-n-balls prefix of the packing continued to this many")  # fmt: skip
+    ap.add_argument("--fusion", nargs="*", default=[], metavar="FIELD=VALUE",
+                    help="LightFieldFusionConfig fields of the 'stage now' row")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
     result = select(args)
-    tag = f"_n{args.lf_n_balls}" if args.lf_n_balls else ""
+    tag = f"_n{args.lf_n_balls}" if args.lf_n_balls is not None else ""
     out = args.out or RESULTS / f"lightfield_gate_{args.split}{tag}.json"
     write_json(out, result)
     print(f"written {out}")

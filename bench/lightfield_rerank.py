@@ -57,6 +57,7 @@ import numpy as np
 from bench.cached import CHOICES, load
 from bench.common import class_nn, format_table, retrieval_scores, write_json
 from bench.features import kernel_features
+from bench.packings import light_field_balls
 from query import rerank
 from query.index import FeatureIndex
 from query.lightfield_spread import local_spreads
@@ -135,7 +136,8 @@ def mesh_baselines(ds: Any) -> dict[str, np.ndarray]:
 
 
 def light_fields(balls: Sequence[Any], config: Config) -> np.ndarray:
-    """(n, fields, 10, d) float32 light fields as a store keeps them."""
+    """(n, fields, 10, d) float32 light fields as a store keeps them, of ``balls`` as given
+    (a longer packing's: :func:`bench.packings.light_field_balls`)."""
     cfg = config.light_field
     return np.stack([record_light_field(b.centers, b.radii, cfg, edges=b.edges) for b in balls])
 
@@ -162,7 +164,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         ds, balls = load(name, args.split)
         labels = np.asarray(ds.labels)
         v4 = kernel_features(balls, Config())
-        lf = light_fields(balls, lf_cfg)
+        lf = light_fields(light_field_balls(name, args.split, ds, balls, lf_cfg), lf_cfg)
         i4 = index_of(v4)
         add("v4", name, _ranks(rankings(i4, Config())), labels)
         if not args.no_adaptive:

@@ -81,3 +81,21 @@ def longer(
                                    float(z["spacing"]), 0.0))  # fmt: skip
                 main.append(int(z["main"]))
     return Dataset(ds.name, tuple(ds.models[i] for i in keep)), balls, main
+
+
+def light_field_balls(
+    name: str, split: str, ds: Dataset, balls: list[Any], config: Any, *, within: int = 0
+) -> list[Any]:
+    """The balls a store of ``config`` renders each model's light fields from.
+
+    ``balls`` (a split's cached decompositions, in ``ds``'s order) themselves when
+    ``config.light_field_tail`` is 0; else each model's packing continued as ingest
+    continues it (:func:`longer`, ``within`` as there, in total balls), the model's own
+    balls where that failed.
+    """
+    tail = int(config.light_field_tail)
+    if not tail:
+        return list(balls)
+    got, more, _ = longer(name, split, tail, within=max(within - config.mdbd.n_balls, 0))
+    by = dict(zip((m.name for m in got.models), more, strict=True))
+    return [by.get(m.name, b) for m, b in zip(ds.models, balls, strict=True)]
