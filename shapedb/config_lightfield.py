@@ -102,8 +102,9 @@ class LightFieldConfig:
 
 
 def product_light_field() -> LightFieldConfig:
-    """The light fields a store keeps: 64 px, 3 light fields, silhouettes only."""
-    return LightFieldConfig(n_fields=3, resolution=64, depth_weight=0.0)
+    """The light fields a store keeps: 64 px, 3 light fields, silhouettes only, of the
+    packing continued to 2048 balls."""
+    return LightFieldConfig(n_fields=3, resolution=64, depth_weight=0.0, n_balls=2048)
 
 
 @dataclass(frozen=True)

@@ -72,9 +72,9 @@ ADDED: dict[str, dict[str, Any]] = {
     "cloud": {"view_cells": 0.0, "reconstruct": False, "reconstruct_depth": 8},
     # before the section: no re-ranking stage
     "rerank": {"scorer": "none"},
-    # before the section no light fields were stored; the product's light fields;
-    # before the fills, silhouettes were the plain union of the discs; before n_balls,
-    # the light fields were those of the decomposition's balls
+    # before the section no light fields were stored: the product's light fields (a
+    # stored section without n_balls: STORED_ADDED); before the fills, silhouettes were
+    # the plain union of the discs
     "light_field": {
         "n_fields": 3,
         "resolution": 64,
@@ -82,7 +82,7 @@ ADDED: dict[str, dict[str, Any]] = {
         "edges": False,
         "dilate_px": 0.0,
         "close_px": 0,
-        "n_balls": 0,
+        "n_balls": 2048,
     },
 }
 
@@ -92,6 +92,8 @@ ADDED: dict[str, dict[str, Any]] = {
 STORED_ADDED: dict[str, dict[str, Any]] = {
     # before the pooled spread and the contrast floor: the query's own spread, no floor
     "lf_fusion": {"pool": 0, "contrast_floor": 0.0},
+    # before n_balls, the light fields were those of the decomposition's balls
+    "light_field": {"n_balls": 0},
 }
 
 #: Sections added to the store configuration, by the first layout that writes them:

@@ -215,7 +215,7 @@ def test_a_store_with_filled_silhouettes_fills_its_records_and_its_queries(
     from shapedb.lightfield import record_light_field
     from shapedb.mdbd import decompose
 
-    filled = STAGE.with_options(lf_edges=True)
+    filled = STAGE.with_options(lf_edges=True, lf_n_balls=0)  # the decomposition's balls
     db = database.connect(tmp_path / "store", config=filled)
     shapes = {n: g for n, g in _shapes().items() if n in ("box_a", "rod_a", "ring_a")}
     db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
