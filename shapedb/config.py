@@ -463,7 +463,8 @@ class Config:
         ``light_field`` column).
     light_field : LightFieldConfig
         The light fields stored per record when the scorer is ``"lightfield"``
-        (default: 64 px, 3 light fields, silhouettes only).
+        (default: 64 px, 3 light fields, silhouettes only, of the packing continued to
+        2048 balls: ``LightFieldConfig.n_balls``).
     lf_fusion : LightFieldFusionConfig
         How the ``"lightfield"`` scorer fuses them with the stored distance.
     """
