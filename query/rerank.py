@@ -360,7 +360,7 @@ def search(
         As :meth:`FeatureIndex.search`; the first ``K`` re-ranked by the scorer.
     """
     scorer = scorer if scorer is not None else scorer_for(config)
-    if scorer is None:
+    if scorer is None or not len(np.asarray(index.features_)):
         return index.search(queries, k, allowed=allowed)  # type: ignore[no-any-return]
     q = np.atleast_2d(np.asarray(queries, np.float64))
     qid = np.full(len(q), -1, np.int64) if query_ids is None else np.asarray(query_ids, np.int64)

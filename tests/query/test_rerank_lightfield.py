@@ -106,7 +106,8 @@ def test_bad_fusion_values_name_the_field() -> None:
     typed = parse_options(["rerank=lightfield", "lf_weight=2", "lf_n_fields=10"])
     assert typed == {"rerank": "lightfield", "lf_weight": 2.0, "lf_n_fields": 10}
     assert Config().with_options(**typed).stores_light_fields
-    assert not Config().stores_light_fields
+    assert Config().stores_light_fields  # the default stage
+    assert not Config().with_options(rerank="none").stores_light_fields
     assert Config.from_json(STAGE.to_json()) == STAGE
 
 
