@@ -24,10 +24,12 @@ reconstruction and the dense shape's own feature. A sparse geometry or file quer
 costs a Poisson reconstruction and its decomposition; a dense one in a store with
 views and sparse clouds one more (point-cloud) decomposition.
 
-A store whose ``RerankConfig.scorer`` is not ``"none"`` re-ranks the first
-``RerankConfig.candidates`` results with that exact scorer (:mod:`query.rerank`),
-except in searches that compare sparse clouds or views (stores with sparse clouds or
-``view_cells``), which rank by the stored distance.
+A store whose ``RerankConfig.scorer`` is not ``"none"`` (the default ``"lightfield"``)
+re-ranks the first ``RerankConfig.candidates`` results with that exact scorer
+(:mod:`query.rerank`), except in searches that compare sparse clouds or views (stores
+with sparse clouds or ``view_cells``), which rank by the stored distance. The hits are in
+the scorer's order; their distance and similarity are the stored vector's, so a later
+hit may be nearer by the stored distance than an earlier one.
 
 A stored query is *not* excluded from its own results: it ranks first, with
 similarity 1.0 (distance 0), unless another shape has an identical feature and a
@@ -155,7 +157,7 @@ def search_batch(
         arrays, query_arrays = _stored_arrays(db, resolved)
         ids, dist = rerank_search(
             index, vectors, int(k), config=db.config, query_ids=qids, allowed=allowed,
-            arrays=arrays, query_arrays=query_arrays,
+            arrays=arrays, query_arrays=query_arrays, stored_distances=True,
         )  # fmt: skip
     catalog = _catalog(db, index.version_)
     lam = float(db.config.kernel.lam)

@@ -332,6 +332,7 @@ def search(
     scorer: Scorer | None = None,
     arrays: ArrayReader | None = None,
     query_arrays: Mapping[str, NDArray[np.float64]] | None = None,
+    stored_distances: bool = False,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """The index's search followed by the re-ranking stage of ``config.rerank``.
 
@@ -353,6 +354,9 @@ def search(
         Overrides ``config.rerank.scorer``.
     arrays, query_arrays : optional
         Per-record and per-query arrays for the scorer (:class:`Candidates`).
+    stored_distances : bool
+        Return each result's stored distance (the index's) instead of the scorer's;
+        the order is the scorer's either way.
 
     Returns
     -------
@@ -360,7 +364,7 @@ def search(
         As :meth:`FeatureIndex.search`; the first ``K`` re-ranked by the scorer.
     """
     scorer = scorer if scorer is not None else scorer_for(config)
-    if scorer is None:
+    if scorer is None or not len(np.asarray(index.features_)):
         return index.search(queries, k, allowed=allowed)  # type: ignore[no-any-return]
     q = np.atleast_2d(np.asarray(queries, np.float64))
     qid = np.full(len(q), -1, np.int64) if query_ids is None else np.asarray(query_ids, np.int64)
@@ -379,4 +383,10 @@ def search(
             None if query_arrays is None else {n: a[s : s + _CHUNK] for n, a in query_arrays.items()},
         )  # fmt: skip
         out_i[s : s + len(c)], out_d[s : s + len(c)] = rerank_candidates(scorer, batch, k)
+    if stored_distances:
+        for row in range(len(q)):
+            keep = out_i[row] >= 0
+            order = np.argsort(cand[row], kind="stable")
+            at = order[np.searchsorted(cand[row], out_i[row][keep], sorter=order)]
+            out_d[row][keep] = dist[row][at]
     return out_i, out_d

@@ -61,10 +61,12 @@ def _ranks(d: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 class LightFieldFusion:
-    """Scorer ``"lightfield"``: ``(1 + w) / o - (1 / (o + rank_d) + w g(q) / (o + rank_l))``.
+    """Scorer ``"lightfield"``: ``(1 + w g) / o - (1 / (o + rank_d) + w g / (o + rank_l))``.
 
-    The study's fused similarity turned into a distance >= 0 (0 for a candidate first
-    by both distances with ``g = 1``), so the order is the study's.
+    The study's fused similarity turned into a distance >= 0, so the order is the
+    study's: 0 for a candidate first by both distances (the query itself when stored),
+    ``g = g(q)`` the query's gate, ``w`` the weight, ``o`` the offset. It is a rank
+    distance, not the stored vector's: it only orders one query's results.
 
     The formula, the gate ``g(q)`` and the spread are those of
     :class:`shapedb.config.LightFieldFusionConfig` (``config.lf_fusion``); ranks and
@@ -114,7 +116,7 @@ class LightFieldFusion:
         g = self.gate(d4, dl, own, spreads)
         if g > 0:
             fused = fused + f.weight * g / (f.offset + _ranks(dl))
-        return (1.0 + f.weight) / f.offset - fused
+        return np.maximum((1.0 + f.weight * g) / f.offset - fused, 0.0)
 
     def gate(
         self,

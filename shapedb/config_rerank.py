@@ -21,14 +21,18 @@ class RerankConfig:
 
     The index proposes the ``candidates`` nearest shapes by the stored vector's L1
     distance; a named exact scorer re-ranks them; past them, results keep the
-    stored-vector order. Search and evaluation rank alike. The defaults of the
-    adaptive fusion's fields are the setting chosen on the validation splits
-    (``python -m bench.rerank_select --grid ratio``); the stage itself is opt-in.
+    stored-vector order. Search and evaluation rank alike. The default stage is
+    ``"lightfield"`` (:mod:`query.rerank_lightfield`: the balls' light fields, gated by
+    the store's local spreads; it loses no set against ``"none"`` on the validation and
+    test splits, alone or in mixed stores); stores written before layout 3 read
+    ``"none"`` (:mod:`shapedb.migrations`). The adaptive fusion's fields are the setting
+    chosen on the validation splits (``python -m bench.rerank_select --grid ratio``).
 
     Attributes
     ----------
     scorer : str
-        ``"none"``: no stage, the stored vector's distance decides. ``"adaptive"``:
+        ``"lightfield"`` (the default): the light field stage. ``"none"``: no stage,
+        the stored vector's distance decides. ``"adaptive"``:
         the distance without ``block`` plus ``weight * g(q)`` times ``block``'s,
         ``g(q)`` the overlap of the query's ``neighbours`` nearest candidates by either
         part, to the power ``power``. Other names are scorers registered with
@@ -53,7 +57,7 @@ class RerankConfig:
         candidates more than the rest does (a pose changing its silhouettes). In [0, 10].
     """
 
-    scorer: str = "none"
+    scorer: str = "lightfield"
     candidates: int = 100
     neighbours: int = 10
     power: float = 0.0

@@ -69,9 +69,10 @@ def test_the_identity_scorer_returns_the_index_order(k: int) -> None:
 
 def test_no_scorer_is_the_plain_search_and_unknown_ones_are_refused() -> None:
     index, x = _index()
-    got = rerank.search(index, x[:3], 5, config=Config())
+    plain = Config().with_options(rerank="none")
+    got = rerank.search(index, x[:3], 5, config=plain)
     np.testing.assert_array_equal(got[0], index.search(x[:3], 5)[0])
-    assert rerank.scorer_for(Config()) is None and "adaptive" in rerank.scorers()
+    assert rerank.scorer_for(plain) is None and "adaptive" in rerank.scorers()
     with pytest.raises(ConfigError, match="unknown scorer.*'lightfield'"):
         rerank.scorer_for(Config().with_options(rerank="nosuch"))
     with pytest.raises(ConfigError, match="exists"):

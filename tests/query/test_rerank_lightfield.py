@@ -18,7 +18,7 @@ from bench.studies.lightfield_balls import fuse
 from query import rerank
 from query.evaluate import evaluate, retrieval_scores
 from query.index import FeatureIndex
-from query.rerank_lightfield import COLUMN, LightFieldFusion
+from query.rerank_lightfield import COLUMN, LightFieldFusion, stored_arrays
 from shapedb.config import Config, parse_options
 from shapedb.errors import ConfigError
 from shapedb.implicit import Box, Capsule, Cylinder, Sphere, Torus
@@ -106,7 +106,8 @@ def test_bad_fusion_values_name_the_field() -> None:
     typed = parse_options(["rerank=lightfield", "lf_weight=2", "lf_n_fields=10"])
     assert typed == {"rerank": "lightfield", "lf_weight": 2.0, "lf_n_fields": 10}
     assert Config().with_options(**typed).stores_light_fields
-    assert not Config().stores_light_fields
+    assert Config().stores_light_fields  # the default stage
+    assert not Config().with_options(rerank="none").stores_light_fields
     assert Config.from_json(STAGE.to_json()) == STAGE
 
 
@@ -159,6 +160,21 @@ def test_a_stored_query_and_the_same_shape_from_outside_rank_alike(lf_db: Any) -
         inside = [h.id for h in lf_db.search(name, k=7)]
         outside = [h.id for h in lf_db.search(shape, k=7)]
         assert outside == inside, name
+
+
+def test_hits_are_in_the_stage_s_order_with_the_stored_distance(lf_db: Any) -> None:
+    from query.index import open_index
+
+    index = open_index(lf_db)
+    ids, x = lf_db.store.features()
+    stored = dict(zip(*(a[0].tolist() for a in index.search(x[:1].astype(np.float64), 7)),
+                      strict=True))  # fmt: skip
+    hits = lf_db.search(int(ids[0]), k=7)
+    order, _ = rerank.search(index, x[:1].astype(np.float64), 7, config=lf_db.config,
+                             query_ids=ids[:1], arrays=stored_arrays(lf_db))  # fmt: skip
+    assert [h.id for h in hits] == order[0].tolist()
+    assert [h.distance for h in hits] == pytest.approx([stored[h.id] for h in hits])
+    assert hits[0].id == ids[0] and hits[0].distance == 0.0 and hits[0].similarity == 1.0
 
 
 def test_evaluation_ranks_as_search_does(lf_db: Any) -> None:

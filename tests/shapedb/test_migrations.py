@@ -18,6 +18,7 @@ from shapedb.config import (
     KernelConfig,
     MDBDConfig,
     PartConfig,
+    RerankConfig,
 )
 from shapedb.errors import ConfigError
 
@@ -71,9 +72,13 @@ def test_each_later_field_takes_the_value_that_built_the_store() -> None:
     assert cfg == _layout1_store_config()
 
 
-def test_nothing_stored_is_todays_defaults() -> None:
-    assert Config.from_dict({}) == Config()
-    assert Config.from_dict({"kernel": {}, "mdbd": {}}) == Config()
+def test_nothing_stored_is_todays_defaults_but_the_stage_the_layout_predates() -> None:
+    # a dict without ``layout`` is layout 1, written before re-ranking: no stage
+    plain = Config().with_options(rerank="none")
+    assert Config().rerank.scorer == "lightfield"
+    assert Config.from_dict({}) == plain
+    assert Config.from_dict({"kernel": {}, "mdbd": {}}) == plain
+    assert Config.from_dict({"layout": migrations.LAYOUT}) == Config()
 
 
 def test_todays_layout_round_trips_and_later_fields_take_their_legacy_value() -> None:
@@ -122,6 +127,7 @@ def _layout1_store_config() -> Config:
         kernel=KernelConfig(),
         descriptor=DescriptorConfig(version=3),
         cloud=CloudConfig(view_cells=4.0, reconstruct=False, reconstruct_depth=7),
+        rerank=RerankConfig(scorer="none"),  # written before re-ranking stages
     )
 
 
