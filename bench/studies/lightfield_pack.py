@@ -17,9 +17,8 @@ balls, against how far today's light fields are from them (``light_field_distanc
 Default: per set, the split decomposed with ``max(--n-balls)`` balls in all (cached
 under ``$SHAPEDB_BENCH_CACHE/lightfield_pack``; the tail's first balls by radius stand
 for the shorter lengths), the product's light fields (64 px, 3 fields) alone per
-length, today's (the cached decompositions), the mesh light field descriptor, and
-version 4 fused with each through the product's gated rank fusion at
-:class:`shapedb.config.LightFieldFusionConfig`'s defaults, in the same run.
+length, today's (the cached decompositions) and the mesh light field descriptor, in the
+same run. Through the product's stage: ``python -m bench.lightfield_gate --lf-n-balls N``.
 
 Usage::
 
@@ -190,14 +189,9 @@ def _fmt(s: dict[str, float]) -> str:
 def retrieval(
     split: str, datasets: Sequence[str], n_balls: Sequence[int], workers: int, refined: bool
 ) -> dict[str, Any]:
-    """The light fields alone of each packing length, today's (512, cached), the mesh LFD,
-    and v4 fused (the product's gate at its defaults) with today's and each length's."""
+    """The light fields alone of each packing length, today's (512, cached) and the mesh LFD."""
     from bench.rerank_select import lfd_matrix
-    from bench.studies.lightfield_balls import fuse, v4_distances
-    from shapedb.config import LightFieldFusionConfig
 
-    f = LightFieldFusionConfig()
-    fargs = (f.typical, f.neighbours, f.power, f.ceiling, f.ramp)
     tail = max(n_balls) - MDBDConfig().n_balls
     table: dict[str, dict[str, Any]] = {}
 
@@ -227,11 +221,6 @@ def retrieval(
                     labels)  # fmt: skip
         if name != "people":
             put("mesh LFD", name, lfd_matrix(ds), labels)
-        d4 = v4_distances(today)
-        put("v4", name, d4, labels)
-        put("v4 + LF 512 (today)", name, fuse("adrank", f.weight, d4, d0, *fargs), labels)
-        for n in n_balls:
-            put(f"v4 + LF {n}", name, fuse("adrank", f.weight, d4, mats[n], *fargs), labels)
         print(f"  {name} {split}: {len(ds)} models ({time.perf_counter() - t0:.0f} s)", flush=True)
     rows = [[k, *(_fmt(v[n]) if n in v else "" for n in datasets)] for k, v in table.items()]
     print(format_table(f"light fields of longer packings, {split} (NN/1-T/DCG)",
