@@ -10,6 +10,7 @@ import pytest
 from bench.features import kernel_features
 from bench.lightfield_gate import Split, Store, gate_weights
 from bench.lightfield_rerank import index_of, light_fields, rankings
+from bench.packings import light_field_balls
 from shapedb.config import Config
 
 
@@ -24,8 +25,9 @@ def test_the_gate_bench_ranks_the_parts_and_people_as_the_product() -> None:
     split = Split("validation", ("parts", "people"))
     for name in ("parts", "people"):
         st = Store(split, split.store([name]))
-        _, balls = load(name, "validation")
+        ds, balls = load(name, "validation")
+        seen = light_field_balls(name, "validation", ds, balls, config)  # the product's packing
         got = rankings(index_of(kernel_features(balls, Config())), config,
-                       light_fields(balls, config).astype(np.float64))  # fmt: skip
+                       light_fields(seen, config).astype(np.float64))  # fmt: skip
         want = st.rankings(gate_weights(st, config.lf_fusion))
         assert np.array_equal(got, want), name
