@@ -7,7 +7,9 @@ the order; the similarity reported is the Eq. 3 kernel ``exp(-lam * d)``.
 Accepted queries, tried in this order:
 
 * a stored shape id (``int``);
-* a :class:`shapedb.mdbd.Decomposition` (its configuration must be the store's);
+* a :class:`shapedb.mdbd.Decomposition` (its configuration must be the store's; for the
+  light field stage, decomposed with ``tail_balls=db.config.light_field_tail`` as ingest
+  does, else its light fields see only its balls and a warning is logged);
 * a :class:`shapedb.geometry.Geometry` (decomposed with ``db.config.mdbd``);
 * a :class:`shapedb.schema.ShapeRecord` (its stored feature);
 * a raw feature vector (``(d,)`` array, list or tuple of floats);
@@ -268,6 +270,17 @@ def _resolve(db: Database, query: Any, index: Any) -> _Query:
             raise ConfigError(
                 f"decomposition was computed with {query.config}, but the store uses {config.mdbd}",
                 source="query decomposition",
+            )
+        if (
+            config.stores_light_fields
+            and config.light_field_tail
+            and query.n_balls >= config.mdbd.n_balls
+            and not len(query.tail_radii)
+        ):
+            log.warning(
+                "query decomposition has no tail balls (decompose(..., tail_balls=%d) as "
+                "ingest does): its light fields see only its %d balls",
+                config.light_field_tail, query.n_balls,
             )
         return _Query(
             _featurise(query, config), is_sparse(query.sampling, query.spacing),

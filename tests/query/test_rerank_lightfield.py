@@ -277,3 +277,19 @@ def test_a_store_with_a_longer_packing_renders_records_and_queries_from_it(
         assert [h.id for h in again.search(shape, k=3)] == [h.id for h in again.search(name, k=3)]
     forget(db)
     forget(again)
+
+
+def test_a_decomposition_query_without_the_store_s_tail_is_warned_about(
+    lf_db: Any, caplog: pytest.LogCaptureFixture
+) -> None:
+    from shapedb.mdbd import decompose
+
+    cfg = lf_db.config
+    assert cfg.light_field_tail > 0
+    shape = _shapes()["box_a"]
+    with caplog.at_level(logging.WARNING, logger="query.engine"):
+        lf_db.search(decompose(shape, config=cfg.mdbd, tail_balls=cfg.light_field_tail), k=2)
+    assert "tail" not in caplog.text
+    with caplog.at_level(logging.WARNING, logger="query.engine"):
+        lf_db.search(decompose(shape, config=cfg.mdbd), k=2)
+    assert "no tail balls" in caplog.text
