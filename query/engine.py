@@ -280,7 +280,8 @@ def _resolve(db: Database, query: Any, index: Any) -> _Query:
             log.warning(
                 "query decomposition has no tail balls (decompose(..., tail_balls=%d) as "
                 "ingest does): its light fields see only its %d balls",
-                config.light_field_tail, query.n_balls,
+                config.light_field_tail,
+                query.n_balls,
             )
         return _Query(
             _featurise(query, config), is_sparse(query.sampling, query.spacing),
