@@ -161,6 +161,7 @@ class SpreadTable:
         self.version = int(v if v is not None else db.store.version)
         self.meta = _meta(db.config, self.version)
         self.values: dict[int, float] = {}
+        self.n_alive = int(np.count_nonzero(self.index.alive_))
         self.complete = False
         self._lock = threading.Lock()
         self._read()
@@ -209,8 +210,8 @@ class SpreadTable:
                     self.values.update(
                         {int(i): float(s) for i, s in zip(got_ids, got, strict=True)}
                     )
-                    alive = np.asarray(self.index.ids_, np.int64)[self.index.alive_]
-                    if all(int(i) in self.values for i in alive):
+                    # local_spreads answers alive ids only: a count tells completeness
+                    if len(self.values) >= self.n_alive:
                         self.complete = True
                         self._write()
             if want is None:
