@@ -54,6 +54,7 @@ from numpy.typing import NDArray
 from bench.cached import SETS, load
 from bench.common import Balls, format_table, retrieval_scores, write_json
 from bench.datasets import CACHE_DIR, Dataset, mesh_arrays
+from bench.packings import longer
 from bench.studies.lightfield_balls import fill_config
 from shapedb.config import MDBDConfig
 from shapedb.config_lightfield import product_light_field
@@ -149,16 +150,33 @@ def _save(path: Path, mesh: NDArray[np.bool_], panels: list[NDArray[np.bool_]]) 
     img.save(path)
 
 
-def diagnose(n: int, fills: Sequence[str], images: Path | None, n_balls: int = 0) -> dict[str, Any]:
-    """Per fill (and the grid's inside), mean per-view agreement with the mesh silhouette."""
+def diagnose(
+    n: int,
+    fills: Sequence[str],
+    images: Path | None,
+    n_balls: int = 0,
+    split: str = "validation",
+    classes: Sequence[str] = (),
+) -> dict[str, Any]:
+    """Per fill (and the grid's inside), mean per-view agreement with the mesh silhouette.
+
+    ``n_balls`` > 512: the packing continued to that many (``bench.packings.longer``
+    within 4096, as lightfield_pack); ``classes``: only those classes' models.
+    """
     from bench.lightfield import render_silhouettes
 
-    ds, balls = load("web", "validation")
-    if n_balls:
-        ds, balls = _load("web", "validation", n_balls)
+    ds, balls = load("web", split)
+    if n_balls > MDBDConfig().n_balls:
+        ds, more, main = longer("web", split, 4096 - MDBDConfig().n_balls)
+        balls = [Balls(b.centers[: max(n_balls, k)], b.radii[: max(n_balls, k)], b.edges,
+                       b.spacing, 0.0) for b, k in zip(more, main, strict=True)]  # fmt: skip
+    elif n_balls:
+        ds, balls = _load("web", split, n_balls)
     labels = list(ds.labels)
-    first = [i for i, lab in enumerate(labels) if labels.index(lab) == i]
-    order = (first + [i for i in range(len(ds)) if i not in set(first)])[:n]
+    pool = [i for i in range(len(ds)) if not classes or labels[i] in classes]
+    seen: set[str] = set()
+    first = [i for i in pool if not (labels[i] in seen or seen.add(labels[i]))]
+    order = (first + [i for i in pool if i not in set(first)])[:n]
     cfg = product_light_field()
     dirs = field_directions(cfg.n_fields, cfg.seed)
     res = cfg.resolution
@@ -183,7 +201,7 @@ def diagnose(n: int, fills: Sequence[str], images: Path | None, n_balls: int = 0
         sil = render_silhouettes(((cells - o) / extent).astype(np.float32), dirs, res)
         per["grid inside"].append(_compare(mesh, sil))
         panels.append(sil)
-        if images and k < 8:
+        if images and k < max(8, len(classes) * 2):
             for view in (0, 3, 7):
                 _save(images / f"{k:02d}_{m.name}_{view}.png", mesh[view],
                       [p[view] for p in panels])  # fmt: skip
@@ -192,7 +210,7 @@ def diagnose(n: int, fills: Sequence[str], images: Path | None, n_balls: int = 0
     table = [[f, *(f"{v[key]:.3f}" for key in ("iou", "holes", "missing", "rim", "extra"))]
              for f, v in out.items()]  # fmt: skip
     print(format_table(
-        f"silhouettes of the balls against the mesh's, {len(order)} web validation models x "
+        f"silhouettes of the balls against the mesh's, {len(order)} web {split} models x "
         f"{len(dirs)} views, same frame (shares of the mesh's pixels)",
         ("fill", "IoU", "holes", "missing", "rim", "extra"), table,
     ))  # fmt: skip
@@ -258,6 +276,95 @@ def voxels(split: str) -> dict[str, Any]:
         [[k, f"{v['nn']:.3f} / {v['first_tier']:.3f} / {v['dcg']:.3f}"] for k, v in out.items()],
     ))  # fmt: skip
     return out
+
+
+def per_query(d: FloatArray, labels: Sequence[str]) -> tuple[NDArray[np.bool_], FloatArray]:
+    """Per query of an (n, n) distance matrix: nearest neighbour right, first-tier share.
+
+    The query itself is left out; a class of one model gets first tier 0.
+    """
+    d = np.array(d, np.float64)
+    np.fill_diagonal(d, np.inf)
+    lab = np.asarray(labels)
+    nn = lab[np.argmin(d, axis=1)] == lab
+    tier = np.zeros(len(lab))
+    for i in range(len(lab)):
+        k = int((lab == lab[i]).sum()) - 1
+        if k:
+            tier[i] = (lab[np.argsort(d[i], kind="stable")[:k]] == lab[i]).sum() / k
+    return nn, tier
+
+
+def per_class(split: str, n_balls: int) -> dict[str, Any]:
+    """Per web class, NN and 1-T of the mesh LFD, the light fields of the packing continued
+    to ``n_balls`` (``bench.packings.longer`` within 4096, as lightfield_pack) and, when
+    ``--voxels`` has cached it, the grid's inside; with each class's median ball count."""
+    from bench.rerank_select import lfd_matrix
+    from bench.studies.lightfield_pack import lf_matrix
+
+    tail = 4096 - MDBDConfig().n_balls
+    ds, balls, main = longer("web", split, tail)
+    full, _ = load("web", split)
+    labels = list(ds.labels)
+    mats = {"mesh LFD": lfd_matrix(ds),
+            f"balls {n_balls}": lf_matrix("web", split, ds, [
+                Balls(b.centers[: max(n_balls, k)], b.radii[: max(n_balls, k)], b.edges,
+                      b.spacing, 0.0) for b, k in zip(balls, main, strict=True)],
+                f"n{n_balls}t{tail}")}  # fmt: skip
+    vox = CACHE_DIR / "lightfield_fill" / f"voxels_web_{split}_{len(full)}.npy"
+    if vox.exists() and len(full) == len(ds):
+        mats["grid inside"] = light_field_distance(np.load(vox))
+    got = {k: per_query(d, labels) for k, d in mats.items()}
+    lab = np.asarray(labels)
+    n_tail = np.array([int((b.radii > 0).sum()) for b in balls])
+    rows: list[dict[str, Any]] = []
+    for c in sorted(set(labels)):
+        idx = lab == c
+        row: dict[str, Any] = {"class": c, "n": int(idx.sum()),
+                               "main_balls": float(np.median(np.asarray(main)[idx])),
+                               "balls": float(np.median(n_tail[idx]))}  # fmt: skip
+        for k, (nn, tier) in got.items():
+            row[k] = {"nn": float(nn[idx].mean()), "first_tier": float(tier[idx].mean()),
+                      "nn_right": int(nn[idx].sum())}  # fmt: skip
+        rows.append(row)
+    key = f"balls {n_balls}"
+    rows.sort(key=lambda r: r[key]["nn_right"] - r["mesh LFD"]["nn_right"])
+    cols = list(mats)
+    table = [[r["class"], str(r["n"]), f"{r['main_balls']:.0f}/{r['balls']:.0f}",
+              *(f"{r[k]['nn']:.2f} / {r[k]['first_tier']:.2f}" for k in cols),
+              str(r[key]["nn_right"] - r["mesh LFD"]["nn_right"])] for r in rows[:15]]  # fmt: skip
+    print(format_table(
+        f"web {split} per class ({len(ds)} of {len(full)} models), NN / 1-T, largest NN losses",
+        ("class", "n", "balls main/all", *cols, "NN queries"), table,
+    ))  # fmt: skip
+    totals = {k: {"nn": float(nn.mean()), "first_tier": float(t.mean())}
+              for k, (nn, t) in got.items()}  # fmt: skip
+    print(totals)
+    mesh_nn, balls_nn = got["mesh LFD"][0], got[key][0]
+    short = n_tail < n_balls
+    split_by = {
+        "mesh right, balls wrong": mesh_nn & ~balls_nn,
+        "balls right, mesh wrong": balls_nn & ~mesh_nn,
+        "both right": mesh_nn & balls_nn,
+        "both wrong": ~mesh_nn & ~balls_nn,
+    }
+    queries = {k: {"queries": int(q.sum()), "median_balls": float(np.median(n_tail[q])),
+                   "packing_short": float(short[q].mean()),
+                   "classes": len(set(lab[q].tolist()))}
+               for k, q in split_by.items() if q.any()}  # fmt: skip
+    print(format_table(
+        f"NN queries by outcome, packing stopped before {n_balls} balls (share)",
+        ("queries", "n", "median balls", "short", "classes"),
+        [[k, str(v["queries"]), f"{v['median_balls']:.0f}", f"{v['packing_short']:.2f}",
+          str(v["classes"])] for k, v in queries.items()],
+    ))  # fmt: skip
+    return {
+        "models": len(ds),
+        "of": len(full),
+        "totals": totals,
+        "classes": rows,
+        "queries": queries,
+    }
 
 
 def rank_fills(
@@ -335,8 +442,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--fills", nargs="+", default=["plain", "edges", "dilate1", "close1",
                                                     "edges+close1"])  # fmt: skip
     ap.add_argument("--diagnose", type=int, default=0, help="compare N web silhouettes")
+    ap.add_argument("--classes", nargs="+", default=[], help="only these classes (--diagnose)")
     ap.add_argument("--images", type=Path, default=None, help="folder of PNGs (--diagnose)")
     ap.add_argument("--voxels", action="store_true", help="LFD of the grid's inside (web)")
+    ap.add_argument("--per-class", action="store_true",
+                    help="web per class: mesh LFD, --n-balls (2048) light fields, grid inside")  # fmt: skip
     ap.add_argument("--n-balls", type=int, default=0,
                     help="decompose with this many balls (cached) instead of the defaults'")  # fmt: skip
     ap.add_argument("--fused", action="store_true",
@@ -344,11 +454,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="JSON path (default by part and split)")
     args = ap.parse_args(argv)
     if args.diagnose:
-        got = diagnose(args.diagnose, args.fills, args.images, args.n_balls)
-        write_json(args.out or OUT / "lightfield_fill_diagnose_validation.json", got)
+        got = diagnose(args.diagnose, args.fills, args.images, args.n_balls, args.split,
+                       args.classes)  # fmt: skip
+        write_json(args.out or OUT / f"lightfield_fill_diagnose_{args.split}.json", got)
     elif args.fused:
         got = fused_longer(args.split, args.datasets, args.n_balls)
         write_json(args.out or OUT / f"lightfield_fill_fused_{args.split}.json", got)
+    elif args.per_class:
+        got = per_class(args.split, args.n_balls or 2048)
+        write_json(args.out or OUT / f"lightfield_fill_per_class_{args.split}.json", got)
     elif args.voxels:
         write_json(OUT / f"lightfield_fill_voxels_{args.split}.json", voxels(args.split))
     else:

@@ -18,3 +18,16 @@ def test_fills_are_spelled_as_the_config_fields() -> None:
     assert parse_config("64/3/0").edges is False
     with pytest.raises(ValueError, match="unknown"):
         fill_config("blur2")
+
+
+def test_per_query_scores_leave_the_query_out() -> None:
+    import numpy as np
+
+    from bench.studies.lightfield_fill import per_query
+
+    # points on a line: a a b b c; each query's nearest other model and its first tier
+    x = np.array([0.0, 1.0, 1.6, 2.5, 10.0])
+    d = np.abs(x[:, None] - x[None, :])
+    nn, tier = per_query(d, ["a", "a", "b", "b", "c"])
+    assert nn.tolist() == [True, False, False, True, False]
+    assert tier.tolist() == [1.0, 0.0, 0.0, 1.0, 0.0]
