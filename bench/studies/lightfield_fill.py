@@ -174,8 +174,7 @@ def diagnose(
         ds, balls = _load("web", split, n_balls)
     labels = list(ds.labels)
     pool = [i for i in range(len(ds)) if not classes or labels[i] in classes]
-    seen: set[str] = set()
-    first = [i for i in pool if not (labels[i] in seen or seen.add(labels[i]))]
+    first = sorted({labels[i]: i for i in reversed(pool)}.values())
     order = (first + [i for i in pool if i not in set(first)])[:n]
     cfg = product_light_field()
     dirs = field_directions(cfg.n_fields, cfg.seed)
