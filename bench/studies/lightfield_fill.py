@@ -277,6 +277,46 @@ def voxels(split: str) -> dict[str, Any]:
     return out
 
 
+def uncovered_cells(b: Balls, cells: FloatArray) -> NDArray[np.bool_]:
+    """Which cell centres (m, 3) no ball of ``b`` contains (model units)."""
+    from scipy.spatial import cKDTree
+
+    keep = b.radii > 0
+    c, r = b.centers[keep], b.radii[keep]
+    if not len(r):
+        return np.ones(len(cells), bool)
+    near = cKDTree(c).query_ball_point(cells, float(r.max()))
+    out = np.ones(len(cells), bool)
+    for i, js in enumerate(near):
+        if js and np.any(np.linalg.norm(c[js] - cells[i], axis=1) <= r[js]):
+            out[i] = False
+    return out
+
+
+def residual(split: str, n_balls: int) -> FloatArray:
+    """Light fields (cached) of the packing continued to ``n_balls`` plus the grid's inside
+    cells no ball contains (each a ball of half a cell), web ``split``, in
+    :func:`bench.packings.longer`'s model order; (n, n_fields, 10, dim)."""
+    tail = 4096 - MDBDConfig().n_balls
+    ds, more, main = longer("web", split, tail)
+    path = CACHE_DIR / "lightfield_fill" / f"residual_web_{split}_{len(ds)}_{n_balls}.npy"
+    if path.exists():
+        return np.load(path)
+    cfg = product_light_field()
+    rows = []
+    for m, b, k in zip(ds.models, more, main, strict=True):
+        b = Balls(b.centers[: max(n_balls, k)], b.radii[: max(n_balls, k)], b.edges, b.spacing, 0.0)
+        cells, h = inside_cells(m)
+        rest = cells[uncovered_cells(b, cells)]
+        c = np.vstack([b.centers, rest])
+        r = np.concatenate([b.radii, np.full(len(rest), 0.5 * h)])
+        rows.append(ball_light_field(c, r, cfg))
+    lf = np.stack(rows)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.save(path, lf)
+    return lf
+
+
 def per_query(d: FloatArray, labels: Sequence[str]) -> tuple[NDArray[np.bool_], FloatArray]:
     """Per query of an (n, n) distance matrix: nearest neighbour right, first-tier share.
 
@@ -294,10 +334,12 @@ def per_query(d: FloatArray, labels: Sequence[str]) -> tuple[NDArray[np.bool_], 
     return nn, tier
 
 
-def per_class(split: str, n_balls: int) -> dict[str, Any]:
+def per_class(split: str, n_balls: int, residual_too: bool = False) -> dict[str, Any]:
     """Per web class, NN and 1-T of the mesh LFD, the light fields of the packing continued
     to ``n_balls`` (``bench.packings.longer`` within 4096, as lightfield_pack) and, when
-    ``--voxels`` has cached it, the grid's inside; with each class's median ball count."""
+    ``--voxels`` has cached it, the grid's inside; with ``residual_too`` (or when cached)
+    the balls plus the inside cells they leave uncovered (:func:`residual`); with each
+    class's median ball count."""
     from bench.rerank_select import lfd_matrix
     from bench.studies.lightfield_pack import lf_matrix
 
@@ -313,6 +355,9 @@ def per_class(split: str, n_balls: int) -> dict[str, Any]:
     vox = CACHE_DIR / "lightfield_fill" / f"voxels_web_{split}_{len(full)}.npy"
     if vox.exists() and len(full) == len(ds):
         mats["grid inside"] = light_field_distance(np.load(vox))
+    res = CACHE_DIR / "lightfield_fill" / f"residual_web_{split}_{len(ds)}_{n_balls}.npy"
+    if residual_too or res.exists():
+        mats[f"balls {n_balls} + uncovered cells"] = light_field_distance(residual(split, n_balls))
     got = {k: per_query(d, labels) for k, d in mats.items()}
     lab = np.asarray(labels)
     n_tail = np.array([int((b.radii > 0).sum()) for b in balls])
@@ -441,6 +486,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--fills", nargs="+", default=["plain", "edges", "dilate1", "close1",
                                                     "edges+close1"])  # fmt: skip
     ap.add_argument("--diagnose", type=int, default=0, help="compare N web silhouettes")
+    ap.add_argument("--residual", action="store_true",
+                    help="--per-class: also the balls plus the inside cells they leave uncovered")  # fmt: skip
     ap.add_argument("--classes", nargs="+", default=[], help="only these classes (--diagnose)")
     ap.add_argument("--images", type=Path, default=None, help="folder of PNGs (--diagnose)")
     ap.add_argument("--voxels", action="store_true", help="LFD of the grid's inside (web)")
@@ -460,7 +507,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         got = fused_longer(args.split, args.datasets, args.n_balls)
         write_json(args.out or OUT / f"lightfield_fill_fused_{args.split}.json", got)
     elif args.per_class:
-        got = per_class(args.split, args.n_balls or 2048)
+        got = per_class(args.split, args.n_balls or 2048, args.residual)
         write_json(args.out or OUT / f"lightfield_fill_per_class_{args.split}.json", got)
     elif args.voxels:
         write_json(OUT / f"lightfield_fill_voxels_{args.split}.json", voxels(args.split))
