@@ -31,3 +31,15 @@ def test_per_query_scores_leave_the_query_out() -> None:
     nn, tier = per_query(d, ["a", "a", "b", "b", "c"])
     assert nn.tolist() == [True, False, False, True, False]
     assert tier.tolist() == [1.0, 0.0, 0.0, 1.0, 0.0]
+
+
+def test_uncovered_cells_are_outside_every_ball() -> None:
+    import numpy as np
+
+    from bench.common import Balls
+    from bench.studies.lightfield_fill import uncovered_cells
+
+    b = Balls(np.array([[0.0, 0, 0], [3.0, 0, 0]]), np.array([1.0, 0.5]),
+              np.zeros((0, 2), np.int64), 0.1, 0.0)  # fmt: skip
+    cells = np.array([[0.0, 0, 0], [0.9, 0, 0], [1.1, 0, 0], [3.4, 0, 0], [3.6, 0, 0]])
+    assert uncovered_cells(b, cells).tolist() == [False, False, True, False, True]
