@@ -83,6 +83,7 @@ ADDED: dict[str, dict[str, Any]] = {
         "dilate_px": 0.0,
         "close_px": 0,
         "n_balls": 2048,
+        "source": "balls",
     },
 }
 
@@ -92,8 +93,9 @@ ADDED: dict[str, dict[str, Any]] = {
 STORED_ADDED: dict[str, dict[str, Any]] = {
     # before the pooled spread and the contrast floor: the query's own spread, no floor
     "lf_fusion": {"pool": 0, "contrast_floor": 0.0},
-    # before n_balls, the light fields were those of the decomposition's balls
-    "light_field": {"n_balls": 0},
+    # before n_balls, the light fields were those of the decomposition's balls; before
+    # source, always of balls
+    "light_field": {"n_balls": 0, "source": "balls"},
 }
 
 #: Sections added to the store configuration, by the first layout that writes them:
