@@ -321,6 +321,8 @@ def test_a_store_of_the_field_s_light_fields_renders_records_and_queries_from_th
     for name, shape in shapes.items():  # a query from outside sees its inside too
         assert [h.id for h in again.search(shape, k=3)] == [h.id for h in again.search(name, k=3)]
     assert [h.name for h in again.search(box, k=2)][0] == "box_a"
+    # a record (no inside: never stored) queries with the light fields it carries
+    assert [h.id for h in again.search(rec, k=3)] == [h.id for h in again.search("box_a", k=3)]
     with pytest.raises(QueryError, match="keep_inside=True"):
         again.search(decompose(shapes["box_a"], config=field.mdbd), k=2)
     forget(db)
