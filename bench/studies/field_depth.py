@@ -317,6 +317,10 @@ DESCRIPTORS: dict[str, tuple[Any, str]] = {
     "SHD 32 x 16": (lambda z: harmonic_descriptor(z["shell"], z["centroid"]), "cityblock"),
     "SHD 32 x 16, L2": (lambda z: harmonic_descriptor(z["shell"], z["centroid"]), "euclidean"),
 }
+#: Descriptors run unless named (the L2 SHD, measured once on web validation, is not).
+DEFAULT = ("DBD 64 px, k 8", "DBD 32 px, k 6", "SHD 32 x 16")
+#: Three-way fusions: the field light fields + weight x DBD 64 px + weight x SHD (L1).
+TRIPLES = ((0.25, 0.25), (0.25, 0.5), (0.5, 0.25), (0.5, 0.5))
 #: Weights of the second distance tried in a fusion (chosen on validation).
 WEIGHTS = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0)
 
@@ -330,7 +334,8 @@ def descriptor_matrix(
     from scipy.spatial.distance import cdist
 
     fn, metric = DESCRIPTORS[name]
-    code = Path(__file__).read_bytes()
+    text = Path(__file__).read_text()
+    code = text[text.index("# Descriptors of a shell") : text.index("# The study")].encode()
     key = hashlib.sha256(code + name.encode() + "\n".join(keys).encode()).hexdigest()[:16]
     path = FOLDER / "matrices" / f"{key}.npz"
     if path.exists():
@@ -363,6 +368,7 @@ def run(
     datasets: Sequence[str],
     only: Sequence[str] | None,
     weights: dict[str, float] | None = None,
+    triple: tuple[float, float] | None = None,
 ) -> dict[str, Any]:
     """Scores per set: mesh LFD, field light fields, each descriptor alone and fused."""
     from bench.lightfield_source import matrices
@@ -372,7 +378,8 @@ def run(
     table: dict[str, dict[str, dict[str, float]]] = {}
     sizes: dict[str, int] = {}
     cpu: dict[str, dict[str, float]] = {}
-    names = list(DESCRIPTORS) if not only else [n for n in DESCRIPTORS if n in only]
+    names = list(DEFAULT) if not only else [n for n in DESCRIPTORS if n in only]
+    dbd, shd = "DBD 64 px, k 8", "SHD 32 x 16"
     for name in datasets:
         t0 = time.perf_counter()
         ds, mats = matrices(name, split, {"field LF (3 x 128 px)": lf})
@@ -384,14 +391,22 @@ def run(
         base = mats["field LF (3 x 128 px)"]
         for label, d in mats.items():
             table.setdefault(label, {})[name] = retrieval_scores(-d, labels)
+        got_d: dict[str, FloatArray] = {}
         for dn in names:
             d, c = descriptor_matrix(dn, got, keys)
+            got_d[dn] = d
             cpu[name][dn] = c
             table.setdefault(dn, {})[name] = retrieval_scores(-d, labels)
             ws = [weights[dn]] if weights and dn in weights else list(WEIGHTS)
             for w in ws:
                 table.setdefault(f"field LF + {w:g} x {dn}", {})[name] = retrieval_scores(
                     -fuse(base, d, w), labels
+                )
+        if dbd in got_d and shd in got_d:
+            for wd, ws_ in [triple] if triple else TRIPLES:
+                fused = fuse(base, got_d[dbd], wd) + ws_ * _normalised(got_d[shd])
+                table.setdefault(f"field LF + {wd:g} x DBD + {ws_:g} x SHD", {})[name] = (
+                    retrieval_scores(-fused, labels)
                 )
         print(f"  {name}: {len(ds)} models ({time.perf_counter() - t0:.0f} s)", flush=True)
     rows = [[label, *(f"{v[n]['nn']:.3f} / {v[n]['first_tier']:.3f} / {v[n]['dcg']:.3f}"
@@ -411,6 +426,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--only", nargs="*", default=None, choices=list(DESCRIPTORS))
     ap.add_argument("--weight", type=float, default=None,
                     help="the one fusion weight (default: every weight of WEIGHTS)")  # fmt: skip
+    ap.add_argument("--triple", type=float, nargs=2, default=None,
+                    help="the one three-way fusion: weights of the DBD and the SHD")  # fmt: skip
     ap.add_argument("--fill", action="store_true", help="only compute the shells")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
@@ -422,7 +439,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     weights = None
     if args.weight is not None:
         weights = {n: args.weight for n in (args.only or DESCRIPTORS)}
-    got = run(args.split, args.datasets, args.only, weights)
+    triple = tuple(args.triple) if args.triple else None
+    got = run(args.split, args.datasets, args.only, weights, triple)
     out = args.out or RESULTS / f"field_depth_{args.split}_{'_'.join(args.datasets)}.json"
     write_json(out, got)
     print(f"written {out}")
