@@ -168,6 +168,9 @@ def cost(k: int) -> dict[str, Any]:
     stores = {
         "balls (product)": Config().with_options(rerank="lightfield", lf_source="balls"),
         "field's inside": Config().with_options(rerank="lightfield", lf_source="field"),
+        "field's inside, 128 px": Config().with_options(
+            rerank="lightfield", lf_source="field", lf_resolution=128
+        ),
     }
     for cfg in stores.values():  # compile and warm caches, untimed
         ingest_cpu(models[0], cfg)
