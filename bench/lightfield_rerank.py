@@ -38,6 +38,8 @@ That the scorer ranks as the study's formula does is checked by the study
 local spreads (the index-time statistic, read from the light field column), then
 ``db.search(id, k=10)`` for every shape, interleaved, and prints medians and ratios to
 the plain store.
+``--lf-source field`` (and ``--lf-set FIELD=VALUE``): the ``lightfield`` rows read the
+light fields of the field's inside (cached by :mod:`bench.inside_fields`).
 Written to bench/results/lightfield_rerank_<split>.json (``lightfield_rerank_cost.json``).
 """
 
@@ -54,6 +56,7 @@ from typing import Any
 
 import numpy as np
 
+from bench import inside_fields
 from bench.cached import CHOICES, load
 from bench.common import class_nn, format_table, retrieval_scores, write_json
 from bench.features import kernel_features
@@ -145,6 +148,11 @@ def light_fields(balls: Sequence[Any], config: Config) -> np.ndarray:
 def measure(args: argparse.Namespace) -> dict[str, Any]:
     """Rows per set, the study check, the table; returns the JSON written."""
     lf_cfg = Config().with_options(rerank="lightfield")
+    if args.lf_source is not None:
+        lf_cfg = lf_cfg.with_options(lf_source=args.lf_source)
+    for kv in args.lf_set:
+        k, v = kv.split("=", 1)
+        lf_cfg = lf_cfg.with_options(**{f"lf_{k}": float(v) if "." in v else int(v)})
     adaptive = Config().with_options(descriptor=7, rerank="adaptive")
     before = lf_cfg.with_options(**LEGACY)
     table: dict[str, dict[str, Any]] = {
@@ -164,7 +172,10 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         ds, balls = load(name, args.split)
         labels = np.asarray(ds.labels)
         v4 = kernel_features(balls, Config())
-        lf = light_fields(light_field_balls(name, args.split, ds, balls, lf_cfg), lf_cfg)
+        if lf_cfg.light_field_inside:  # the field's inside, cached by bench.inside_fields
+            lf = inside_fields.light_fields(name, args.split, ds, lf_cfg.light_field)
+        else:
+            lf = light_fields(light_field_balls(name, args.split, ds, balls, lf_cfg), lf_cfg)
         i4 = index_of(v4)
         add("v4", name, _ranks(rankings(i4, Config())), labels)
         if not args.no_adaptive:
@@ -276,6 +287,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="the balls' light fields alone, mesh LFD and D2 in the same run")  # fmt: skip
     ap.add_argument("--per-kind", action="store_true", help="every row's NN per class")
     ap.add_argument("--cost", action="store_true", help="only time db.search of three stores")
+    ap.add_argument("--lf-source", default=None, choices=["balls", "field"],
+                    help="what the light fields see (not with --cost)")  # fmt: skip
+    ap.add_argument("--lf-set", nargs="*", default=[], metavar="FIELD=VALUE",
+                    help="other LightFieldConfig fields (e.g. resolution=128)")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
     if args.cost:
