@@ -27,6 +27,11 @@ view also carries the Zernike magnitudes of its front and back depth images,
 elsewhere; opposite views swap front and back, so the two enter as their sum and
 absolute difference.
 
+The light fields of the inside of the decomposition's field (``LightFieldConfig.source
+= "field"``, :func:`inside_light_field`) are those of its inside cells, each a ball of
+half a cell, centred on the cells' centroid rather than on the shell's it renders
+(:mod:`shapedb.inside`).
+
 Silhouettes of other sources (surface splats of a mesh, ``bench/lightfield.py``) use
 :func:`silhouette_features`, :func:`field_directions` and :func:`light_field_distance`
 the same way.
