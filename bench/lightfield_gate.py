@@ -359,6 +359,8 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
     rows["stage now (LightFieldFusionConfig defaults)"] = _row(
         stores, {k: gate_weights(st, default) for k, st in stores.items()}, base
     )
+    if args.oracle:
+        rows.update(oracle_rows(stores, base, default))
     if args.around:  # one field of the defaults moved at a time
         for field, values in AROUND.items():
             for v in values:
@@ -370,6 +372,44 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
     return {"split": args.split, "rows": rows, "defaults": dataclasses.asdict(default),
             "statistics": statistics(stores, default),
             "sizes": {k: len(st.rows) for k, st in stores.items()}}  # fmt: skip
+
+
+#: Sets whose subjects are jointed (the light field finds another pose): the oracle's "off".
+JOINTED = ("figures", "people")
+
+
+def oracle_rows(stores: dict[str, Store], base: dict[str, dict[str, dict[str, float]]],
+                f: Any) -> dict[str, dict[str, Any]]:  # fmt: skip
+    """The headroom of the gate: rows whose gate knows each shape's set (not label-free).
+
+    ``oracle``: ``g = 1`` for every shape of a rigid set, 0 for :data:`JOINTED`, at a few
+    weights and rank offsets; ``oracle x contrast floor``: the oracle times the contrast
+    factor of ``f`` (only the spread ceiling replaced by the labels); ``stage's gate, light
+    fields alone where open``: the fusion with v4 replaced by the light field's order.
+    """
+    rigid = {k: ~np.isin(st.sets, JOINTED) for k, st in stores.items()}
+    rows: dict[str, dict[str, Any]] = {}
+
+    def add(label: str, weights: dict[str, FloatArray], offset: float = 60.0) -> None:
+        kept = {k: st.offset for k, st in stores.items()}
+        for st in stores.values():
+            st.offset = offset
+        try:
+            rows[label] = _row(stores, weights, base)
+        finally:
+            for k, st in stores.items():
+                st.offset = kept[k]
+
+    for w in (f.weight, 2 * f.weight, np.inf):
+        add(f"oracle gate, weight {w:g}", {k: np.where(r, w, 0.0) for k, r in rigid.items()})
+    add(f"oracle gate, weight {f.weight:g}, offset 20",
+        {k: np.where(r, f.weight, 0.0) for k, r in rigid.items()}, offset=20.0)  # fmt: skip
+    floor = dataclasses.replace(f, ceiling=0.0)  # the contrast factor alone
+    add(f"oracle gate x contrast floor, weight {f.weight:g}",
+        {k: np.where(rigid[k], gate_weights(st, floor), 0.0) for k, st in stores.items()})  # fmt: skip
+    add("stage's gate, light fields alone where open",
+        {k: np.where(gate_weights(st, f) > 0, np.inf, 0.0) for k, st in stores.items()})  # fmt: skip
+    return rows
 
 
 def statistics(stores: dict[str, Store], f: Any) -> dict[str, dict[str, dict[str, list[float]]]]:
@@ -427,6 +467,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
     ap.add_argument("--no-grid", action="store_true", help="only the fixed rows")
     ap.add_argument("--around", action="store_true", help="the defaults, one field moved")
+    ap.add_argument("--oracle", action="store_true",
+                    help="the headroom: gates that know which sets are jointed")  # fmt: skip
     ap.add_argument("--lf-n-balls", type=int, default=None,
                     help="light fields of the packing continued to N balls (default: the product's)")  # fmt: skip
     ap.add_argument("--lf-within", type=int, default=0,
