@@ -35,6 +35,7 @@ import argparse
 import dataclasses
 import hashlib
 import sys
+import tempfile
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -49,6 +50,7 @@ from bench.common import format_table, write_json
 from bench.datasets import CACHE_DIR
 from bench.features import kernel_features
 from bench.packings import light_field_balls
+from query.lightfield_spread import pooled
 from shapedb.config import Config
 from shapedb.descriptor import LAYOUTS
 from shapedb.lightfield import light_field_distance, record_light_field
@@ -168,6 +170,7 @@ class Store:
         n = len(rows)
         k = min(candidates, n)
         self.order = np.argsort(d4, axis=1, kind="stable")  # whole list, ties by id
+        self._d4, self._dl = d4, dl
         self.cand = self.order[:, :k]
         self.D = np.take_along_axis(d4, self.cand, 1)
         self.L = np.take_along_axis(dl, self.cand, 1)
@@ -182,6 +185,20 @@ class Store:
     def others(self, x: FloatArray) -> FloatArray:
         """(n, K - 1) ``x`` over each query's candidates without the query itself."""
         return x[~self.own].reshape(len(x), -1) if self.own.any(axis=1).all() else x[:, 1:]
+
+    def nearest(self, c: int) -> tuple[FloatArray, FloatArray]:
+        """(n, c) stored and light field distances of each shape's ``c`` nearest others.
+
+        In the stored distance's order (ties by id), the shape left out, as the index
+        hands them to :func:`query.lightfield_spread.local_spreads`.
+        """
+        n = len(self.rows)
+        c = min(c, n - 1)
+        head = self.order[:, : c + 1]
+        keep = head != np.arange(n)[:, None]
+        keep[keep.all(axis=1), -1] = False  # the shape not among them: its c first
+        idx = head[keep].reshape(n, c)
+        return np.take_along_axis(self._d4, idx, 1), np.take_along_axis(self._dl, idx, 1)
 
     def overlap(self, m: int) -> FloatArray:
         """(n,) share of the query's ``m`` nearest others common to both distances."""
@@ -247,23 +264,76 @@ class Store:
         return out
 
 
-def local_spreads(st: Store, candidates: int, typical: float) -> FloatArray:
-    """(n,) each stored shape's local spread over its ``candidates`` nearest others."""
-    d, ll = st.others(st.D)[:, :candidates], st.others(st.L)[:, :candidates]
-    return np.median(ll, 1) / typical / np.maximum(np.median(d, 1), 1e-300)
+def local_spreads(st: Store, candidates: int, typical: float, ratio_weight: float = 0.0,
+                  ratio_candidates: int = 100) -> FloatArray:  # fmt: skip
+    """(n,) each stored shape's local statistic (:func:`query.lightfield_spread.local_statistic`).
+
+    The local spread over its ``candidates`` nearest others, times the ratio to the
+    power ``ratio_weight`` (the spread's power ``1 - ratio_weight``).
+    """
+    reach = max(candidates, ratio_candidates) if ratio_weight > 0 else candidates
+    d, ll = st.nearest(reach)
+    near = np.median(ll[:, :candidates], 1)
+    out = np.ones(len(d))
+    if ratio_weight < 1:
+        spread = near / typical / np.maximum(np.median(d[:, :candidates], 1), 1e-300)
+        out *= spread ** (1.0 - ratio_weight)
+    if ratio_weight > 0:
+        best = np.median(np.sort(ll, 1)[:, :candidates], 1)
+        out *= (near / np.maximum(best, 1e-300)) ** ratio_weight
+    return out
 
 
-def gate_weights(st: Store, f: Any) -> FloatArray:
-    """(n,) ``weight * g(q)`` of :class:`shapedb.config.LightFieldFusionConfig` ``f``."""
+def gate_statistic(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
+    """(n,) ``s_q`` of :class:`shapedb.config.LightFieldFusionConfig` ``f`` for every query.
+
+    ``memo``: results kept by store and the fields they read (a grid reuses them).
+    """
+    key = (id(st), f.spread_candidates, f.typical, f.ratio_weight,
+           f.ratio_candidates if f.ratio_weight > 0 else 0, f.pool, f.pool_quantile)  # fmt: skip
+    if memo is not None and key in memo:
+        return memo[key]
+    s = local_spreads(st, f.spread_candidates, f.typical, f.ratio_weight, f.ratio_candidates)
+    if f.pool > 0:
+        s = pooled(s[st.cand[:, : f.pool]], f.pool_quantile)
+    if memo is not None:
+        memo[key] = s
+    return s
+
+
+def gate_margin(stores: dict[str, Store], f: Any,
+                memo: dict[Any, FloatArray] | None = None) -> dict[str, float]:  # fmt: skip
+    """:func:`margin` of ``f``'s pooled statistic over every set in every store."""
+    return margin({(k, str(s)): gate_statistic(st, f, memo)[st.sets == s]
+                   for k, st in stores.items() for s in dict.fromkeys(st.sets)})  # fmt: skip
+
+
+def _short(setting: dict[str, Any]) -> str:
+    """A grid setting in a few characters."""
+    names = {"weight": "w", "spread_candidates": "m", "ratio_weight": "b",
+             "ratio_candidates": "c", "pool": "pool", "pool_quantile": "q",
+             "contrast_ramp": "cramp", "ceiling": "ceil", "ramp": "ramp"}  # fmt: skip
+    return " ".join(f"{names.get(k, k)} {v:g}" for k, v in setting.items())
+
+
+def _setting(label: str) -> dict[str, Any]:
+    """The grid setting a row's label ends with."""
+    import ast
+
+    return dict(ast.literal_eval(label[label.index(": {") + 2 :]))
+
+
+def gate_weights(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
+    """(n,) ``weight * g(q)`` of :class:`shapedb.config.LightFieldFusionConfig` ``f``.
+
+    ``memo``: the pooled statistics already computed, by store and the fields they read.
+    """
     n = len(st.rows)
     g = np.ones(n)
     if f.power > 0:
         g *= st.overlap(f.neighbours) ** f.power
     if f.ceiling > 0:
-        s = local_spreads(st, f.spread_candidates, f.typical)
-        if f.pool > 0:
-            s = np.median(s[st.cand[:, : f.pool]], axis=1)
-        g *= np.clip((f.ceiling - s) / f.ramp, 0.0, 1.0)
+        g *= np.clip((f.ceiling - gate_statistic(st, f, memo)) / f.ramp, 0.0, 1.0)
     if f.contrast_floor > 0:
         d = st.others(st.D)
         far = d[:, min(f.contrast_depth, d.shape[1]) - 1]
@@ -282,6 +352,40 @@ GRID = {
     "contrast_ramp": (0.05, 0.1, 0.2),
     "contrast_depth": (20, 30),
 }
+#: ``--grid ratio`` (the default): the local statistic ``spread ** (1 - b) * ratio ** b``
+#: pooled by a quantile. ``ceiling_at`` ``(c_s, c_r)``: ``ceiling = c_s ** (1 - b) * c_r **
+#: b`` (a spread ceiling and a ratio ceiling); ``ramp_share``: ``ramp = share * ceiling``;
+#: the contrast floor 0.3 over depth 30.
+RATIO_GRID: dict[str, tuple[Any, ...]] = {
+    "weight": (4.0, 8.0),
+    "spread_candidates": (3, 5),
+    "ratio_weight": (0.0, 0.33, 0.5, 1.0),
+    "ratio_candidates": (30, 100),
+    "pool": (20, 30),
+    "pool_quantile": (0.25, 0.5),
+    "ceiling_at": ((0.11, 1.5), (0.13, 1.7), (0.15, 1.9)),
+    "ramp_share": (0.15, 0.3),
+    "contrast_ramp": (0.05, 0.2),
+}
+
+
+def ratio_settings() -> list[dict[str, Any]]:
+    """:data:`RATIO_GRID` as ``LightFieldFusionConfig`` fields (no duplicate at ``b = 0``)."""
+    import itertools
+
+    out = []
+    for c in itertools.product(*RATIO_GRID.values()):
+        g = dict(zip(RATIO_GRID, c, strict=True))
+        if g["ratio_weight"] == 0 and g["ratio_candidates"] != RATIO_GRID["ratio_candidates"][-1]:
+            continue
+        b = g["ratio_weight"]
+        cs, cr = g.pop("ceiling_at")
+        ceiling = float(np.round(cs ** (1 - b) * cr**b, 4))
+        g["ceiling"], g["ramp"] = ceiling, float(np.round(g.pop("ramp_share") * ceiling, 4))
+        out.append(g)
+    return out
+
+
 #: ``--around``: values of one field each, the others at the defaults.
 AROUND = {"weight": (2.0, 8.0), "ceiling": (0.09, 0.13, 0.15), "pool": (5, 10, 40),
           "spread_candidates": (10,), "contrast_floor": (0.0, 0.25, 0.35),
@@ -337,25 +441,52 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
     rows["stage before (overlap^3, own spread over 100)"] = _row(
         stores, {k: gate_weights(st, legacy) for k, st in stores.items()}, base
     )
-    settings = [dict(zip(GRID, c, strict=True)) for c in itertools.product(*GRID.values())]
-    settings = [s for s in settings if s["contrast_floor"] > 0 or s["contrast_ramp"] == 0.05]
+    if args.grid == "spread":
+        settings = [dict(zip(GRID, c, strict=True)) for c in itertools.product(*GRID.values())]
+        settings = [s for s in settings if s["contrast_floor"] > 0 or s["contrast_ramp"] == 0.05]
+        subsets = (("own spread (pool 0)", lambda s: s["pool"] == 0),
+                   ("no contrast floor", lambda s: s["contrast_floor"] == 0))  # fmt: skip
+    else:
+        settings = ratio_settings()
+        subsets = (("the local spread alone (ratio weight 0)", lambda s: s["ratio_weight"] == 0),
+                   ("the ratio alone (ratio weight 1)", lambda s: s["ratio_weight"] == 1))  # fmt: skip
+    memo: dict[Any, FloatArray] = {}
+    margins: dict[str, dict[str, float]] = {}
+    tmp = tempfile.TemporaryDirectory(prefix="lightfield_gate_")
+    analytic = analytic_stores(Path(tmp.name))
+    amemo: dict[Any, Any] = {}
+
+    def closed(f: Any) -> bool:
+        """The chain in poses shut and the rigid analytic store open (some of it)."""
+        g_rigid, _ = analytic_gates(analytic["rigid"], f, amemo)
+        g_chain, _ = analytic_gates(analytic["chain"], f, amemo)
+        return bool(np.all(g_chain == 0) and np.count_nonzero(g_rigid) >= 6)
+
     if args.split == "validation" and not args.no_grid:
         grid = []
+        t0 = time.perf_counter()
         for s in settings:
             f = dataclasses.replace(default, power=0.0, **s)  # type: ignore[arg-type]
-            grid.append((s, _row(stores, {k: gate_weights(st, f) for k, st in stores.items()},
-                                 base)))  # fmt: skip
+            grid.append((s, _row(stores, {k: gate_weights(st, f, memo)
+                                          for k, st in stores.items()}, base)))  # fmt: skip
         passing = [g for g in grid if g[1]["passes"]]
+        n_rule = len(passing)
+        passing = [g for g in passing if closed(dataclasses.replace(default, power=0.0, **g[0]))]  # type: ignore[arg-type]
         best = max(passing, key=lambda g: g[1]["objective"]) if passing else None
-        print(f"  grid: {len(grid)} settings, {len(passing)} pass; chosen {best and best[0]}")
-        for label, keep in (("own spread (pool 0)", lambda s: s["pool"] == 0),
-                            ("no contrast floor", lambda s: s["contrast_floor"] == 0)):  # fmt: skip
+        print(f"  grid: {len(grid)} settings, {n_rule} pass the rule, {len(passing)} also keep "
+              f"the chain in poses shut ({time.perf_counter() - t0:.0f} s); "
+              f"chosen {best and best[0]}")  # fmt: skip
+        for label, keep in subsets:
             sub = [g for g in passing if keep(g[0])]
             if sub:
                 top = max(sub, key=lambda g: g[1]["objective"])
                 rows[f"best with {label}: {top[0]}"] = top[1]
+                f = dataclasses.replace(default, power=0.0, **top[0])  # type: ignore[arg-type]
+                margins[f"best with {label}: {top[0]}"] = gate_margin(stores, f, memo)
         if best is not None:
             rows[f"best of the grid: {best[0]}"] = best[1]
+            f = dataclasses.replace(default, power=0.0, **best[0])  # type: ignore[arg-type]
+            margins[f"best of the grid: {best[0]}"] = gate_margin(stores, f, memo)
     rows["stage now (LightFieldFusionConfig defaults)"] = _row(
         stores, {k: gate_weights(st, default) for k, st in stores.items()}, base
     )
@@ -368,8 +499,33 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
                 rows[f"defaults, {field} {v:g}"] = _row(
                     stores, {k: gate_weights(st, f) for k, st in stores.items()}, base
                 )
+    margins["stage now (LightFieldFusionConfig defaults)"] = gate_margin(stores, default, memo)
+    for label, m in margins.items():
+        f = default if ": {" not in label else dataclasses.replace(
+            default, power=0.0, **_setting(label))  # fmt: skip
+        m["chain_min"] = float(np.nanmin(analytic_gates(analytic["chain"], f, amemo)[1]))
+        m["chain_open"] = float(np.count_nonzero(analytic_gates(analytic["chain"], f, amemo)[0]))
+        m["analytic_rigid_open"] = float(np.count_nonzero(
+            analytic_gates(analytic["rigid"], f, amemo)[0]))  # fmt: skip
+        m["ceiling"] = float(f.ceiling)
+    tmp.cleanup()
     _print(rows, stores, args.split)
+    if margins and "jointed_5" in margins[next(iter(margins))]:
+        print(format_table(
+            "the gate's margin: s_q of the jointed sets and of the rigid ones (every store), "
+            "of the analytic chain in poses; x: over the ceiling",
+            ("row", "ceiling", "jointed min", "x", "jointed 5 %", "rigid 95 %", "rigid max",
+             "5 % / 95 %", "chain", "x", "chain open", "analytic rigid open"),
+            [[k if ": {" not in k else k[: k.index(": {")] + " " + _short(_setting(k)),
+              f"{m['ceiling']:.3f}", f"{m['jointed_min']:.3f}",
+              f"{m['jointed_min'] / m['ceiling']:.2f}", f"{m['jointed_5']:.3f}",
+              f"{m['rigid_95']:.3f}", f"{m['rigid_max']:.3f}", f"{m['ratio_5_95']:.2f}",
+              f"{m['chain_min']:.3f}", f"{m['chain_min'] / m['ceiling']:.2f}",
+              f"{m['chain_open']:.0f} / 8", f"{m['analytic_rigid_open']:.0f} / 8"]
+             for k, m in margins.items()],
+        ))  # fmt: skip
     return {"split": args.split, "rows": rows, "defaults": dataclasses.asdict(default),
+            "margins": margins,
             "statistics": statistics(stores, default),
             "sizes": {k: len(st.rows) for k, st in stores.items()}}  # fmt: skip
 
@@ -416,19 +572,21 @@ def statistics(stores: dict[str, Store], f: Any) -> dict[str, dict[str, dict[str
     """5 / 50 / 95 % of the gate's statistics per set in each store (printed as a table).
 
     ``spread 100``: the query's own spread over its 100 candidates (the gate before);
-    ``local``: the local spread over ``f.spread_candidates``; ``pooled``: its median over
-    the first ``f.pool`` candidates; ``contrast``: the contrast of the floor.
+    ``local``: the local statistic (:func:`local_spreads` at ``f``); ``pooled``: ``s_q``,
+    its ``f.pool_quantile`` over the first ``f.pool`` candidates; ``contrast``: the
+    contrast of the floor.
     """
     out: dict[str, dict[str, dict[str, list[float]]]] = {}
     table = []
     for name, st in stores.items():
-        local = local_spreads(st, f.spread_candidates, f.typical)
         d = st.others(st.D)
         far = d[:, min(f.contrast_depth, d.shape[1]) - 1]
         stats = {
             "spread 100": local_spreads(st, 100, f.typical),
-            "local": local,
-            "pooled": np.median(local[st.cand[:, : f.pool]], axis=1),
+            "local": local_spreads(
+                st, f.spread_candidates, f.typical, f.ratio_weight, f.ratio_candidates
+            ),
+            "pooled": gate_statistic(st, f),
             "contrast": np.median(d[:, : f.neighbours], 1) / np.maximum(far, 1e-300),
         }
         for s in dict.fromkeys(st.sets):
@@ -442,6 +600,116 @@ def statistics(stores: dict[str, Store], f: Any) -> dict[str, dict[str, dict[str
     return out
 
 
+def chain(angle: float, bend: float) -> Any:
+    """Four balls joined by rods, its two joints bent by ``angle`` and ``bend`` (radians)."""
+    from shapedb.implicit import Capsule, Sphere
+
+    pts = [np.zeros(3)]
+    heading = 0.0
+    for turn in (0.0, angle, bend):
+        heading += turn
+        pts.append(pts[-1] + 1.6 * np.array([np.cos(heading), np.sin(heading), 0.0]))
+    shape: Any = Sphere(tuple(pts[0]), 0.45)
+    for a, b in zip(pts[:-1], pts[1:], strict=True):
+        shape = shape | Capsule(tuple(a), tuple(b), 0.25) | Sphere(tuple(b), 0.45)
+    return shape
+
+
+#: The analytic stores' configuration (small and fast): the stage's, coarser.
+ANALYTIC = {"rerank": "lightfield", "resolution": 48, "n_balls": 128}
+
+
+def analytic_stores(root: Path) -> dict[str, Any]:
+    """Two stores under ``root``: ``rigid`` (4 boxes, 4 rods) and ``chain`` (8 poses of one).
+
+    A gate must open on the first and stay shut on the second (a jointed subject alone
+    in a store, none of the people's other subjects in the same pose to betray it).
+    """
+    from shapedb.database import connect
+    from shapedb.implicit import Box, Capsule
+
+    config = Config().with_options(**ANALYTIC)
+    rigid = connect(root / "rigid", config=config)
+    rigid.ingest([(f"box{k}", Box((0, 0, 0), (2.0 + 0.15 * k, 1.0, 0.6 + 0.05 * k)))
+                  for k in range(4)] + [(f"rod{k}", Capsule((0, 0, 0), (3.0 + 0.2 * k, 0, 0), 0.4))
+                                        for k in range(4)], workers=1)  # fmt: skip
+    jointed = connect(root / "chain", config=config)
+    poses = [(a, b) for a in (0.0, 0.5, 1.0, 1.5) for b in (-0.8, 0.8)]
+    jointed.ingest([(f"pose{k}", chain(a, b)) for k, (a, b) in enumerate(poses)], workers=1)
+    return {"rigid": rigid, "chain": jointed}
+
+
+def analytic_gates(
+    db: Any, f: Any, memo: dict[Any, Any] | None = None
+) -> tuple[FloatArray, FloatArray]:
+    """(n,) ``g(q)`` and (n,) ``s_q`` of every shape of ``db`` querying it, at ``f``.
+
+    The product's scorer (:class:`query.rerank_lightfield.LightFieldFusion`); ``s_q``
+    NaN with ``f.pool`` 0.
+
+    ``f``: a :class:`shapedb.config.LightFieldFusionConfig` (the store's own light fields
+    and descriptor); the local statistics computed by
+    :func:`query.lightfield_spread.local_spreads` under ``f``, every shape a candidate.
+    """
+    from query.index import open_index
+    from query.lightfield_spread import calibration, local_spreads
+    from query.rerank_lightfield import COLUMN, LightFieldFusion, stored_arrays
+
+    config = dataclasses.replace(db.config, lf_fusion=f)
+    index, reader = open_index(db), stored_arrays(db)
+    key = (str(db.store.path), f.spread_candidates, f.typical, f.ratio_weight,
+           f.ratio_candidates if f.ratio_weight > 0 else 0)  # fmt: skip
+    if memo is None or key not in memo:
+        got = local_spreads(index, reader, config)
+        if memo is None:
+            memo = {}
+        memo[key] = dict(zip(got[0].tolist(), got[1].tolist(), strict=True))
+    stat = memo[key]
+    scorer = LightFieldFusion(config)
+    ids = np.sort(np.asarray(index.ids_, np.int64)[np.asarray(index.alive_, bool)])
+    gates, pooled_s = [], []
+    for sid in ids:
+        feature = index.features_of(int(sid))
+        assert feature is not None, "every stored shape is indexed"
+        cand, dist = index.search(feature[None], len(ids))
+        c = cand[0]
+        fields = reader(COLUMN, np.append(c, sid))
+        assert fields is not None, "the analytic stores keep light fields"
+        dl = light_field_distance(fields[-1][None], fields[:-1])[0]
+        spreads = np.array([stat.get(int(i), np.nan) for i in c])
+        gates.append(scorer.gate(dist[0] / calibration(config), dl, c == sid, spreads))
+        pooled_s.append(pooled(spreads[: f.pool], f.pool_quantile) if f.pool > 0 else np.nan)
+    return np.asarray(gates), np.asarray(pooled_s, np.float64)
+
+
+#: The keys of :func:`margin`.
+MARGIN = ("jointed_5", "rigid_95", "jointed_min", "rigid_max", "ratio_5_95", "ratio_min_max")
+
+
+def margin(pooled_by: dict[tuple[str, str], FloatArray]) -> dict[str, float]:
+    """The gate's separation: the pooled statistic's lowest jointed over highest rigid.
+
+    ``pooled_by[(store, set)]``: the set's queries' ``s_q`` in that store. Over every set
+    in every store: ``ratio_5_95`` the least 5 % of a :data:`JOINTED` set over the largest
+    95 % of a rigid one (> 1: one ceiling between them shuts 95 % of every jointed set and
+    opens 95 % of every rigid one), ``ratio_min_max`` the same of the least and the
+    largest; empty when the stores hold only one kind.
+    """
+    jointed = [v for (_, s), v in pooled_by.items() if s in JOINTED]
+    rigid = [v for (_, s), v in pooled_by.items() if s not in JOINTED]
+    if not jointed or not rigid:
+        return {}
+    out = {
+        "jointed_5": min(float(np.quantile(v, 0.05)) for v in jointed),
+        "rigid_95": max(float(np.quantile(v, 0.95)) for v in rigid),
+        "jointed_min": min(float(v.min()) for v in jointed),
+        "rigid_max": max(float(v.max()) for v in rigid),
+    }
+    out["ratio_5_95"] = out["jointed_5"] / out["rigid_95"]
+    out["ratio_min_max"] = out["jointed_min"] / out["rigid_max"]
+    return out
+
+
 def _print(rows: dict[str, dict[str, Any]], stores: dict[str, Store], split: str) -> None:
     cols = [(k, s) for k, st in stores.items() for s in dict.fromkeys(st.sets)]
     table = []
@@ -450,7 +718,9 @@ def _print(rows: dict[str, dict[str, Any]], stores: dict[str, Store], split: str
             "{nn:.3f} / {first_tier:.3f} / {dcg:.3f}".format(**e["stores"][k][s]) for k, s in cols
         ]
         worst = f"{e['worst_queries']:+.1f} ({e['worst_at']})" if e["worst_at"] else "0"
-        table.append([label, *cells, f"{e['objective']:.4f}", worst])
+        short = label if ": {" not in label else label[: label.index(": {")] + ": " + _short(
+            _setting(label))  # fmt: skip
+        table.append([short, *cells, f"{e['objective']:.4f}", worst])
     heads = [k if (k,) == (s,) else f"{s} in {k}" for k, s in cols]
     print(format_table(
         f"the lightfield stage's gate, {split} splits, each set and mix a store (NN / 1-T / DCG)",
@@ -466,6 +736,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
     ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
     ap.add_argument("--no-grid", action="store_true", help="only the fixed rows")
+    ap.add_argument("--grid", default="ratio", choices=["ratio", "spread"],
+                    help="the selection's grid: the ratio gate's (default) or the spread gate's")  # fmt: skip
     ap.add_argument("--around", action="store_true", help="the defaults, one field moved")
     ap.add_argument("--oracle", action="store_true",
                     help="the headroom: gates that know which sets are jointed")  # fmt: skip

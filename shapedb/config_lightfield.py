@@ -128,7 +128,13 @@ class LightFieldFusionConfig:
       poses). With ``pool > 0``, ``s_q`` is the median of the stored local spreads of the
       query's first ``pool`` candidates (the query itself among them when stored; kept
       per store version with the index, :mod:`query.lightfield_spread`); with ``pool``
-      0, the query's own local spread;
+      0, the query's own local spread. With ``ratio_weight`` ``b > 0`` a shape's local statistic
+      is ``spread ** (1 - b) * ratio ** b``, its *ratio* the median ``l`` of its
+      ``spread_candidates`` nearest others by ``d`` over the median of the
+      ``spread_candidates`` smallest ``l`` among its ``ratio_candidates`` nearest others by
+      ``d``: scale-free, near 1 where the light field's nearest are the stored
+      distance's, high where the light field finds other shapes nearer (another pose);
+      the pool takes the ``pool_quantile`` of the stored statistics (0.5: their median);
     * the contrast floor ``clip((t_q - contrast_floor) / contrast_ramp, 0, 1)``
       (``contrast_floor`` 0: off), ``t_q`` the median ``d`` of the query's
       ``neighbours`` nearest others over ``d`` of its ``contrast_depth``-th nearest
@@ -137,7 +143,8 @@ class LightFieldFusionConfig:
 
     The defaults are those chosen on the validation splits (docs/results.md, "Gating
     the light field by store and query"); stores written before ``pool`` and the
-    contrast read ``pool`` 0 and ``contrast_floor`` 0 (:mod:`shapedb.migrations`), and
+    contrast read ``pool`` 0 and ``contrast_floor`` 0, stores written before the ratio
+    read ``ratio_weight`` 0 and ``pool_quantile`` 0.5 (:mod:`shapedb.migrations`), and
     their stored weight, power, ceiling and spread candidates.
 
     Attributes
@@ -167,6 +174,14 @@ class LightFieldFusionConfig:
         Width of the fade above the floor, in (0, 1].
     contrast_depth : int
         Rank of the far candidate of the contrast, in [2, 100000].
+    ratio_weight : float
+        ``b``, the ratio's share of the local statistic (in the log), in [0, 1]; 0: the
+        local spread alone, 1: the ratio alone (``typical`` and the calibration unused).
+    ratio_candidates : int
+        Nearest others by ``d`` among which the ratio takes the light field's nearest, in
+        [1, 100000] (at least ``spread_candidates`` are taken).
+    pool_quantile : float
+        Quantile of the pooled statistics that makes ``s_q``, in [0, 1]; 0.5: the median.
     """
 
     weight: float = 4.0
@@ -181,6 +196,9 @@ class LightFieldFusionConfig:
     contrast_floor: float = 0.3
     contrast_ramp: float = 0.05
     contrast_depth: int = 30
+    ratio_weight: float = 0.0
+    ratio_candidates: int = 100
+    pool_quantile: float = 0.5
 
     def __post_init__(self) -> None:
         def number(v: object) -> bool:
@@ -212,3 +230,11 @@ class LightFieldFusionConfig:
         _check(ok, "lf_contrast_ramp", self.contrast_ramp, "must be a number in (0, 1]")
         ok = _is_int(self.contrast_depth) and 2 <= self.contrast_depth <= 100_000
         _check(ok, "lf_contrast_depth", self.contrast_depth, "must be an integer in [2, 100000]")
+        ok = number(self.ratio_weight) and 0.0 <= self.ratio_weight <= 1.0
+        _check(ok, "lf_ratio_weight", self.ratio_weight, "must be a number in [0, 1]")
+        ok = _is_int(self.ratio_candidates) and 1 <= self.ratio_candidates <= 100_000
+        _check(
+            ok, "lf_ratio_candidates", self.ratio_candidates, "must be an integer in [1, 100000]"
+        )
+        ok = number(self.pool_quantile) and 0.0 <= self.pool_quantile <= 1.0
+        _check(ok, "lf_pool_quantile", self.pool_quantile, "must be a number in [0, 1]")
