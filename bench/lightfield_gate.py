@@ -353,24 +353,35 @@ GRID = {
     "contrast_depth": (20, 30),
 }
 #: ``--grid ratio`` (the default): the local statistic ``spread ** (1 - b) * ratio ** b``
-#: pooled by a quantile. ``ceiling_at`` ``(c_s, c_r)``: ``ceiling = c_s ** (1 - b) * c_r **
-#: b`` (a spread ceiling and a ratio ceiling); ``ramp_share``: ``ramp = share * ceiling``;
-#: the contrast floor 0.3 over depth 30.
+#: pooled by a quantile; ``ceilings[b]``: the ceilings tried at ``b`` (the statistic's
+#: scale moves with ``b``); ``ramp_share``: ``ramp = share * ceiling``; the contrast floor
+#: 0.3 over depth 30.
 RATIO_GRID: dict[str, tuple[Any, ...]] = {
     "weight": (4.0, 8.0),
     "spread_candidates": (3, 5),
-    "ratio_weight": (0.0, 0.33, 0.5, 1.0),
+    "ratio_weight": (0.0, 0.2, 0.33, 0.5, 1.0),
     "ratio_candidates": (30, 100),
     "pool": (20, 30),
     "pool_quantile": (0.25, 0.5),
-    "ceiling_at": ((0.11, 1.5), (0.13, 1.7), (0.15, 1.9)),
-    "ramp_share": (0.15, 0.3),
+    "ramp_share": (0.1, 0.2),
     "contrast_ramp": (0.05, 0.2),
 }
+CEILINGS = {
+    0.0: (0.09, 0.10, 0.11, 0.13),
+    0.2: (0.15, 0.16, 0.17, 0.18),
+    0.33: (0.20, 0.21, 0.22, 0.23, 0.24),
+    0.5: (0.28, 0.30, 0.32, 0.34),
+    1.0: (1.5, 1.7, 1.9),
+}
+#: The selection's margins (``--grid ratio``): the least pooled statistic of a jointed set
+#: (figures, people; alone and in every mix) at least this many times the ceiling (the
+#: gate before this grid: 1.46), and the 95 % of every rigid set (alone and in every mix)
+#: at most the ceiling: a gate that lets the rigid collections in, with a margin.
+MIN_MARGIN = 1.4
 
 
 def ratio_settings() -> list[dict[str, Any]]:
-    """:data:`RATIO_GRID` as ``LightFieldFusionConfig`` fields (no duplicate at ``b = 0``)."""
+    """:data:`RATIO_GRID` x :data:`CEILINGS` as fields (no duplicate at ``b = 0``)."""
     import itertools
 
     out = []
@@ -378,11 +389,9 @@ def ratio_settings() -> list[dict[str, Any]]:
         g = dict(zip(RATIO_GRID, c, strict=True))
         if g["ratio_weight"] == 0 and g["ratio_candidates"] != RATIO_GRID["ratio_candidates"][-1]:
             continue
-        b = g["ratio_weight"]
-        cs, cr = g.pop("ceiling_at")
-        ceiling = float(np.round(cs ** (1 - b) * cr**b, 4))
-        g["ceiling"], g["ramp"] = ceiling, float(np.round(g.pop("ramp_share") * ceiling, 4))
-        out.append(g)
+        share = g.pop("ramp_share")
+        for ceiling in CEILINGS[g["ratio_weight"]]:
+            out.append({**g, "ceiling": ceiling, "ramp": float(np.round(share * ceiling, 4))})
     return out
 
 
@@ -390,8 +399,11 @@ def ratio_settings() -> list[dict[str, Any]]:
 AROUND = {"weight": (2.0, 8.0), "ceiling": (0.09, 0.13, 0.15), "pool": (5, 10, 40),
           "spread_candidates": (10,), "contrast_floor": (0.0, 0.25, 0.35),
           "contrast_ramp": (0.1, 0.2), "contrast_depth": (20, 50)}  # fmt: skip
+#: The gate before the ratio: the pooled median of the local spread over 5.
+SPREAD_GATE = {"weight": 4.0, "ceiling": 0.11, "ramp": 0.02, "spread_candidates": 5, "pool": 20,
+               "contrast_ramp": 0.05, "ratio_weight": 0.0, "pool_quantile": 0.5}  # fmt: skip
 LEGACY = {"weight": 8.0, "power": 3.0, "ceiling": 0.09, "spread_candidates": 100, "pool": 0,
-          "contrast_floor": 0.0}  # fmt: skip
+          "contrast_floor": 0.0, "ramp": 0.02, "ratio_weight": 0.0}  # fmt: skip
 
 
 def _row(stores: dict[str, Store], weights: dict[str, FloatArray],
@@ -430,6 +442,8 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
         pairs = dict(kv.split("=", 1) for kv in args.fusion)
         default = dataclasses.replace(default, **{k: float(v) if "." in v else int(v)
                                                   for k, v in pairs.items()})  # type: ignore[arg-type]  # fmt: skip
+    memo: dict[Any, FloatArray] = {}
+    margins: dict[str, dict[str, float]] = {}
     rows: dict[str, dict[str, Any]] = {
         "v4 (no stage)": _row(stores, zero, base),
         "light fields alone (K = 100)": _row(
@@ -441,6 +455,13 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
     rows["stage before (overlap^3, own spread over 100)"] = _row(
         stores, {k: gate_weights(st, legacy) for k, st in stores.items()}, base
     )
+    spread_gate = dataclasses.replace(default, **SPREAD_GATE)  # type: ignore[arg-type]
+    rows["spread gate (pooled median spread, the default before the ratio)"] = _row(
+        stores, {k: gate_weights(st, spread_gate, memo) for k, st in stores.items()}, base
+    )
+    margins["spread gate (pooled median spread, the default before the ratio)"] = gate_margin(
+        stores, spread_gate, memo
+    )
     if args.grid == "spread":
         settings = [dict(zip(GRID, c, strict=True)) for c in itertools.product(*GRID.values())]
         settings = [s for s in settings if s["contrast_floor"] > 0 or s["contrast_ramp"] == 0.05]
@@ -450,8 +471,6 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
         settings = ratio_settings()
         subsets = (("the local spread alone (ratio weight 0)", lambda s: s["ratio_weight"] == 0),
                    ("the ratio alone (ratio weight 1)", lambda s: s["ratio_weight"] == 1))  # fmt: skip
-    memo: dict[Any, FloatArray] = {}
-    margins: dict[str, dict[str, float]] = {}
     tmp = tempfile.TemporaryDirectory(prefix="lightfield_gate_")
     analytic = analytic_stores(Path(tmp.name))
     amemo: dict[Any, Any] = {}
@@ -472,10 +491,27 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
         passing = [g for g in grid if g[1]["passes"]]
         n_rule = len(passing)
         passing = [g for g in passing if closed(dataclasses.replace(default, power=0.0, **g[0]))]  # type: ignore[arg-type]
+        n_chain, chain_shut = len(passing), passing
+
+        def wide(g: tuple[dict[str, Any], Any]) -> bool:
+            """Both margins: the jointed sets well above the ceiling, the rigid ones below."""
+            f = dataclasses.replace(default, power=0.0, **g[0])  # type: ignore[arg-type]
+            m = gate_margin(stores, f, memo)
+            return bool(m["jointed_min"] >= args.min_margin * f.ceiling
+                        and m["rigid_95"] <= f.ceiling)  # fmt: skip
+
+        if args.grid == "ratio" and len(set(stores) & JOINTED_SETS) == len(JOINTED_SETS):
+            passing = [g for g in passing if wide(g)]
         best = max(passing, key=lambda g: g[1]["objective"]) if passing else None
-        print(f"  grid: {len(grid)} settings, {n_rule} pass the rule, {len(passing)} also keep "
-              f"the chain in poses shut ({time.perf_counter() - t0:.0f} s); "
-              f"chosen {best and best[0]}")  # fmt: skip
+        print(f"  grid: {len(grid)} settings, {n_rule} pass the rule, {n_chain} also keep the "
+              f"chain in poses shut, {len(passing)} also keep the margin "
+              f"({time.perf_counter() - t0:.0f} s); chosen {best and best[0]}")  # fmt: skip
+        if chain_shut is not passing and chain_shut:
+            top = max(chain_shut, key=lambda g: g[1]["objective"])
+            label = f"best keeping the chain shut, any margin: {top[0]}"
+            rows[label] = top[1]
+            f = dataclasses.replace(default, power=0.0, **top[0])  # type: ignore[arg-type]
+            margins[label] = gate_margin(stores, f, memo)
         for label, keep in subsets:
             sub = [g for g in passing if keep(g[0])]
             if sub:
@@ -503,6 +539,8 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
     for label, m in margins.items():
         f = default if ": {" not in label else dataclasses.replace(
             default, power=0.0, **_setting(label))  # fmt: skip
+        if label.startswith("spread gate"):
+            f = spread_gate
         m["chain_min"] = float(np.nanmin(analytic_gates(analytic["chain"], f, amemo)[1]))
         m["chain_open"] = float(np.count_nonzero(analytic_gates(analytic["chain"], f, amemo)[0]))
         m["analytic_rigid_open"] = float(np.count_nonzero(
@@ -532,6 +570,7 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
 
 #: Sets whose subjects are jointed (the light field finds another pose): the oracle's "off".
 JOINTED = ("figures", "people")
+JOINTED_SETS = set(JOINTED)
 
 
 def oracle_rows(stores: dict[str, Store], base: dict[str, dict[str, dict[str, float]]],
@@ -736,6 +775,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
     ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
     ap.add_argument("--no-grid", action="store_true", help="only the fixed rows")
+    ap.add_argument("--min-margin", type=float, default=MIN_MARGIN,
+                    help="the ratio grid's least jointed statistic over the ceiling")  # fmt: skip
     ap.add_argument("--grid", default="ratio", choices=["ratio", "spread"],
                     help="the selection's grid: the ratio gate's (default) or the spread gate's")  # fmt: skip
     ap.add_argument("--around", action="store_true", help="the defaults, one field moved")

@@ -141,8 +141,8 @@ class LightFieldFusionConfig:
       other (the last when fewer): low where the stored vector already sets the
       nearest apart, and the light field is kept out.
 
-    The defaults are those chosen on the validation splits (docs/results.md, "Gating
-    the light field by store and query"); stores written before ``pool`` and the
+    The defaults are those chosen on the validation splits (docs/results.md, "A gate
+    with a margin (issue 25)"); stores written before ``pool`` and the
     contrast read ``pool`` 0 and ``contrast_floor`` 0, stores written before the ratio
     read ``ratio_weight`` 0 and ``pool_quantile`` 0.5 (:mod:`shapedb.migrations`), and
     their stored weight, power, ceiling and spread candidates.
@@ -184,21 +184,21 @@ class LightFieldFusionConfig:
         Quantile of the pooled statistics that makes ``s_q``, in [0, 1]; 0.5: the median.
     """
 
-    weight: float = 4.0
+    weight: float = 8.0
     neighbours: int = 5
     power: float = 0.0
-    ceiling: float = 0.11
-    ramp: float = 0.02
+    ceiling: float = 0.17
+    ramp: float = 0.034
     typical: float = 18.03
     offset: float = 60.0
-    spread_candidates: int = 5
-    pool: int = 20
+    spread_candidates: int = 3
+    pool: int = 30
     contrast_floor: float = 0.3
-    contrast_ramp: float = 0.05
+    contrast_ramp: float = 0.2
     contrast_depth: int = 30
-    ratio_weight: float = 0.0
+    ratio_weight: float = 0.2
     ratio_candidates: int = 100
-    pool_quantile: float = 0.5
+    pool_quantile: float = 0.25
 
     def __post_init__(self) -> None:
         def number(v: object) -> bool:

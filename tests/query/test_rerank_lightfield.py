@@ -41,7 +41,7 @@ def _study_case(n: int = 40, seed: int = 0) -> tuple[Config, np.ndarray, np.ndar
 #: The stage's settings before the pooled spread and the contrast floor (issue 25's
 #: first product): what a store written then reads (shapedb.migrations).
 LEGACY = {"lf_weight": 8.0, "lf_power": 3.0, "lf_ceiling": 0.09, "lf_spread_candidates": 100,
-          "lf_pool": 0, "lf_contrast_floor": 0.0}  # fmt: skip
+          "lf_pool": 0, "lf_contrast_floor": 0.0, "lf_ramp": 0.02, "lf_ratio_weight": 0.0}  # fmt: skip
 
 
 def test_a_store_written_before_the_pool_reads_the_legacy_gate() -> None:
