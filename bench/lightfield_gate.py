@@ -26,7 +26,10 @@ bench/results/lightfield_gate_<split>.json. A held-out set that :mod:`bench.cach
 and its mixes with the figures and the people). ``--lf-n-balls N``: the light fields of
 the packing continued to N balls (``LightFieldConfig.n_balls``, decomposed and cached by
 :func:`bench.packings.longer`; ``--lf-within M``: the first N by radius of the packing
-continued to M); version 4 stays that of the cached balls.
+continued to M); version 4 stays that of the cached balls. ``--lf-source field``: the
+light fields of the field's inside (``LightFieldConfig.source``, computed once per model
+and cached by :mod:`bench.inside_fields`); ``--lf-set FIELD=VALUE``: other
+``LightFieldConfig`` fields (e.g. ``resolution=128``).
 """
 
 from __future__ import annotations
@@ -44,7 +47,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench import cached
+from bench import cached, inside_fields
 from bench.cached import load
 from bench.common import format_table, write_json
 from bench.datasets import CACHE_DIR
@@ -93,22 +96,34 @@ class Split:
         names: Sequence[str] = SETS,
         lf_n_balls: int | None = None,
         lf_within: int = 0,
+        lf_source: str | None = None,
+        lf_set: Sequence[str] = (),
     ) -> None:
         sets, labels, x, fields, keys = [], [], [], [], []
         cfg = Config().with_options(rerank="lightfield")  # the product's light fields
         if lf_n_balls is not None:
             cfg = cfg.with_options(lf_n_balls=lf_n_balls)
+        if lf_source is not None:
+            cfg = cfg.with_options(lf_source=lf_source)
+        for kv in lf_set:  # other light-field settings (the field's: bench.inside_fields.cut)
+            k, v = kv.split("=", 1)
+            cfg = cfg.with_options(**{f"lf_{k}": float(v) if "." in v else int(v)})
         lf_n_balls = cfg.light_field.n_balls
         for name in names:
             ds, balls = load(name, split)
             x.append(kernel_features(balls, Config()).astype(np.float32))
-            seen = light_field_balls(name, split, ds, balls, cfg, within=lf_within)
-            fields.append(
-                np.stack([record_light_field(b.centers, b.radii, cfg.light_field) for b in seen])
-            )
+            if cfg.light_field_inside:  # the field's inside, cached by bench.inside_fields
+                fields.append(inside_fields.light_fields(name, split, ds, cfg.light_field))
+            else:
+                seen = light_field_balls(name, split, ds, balls, cfg, within=lf_within)
+                fields.append(np.stack(
+                    [record_light_field(b.centers, b.radii, cfg.light_field) for b in seen]
+                ))  # fmt: skip
             sets += [name] * len(balls)
             labels += [f"{name}:{lab}" for lab in ds.labels]
             tag = f"|n{lf_n_balls}w{lf_within}" if cfg.light_field_tail else ""
+            tag += f"|inside-{inside_fields.VERSION}" if cfg.light_field_inside else ""
+            tag += f"|{cfg.light_field}" if lf_set else ""
             keys += [m.name + m.source + tag for m in ds.models]
         self.split = split
         self.sets = np.asarray(sets)
@@ -430,7 +445,9 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
     import itertools
 
     t0 = time.perf_counter()
-    split = Split(args.split, args.datasets, args.lf_n_balls, args.lf_within)
+    split = Split(
+        args.split, args.datasets, args.lf_n_balls, args.lf_within, args.lf_source, args.lf_set
+    )
     names: dict[str, tuple[str, ...]] = {s: (s,) for s in args.datasets}
     names.update({k: v for k, v in MIXES.items() if set(v) <= set(args.datasets)})
     stores = {k: Store(split, split.store(v)) for k, v in names.items()}
@@ -786,12 +803,18 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="light fields of the packing continued to N balls (default: the product's)")  # fmt: skip
     ap.add_argument("--lf-within", type=int, default=0,
                     help="take the --lf-n-balls prefix of the packing continued to this many")  # fmt: skip
+    ap.add_argument("--lf-source", default=None, choices=["balls", "field"],
+                    help="what the light fields see (LightFieldConfig.source; default the product's)")  # fmt: skip
+    ap.add_argument("--lf-set", nargs="*", default=[], metavar="FIELD=VALUE",
+                    help="LightFieldConfig fields of the light fields (e.g. resolution=128)")  # fmt: skip
     ap.add_argument("--fusion", nargs="*", default=[], metavar="FIELD=VALUE",
                     help="LightFieldFusionConfig fields of the 'stage now' row")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
     result = select(args)
     tag = f"_n{args.lf_n_balls}" if args.lf_n_balls is not None else ""
+    tag += f"_{args.lf_source}" if args.lf_source is not None else ""
+    tag += "".join(f"_{kv.replace('=', '')}" for kv in args.lf_set)
     out = args.out or RESULTS / f"lightfield_gate_{args.split}{tag}.json"
     write_json(out, result)
     print(f"written {out}")

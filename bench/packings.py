@@ -4,7 +4,8 @@
 ingest does in a store whose ``LightFieldConfig.n_balls`` exceeds ``MDBDConfig.n_balls``:
 ``shapedb.mdbd.decompose(tail_balls=...)``, the decomposition's balls then the tail (each
 part by decreasing radius). Cached under ``$SHAPEDB_BENCH_CACHE/lightfield_pack`` (keyed by
-the model, the default MDBD configuration, the engine's code and the tail).
+the model, the default MDBD configuration, the engine's code and the tail; the older
+engines of :data:`bench.cached.ENGINE_COMMITS` are read too).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.cached import load
+from bench.cached import ENGINE_COMMITS, load
 from bench.common import Balls, cache_path, variant_geometry
 from bench.datasets import CACHE_DIR, Dataset
 from shapedb.config import MDBDConfig
@@ -42,6 +43,16 @@ def _decompose_longer(args: tuple[Any, int, str]) -> str | None:
     return None
 
 
+def _path(folder: Path, model: Any, tail: int) -> Path:
+    """Today's cache path of a model's longer packing, else an older engine's that exists
+    (:data:`bench.cached.ENGINE_COMMITS`: engines whose balls today's reproduce)."""
+    cfg = MDBDConfig()
+    keys = [cache_path(model, "mesh", cfg)]
+    keys += [cache_path(model, "mesh", cfg, engine_commit=c) for c in ENGINE_COMMITS]
+    paths = [folder / f"{k.stem}_t{tail}.npz" for k in keys]
+    return next((p for p in paths if p.exists()), paths[0])
+
+
 def longer(
     name: str, split: str, tail: int, *, workers: int = 2, within: int = 0
 ) -> tuple[Dataset, list[Balls], list[int]]:
@@ -61,7 +72,7 @@ def longer(
     ds, _ = load(name, split)
     folder = CACHE_DIR / "lightfield_pack"
     folder.mkdir(parents=True, exist_ok=True)
-    paths = [folder / f"{cache_path(m, 'mesh', MDBDConfig()).stem}_t{tail}.npz" for m in ds.models]
+    paths = [_path(folder, m, tail) for m in ds.models]
     todo = [(m, tail, str(p)) for m, p in zip(ds.models, paths, strict=True) if not p.exists()]
     if todo:
         t0 = time.perf_counter()

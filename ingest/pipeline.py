@@ -86,7 +86,10 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
             )
         )
         t_load = time.perf_counter() - t0
-        decomposition = decompose(geometry, config=config.mdbd, tail_balls=config.light_field_tail)
+        decomposition = decompose(
+            geometry, config=config.mdbd, tail_balls=config.light_field_tail,
+            keep_inside=config.light_field_inside,
+        )  # fmt: skip
         if decomposition.n_balls == 0:
             from shapedb.errors import DegenerateGeometryError
 
@@ -110,7 +113,8 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
         timings["load"] = t_load
         timings["features"] = t2 - t1
         timings["cpu"] = time.process_time() - c0  # this process's CPU seconds
-        decomposition = replace(decomposition, timings=timings)
+        # the inside served the light fields only: the record does not carry it
+        decomposition = replace(decomposition, timings=timings, inside=None)
     except Exception as exc:  # any bad input becomes a recorded failure, never a crash
         if not isinstance(exc, ShapeDBError):
             log.debug("unexpected error ingesting %s", item.source, exc_info=True)

@@ -8,8 +8,9 @@ Accepted queries, tried in this order:
 
 * a stored shape id (``int``);
 * a :class:`shapedb.mdbd.Decomposition` (its configuration must be the store's; for the
-  light field stage, decomposed with ``tail_balls=db.config.light_field_tail`` as ingest
-  does, else its light fields see only its balls and a warning is logged);
+  light field stage, decomposed with ``tail_balls=db.config.light_field_tail`` (and
+  ``keep_inside=db.config.light_field_inside``) as ingest does, else its light fields
+  see only its balls and a warning is logged (without the inside it is refused);
 * a :class:`shapedb.geometry.Geometry` (decomposed with ``db.config.mdbd``);
 * a :class:`shapedb.schema.ShapeRecord` (its stored feature);
 * a raw feature vector (``(d,)`` array, list or tuple of floats);
@@ -223,7 +224,8 @@ class _Query:
     or a function computing it (only called when the search needs it), or None when
     the query has none (a raw vector, a decomposition, a rejected reconstruction).
     ``sid`` is the stored shape's id when the query is one, else -1; ``decomposition``
-    the query's own decomposition when it has one (a stored shape's is not read).
+    the query's own decomposition when it has one (a stored shape's is not read);
+    ``light_field`` an unstored record's own light fields, when it carries them.
     """
 
     feature: NDArray[np.float64]
@@ -231,6 +233,7 @@ class _Query:
     view: Any = None
     sid: int = -1
     decomposition: Any = None
+    light_field: Any = None
 
     def view_feature(self) -> NDArray[np.float64] | None:
         if callable(self.view):
@@ -249,8 +252,12 @@ def _stored_arrays(db: Database, resolved: list[_Query]) -> tuple[Any, Any]:
         return None, None
     from query.rerank_lightfield import COLUMN, query_light_fields, stored_arrays
 
-    own = [r.decomposition if r.sid < 0 else None for r in resolved]
-    return stored_arrays(db), {COLUMN: query_light_fields(db.config, own)}
+    own = [r.decomposition if r.sid < 0 and r.light_field is None else None for r in resolved]
+    fields = query_light_fields(db.config, own)
+    for k, r in enumerate(resolved):
+        if r.sid < 0 and r.light_field is not None:  # a record's own, as ingest computed it
+            fields[k] = np.asarray(r.light_field, dtype=np.float64)
+    return stored_arrays(db), {COLUMN: fields}
 
 
 def _resolve(db: Database, query: Any, index: Any) -> _Query:
@@ -283,6 +290,13 @@ def _resolve(db: Database, query: Any, index: Any) -> _Query:
                 config.light_field_tail,
                 query.n_balls,
             )
+        if config.light_field_inside and query.inside is None:
+            raise QueryError(
+                "query decomposition has no inside, and the store's light fields are those "
+                "of the field's inside (lf_source=field): decompose(..., keep_inside=True) "
+                "as ingest does",
+                source="query decomposition",
+            )
         return _Query(
             _featurise(query, config), is_sparse(query.sampling, query.spacing),
             decomposition=query,
@@ -296,7 +310,7 @@ def _resolve(db: Database, query: Any, index: Any) -> _Query:
         view = None if query.view_feature is None else np.asarray(query.view_feature, np.float64)
         return _Query(
             _vector(query.feature, dim, source=query.name), is_sparse(d.sampling, d.spacing), view,
-            decomposition=d,
+            decomposition=d, light_field=query.light_field,
         )  # fmt: skip
     if isinstance(query, os.PathLike) or (isinstance(query, str) and _is_file(query)):
         return _from_file(db, Path(query))
@@ -376,7 +390,10 @@ def _from_geometry(db: Database, geometry: Any) -> _Query:
     from shapedb.view import is_sparse, view_geometry
 
     config = db.config
-    d = decompose(geometry, config=config.mdbd, tail_balls=config.light_field_tail)
+    d = decompose(
+        geometry, config=config.mdbd, tail_balls=config.light_field_tail,
+        keep_inside=config.light_field_inside,
+    )  # fmt: skip
     sparse = is_sparse(d.sampling, d.spacing)
     if sparse:
         from shapedb.reconstruct import reconstructed

@@ -222,7 +222,10 @@ def add_routes(app: FastAPI, service: Service) -> None:
         try:
             path = service.save_upload(file, folder)
             geometry = db.load(path)
-            d = decompose(geometry, config=db.config.mdbd, tail_balls=db.config.light_field_tail)
+            d = decompose(
+                geometry, config=db.config.mdbd, tail_balls=db.config.light_field_tail,
+                keep_inside=db.config.light_field_inside,
+            )  # fmt: skip
             # the decomposition stands for the geometry exactly when the search needs
             # nothing else of it: a dense query in a store without sparse views
             exact = not is_sparse(d.sampling, d.spacing) and not db.config.cloud.view_cells

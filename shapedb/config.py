@@ -487,11 +487,21 @@ class Config:
         """Balls the packing continues for past the decomposition's, for the light fields only.
 
         ``LightFieldConfig.n_balls - MDBDConfig.n_balls`` when the store keeps light
-        fields and that is positive, else 0 (``tail_balls`` of :func:`shapedb.mdbd.decompose`).
+        fields of the balls (``source="balls"``) and that is positive, else 0
+        (``tail_balls`` of :func:`shapedb.mdbd.decompose`).
         """
-        if not self.stores_light_fields:
+        if not self.stores_light_fields or self.light_field.source != "balls":
             return 0
         return max(0, self.light_field.n_balls - self.mdbd.n_balls)
+
+    @property
+    def light_field_inside(self) -> bool:
+        """Whether the store's light fields are those of the field's inside.
+
+        True when the store keeps light fields and ``LightFieldConfig.source`` is
+        ``"field"`` (``keep_inside`` of :func:`shapedb.mdbd.decompose`).
+        """
+        return self.stores_light_fields and self.light_field.source == "field"
 
     @property
     def dim(self) -> int:

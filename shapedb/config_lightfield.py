@@ -19,7 +19,10 @@ from dataclasses import dataclass
 from shapedb.config_checks import check as _check
 from shapedb.config_checks import is_int as _is_int
 
-__all__ = ["LightFieldConfig", "LightFieldFusionConfig", "product_light_field"]
+__all__ = ["LightFieldConfig", "LightFieldFusionConfig", "SOURCES", "product_light_field"]
+
+#: What a light field can see (``LightFieldConfig.source``).
+SOURCES = ("balls", "field")
 
 
 @dataclass(frozen=True)
@@ -60,7 +63,15 @@ class LightFieldConfig:
         without off-grid refinement, up to this many balls in all
         (:func:`shapedb.mdbd.decompose`'s ``tail_balls``, :attr:`Config.light_field_tail`);
         the decomposition, its contact graph and its feature stay those of
-        ``MDBDConfig.n_balls``.
+        ``MDBDConfig.n_balls``. Read only with ``source="balls"``.
+    source : str
+        What the light fields see. ``"balls"``: the union of the packing's balls (the
+        decomposition's, or the longer packing of ``n_balls``). ``"field"``: the inside
+        of the signed field the MDBD packs (every cell where it is >= 0, each a ball of
+        half a cell, :mod:`shapedb.inside`), which keeps the sheets thinner than the
+        smallest ball; ``decompose(keep_inside=True)`` keeps it in memory
+        (:attr:`Config.light_field_inside`). Both are normalised alike: about the
+        solid's volume centroid, the farthest far side on the unit sphere.
     """
 
     n_fields: int = 10
@@ -75,6 +86,7 @@ class LightFieldConfig:
     dilate_px: float = 0.0
     close_px: int = 0
     n_balls: int = 0
+    source: str = "balls"
 
     def __post_init__(self) -> None:
         ints = {"n_fields": (1, 10), "resolution": (16, 256), "zernike_order": (2, 16)}
@@ -99,6 +111,8 @@ class LightFieldConfig:
         _check(ok, "lf_close_px", self.close_px, "must be an integer in [0, 8]")
         ok = _is_int(self.n_balls) and 0 <= self.n_balls <= 100_000
         _check(ok, "lf_n_balls", self.n_balls, "must be an integer in [0, 100000]")
+        ok = isinstance(self.source, str) and self.source in SOURCES
+        _check(ok, "lf_source", self.source, f"must be one of {', '.join(SOURCES)}")
 
 
 def product_light_field() -> LightFieldConfig:

@@ -35,6 +35,7 @@ the same way.
 from __future__ import annotations
 
 import functools
+from dataclasses import replace
 from math import factorial
 from typing import TYPE_CHECKING
 
@@ -46,6 +47,7 @@ from shapedb.config import LightFieldConfig
 from shapedb.union import centred_balls
 
 if TYPE_CHECKING:
+    from shapedb.inside import Inside
     from shapedb.mdbd import Decomposition
 
 __all__ = [
@@ -60,6 +62,7 @@ __all__ = [
     "render_discs",
     "ball_light_field",
     "record_light_field",
+    "inside_light_field",
     "decomposition_light_field",
     "light_field_dim",
     "light_field_distance",
@@ -327,8 +330,19 @@ def _splat_discs(
     return sil, front, back
 
 
-def _unit_balls(centers: ArrayLike, radii: ArrayLike) -> tuple[FloatArray, FloatArray]:
-    """Balls about their volume centroid, scaled so the farthest far side is at radius 1."""
+def _unit_balls(
+    centers: ArrayLike, radii: ArrayLike, frame: tuple[ArrayLike, float] | None = None
+) -> tuple[FloatArray, FloatArray]:
+    """Balls about their volume centroid, scaled so the farthest far side is at radius 1;
+    or about ``frame``'s centre, divided by its extent."""
+    if frame is not None:
+        c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
+        rr = np.asarray(radii, dtype=np.float64).reshape(-1)
+        o, ext = np.asarray(frame[0], dtype=np.float64).reshape(3), float(frame[1])
+        if len(c) != len(rr) or not ext > 0 or not np.any(rr > 0):
+            raise ValueError(f"{len(c)} centres, {len(rr)} radii, extent {ext}: no light field")
+        keep = rr > 0
+        return (c[keep] - o) / ext, rr[keep] / ext
     x, r, scale = centred_balls(centers, radii)
     if not scale > 0:
         raise ValueError("no ball of positive radius: no light field")
@@ -371,6 +385,7 @@ def render_discs(
     edges: ArrayLike | None = None,
     dilate_px: float = 0.0,
     close_px: int = 0,
+    frame: tuple[ArrayLike, float] | None = None,
 ) -> tuple[NDArray[np.bool_], NDArray[np.float32] | None]:
     """Orthographic images of the union of balls, in the unit-sphere frame of the module.
 
@@ -394,6 +409,10 @@ def render_discs(
         Every disc (and hull) grows by this many pixels, >= 0.
     close_px : int
         Morphological closing of each silhouette by a disc of this many pixels, >= 0.
+    frame : ((3,) float, float), optional
+        The centre and the extent the balls are seen in (the image spans the disc of
+        radius ``extent`` about ``centre``, units of ``centers``); by default the
+        balls' volume centroid and the farthest ball's far side.
 
     Returns
     -------
@@ -410,7 +429,7 @@ def render_discs(
     """
     if not dilate_px >= 0 or close_px < 0:
         raise ValueError(f"dilate_px {dilate_px} and close_px {close_px} must be >= 0")
-    x, r = _unit_balls(centers, radii)
+    x, r = _unit_balls(centers, radii, frame)
     e = _kept_edges(radii, edges)
     d = np.asarray(directions, dtype=np.float32).reshape(-1, 3)
     u, w = image_axes(d)
@@ -433,6 +452,7 @@ def ball_light_field(
     config: LightFieldConfig | None = None,
     *,
     edges: ArrayLike | None = None,
+    frame: tuple[ArrayLike, float] | None = None,
 ) -> FloatArray:
     """The light fields of a ball union: (n_fields, 10, :func:`light_field_dim`) float64.
 
@@ -448,6 +468,8 @@ def ball_light_field(
     edges : (e, 2) int, optional
         The decomposition's contact edges; needed when ``config.edges``, ignored
         otherwise.
+    frame : ((3,) float, float), optional
+        Centre and extent the balls are seen in (:func:`render_discs`).
 
     Returns
     -------
@@ -471,6 +493,7 @@ def ball_light_field(
     sil, dep = render_discs(
         centers, radii, dirs, cfg.resolution, depth=depth,
         edges=edges if cfg.edges else None, dilate_px=cfg.dilate_px, close_px=cfg.close_px,
+        frame=frame,
     )  # fmt: skip
     feats = silhouette_features(sil, cfg)
     if dep is not None:
@@ -487,6 +510,7 @@ def record_light_field(
     config: LightFieldConfig | None = None,
     *,
     edges: ArrayLike | None = None,
+    frame: tuple[ArrayLike, float] | None = None,
 ) -> NDArray[np.float32]:
     """:func:`ball_light_field` as a store keeps it: float32, computed with one BLAS thread.
 
@@ -506,13 +530,44 @@ def record_light_field(
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1, user_api="blas"):
-        return ball_light_field(centers, radii, config, edges=edges).astype(np.float32)
+        return ball_light_field(centers, radii, config, edges=edges, frame=frame).astype(np.float32)
+
+
+def inside_light_field(
+    inside: Inside, config: LightFieldConfig | None = None
+) -> NDArray[np.float32]:
+    """Light fields of the inside cells, each a ball of half a cell, as a store keeps them.
+
+    :func:`shapedb.lightfield.record_light_field` of the shell's cells, normalised as a
+    ball union is but over all the inside cells: about their centroid, the farthest
+    cell's far side at radius 1 (the farthest inside cell is a shell cell).
+
+    Returns
+    -------
+    (config.n_fields, 10, dim) float32
+        As :func:`shapedb.lightfield.ball_light_field` (``config.edges`` has no effect:
+        cells have no contact edges).
+
+    Raises
+    ------
+    ValueError
+        If no cell is inside.
+    """
+    if inside.count == 0 or not len(inside.shell):
+        raise ValueError("the field has no inside cell: no light field")
+    cfg = config or LightFieldConfig()
+    half = 0.5 * inside.cell
+    extent = float(np.max(np.linalg.norm(inside.shell - inside.centroid, axis=1))) + half
+    radii = np.full(len(inside.shell), half)
+    cfg = replace(cfg, edges=False) if cfg.edges else cfg
+    return record_light_field(inside.shell, radii, cfg, frame=(inside.centroid, extent))
 
 
 def decomposition_light_field(
     decomposition: Decomposition, config: LightFieldConfig | None = None
 ) -> NDArray[np.float32]:
-    """:func:`record_light_field` of a decomposition's balls and its tail, if any.
+    """:func:`record_light_field` of a decomposition's balls and its tail, if any; with
+    ``config.source == "field"``, :func:`inside_light_field` of its inside.
 
     The balls are :meth:`shapedb.mdbd.Decomposition.longer_packing` (the decomposition's
     balls, then the tail that ``decompose(tail_balls=...)`` packed past them; with
@@ -528,10 +583,22 @@ def decomposition_light_field(
     ------
     ValueError
         If no ball has a positive radius.
+    ConfigError
+        With ``source="field"``, if the decomposition has no inside (it was not
+        decomposed with ``keep_inside=True``).
     """
+    cfg = config or LightFieldConfig()
+    if cfg.source == "field":
+        if decomposition.inside is None:
+            from shapedb.errors import ConfigError
+
+            raise ConfigError(
+                "light fields of the field need the decomposition's inside: decompose "
+                "with keep_inside=True (as ingest does for lf_source=field)"
+            )
+        return inside_light_field(decomposition.inside, cfg)
     centers, radii = decomposition.longer_packing()
     edges = decomposition.edges
-    cfg = config or LightFieldConfig()
     if cfg.edges and len(radii) > decomposition.n_balls:
         from shapedb.graph import contact_edges
 

@@ -54,6 +54,7 @@ from shapedb.sheet import Thickened, needs_thickening
 
 if TYPE_CHECKING:
     from shapedb.graph import ContactGraph
+    from shapedb.inside import Inside
 
 __all__ = ["Decomposition", "PreparedField", "decompose", "pack_balls", "prepare_field"]
 
@@ -93,7 +94,8 @@ class Decomposition:
         boundaries.
     timings : dict[str, float]
         Seconds per stage: "frame" (coarse pass), "sdf", "decompose" (the loop,
-        refinement included), "refine" (its share), "graph".
+        refinement included), "refine" (its share), "graph"; "inside" with
+        ``keep_inside``.
     frame : (4, 4) float64
         Homogeneous map from the grid's frame to model coordinates (rotation whose
         columns are the principal axes, and the centroid); identity without the
@@ -105,6 +107,11 @@ class Decomposition:
         fields of a longer packing read them.
     tail_radii : (t,) float64
         Their radii, non-increasing, model units.
+    inside : Inside or None
+        The inside of the field the balls were packed in (its shell of cells, model
+        units; :mod:`shapedb.inside`) with ``decompose(keep_inside=True)``, else None.
+        In memory only, like the tail: only the light fields of the field
+        (``LightFieldConfig.source="field"``) read it.
     """
 
     centers: NDArray[np.float64]
@@ -119,6 +126,7 @@ class Decomposition:
     frame: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
     tail_centers: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
     tail_radii: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    inside: Inside | None = None
 
     @property
     def n_balls(self) -> int:
@@ -555,6 +563,7 @@ def _finish(
     radii: NDArray[np.float64],
     timings: dict[str, float],
     tail: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    inside: Inside | None = None,
 ) -> Decomposition:
     from shapedb.graph import contact_edges
 
@@ -595,11 +604,21 @@ def _finish(
         frame=prep.frame,
         tail_centers=tail_centers,
         tail_radii=tail_radii,
+        inside=inside,
     )
 
 
-def _run(geometry: Geometry, cfg: MDBDConfig, *, naive: bool, tail: int = 0) -> Decomposition:
+def _run(
+    geometry: Geometry, cfg: MDBDConfig, *, naive: bool, tail: int = 0, keep_inside: bool = False
+) -> Decomposition:
     prep = prepare_field(geometry, cfg)
+    inside = None
+    if keep_inside:  # before the packing carves the field
+        from shapedb.inside import field_inside
+
+        t0 = time.perf_counter()
+        inside = field_inside(prep.F, prep.grid, prep.frame, prep.scale)
+        prep.timings["inside"] = time.perf_counter() - t0
     stats: dict[str, float] = {}
     t0 = time.perf_counter()
     centers, radii = pack_balls(
@@ -610,7 +629,7 @@ def _run(geometry: Geometry, cfg: MDBDConfig, *, naive: bool, tail: int = 0) -> 
     timings["refine"] = stats["refine"]
     main = int(stats["main"])
     rest = (centers[main:], radii[main:]) if tail > 0 else None
-    return _finish(geometry, prep, cfg, centers[:main], radii[:main], timings, rest)
+    return _finish(geometry, prep, cfg, centers[:main], radii[:main], timings, rest, inside)
 
 
 def decompose(
@@ -618,6 +637,7 @@ def decompose(
     *,
     config: MDBDConfig | None = None,
     tail_balls: int = 0,
+    keep_inside: bool = False,
     **options: Any,
 ) -> Decomposition:
     """Truncated MDBD of ``geometry``, with its contact graph.
@@ -633,6 +653,10 @@ def decompose(
         without off-grid refinement, kept apart in ``tail_centers`` / ``tail_radii``
         (the light fields of a longer packing, ``LightFieldConfig.n_balls``). The
         decomposition's own balls are those of ``tail_balls=0``. Default 0.
+    keep_inside : bool, optional
+        Keep the inside of the field the balls are packed in
+        (:attr:`Decomposition.inside`, the light fields of ``source="field"``); it
+        changes nothing else. Default False.
     **options
         Overrides of ``config`` fields, e.g. ``resolution=64, n_balls=256``.
 
@@ -652,7 +676,9 @@ def decompose(
     cfg = _resolve_config(config, options)
     if isinstance(tail_balls, bool) or not isinstance(tail_balls, int) or tail_balls < 0:
         raise ConfigError(f"tail_balls={tail_balls!r}: must be an integer >= 0")
-    out = _run(geometry, cfg, naive=False, tail=tail_balls)
+    if not isinstance(keep_inside, bool):
+        raise ConfigError(f"keep_inside={keep_inside!r}: must be true or false")
+    out = _run(geometry, cfg, naive=False, tail=tail_balls, keep_inside=keep_inside)
     logger.debug("decomposed %r: %d balls, timings %s", geometry, out.n_balls, out.timings)
     return out
 

@@ -83,6 +83,7 @@ ADDED: dict[str, dict[str, Any]] = {
         "dilate_px": 0.0,
         "close_px": 0,
         "n_balls": 2048,
+        "source": "balls",
     },
 }
 
@@ -99,8 +100,9 @@ STORED_ADDED: dict[str, dict[str, Any]] = {
         "ratio_candidates": 100,
         "pool_quantile": 0.5,
     },
-    # before n_balls, the light fields were those of the decomposition's balls
-    "light_field": {"n_balls": 0},
+    # before n_balls, the light fields were those of the decomposition's balls; before
+    # source, always of balls
+    "light_field": {"n_balls": 0, "source": "balls"},
 }
 
 #: Sections added to the store configuration, by the first layout that writes them:

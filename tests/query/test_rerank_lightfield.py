@@ -309,3 +309,37 @@ def test_a_decomposition_query_without_the_store_s_tail_is_warned_about(
     with caplog.at_level(logging.WARNING, logger="query.engine"):
         lf_db.search(decompose(shape, config=cfg.mdbd), k=2)
     assert "no tail balls" in caplog.text
+
+
+def test_a_store_of_the_field_s_light_fields_renders_records_and_queries_from_the_inside(
+    tmp_path: Path, forget: Callable[[Any], None]
+) -> None:
+    import shapedb.database as database
+    from shapedb.errors import QueryError
+    from shapedb.lightfield import inside_light_field
+    from shapedb.mdbd import decompose
+
+    field = STAGE.with_options(lf_source="field")
+    db = database.connect(tmp_path / "store", config=field)
+    shapes = {n: g for n, g in _shapes().items() if n in ("box_a", "box_b", "rod_a", "ring_a")}
+    db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
+    again = database.connect(tmp_path / "store")
+    assert again.config.light_field.source == "field" and again.config.light_field_tail == 0
+    box = decompose(shapes["box_a"], config=field.mdbd, keep_inside=True)
+    rec = again.get("box_a")
+    assert rec.decomposition.inside is None  # never stored
+    assert np.array_equal(rec.decomposition.radii, box.radii)
+    assert box.inside is not None
+    got = rec.light_field
+    assert got is not None and np.array_equal(
+        got, inside_light_field(box.inside, field.light_field)
+    )
+    for name, shape in shapes.items():  # a query from outside sees its inside too
+        assert [h.id for h in again.search(shape, k=3)] == [h.id for h in again.search(name, k=3)]
+    assert [h.name for h in again.search(box, k=2)][0] == "box_a"
+    # a record (no inside: never stored) queries with the light fields it carries
+    assert [h.id for h in again.search(rec, k=3)] == [h.id for h in again.search("box_a", k=3)]
+    with pytest.raises(QueryError, match="keep_inside=True"):
+        again.search(decompose(shapes["box_a"], config=field.mdbd), k=2)
+    forget(db)
+    forget(again)

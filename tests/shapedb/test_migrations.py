@@ -221,3 +221,24 @@ def test_light_fields_stored_before_the_longer_packing_read_as_the_decomposition
     # no light fields stored: no tail, whatever the section says
     assert longer.with_options(rerank="none").light_field_tail == 0
     assert longer.with_options(lf_n_balls=300).light_field_tail == 0
+
+
+def test_light_fields_stored_before_the_source_read_as_the_balls() -> None:
+    field = Config().with_options(rerank="lightfield", lf_source="field")
+    assert field.light_field_inside and field.light_field_tail == 0
+    stored = field.to_dict()
+    assert stored["light_field"]["source"] == "field"
+    assert Config.from_dict(stored) == field
+    assert Config.from_json(field.to_json()) == field
+    del stored["light_field"]["source"]
+    old = Config.from_dict(stored)
+    assert old.light_field.source == "balls" and not old.light_field_inside
+    assert old.light_field_tail == old.light_field.n_balls - old.mdbd.n_balls
+    # a store of a layout before the light fields: the balls too
+    del stored["light_field"], stored["lf_fusion"]
+    stored["layout"] = 3
+    assert Config.from_dict(stored).light_field.source == "balls"
+    # no light fields stored: nothing to keep
+    assert not field.with_options(rerank="none").light_field_inside
+    with pytest.raises(ConfigError, match="lf_source"):
+        Config().with_options(lf_source="mesh")
