@@ -172,7 +172,9 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         ds, balls = load(name, args.split)
         labels = np.asarray(ds.labels)
         v4 = kernel_features(balls, Config())
-        lf = light_fields(light_field_balls(name, args.split, ds, balls, lf_cfg), lf_cfg)
+        lf = light_fields(
+            light_field_balls(name, args.split, ds, balls, lf_cfg, within=args.lf_within), lf_cfg
+        )
         i4 = index_of(v4)
         add("v4", name, _ranks(rankings(i4, Config())), labels)
         if not args.no_adaptive:
@@ -283,6 +285,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
     ap.add_argument("--no-adaptive", action="store_true", help="leave out the v7 adaptive row")
+    ap.add_argument("--lf-within", type=int, default=0,
+                    help="the light fields' balls: the first of the packing continued to this "
+                         "many (as bench.lightfield_gate --lf-within)")  # fmt: skip
     ap.add_argument("--baselines", action="store_true",
                     help="the balls' light fields alone, mesh LFD and D2 in the same run")  # fmt: skip
     ap.add_argument("--per-kind", action="store_true", help="every row's NN per class")
