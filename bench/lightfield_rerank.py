@@ -220,7 +220,7 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
 
     ds, balls = load("web", "validation")
     configs = {
-        "none (v4)": Config(),
+        "none (v4)": Config().with_options(rerank="none"),
         "lightfield (v4)": Config().with_options(rerank="lightfield"),
         "lightfield, spread gate (v4)": Config().with_options(rerank="lightfield", **SPREAD_GATE),
         "adaptive (v7)": Config().with_options(descriptor=7, rerank="adaptive"),
