@@ -25,7 +25,7 @@ kept in-process per store version, and written to ``<store>/index_lightfield/`` 
 versioned directory like the index's: ``ids.npy``, ``spreads.npy``, and the store
 version and the parameters they were computed with in ``current.json``) once every
 stored shape has one (an evaluation, :func:`store_spreads`, or the commit hook of a
-store of at most :data:`FULL_AT_COMMIT` shapes); read back while they match. A spread
+store whose statistics cost at most :data:`FULL_AT_COMMIT` light field distances); read back while they match. A spread
 computed for one shape or for all is the same number (deterministic, from the stored
 vectors and light fields). Cost: ``spread_candidates`` light field distances per shape
 (``max(spread_candidates, ratio_candidates)`` with the ratio).
@@ -52,6 +52,7 @@ if TYPE_CHECKING:
 __all__ = [
     "SPREAD_DIR",
     "FULL_AT_COMMIT",
+    "commit_distances",
     "SpreadTable",
     "calibration",
     "local_statistic",
@@ -67,9 +68,10 @@ log = logging.getLogger(__name__)
 SPREAD_DIR = "index_lightfield"
 _FORMAT = 1
 _CHUNK = 256
-#: A commit recomputes every spread only in stores of at most this many shapes (larger
-#: stores compute them as searches ask for them).
-FULL_AT_COMMIT = 2000
+#: A commit recomputes every shape's statistic only when that costs at most this many
+#: light field distances (:func:`commit_distances`; 2,000 shapes of the spread over 5);
+#: larger stores compute them as searches ask for them.
+FULL_AT_COMMIT = 10_000
 _CACHE: dict[tuple[str, int], SpreadTable] = {}
 _LOCK = threading.Lock()
 
@@ -192,6 +194,11 @@ def local_spreads(
             dl = light_field_distance(lq[None], lc[ok])[0]
             out[lo + row] = local_statistic(d[ok] / cal, dl, config)
     return ids, out
+
+
+def commit_distances(n: int, config: Config) -> int:
+    """Light field distances the statistics of a store of ``n`` shapes cost."""
+    return int(n) * _reach(config.lf_fusion)
 
 
 def _reach(f: Any) -> int:
@@ -325,7 +332,8 @@ def on_commit(db: Database, fields: ArrayReader) -> None:
     """Bring the spreads up to date after a commit, for a store whose stage pools them.
 
     Only a store with the ``"lightfield"`` scorer, ``pool > 0`` and light fields stored,
-    whose spreads were written before, and of at most :data:`FULL_AT_COMMIT` shapes; a
+    whose spreads were written before, and whose statistics cost at most
+    :data:`FULL_AT_COMMIT` light field distances (:func:`commit_distances`); a
     larger store's searches compute the spreads they pool.
     """
     cfg = db.config
@@ -334,5 +342,5 @@ def on_commit(db: Database, fields: ArrayReader) -> None:
     if not (Path(db.store.path) / SPREAD_DIR / POINTER).exists():
         return
     table = spread_table(db, fields)
-    if int(np.count_nonzero(table.index.alive_)) <= FULL_AT_COMMIT:
+    if commit_distances(int(np.count_nonzero(table.index.alive_)), cfg) <= FULL_AT_COMMIT:
         table.get(None)

@@ -16,8 +16,10 @@ from bench.lightfield_gate import local_spreads as local_spreads_of
 from query import rerank
 from query.index import FeatureIndex
 from query.lightfield_spread import (
+    FULL_AT_COMMIT,
     SPREAD_DIR,
     calibration,
+    commit_distances,
     local_spreads,
     local_statistic,
     pooled,
@@ -214,3 +216,10 @@ def test_a_search_computes_only_the_spreads_it_pools(
     assert got.tolist() == [whole[2], whole[5]]
     table.get(np.array([5]))
     assert asked == [2]  # known: not computed again
+
+
+def test_a_commit_recomputes_the_statistics_within_a_budget_of_light_field_distances() -> None:
+    ratio, spread = Config(), Config().with_options(lf_ratio_weight=0.0, lf_spread_candidates=5)
+    assert commit_distances(2000, spread) == FULL_AT_COMMIT  # the spread gate's 2,000 shapes
+    assert commit_distances(100, ratio) == 100 * max(ratio.lf_fusion.ratio_candidates, 3)
+    assert commit_distances(101, ratio) > FULL_AT_COMMIT >= commit_distances(100, ratio)
