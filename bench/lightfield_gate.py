@@ -4,6 +4,7 @@ Usage (from the repository root)::
 
     python -m bench.lightfield_gate                      # validation: the grid, the choice
     python -m bench.lightfield_gate --split test         # test: the rows chosen on validation
+    python -m bench.lightfield_gate --lf-source field    # the same on the field's light fields
 
 Every bench set's split (meshes; the cached balls of :func:`bench.cached.load`, nothing
 decomposed) is a store of its own, and so are the mixed stores of :data:`MIXES` (web +
@@ -13,8 +14,17 @@ query among them, as ``query.rerank.search`` hands them over) are re-ranked by t
 reciprocal rank fusion of :class:`query.rerank_lightfield.LightFieldFusion`,
 ``1 / (o + rank_d) + w g(q) / (o + rank_l)``, and scored (NN / 1-T / DCG) per set inside
 the store. Rows, in the same run: version 4 (no stage), the balls' light fields alone,
-the product's stage at its defaults, and the gates of :func:`gates`; the store-level
-statistic of each store is printed beside.
+the gates before (:data:`LEGACY`, :data:`SPREAD_GATE`), the product's stage at its
+defaults, on validation the grid's choices, and with ``--oracle`` the gate's headroom
+(:func:`oracle_rows`: gates that know which sets are jointed); the statistics of each
+store and the gate's margin (:func:`margin`) are printed beside.
+
+The selection (validation, ``--grid ratio``, the default): every setting of
+:func:`ratio_settings` that passes the rule (no set, alone or in a mix, more than two
+queries below v4 on NN, 1-T or DCG), keeps the analytic chain in poses shut through the
+product's scorer (:func:`analytic_stores`, :func:`analytic_gates`) and keeps both margins
+(:data:`MIN_MARGIN`); the best objective among them is chosen. ``--grid spread``: the
+grid of the spread gate (:data:`GRID`), by the rule alone.
 
 The light field distances (the store's float32 light fields,
 :func:`shapedb.lightfield.record_light_field`, every pair of the split's six sets) are

@@ -7,8 +7,8 @@ A store created with ``rerank="lightfield"`` keeps each record's light fields (t
 reciprocal rank fusion of :class:`shapedb.config.LightFieldFusionConfig`: the stored
 distance's rank plus the light field distance's rank, the latter weighted by a gate that
 is off where the light field spreads near neighbours more than the stored distance does
-(jointed subjects, whose silhouettes change with the pose: the stored local spreads of
-the query's first candidates, :mod:`query.lightfield_spread`) and where the stored
+(jointed subjects, whose silhouettes change with the pose: the stored local statistics
+of the query's first candidates, :mod:`query.lightfield_spread`) and where the stored
 distance already sets the query's nearest apart (a low contrast).
 
 The candidates' light fields are read by id (``Candidates.arrays``); the query's are

@@ -180,8 +180,9 @@ class LightFieldFusionConfig:
     spread_candidates : int
         Nearest others a local spread is measured over, in [1, 100000].
     pool : int
-        Candidates whose stored local spreads make ``s_q``, in [0, 100000]; 0: the
-        query's own local spread.
+        Candidates whose stored local statistics make ``s_q``, in [0, 100000]; 0: the
+        query's own local statistic, taken among its candidates (at most
+        ``RerankConfig.candidates - 1`` others, also for the ratio).
     contrast_floor : float
         The contrast ``t_q`` below which the term is off; 0 disables it. In [0, 1].
     contrast_ramp : float
