@@ -123,7 +123,7 @@ def product_light_field() -> LightFieldConfig:
 
 @dataclass(frozen=True)
 class LightFieldFusionConfig:
-    """The ``"lightfield"`` scorer: a reciprocal rank fusion gated by spread and contrast.
+    """The ``"lightfield"`` scorer: a reciprocal rank fusion gated by the store and contrast.
 
     Among a query's candidates (the store's ``RerankConfig.candidates`` nearest by the
     stored distance ``d``; the query itself, when stored, among them), with ``rank_d``
@@ -134,21 +134,21 @@ class LightFieldFusionConfig:
 
     * the overlap ``(|A ∩ B| / neighbours) ** power`` of the query's ``neighbours``
       nearest candidates by ``d`` and by ``l`` (itself left out; ``power`` 0: off);
-    * the spread ceiling ``clip((ceiling - s_q) / ramp, 0, 1)`` (``ceiling`` 0: off).
-      A shape's *local spread* is the median of ``l / typical`` over the median of ``d /
-      c`` among its ``spread_candidates`` nearest others by ``d`` (``c = ln(10) / (sum of
-      the descriptor's block weights)``, version 4's calibrated units): high where
-      near neighbours by the stored vector look unlike (jointed subjects in other
-      poses). With ``pool > 0``, ``s_q`` is the median of the stored local spreads of the
-      query's first ``pool`` candidates (the query itself among them when stored; kept
-      per store version with the index, :mod:`query.lightfield_spread`); with ``pool``
-      0, the query's own local spread. With ``ratio_weight`` ``b > 0`` a shape's local statistic
-      is ``spread ** (1 - b) * ratio ** b``, its *ratio* the median ``l`` of its
-      ``spread_candidates`` nearest others by ``d`` over the median of the
-      ``spread_candidates`` smallest ``l`` among its ``ratio_candidates`` nearest others by
-      ``d``: scale-free, near 1 where the light field's nearest are the stored
-      distance's, high where the light field finds other shapes nearer (another pose);
-      the pool takes the ``pool_quantile`` of the stored statistics (0.5: their median);
+    * the ceiling ``clip((ceiling - s_q) / ramp, 0, 1)`` (``ceiling`` 0: off) on the
+      shapes' *local statistic* ``spread ** (1 - b) * ratio ** b`` (``b =
+      ratio_weight``). A shape's *spread* is the median of ``l / typical`` over the median
+      of ``d / c`` among its ``spread_candidates`` nearest others by ``d`` (``c = ln(10) /
+      (sum of the descriptor's block weights)``, version 4's calibrated units): high where
+      near neighbours by the stored vector look unlike (jointed subjects in other poses).
+      Its *ratio* is the median ``l`` of those neighbours over the median of the
+      ``spread_candidates`` smallest ``l`` among its ``ratio_candidates`` nearest others
+      by ``d``: scale-free, near 1 where the light field's nearest are about as near as
+      the stored distance's, high where the light field finds other shapes much nearer
+      (other subjects in the same pose). With ``pool > 0``, ``s_q`` is the
+      ``pool_quantile`` (0.5: the median) of the stored local statistics of the query's
+      first ``pool`` candidates (the query itself among them when stored; kept per store
+      version with the index, :mod:`query.lightfield_spread`); with ``pool`` 0, the
+      query's own local statistic;
     * the contrast floor ``clip((t_q - contrast_floor) / contrast_ramp, 0, 1)``
       (``contrast_floor`` 0: off), ``t_q`` the median ``d`` of the query's
       ``neighbours`` nearest others over ``d`` of its ``contrast_depth``-th nearest
