@@ -34,7 +34,7 @@ def test_the_gate_bench_ranks_the_parts_and_people_as_the_product() -> None:
 
 
 def test_the_margin_is_the_least_jointed_over_the_largest_rigid() -> None:
-    from bench.lightfield_gate import margin
+    from bench.gate_checks import margin
 
     rigid = np.linspace(0.0, 1.0, 101)  # 95 %: 0.95
     people = np.linspace(2.0, 3.0, 101)  # 5 %: 2.05
@@ -47,7 +47,7 @@ def test_the_margin_is_the_least_jointed_over_the_largest_rigid() -> None:
 
 
 def test_the_ratio_grid_scales_the_ceiling_with_the_ratio_weight() -> None:
-    from bench.lightfield_gate import CEILINGS, ratio_settings
+    from bench.gate_checks import CEILINGS, ratio_settings
 
     settings = ratio_settings()
     keys = [tuple(sorted(s.items())) for s in settings]

@@ -11,7 +11,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from bench.lightfield_gate import ANALYTIC, Store, chain, gate_weights
+from bench.gate_checks import ANALYTIC, chain
+from bench.lightfield_gate import Store, gate_weights
 from bench.lightfield_gate import local_spreads as local_spreads_of
 from query import rerank
 from query.index import FeatureIndex
