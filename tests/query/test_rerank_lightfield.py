@@ -41,7 +41,7 @@ def _study_case(n: int = 40, seed: int = 0) -> tuple[Config, np.ndarray, np.ndar
 #: The stage's settings before the pooled spread and the contrast floor (issue 25's
 #: first product): what a store written then reads (shapedb.migrations).
 LEGACY = {"lf_weight": 8.0, "lf_power": 3.0, "lf_ceiling": 0.09, "lf_spread_candidates": 100,
-          "lf_pool": 0, "lf_contrast_floor": 0.0}  # fmt: skip
+          "lf_pool": 0, "lf_contrast_floor": 0.0, "lf_ramp": 0.02, "lf_ratio_weight": 0.0}  # fmt: skip
 
 
 def test_a_store_written_before_the_pool_reads_the_legacy_gate() -> None:
@@ -50,6 +50,21 @@ def test_a_store_written_before_the_pool_reads_the_legacy_gate() -> None:
     got = Config.from_json(json.dumps(stored)).lf_fusion
     assert (got.pool, got.contrast_floor, got.weight, got.power) == (0, 0.0, 8.0, 3.0)
     assert Config().lf_fusion.pool > 0 and Config().lf_fusion.contrast_floor > 0
+
+
+def test_a_store_written_before_the_ratio_reads_its_spread_gate() -> None:
+    spread_gate = {"lf_pool": 20, "lf_ceiling": 0.11, "lf_spread_candidates": 5,
+                   "lf_contrast_floor": 0.3}  # fmt: skip
+    stored = json.loads(Config().with_options(rerank="lightfield", **spread_gate).to_json())
+    for key in ("ratio_weight", "ratio_candidates", "pool_quantile"):
+        del stored["lf_fusion"][key]
+    got = Config.from_json(json.dumps(stored)).lf_fusion
+    assert (got.ratio_weight, got.pool_quantile) == (0.0, 0.5)
+    assert (got.pool, got.ceiling, got.spread_candidates) == (20, 0.11, 5)
+    ratio = Config().with_options(lf_ratio_weight=0.5, lf_ratio_candidates=30,
+                                  lf_pool_quantile=0.25)  # fmt: skip
+    assert Config.from_json(ratio.to_json()) == ratio
+    assert ratio.lf_fusion.ratio_candidates == 30
 
 
 def test_with_every_shape_a_candidate_the_legacy_gate_ranks_as_the_study() -> None:
@@ -99,7 +114,8 @@ def test_bad_fusion_values_name_the_field() -> None:
     for option, value in [("lf_weight", -1.0), ("lf_neighbours", 0), ("lf_ramp", 0.0),
                           ("lf_typical", 0.0), ("lf_spread_candidates", 0), ("lf_n_fields", 11),
                           ("lf_pool", -1), ("lf_contrast_floor", 1.5), ("lf_contrast_ramp", 0.0),
-                          ("lf_contrast_depth", 1)]:  # fmt: skip
+                          ("lf_contrast_depth", 1), ("lf_ratio_weight", 1.5),
+                          ("lf_ratio_candidates", 0), ("lf_pool_quantile", -0.1)]:  # fmt: skip
         with pytest.raises(ConfigError, match=option.removeprefix("lf_")):
             Config().with_options(**{option: value})
     assert Config().with_options(lf_weight=2.0).lf_fusion.weight == 2.0
