@@ -288,13 +288,19 @@ def query_light_fields(config: Config, decompositions: list[Any]) -> NDArray[np.
     that is a stored shape (its light fields are read by id) or has no decomposition.
     A decomposition's light fields are those of its balls and its tail
     (:func:`shapedb.lightfield.decomposition_light_field`): a query decomposed with
-    ``tail_balls=config.light_field_tail`` is seen as ingest saw the records.
+    ``tail_balls=config.light_field_tail`` is seen as ingest saw the records. In a store
+    of the field's light fields (``Config.light_field_inside``) a decomposition without
+    its inside (not decomposed with ``keep_inside=True``) gets a NaN row: the query keeps
+    the stored order.
     """
     from shapedb.lightfield import decomposition_light_field, light_field_dim
 
     cfg = config.light_field
     out = np.full((len(decompositions), cfg.n_fields, 10, light_field_dim(cfg)), np.nan)
     for k, d in enumerate(decompositions):
-        if d is not None and d.n_balls:
-            out[k] = decomposition_light_field(d, cfg)
+        if d is None or not d.n_balls:
+            continue
+        if config.light_field_inside and getattr(d, "inside", None) is None:
+            continue
+        out[k] = decomposition_light_field(d, cfg)
     return out

@@ -116,9 +116,12 @@ class LightFieldConfig:
 
 
 def product_light_field() -> LightFieldConfig:
-    """The light fields a store keeps: 64 px, 3 light fields, silhouettes only, of the
-    packing continued to 2048 balls."""
-    return LightFieldConfig(n_fields=3, resolution=64, depth_weight=0.0, n_balls=2048)
+    """The light fields a new store keeps: 3 light fields of 128 px, silhouettes only, of
+    the inside of the decomposition's field (``source="field"``); with ``lf_source=balls``,
+    of the packing continued to 2048 balls."""
+    return LightFieldConfig(
+        n_fields=3, resolution=128, depth_weight=0.0, n_balls=2048, source="field"
+    )
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,8 @@ from shapedb.kernel import weights
 from shapedb.lightfield import light_field_distance
 
 STAGE = CONFIG.with_options(rerank="lightfield", rerank_candidates=6)
+#: The stage on the balls' light fields (the fills and the longer packing are theirs).
+BALLS = STAGE.with_options(lf_source="balls", lf_resolution=64)
 
 
 def _study_case(n: int = 40, seed: int = 0) -> tuple[Config, np.ndarray, np.ndarray, np.ndarray]:
@@ -247,7 +249,7 @@ def test_a_store_with_filled_silhouettes_fills_its_records_and_its_queries(
     from shapedb.lightfield import record_light_field
     from shapedb.mdbd import decompose
 
-    filled = STAGE.with_options(lf_edges=True, lf_n_balls=0)  # the decomposition's balls
+    filled = BALLS.with_options(lf_edges=True, lf_n_balls=0)  # the decomposition's balls
     db = database.connect(tmp_path / "store", config=filled)
     shapes = {n: g for n, g in _shapes().items() if n in ("box_a", "rod_a", "ring_a")}
     db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
@@ -272,7 +274,7 @@ def test_a_store_with_a_longer_packing_renders_records_and_queries_from_it(
     from shapedb.lightfield import decomposition_light_field, record_light_field
     from shapedb.mdbd import decompose
 
-    longer = STAGE.with_options(lf_n_balls=STAGE.mdbd.n_balls + 200)
+    longer = BALLS.with_options(lf_n_balls=STAGE.mdbd.n_balls + 200)
     db = database.connect(tmp_path / "store", config=longer)
     shapes = {n: g for n, g in _shapes().items() if n in ("box_a", "box_b", "rod_a", "ring_a")}
     db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
@@ -296,26 +298,30 @@ def test_a_store_with_a_longer_packing_renders_records_and_queries_from_it(
 
 
 def test_a_decomposition_query_without_the_store_s_tail_is_warned_about(
-    lf_db: Any, caplog: pytest.LogCaptureFixture
+    tmp_path: Path, forget: Callable[[Any], None], caplog: pytest.LogCaptureFixture
 ) -> None:
+    import shapedb.database as database
     from shapedb.mdbd import decompose
 
-    cfg = lf_db.config
+    db = database.connect(tmp_path / "store", config=BALLS)
+    shapes = {n: g for n, g in _shapes().items() if n in ("box_a", "rod_a", "ring_a")}
+    db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
+    cfg = db.config
     assert cfg.light_field_tail > 0
-    shape = _shapes()["box_a"]
+    shape = shapes["box_a"]
     with caplog.at_level(logging.WARNING, logger="query.engine"):
-        lf_db.search(decompose(shape, config=cfg.mdbd, tail_balls=cfg.light_field_tail), k=2)
+        db.search(decompose(shape, config=cfg.mdbd, tail_balls=cfg.light_field_tail), k=2)
     assert "tail" not in caplog.text
     with caplog.at_level(logging.WARNING, logger="query.engine"):
-        lf_db.search(decompose(shape, config=cfg.mdbd), k=2)
+        db.search(decompose(shape, config=cfg.mdbd), k=2)
     assert "no tail balls" in caplog.text
+    forget(db)
 
 
 def test_a_store_of_the_field_s_light_fields_renders_records_and_queries_from_the_inside(
-    tmp_path: Path, forget: Callable[[Any], None]
+    tmp_path: Path, forget: Callable[[Any], None], caplog: pytest.LogCaptureFixture
 ) -> None:
     import shapedb.database as database
-    from shapedb.errors import QueryError
     from shapedb.lightfield import inside_light_field
     from shapedb.mdbd import decompose
 
@@ -339,7 +345,12 @@ def test_a_store_of_the_field_s_light_fields_renders_records_and_queries_from_th
     assert [h.name for h in again.search(box, k=2)][0] == "box_a"
     # a record (no inside: never stored) queries with the light fields it carries
     assert [h.id for h in again.search(rec, k=3)] == [h.id for h in again.search("box_a", k=3)]
-    with pytest.raises(QueryError, match="keep_inside=True"):
-        again.search(decompose(shapes["box_a"], config=field.mdbd), k=2)
+    plain = database.connect(tmp_path / "plain", config=field.with_options(rerank="none"))
+    plain.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
+    with caplog.at_level(logging.WARNING, logger="query.engine"):  # no inside: stored order
+        hits = again.search(decompose(shapes["box_a"], config=field.mdbd), k=3)
+    assert "no inside" in caplog.text
+    assert [h.name for h in hits] == [h.name for h in plain.search(shapes["box_a"], k=3)]
+    forget(plain)
     forget(db)
     forget(again)
