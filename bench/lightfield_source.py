@@ -11,9 +11,9 @@ Usage (from the repository root)::
 Default: per set of the split, the light fields alone (every shape queries the rest of
 its set by the light field distance; NN / 1-T / DCG) of the mesh (the light field
 descriptor of ``bench/lightfield.py``, 10 light fields; not on the people, whose
-meshes are made on the fly), of the product's balls (the packing continued to
-``LightFieldConfig.n_balls``, :func:`bench.packings.light_field_balls`) and of the
-field's inside at the product's light-field settings (``source="field"``, cached by
+meshes are made on the fly), of the balls (:data:`BALLS`, the product's before the field's: the packing continued to
+2048 balls, :func:`bench.packings.light_field_balls`) and of the
+field's inside at 3 light fields of 64 px (``source="field"``, cached by
 :mod:`bench.inside_fields`), in the same run. ``--variants``: the field's inside at 3
 and 10 light fields, 64 and 128 px, and with depth images (``depth_weight``); named,
 only those (on every set unless ``--datasets``). ``--classes``: also each row's NN and
@@ -55,7 +55,10 @@ FloatArray = NDArray[np.float64]
 #: (:func:`bench.packings.longer`'s ``within``, as the gate's product rows were measured).
 WITHIN = 4096
 RESULTS = Path(__file__).resolve().parent / "results"
-#: ``--variants``: the field's inside at other light-field settings (over the product's).
+#: The balls' light fields the product kept before the field's (``lf_source=balls``): 3
+#: light fields of 64 px of the packing continued to 2048 balls; the baseline of every run.
+BALLS = LightFieldConfig(n_fields=3, resolution=64, n_balls=2048, source="balls")
+#: ``--variants``: the field's inside at other light-field settings (over 3 x 64 px).
 VARIANTS: dict[str, dict[str, Any]] = {
     "field, 3 x 64 px": {},
     "field, 10 x 64 px": {"n_fields": 10},
@@ -119,10 +122,9 @@ def alone(
     """Light fields alone per set: the mesh's, the product's balls, the field's inside
     (at the product's settings, or at each of ``variants``, keys of :data:`VARIANTS`);
     with ``classes``, also each row's NN and first tier on those classes."""
-    product = Config().light_field
-    base = dataclasses.replace(product, source="field")
-    configs = {f"balls (product, {product.n_balls} balls)": dataclasses.replace(product,
-                                                                               source="balls")}  # fmt: skip
+    product = BALLS
+    base = dataclasses.replace(BALLS, source="field")  # 3 x 64 px; VARIANTS move from here
+    configs = {f"balls (product, {product.n_balls} balls)": product}
     if variants is not None:
         pick = variants or list(VARIANTS)
         configs.update({k: dataclasses.replace(base, **VARIANTS[k]) for k in pick})
@@ -190,8 +192,12 @@ def cost(k: int) -> dict[str, Any]:
     order = first + [i for i in range(len(ds)) if i not in set(first)]
     models = [ds.models[i] for i in order[: k + 1]]
     stores = {
-        "balls (product)": Config().with_options(rerank="lightfield", lf_source="balls"),
-        "field's inside": Config().with_options(rerank="lightfield", lf_source="field"),
+        "balls (product)": Config().with_options(
+            rerank="lightfield", lf_source="balls", lf_resolution=64
+        ),
+        "field's inside": Config().with_options(
+            rerank="lightfield", lf_source="field", lf_resolution=64
+        ),
         "field's inside, 128 px": Config().with_options(
             rerank="lightfield", lf_source="field", lf_resolution=128
         ),
