@@ -44,7 +44,7 @@ from numpy.typing import NDArray
 
 from bench import inside_fields
 from bench.cached import CHOICES, SETS, load
-from bench.common import format_table, retrieval_scores, variant_geometry, write_json
+from bench.common import format_table, per_query, retrieval_scores, variant_geometry, write_json
 from bench.datasets import CACHE_DIR, Dataset
 from bench.packings import light_field_balls
 from shapedb.config import Config, LightFieldConfig
@@ -141,8 +141,6 @@ def alone(
             table.setdefault(label, {})[name] = retrieval_scores(-d, np.asarray(ds.labels))
         print(f"  {name}: {len(ds)} models ({time.perf_counter() - t0:.0f} s)", flush=True)
         if classes:
-            from bench.studies.lightfield_fill import per_query
-
             got = {label: per_query(d, ds.labels) for label, d in mats.items()}
             lab = np.asarray(ds.labels)
             for c in classes:
