@@ -362,7 +362,7 @@ def _source_key(model: Model) -> str:
 #: their content, so an engine change never reuses stale decompositions.
 _ENGINE_MODULES = (
     "geometry", "mesh", "pointcloud", "voxels", "implicit", "complement", "_meshing",
-    "frame", "refine", "mdbd", "graph", "sheet", "surface_fit",
+    "frame", "refine", "packing", "mdbd", "graph", "sheet", "surface_fit",
 )  # fmt: skip
 
 
