@@ -30,8 +30,8 @@ alone.
 The light field distances (the store's float32 light fields,
 :func:`shapedb.lightfield.record_light_field`, every pair of the split's six sets) are
 cached under ``$SHAPEDB_BENCH_CACHE/lightfield_gate`` keyed by the models and the code of
-``shapedb/lightfield.py``, so a changed silhouette (branch ``lffill``) re-computes them
-and the selection re-runs in one command. Written to
+``shapedb/lightfield.py`` and ``shapedb/lightfield_descriptor.py``, so a changed silhouette
+re-computes them and the selection re-runs in one command. Written to
 bench/results/lightfield_gate_<split>.json. A held-out set that :mod:`bench.cached` knows
 (``webplus``) is run with ``--split test --no-grid --datasets webplus figures people`` (it
 and its mixes with the figures and the people). ``--lf-n-balls N``: the light fields of
@@ -161,7 +161,8 @@ class Split:
 
 
 def _light_field_matrix(fields: NDArray[np.float32], keys: list[str]) -> FloatArray:
-    code = (Path(__file__).resolve().parents[1] / "shapedb" / "lightfield.py").read_bytes()
+    core = Path(__file__).resolve().parents[1] / "shapedb"
+    code = b"".join((core / f).read_bytes() for f in ("lightfield.py", "lightfield_descriptor.py"))
     key = hashlib.sha256(code + "\n".join(keys).encode()).hexdigest()[:16]
     path = CACHE_DIR / "lightfield_gate" / f"{key}.npy"
     if path.exists():
