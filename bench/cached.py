@@ -25,8 +25,9 @@ __all__ = ["ENGINE_COMMITS", "SETS", "HELD_OUT", "CHOICES", "load"]
 #: people set, before the sheet rule, which leaves closed solids unchanged; 2ba8d98:
 #: before the packing could continue past its balls (``tail_balls``), which leaves
 #: the balls of ``tail_balls=0`` unchanged; 7ad60e6: before ``decompose`` could keep
-#: the field's inside (``keep_inside``), which leaves the balls bit-identical).
-ENGINE_COMMITS = ("7ad60e6", "2ba8d98", "b95b2be", "f031e22")
+#: the field's inside (``keep_inside``), which leaves the balls bit-identical; c106441:
+#: before the greedy loop moved from ``mdbd.py`` to ``packing.py``, the same code).
+ENGINE_COMMITS = ("c106441", "7ad60e6", "2ba8d98", "b95b2be", "f031e22")
 SETS = ("web", "generic", "capod", "figures", "parts", "people")
 #: Held-out sets (test split only), never in a default run: nothing is tuned on them.
 HELD_OUT = ("webplus",)

@@ -44,6 +44,7 @@ __all__ = [
     "log_margin",
     "retrieval_scores",
     "class_nn",
+    "per_query",
     "Balls",
     "VARIANTS",
     "RECON_BASE_DEPTH",
@@ -163,6 +164,25 @@ def class_nn(d: NDArray[np.float64], labels: NDArray[np.str_]) -> dict[str, floa
     np.fill_diagonal(d, np.inf)
     hit = labels[np.argmin(d, axis=1)] == labels
     return {str(k): float(hit[labels == k].mean()) for k in dict.fromkeys(labels.tolist())}
+
+
+def per_query(
+    d: NDArray[np.float64], labels: Sequence[str]
+) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
+    """Per query of an (n, n) distance matrix: nearest neighbour right, first-tier share.
+
+    The query itself is left out; a class of one model gets first tier 0.
+    """
+    d = np.array(d, np.float64)
+    np.fill_diagonal(d, np.inf)
+    lab = np.asarray(labels)
+    nn = lab[np.argmin(d, axis=1)] == lab
+    tier = np.zeros(len(lab))
+    for i in range(len(lab)):
+        k = int((lab == lab[i]).sum()) - 1
+        if k:
+            tier[i] = (lab[np.argsort(d[i], kind="stable")[:k]] == lab[i]).sum() / k
+    return nn, tier
 
 
 def log_margin(d: NDArray[np.float64], labels: NDArray[Any]) -> float:
@@ -342,7 +362,7 @@ def _source_key(model: Model) -> str:
 #: their content, so an engine change never reuses stale decompositions.
 _ENGINE_MODULES = (
     "geometry", "mesh", "pointcloud", "voxels", "implicit", "complement", "_meshing",
-    "frame", "refine", "mdbd", "graph", "sheet", "surface_fit",
+    "frame", "refine", "packing", "mdbd", "graph", "sheet", "surface_fit",
 )  # fmt: skip
 
 

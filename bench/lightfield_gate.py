@@ -4,6 +4,7 @@ Usage (from the repository root)::
 
     python -m bench.lightfield_gate                      # validation: the grid, the choice
     python -m bench.lightfield_gate --split test         # test: the rows chosen on validation
+    python -m bench.lightfield_gate --lf-source field    # the same on the field's light fields
 
 Every bench set's split (meshes; the cached balls of :func:`bench.cached.load`, nothing
 decomposed) is a store of its own, and so are the mixed stores of :data:`MIXES` (web +
@@ -13,14 +14,24 @@ query among them, as ``query.rerank.search`` hands them over) are re-ranked by t
 reciprocal rank fusion of :class:`query.rerank_lightfield.LightFieldFusion`,
 ``1 / (o + rank_d) + w g(q) / (o + rank_l)``, and scored (NN / 1-T / DCG) per set inside
 the store. Rows, in the same run: version 4 (no stage), the balls' light fields alone,
-the product's stage at its defaults, and the gates of :func:`gates`; the store-level
-statistic of each store is printed beside.
+the gates before (:data:`LEGACY`, :data:`SPREAD_GATE`), the product's stage at its
+defaults, on validation the grid's choices, and with ``--oracle`` the gate's headroom
+(:func:`oracle_rows`: gates that know which sets are jointed); the statistics of each
+store and the gate's margin (:func:`bench.gate_checks.margin`) are printed beside.
+
+The selection (validation, ``--grid ratio``, the default): every setting of
+:func:`bench.gate_checks.ratio_settings` that passes the rule (no set, alone or in a
+mix, more than two queries below v4 on NN, 1-T or DCG), keeps the analytic chain in
+poses shut through the product's scorer (:func:`bench.gate_checks.analytic_stores`) and
+keeps both margins (:data:`bench.gate_checks.MIN_MARGIN`); the best objective among them
+is chosen. ``--grid spread``: the grid of the spread gate (:data:`GRID`), by the rule
+alone.
 
 The light field distances (the store's float32 light fields,
 :func:`shapedb.lightfield.record_light_field`, every pair of the split's six sets) are
 cached under ``$SHAPEDB_BENCH_CACHE/lightfield_gate`` keyed by the models and the code of
-``shapedb/lightfield.py``, so a changed silhouette (branch ``lffill``) re-computes them
-and the selection re-runs in one command. Written to
+``shapedb/lightfield.py`` and ``shapedb/lightfield_descriptor.py``, so a changed silhouette
+re-computes them and the selection re-runs in one command. Written to
 bench/results/lightfield_gate_<split>.json. A held-out set that :mod:`bench.cached` knows
 (``webplus``) is run with ``--split test --no-grid --datasets webplus figures people`` (it
 and its mixes with the figures and the people). ``--lf-n-balls N``: the light fields of
@@ -38,6 +49,7 @@ import argparse
 import dataclasses
 import hashlib
 import sys
+import tempfile
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -51,7 +63,17 @@ from bench.cached import load
 from bench.common import format_table, write_json
 from bench.datasets import CACHE_DIR
 from bench.features import kernel_features
+from bench.gate_checks import (
+    JOINTED,
+    JOINTED_SETS,
+    MIN_MARGIN,
+    analytic_gates,
+    analytic_stores,
+    margin,
+    ratio_settings,
+)
 from bench.packings import light_field_balls
+from query.lightfield_spread import pooled
 from shapedb.config import Config
 from shapedb.descriptor import LAYOUTS
 from shapedb.lightfield import light_field_distance, record_light_field
@@ -139,7 +161,8 @@ class Split:
 
 
 def _light_field_matrix(fields: NDArray[np.float32], keys: list[str]) -> FloatArray:
-    code = (Path(__file__).resolve().parents[1] / "shapedb" / "lightfield.py").read_bytes()
+    core = Path(__file__).resolve().parents[1] / "shapedb"
+    code = b"".join((core / f).read_bytes() for f in ("lightfield.py", "lightfield_descriptor.py"))
     key = hashlib.sha256(code + "\n".join(keys).encode()).hexdigest()[:16]
     path = CACHE_DIR / "lightfield_gate" / f"{key}.npy"
     if path.exists():
@@ -183,6 +206,7 @@ class Store:
         n = len(rows)
         k = min(candidates, n)
         self.order = np.argsort(d4, axis=1, kind="stable")  # whole list, ties by id
+        self._d4, self._dl = d4, dl
         self.cand = self.order[:, :k]
         self.D = np.take_along_axis(d4, self.cand, 1)
         self.L = np.take_along_axis(dl, self.cand, 1)
@@ -197,6 +221,20 @@ class Store:
     def others(self, x: FloatArray) -> FloatArray:
         """(n, K - 1) ``x`` over each query's candidates without the query itself."""
         return x[~self.own].reshape(len(x), -1) if self.own.any(axis=1).all() else x[:, 1:]
+
+    def nearest(self, c: int) -> tuple[FloatArray, FloatArray]:
+        """(n, c) stored and light field distances of each shape's ``c`` nearest others.
+
+        In the stored distance's order (ties by id), the shape left out, as the index
+        hands them to :func:`query.lightfield_spread.local_spreads`.
+        """
+        n = len(self.rows)
+        c = min(c, n - 1)
+        head = self.order[:, : c + 1]
+        keep = head != np.arange(n)[:, None]
+        keep[keep.all(axis=1), -1] = False  # the shape not among them: its c first
+        idx = head[keep].reshape(n, c)
+        return np.take_along_axis(self._d4, idx, 1), np.take_along_axis(self._dl, idx, 1)
 
     def overlap(self, m: int) -> FloatArray:
         """(n,) share of the query's ``m`` nearest others common to both distances."""
@@ -262,23 +300,76 @@ class Store:
         return out
 
 
-def local_spreads(st: Store, candidates: int, typical: float) -> FloatArray:
-    """(n,) each stored shape's local spread over its ``candidates`` nearest others."""
-    d, ll = st.others(st.D)[:, :candidates], st.others(st.L)[:, :candidates]
-    return np.median(ll, 1) / typical / np.maximum(np.median(d, 1), 1e-300)
+def local_spreads(st: Store, candidates: int, typical: float, ratio_weight: float = 0.0,
+                  ratio_candidates: int = 100) -> FloatArray:  # fmt: skip
+    """(n,) each stored shape's local statistic (:func:`query.lightfield_spread.local_statistic`).
+
+    The local spread over its ``candidates`` nearest others, times the ratio to the
+    power ``ratio_weight`` (the spread's power ``1 - ratio_weight``).
+    """
+    reach = max(candidates, ratio_candidates) if ratio_weight > 0 else candidates
+    d, ll = st.nearest(reach)
+    near = np.median(ll[:, :candidates], 1)
+    out = np.ones(len(d))
+    if ratio_weight < 1:
+        spread = near / typical / np.maximum(np.median(d[:, :candidates], 1), 1e-300)
+        out *= spread ** (1.0 - ratio_weight)
+    if ratio_weight > 0:
+        best = np.median(np.sort(ll, 1)[:, :candidates], 1)
+        out *= (near / np.maximum(best, 1e-300)) ** ratio_weight
+    return out
 
 
-def gate_weights(st: Store, f: Any) -> FloatArray:
-    """(n,) ``weight * g(q)`` of :class:`shapedb.config.LightFieldFusionConfig` ``f``."""
+def gate_statistic(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
+    """(n,) ``s_q`` of :class:`shapedb.config.LightFieldFusionConfig` ``f`` for every query.
+
+    ``memo``: results kept by store and the fields they read (a grid reuses them).
+    """
+    key = (id(st), f.spread_candidates, f.typical, f.ratio_weight,
+           f.ratio_candidates if f.ratio_weight > 0 else 0, f.pool, f.pool_quantile)  # fmt: skip
+    if memo is not None and key in memo:
+        return memo[key]
+    s = local_spreads(st, f.spread_candidates, f.typical, f.ratio_weight, f.ratio_candidates)
+    if f.pool > 0:
+        s = pooled(s[st.cand[:, : f.pool]], f.pool_quantile)
+    if memo is not None:
+        memo[key] = s
+    return s
+
+
+def gate_margin(stores: dict[str, Store], f: Any,
+                memo: dict[Any, FloatArray] | None = None) -> dict[str, float]:  # fmt: skip
+    """:func:`margin` of ``f``'s pooled statistic over every set in every store."""
+    return margin({(k, str(s)): gate_statistic(st, f, memo)[st.sets == s]
+                   for k, st in stores.items() for s in dict.fromkeys(st.sets)})  # fmt: skip
+
+
+def _short(setting: dict[str, Any]) -> str:
+    """A grid setting in a few characters."""
+    names = {"weight": "w", "spread_candidates": "m", "ratio_weight": "b",
+             "ratio_candidates": "c", "pool": "pool", "pool_quantile": "q",
+             "contrast_ramp": "cramp", "ceiling": "ceil", "ramp": "ramp"}  # fmt: skip
+    return " ".join(f"{names.get(k, k)} {v:g}" for k, v in setting.items())
+
+
+def _setting(label: str) -> dict[str, Any]:
+    """The grid setting a row's label ends with."""
+    import ast
+
+    return dict(ast.literal_eval(label[label.index(": {") + 2 :]))
+
+
+def gate_weights(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
+    """(n,) ``weight * g(q)`` of :class:`shapedb.config.LightFieldFusionConfig` ``f``.
+
+    ``memo``: the pooled statistics already computed, by store and the fields they read.
+    """
     n = len(st.rows)
     g = np.ones(n)
     if f.power > 0:
         g *= st.overlap(f.neighbours) ** f.power
     if f.ceiling > 0:
-        s = local_spreads(st, f.spread_candidates, f.typical)
-        if f.pool > 0:
-            s = np.median(s[st.cand[:, : f.pool]], axis=1)
-        g *= np.clip((f.ceiling - s) / f.ramp, 0.0, 1.0)
+        g *= np.clip((f.ceiling - gate_statistic(st, f, memo)) / f.ramp, 0.0, 1.0)
     if f.contrast_floor > 0:
         d = st.others(st.D)
         far = d[:, min(f.contrast_depth, d.shape[1]) - 1]
@@ -301,8 +392,11 @@ GRID = {
 AROUND = {"weight": (2.0, 8.0), "ceiling": (0.09, 0.13, 0.15), "pool": (5, 10, 40),
           "spread_candidates": (10,), "contrast_floor": (0.0, 0.25, 0.35),
           "contrast_ramp": (0.1, 0.2), "contrast_depth": (20, 50)}  # fmt: skip
+#: The gate before the ratio: the pooled median of the local spread over 5.
+SPREAD_GATE = {"weight": 4.0, "ceiling": 0.11, "ramp": 0.02, "spread_candidates": 5, "pool": 20,
+               "contrast_ramp": 0.05, "ratio_weight": 0.0, "pool_quantile": 0.5}  # fmt: skip
 LEGACY = {"weight": 8.0, "power": 3.0, "ceiling": 0.09, "spread_candidates": 100, "pool": 0,
-          "contrast_floor": 0.0}  # fmt: skip
+          "contrast_floor": 0.0, "ramp": 0.02, "ratio_weight": 0.0}  # fmt: skip
 
 
 def _row(stores: dict[str, Store], weights: dict[str, FloatArray],
@@ -343,6 +437,8 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
         pairs = dict(kv.split("=", 1) for kv in args.fusion)
         default = dataclasses.replace(default, **{k: float(v) if "." in v else int(v)
                                                   for k, v in pairs.items()})  # type: ignore[arg-type]  # fmt: skip
+    memo: dict[Any, FloatArray] = {}
+    margins: dict[str, dict[str, float]] = {}
     rows: dict[str, dict[str, Any]] = {
         "v4 (no stage)": _row(stores, zero, base),
         "light fields alone (K = 100)": _row(
@@ -354,28 +450,79 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
     rows["stage before (overlap^3, own spread over 100)"] = _row(
         stores, {k: gate_weights(st, legacy) for k, st in stores.items()}, base
     )
-    settings = [dict(zip(GRID, c, strict=True)) for c in itertools.product(*GRID.values())]
-    settings = [s for s in settings if s["contrast_floor"] > 0 or s["contrast_ramp"] == 0.05]
+    spread_gate = dataclasses.replace(default, **SPREAD_GATE)  # type: ignore[arg-type]
+    rows["spread gate (pooled median spread, the default before the ratio)"] = _row(
+        stores, {k: gate_weights(st, spread_gate, memo) for k, st in stores.items()}, base
+    )
+    margins["spread gate (pooled median spread, the default before the ratio)"] = gate_margin(
+        stores, spread_gate, memo
+    )
+    if args.grid == "spread":
+        settings = [dict(zip(GRID, c, strict=True)) for c in itertools.product(*GRID.values())]
+        settings = [s for s in settings if s["contrast_floor"] > 0 or s["contrast_ramp"] == 0.05]
+        subsets = (("own spread (pool 0)", lambda s: s["pool"] == 0),
+                   ("no contrast floor", lambda s: s["contrast_floor"] == 0))  # fmt: skip
+    else:
+        settings = ratio_settings()
+        subsets = (("the local spread alone (ratio weight 0)", lambda s: s["ratio_weight"] == 0),
+                   ("the ratio alone (ratio weight 1)", lambda s: s["ratio_weight"] == 1))  # fmt: skip
+    tmp = tempfile.TemporaryDirectory(prefix="lightfield_gate_")
+    analytic = analytic_stores(Path(tmp.name))
+    amemo: dict[Any, Any] = {}
+
+    def closed(f: Any) -> bool:
+        """The chain in poses shut and the rigid analytic store open (some of it)."""
+        g_rigid, _ = analytic_gates(analytic["rigid"], f, amemo)
+        g_chain, _ = analytic_gates(analytic["chain"], f, amemo)
+        return bool(np.all(g_chain == 0) and np.count_nonzero(g_rigid) >= 6)
+
     if args.split == "validation" and not args.no_grid:
         grid = []
+        t0 = time.perf_counter()
         for s in settings:
             f = dataclasses.replace(default, power=0.0, **s)  # type: ignore[arg-type]
-            grid.append((s, _row(stores, {k: gate_weights(st, f) for k, st in stores.items()},
-                                 base)))  # fmt: skip
+            grid.append((s, _row(stores, {k: gate_weights(st, f, memo)
+                                          for k, st in stores.items()}, base)))  # fmt: skip
         passing = [g for g in grid if g[1]["passes"]]
+        n_rule = len(passing)
+        passing = [g for g in passing if closed(dataclasses.replace(default, power=0.0, **g[0]))]  # type: ignore[arg-type]
+        n_chain, chain_shut = len(passing), passing
+
+        def wide(g: tuple[dict[str, Any], Any]) -> bool:
+            """Both margins: the jointed sets well above the ceiling, the rigid ones below."""
+            f = dataclasses.replace(default, power=0.0, **g[0])  # type: ignore[arg-type]
+            m = gate_margin(stores, f, memo)
+            return bool(m["jointed_min"] >= args.min_margin * f.ceiling
+                        and m["rigid_95"] <= f.ceiling)  # fmt: skip
+
+        if args.grid == "ratio" and len(set(stores) & JOINTED_SETS) == len(JOINTED_SETS):
+            passing = [g for g in passing if wide(g)]
         best = max(passing, key=lambda g: g[1]["objective"]) if passing else None
-        print(f"  grid: {len(grid)} settings, {len(passing)} pass; chosen {best and best[0]}")
-        for label, keep in (("own spread (pool 0)", lambda s: s["pool"] == 0),
-                            ("no contrast floor", lambda s: s["contrast_floor"] == 0)):  # fmt: skip
+        print(f"  grid: {len(grid)} settings, {n_rule} pass the rule, {n_chain} also keep the "
+              f"chain in poses shut, {len(passing)} also keep the margin "
+              f"({time.perf_counter() - t0:.0f} s); chosen {best and best[0]}")  # fmt: skip
+        if chain_shut is not passing and chain_shut:
+            top = max(chain_shut, key=lambda g: g[1]["objective"])
+            label = f"best keeping the chain shut, any margin: {top[0]}"
+            rows[label] = top[1]
+            f = dataclasses.replace(default, power=0.0, **top[0])  # type: ignore[arg-type]
+            margins[label] = gate_margin(stores, f, memo)
+        for label, keep in subsets:
             sub = [g for g in passing if keep(g[0])]
             if sub:
                 top = max(sub, key=lambda g: g[1]["objective"])
                 rows[f"best with {label}: {top[0]}"] = top[1]
+                f = dataclasses.replace(default, power=0.0, **top[0])  # type: ignore[arg-type]
+                margins[f"best with {label}: {top[0]}"] = gate_margin(stores, f, memo)
         if best is not None:
             rows[f"best of the grid: {best[0]}"] = best[1]
+            f = dataclasses.replace(default, power=0.0, **best[0])  # type: ignore[arg-type]
+            margins[f"best of the grid: {best[0]}"] = gate_margin(stores, f, memo)
     rows["stage now (LightFieldFusionConfig defaults)"] = _row(
         stores, {k: gate_weights(st, default) for k, st in stores.items()}, base
     )
+    if args.oracle:
+        rows.update(oracle_rows(stores, base, default))
     if args.around:  # one field of the defaults moved at a time
         for field, values in AROUND.items():
             for v in values:
@@ -383,29 +530,92 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
                 rows[f"defaults, {field} {v:g}"] = _row(
                     stores, {k: gate_weights(st, f) for k, st in stores.items()}, base
                 )
+    margins["stage now (LightFieldFusionConfig defaults)"] = gate_margin(stores, default, memo)
+    for label, m in margins.items():
+        f = default if ": {" not in label else dataclasses.replace(
+            default, power=0.0, **_setting(label))  # fmt: skip
+        if label.startswith("spread gate"):
+            f = spread_gate
+        m["chain_min"] = float(np.nanmin(analytic_gates(analytic["chain"], f, amemo)[1]))
+        m["chain_open"] = float(np.count_nonzero(analytic_gates(analytic["chain"], f, amemo)[0]))
+        m["analytic_rigid_open"] = float(np.count_nonzero(
+            analytic_gates(analytic["rigid"], f, amemo)[0]))  # fmt: skip
+        m["ceiling"] = float(f.ceiling)
+    tmp.cleanup()
     _print(rows, stores, args.split)
+    if margins and "jointed_5" in margins[next(iter(margins))]:
+        print(format_table(
+            "the gate's margin: s_q of the jointed sets and of the rigid ones (every store), "
+            "of the analytic chain in poses; x: over the ceiling",
+            ("row", "ceiling", "jointed min", "x", "jointed 5 %", "rigid 95 %", "rigid max",
+             "5 % / 95 %", "chain", "x", "chain open", "analytic rigid open"),
+            [[k if ": {" not in k else k[: k.index(": {")] + " " + _short(_setting(k)),
+              f"{m['ceiling']:.3f}", f"{m['jointed_min']:.3f}",
+              f"{m['jointed_min'] / m['ceiling']:.2f}", f"{m['jointed_5']:.3f}",
+              f"{m['rigid_95']:.3f}", f"{m['rigid_max']:.3f}", f"{m['ratio_5_95']:.2f}",
+              f"{m['chain_min']:.3f}", f"{m['chain_min'] / m['ceiling']:.2f}",
+              f"{m['chain_open']:.0f} / 8", f"{m['analytic_rigid_open']:.0f} / 8"]
+             for k, m in margins.items()],
+        ))  # fmt: skip
     return {"split": args.split, "rows": rows, "defaults": dataclasses.asdict(default),
+            "margins": margins,
             "statistics": statistics(stores, default),
             "sizes": {k: len(st.rows) for k, st in stores.items()}}  # fmt: skip
+
+
+def oracle_rows(stores: dict[str, Store], base: dict[str, dict[str, dict[str, float]]],
+                f: Any) -> dict[str, dict[str, Any]]:  # fmt: skip
+    """The headroom of the gate: rows whose gate knows each shape's set (not label-free).
+
+    ``oracle``: ``g = 1`` for every shape of a rigid set, 0 for :data:`JOINTED`, at a few
+    weights and rank offsets; ``oracle x contrast floor``: the oracle times the contrast
+    factor of ``f`` (only the spread ceiling replaced by the labels); ``stage's gate, light
+    fields alone where open``: the fusion with v4 replaced by the light field's order.
+    """
+    rigid = {k: ~np.isin(st.sets, JOINTED) for k, st in stores.items()}
+    rows: dict[str, dict[str, Any]] = {}
+
+    def add(label: str, weights: dict[str, FloatArray], offset: float = 60.0) -> None:
+        kept = {k: st.offset for k, st in stores.items()}
+        for st in stores.values():
+            st.offset = offset
+        try:
+            rows[label] = _row(stores, weights, base)
+        finally:
+            for k, st in stores.items():
+                st.offset = kept[k]
+
+    for w in (f.weight, 2 * f.weight, np.inf):
+        add(f"oracle gate, weight {w:g}", {k: np.where(r, w, 0.0) for k, r in rigid.items()})
+    add(f"oracle gate, weight {f.weight:g}, offset 20",
+        {k: np.where(r, f.weight, 0.0) for k, r in rigid.items()}, offset=20.0)  # fmt: skip
+    floor = dataclasses.replace(f, ceiling=0.0)  # the contrast factor alone
+    add(f"oracle gate x contrast floor, weight {f.weight:g}",
+        {k: np.where(rigid[k], gate_weights(st, floor), 0.0) for k, st in stores.items()})  # fmt: skip
+    add("stage's gate, light fields alone where open",
+        {k: np.where(gate_weights(st, f) > 0, np.inf, 0.0) for k, st in stores.items()})  # fmt: skip
+    return rows
 
 
 def statistics(stores: dict[str, Store], f: Any) -> dict[str, dict[str, dict[str, list[float]]]]:
     """5 / 50 / 95 % of the gate's statistics per set in each store (printed as a table).
 
     ``spread 100``: the query's own spread over its 100 candidates (the gate before);
-    ``local``: the local spread over ``f.spread_candidates``; ``pooled``: its median over
-    the first ``f.pool`` candidates; ``contrast``: the contrast of the floor.
+    ``local``: the local statistic (:func:`local_spreads` at ``f``); ``pooled``: ``s_q``,
+    its ``f.pool_quantile`` over the first ``f.pool`` candidates; ``contrast``: the
+    contrast of the floor.
     """
     out: dict[str, dict[str, dict[str, list[float]]]] = {}
     table = []
     for name, st in stores.items():
-        local = local_spreads(st, f.spread_candidates, f.typical)
         d = st.others(st.D)
         far = d[:, min(f.contrast_depth, d.shape[1]) - 1]
         stats = {
             "spread 100": local_spreads(st, 100, f.typical),
-            "local": local,
-            "pooled": np.median(local[st.cand[:, : f.pool]], axis=1),
+            "local": local_spreads(
+                st, f.spread_candidates, f.typical, f.ratio_weight, f.ratio_candidates
+            ),
+            "pooled": gate_statistic(st, f),
             "contrast": np.median(d[:, : f.neighbours], 1) / np.maximum(far, 1e-300),
         }
         for s in dict.fromkeys(st.sets):
@@ -427,7 +637,9 @@ def _print(rows: dict[str, dict[str, Any]], stores: dict[str, Store], split: str
             "{nn:.3f} / {first_tier:.3f} / {dcg:.3f}".format(**e["stores"][k][s]) for k, s in cols
         ]
         worst = f"{e['worst_queries']:+.1f} ({e['worst_at']})" if e["worst_at"] else "0"
-        table.append([label, *cells, f"{e['objective']:.4f}", worst])
+        short = label if ": {" not in label else label[: label.index(": {")] + ": " + _short(
+            _setting(label))  # fmt: skip
+        table.append([short, *cells, f"{e['objective']:.4f}", worst])
     heads = [k if (k,) == (s,) else f"{s} in {k}" for k, s in cols]
     print(format_table(
         f"the lightfield stage's gate, {split} splits, each set and mix a store (NN / 1-T / DCG)",
@@ -443,7 +655,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
     ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
     ap.add_argument("--no-grid", action="store_true", help="only the fixed rows")
+    ap.add_argument("--min-margin", type=float, default=MIN_MARGIN,
+                    help="the ratio grid's least jointed statistic over the ceiling")  # fmt: skip
+    ap.add_argument("--grid", default="ratio", choices=["ratio", "spread"],
+                    help="the selection's grid: the ratio gate's (default) or the spread gate's")  # fmt: skip
     ap.add_argument("--around", action="store_true", help="the defaults, one field moved")
+    ap.add_argument("--oracle", action="store_true",
+                    help="the headroom: gates that know which sets are jointed")  # fmt: skip
     ap.add_argument("--lf-n-balls", type=int, default=None,
                     help="light fields of the packing continued to N balls (default: the product's)")  # fmt: skip
     ap.add_argument("--lf-within", type=int, default=0,

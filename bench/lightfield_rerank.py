@@ -22,6 +22,8 @@ the same run:
   :func:`shapedb.lightfield.record_light_field` of the balls), and the stored local
   spreads computed over the set as a store computes them
   (:func:`query.lightfield_spread.local_spreads`);
+* ``lightfield (spread gate)``: the same with the gate before the ratio (the pooled
+  local spread alone, :data:`SPREAD_GATE`);
 * ``lightfield (before)``: the same with the stage's settings before the pooled spread
   and the contrast floor (what a store written then reads).
 
@@ -33,11 +35,13 @@ and on the meshes the light field descriptor (:mod:`bench.lightfield`) and D2
 That the scorer ranks as the study's formula does is checked by the study
 (``python -m bench.studies.lightfield_balls --check-product``).
 
-``--cost`` builds three stores of the web validation shapes (v4 without a stage, v4 with
-``rerank="lightfield"``, v7 with ``rerank="adaptive"``), times the lightfield store's
-local spreads (the index-time statistic, read from the light field column), then
+``--cost`` builds four stores of the web validation shapes (v4 without a stage, v4 with
+``rerank="lightfield"`` at its defaults and with :data:`SPREAD_GATE`, v7 with
+``rerank="adaptive"``), times the lightfield stores' local statistics (the index-time statistic, read from the light field column), then
 ``db.search(id, k=10)`` for every shape, interleaved, and prints medians and ratios to
 the plain store.
+``--lf-source field`` (and ``--lf-set FIELD=VALUE``): the ``lightfield`` rows read the
+light fields of the field's inside (cached by :mod:`bench.inside_fields`).
 Written to bench/results/lightfield_rerank_<split>.json (``lightfield_rerank_cost.json``).
 """
 
@@ -54,6 +58,7 @@ from typing import Any
 
 import numpy as np
 
+from bench import inside_fields
 from bench.cached import CHOICES, load
 from bench.common import class_nn, format_table, retrieval_scores, write_json
 from bench.features import kernel_features
@@ -69,9 +74,13 @@ RESULTS = Path(__file__).resolve().parent / "results"
 SETS = ("web", "generic", "capod", "figures", "parts", "people")
 _MEASURES = ("nn", "first_tier", "dcg")
 _CHUNK = 32
+#: The stage's gate before the ratio (issue 25's pooled spread and contrast floor).
+SPREAD_GATE = {"lf_weight": 4.0, "lf_ceiling": 0.11, "lf_ramp": 0.02, "lf_spread_candidates": 5,
+               "lf_pool": 20, "lf_contrast_ramp": 0.05, "lf_ratio_weight": 0.0,
+               "lf_pool_quantile": 0.5}  # fmt: skip
 #: The stage's settings before the pooled spread and the contrast floor.
 LEGACY = {"lf_weight": 8.0, "lf_power": 3.0, "lf_ceiling": 0.09, "lf_spread_candidates": 100,
-          "lf_pool": 0, "lf_contrast_floor": 0.0}  # fmt: skip
+          "lf_pool": 0, "lf_contrast_floor": 0.0, "lf_ramp": 0.02, "lf_ratio_weight": 0.0}  # fmt: skip
 
 
 def index_of(x: np.ndarray) -> FeatureIndex:
@@ -145,10 +154,17 @@ def light_fields(balls: Sequence[Any], config: Config) -> np.ndarray:
 def measure(args: argparse.Namespace) -> dict[str, Any]:
     """Rows per set, the study check, the table; returns the JSON written."""
     lf_cfg = Config().with_options(rerank="lightfield")
+    if args.lf_source is not None:
+        lf_cfg = lf_cfg.with_options(lf_source=args.lf_source)
+    for kv in args.lf_set:
+        k, v = kv.split("=", 1)
+        lf_cfg = lf_cfg.with_options(**{f"lf_{k}": float(v) if "." in v else int(v)})
     adaptive = Config().with_options(descriptor=7, rerank="adaptive")
     before = lf_cfg.with_options(**LEGACY)
+    spread = lf_cfg.with_options(**SPREAD_GATE)
     table: dict[str, dict[str, Any]] = {
-        "v4": {}, "adaptive (v7)": {}, "lightfield": {}, "lightfield (before)": {},
+        "v4": {}, "adaptive (v7)": {}, "lightfield": {}, "lightfield (spread gate)": {},
+        "lightfield (before)": {},
     }  # fmt: skip
     if args.baselines:
         table.update({"light fields (balls)": {}, "LFD (mesh)": {}, "D2 (mesh)": {}})
@@ -164,13 +180,20 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         ds, balls = load(name, args.split)
         labels = np.asarray(ds.labels)
         v4 = kernel_features(balls, Config())
-        lf = light_fields(light_field_balls(name, args.split, ds, balls, lf_cfg), lf_cfg)
+        if lf_cfg.light_field_inside:  # the field's inside, cached by bench.inside_fields
+            lf = inside_fields.light_fields(name, args.split, ds, lf_cfg.light_field)
+        else:
+            lf = light_fields(
+                light_field_balls(name, args.split, ds, balls, lf_cfg, within=args.lf_within),
+                lf_cfg,
+            )
         i4 = index_of(v4)
         add("v4", name, _ranks(rankings(i4, Config())), labels)
         if not args.no_adaptive:
             v7 = kernel_features(balls, Config().with_options(descriptor=7))
             add("adaptive (v7)", name, _ranks(rankings(index_of(v7), adaptive)), labels)
         add("lightfield", name, _ranks(rankings(i4, lf_cfg, lf)), labels)
+        add("lightfield (spread gate)", name, _ranks(rankings(i4, spread, lf)), labels)
         add("lightfield (before)", name, _ranks(rankings(i4, before, lf)), labels)
         if args.baselines:
             add("light fields (balls)", name, light_field_distance(lf.astype(np.float64)), labels)
@@ -209,8 +232,9 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
 
     ds, balls = load("web", "validation")
     configs = {
-        "none (v4)": Config(),
+        "none (v4)": Config().with_options(rerank="none"),
         "lightfield (v4)": Config().with_options(rerank="lightfield"),
+        "lightfield, spread gate (v4)": Config().with_options(rerank="lightfield", **SPREAD_GATE),
         "adaptive (v7)": Config().with_options(descriptor=7, rerank="adaptive"),
     }
     out: dict[str, Any] = {"models": len(balls)}
@@ -237,8 +261,9 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
                 open_index(db)
                 t = time.perf_counter()
                 store_spreads(db, stored_arrays(db))
-                out["spreads_s"] = time.perf_counter() - t
-                print(f"  local spreads of {len(balls)} shapes: {out['spreads_s']:.2f} s")
+                out[f"spreads_s {label}"] = time.perf_counter() - t
+                print(f"  local statistics of {len(balls)} shapes, {label}: "
+                      f"{out[f'spreads_s {label}']:.2f} s")  # fmt: skip
             got = db.evaluate()
             out[f"evaluate {label}"] = {m: float(getattr(got, m)) for m in _MEASURES}
             print(f"  db.evaluate {label}: {got.nn:.3f} / {got.first_tier:.3f} / {got.dcg:.3f}")
@@ -272,10 +297,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
     ap.add_argument("--no-adaptive", action="store_true", help="leave out the v7 adaptive row")
+    ap.add_argument("--lf-within", type=int, default=0,
+                    help="the light fields' balls: the first of the packing continued to this "
+                         "many (as bench.lightfield_gate --lf-within)")  # fmt: skip
     ap.add_argument("--baselines", action="store_true",
                     help="the balls' light fields alone, mesh LFD and D2 in the same run")  # fmt: skip
     ap.add_argument("--per-kind", action="store_true", help="every row's NN per class")
     ap.add_argument("--cost", action="store_true", help="only time db.search of three stores")
+    ap.add_argument("--lf-source", default=None, choices=["balls", "field"],
+                    help="what the light fields see (not with --cost)")  # fmt: skip
+    ap.add_argument("--lf-set", nargs="*", default=[], metavar="FIELD=VALUE",
+                    help="other LightFieldConfig fields (e.g. resolution=128)")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
     if args.cost:

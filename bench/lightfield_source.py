@@ -11,12 +11,13 @@ Usage (from the repository root)::
 Default: per set of the split, the light fields alone (every shape queries the rest of
 its set by the light field distance; NN / 1-T / DCG) of the mesh (the light field
 descriptor of ``bench/lightfield.py``, 10 light fields; not on the people, whose
-meshes are made on the fly), of the product's balls (the packing continued to
-``LightFieldConfig.n_balls``, :func:`bench.packings.light_field_balls`) and of the
-field's inside at the product's light-field settings (``source="field"``, cached by
+meshes are made on the fly), of the balls (:data:`BALLS`, the product's before the field's: the packing continued to
+2048 balls, :func:`bench.packings.light_field_balls`) and of the
+field's inside at 3 light fields of 64 px (``source="field"``, cached by
 :mod:`bench.inside_fields`), in the same run. ``--variants``: the field's inside at 3
 and 10 light fields, 64 and 128 px, and with depth images (``depth_weight``); named,
-only those (on every set unless ``--datasets``).
+only those (on every set unless ``--datasets``). ``--classes``: also each row's NN and
+first tier on the named classes.
 
 ``--cost N``: per-model ingest CPU (this process: load, decompose, descriptor and light
 fields, as ``ingest.pipeline.build_record`` does them) of N web validation models in a
@@ -43,7 +44,7 @@ from numpy.typing import NDArray
 
 from bench import inside_fields
 from bench.cached import CHOICES, SETS, load
-from bench.common import format_table, retrieval_scores, variant_geometry, write_json
+from bench.common import format_table, per_query, retrieval_scores, variant_geometry, write_json
 from bench.datasets import CACHE_DIR, Dataset
 from bench.packings import light_field_balls
 from shapedb.config import Config, LightFieldConfig
@@ -54,7 +55,10 @@ FloatArray = NDArray[np.float64]
 #: (:func:`bench.packings.longer`'s ``within``, as the gate's product rows were measured).
 WITHIN = 4096
 RESULTS = Path(__file__).resolve().parent / "results"
-#: ``--variants``: the field's inside at other light-field settings (over the product's).
+#: The balls' light fields the product kept before the field's (``lf_source=balls``): 3
+#: light fields of 64 px of the packing continued to 2048 balls; the baseline of every run.
+BALLS = LightFieldConfig(n_fields=3, resolution=64, n_balls=2048, source="balls")
+#: ``--variants``: the field's inside at other light-field settings (over 3 x 64 px).
 VARIANTS: dict[str, dict[str, Any]] = {
     "field, 3 x 64 px": {},
     "field, 10 x 64 px": {"n_fields": 10},
@@ -109,13 +113,18 @@ def matrices(
     return ds, out
 
 
-def alone(split: str, datasets: Sequence[str], variants: Sequence[str] | None) -> dict[str, Any]:
+def alone(
+    split: str,
+    datasets: Sequence[str],
+    variants: Sequence[str] | None,
+    classes: Sequence[str] = (),
+) -> dict[str, Any]:
     """Light fields alone per set: the mesh's, the product's balls, the field's inside
-    (at the product's settings, or at each of ``variants``, keys of :data:`VARIANTS`)."""
-    product = Config().light_field
-    base = dataclasses.replace(product, source="field")
-    configs = {f"balls (product, {product.n_balls} balls)": dataclasses.replace(product,
-                                                                               source="balls")}  # fmt: skip
+    (at the product's settings, or at each of ``variants``, keys of :data:`VARIANTS`);
+    with ``classes``, also each row's NN and first tier on those classes."""
+    product = BALLS
+    base = dataclasses.replace(BALLS, source="field")  # 3 x 64 px; VARIANTS move from here
+    configs = {f"balls (product, {product.n_balls} balls)": product}
     if variants is not None:
         pick = variants or list(VARIANTS)
         configs.update({k: dataclasses.replace(base, **VARIANTS[k]) for k in pick})
@@ -123,6 +132,7 @@ def alone(split: str, datasets: Sequence[str], variants: Sequence[str] | None) -
         configs["field's inside"] = base
     table: dict[str, dict[str, dict[str, float]]] = {}
     sizes = {}
+    per_class: dict[str, dict[str, dict[str, float]]] = {}
     for name in datasets:
         t0 = time.perf_counter()
         ds, mats = matrices(name, split, configs)
@@ -130,11 +140,25 @@ def alone(split: str, datasets: Sequence[str], variants: Sequence[str] | None) -
         for label, d in mats.items():
             table.setdefault(label, {})[name] = retrieval_scores(-d, np.asarray(ds.labels))
         print(f"  {name}: {len(ds)} models ({time.perf_counter() - t0:.0f} s)", flush=True)
+        if classes:
+            got = {label: per_query(d, ds.labels) for label, d in mats.items()}
+            lab = np.asarray(ds.labels)
+            for c in classes:
+                if (lab == c).any():
+                    per_class.setdefault(f"{name}: {c}", {}).update({
+                        label: {"nn": float(nn[lab == c].mean()),
+                                "first_tier": float(t[lab == c].mean())}
+                        for label, (nn, t) in got.items()})  # fmt: skip
+    if per_class:
+        labels = list(next(iter(per_class.values())))
+        print(format_table(f"per class, {split} (NN / 1-T)", ("class", *labels),
+                           [[c, *(f"{v[k]['nn']:.2f} / {v[k]['first_tier']:.2f}" for k in labels)]
+                            for c, v in per_class.items()]))  # fmt: skip
     rows = [[label, *(f"{v[n]['nn']:.3f} / {v[n]['first_tier']:.3f} / {v[n]['dcg']:.3f}"
                       if n in v else "" for n in datasets)] for label, v in table.items()]  # fmt: skip
     print(format_table(f"light fields alone, {split} (NN / 1-T / DCG)",
                        ("source", *(f"{n} ({sizes[n]})" for n in datasets)), rows))  # fmt: skip
-    return {"split": split, "sizes": sizes, "table": table,
+    return {"split": split, "sizes": sizes, "table": table, "per_class": per_class,
             "configs": {k: dataclasses.asdict(v) for k, v in configs.items()}}  # fmt: skip
 
 
@@ -166,8 +190,15 @@ def cost(k: int) -> dict[str, Any]:
     order = first + [i for i in range(len(ds)) if i not in set(first)]
     models = [ds.models[i] for i in order[: k + 1]]
     stores = {
-        "balls (product)": Config().with_options(rerank="lightfield", lf_source="balls"),
-        "field's inside": Config().with_options(rerank="lightfield", lf_source="field"),
+        "balls (product)": Config().with_options(
+            rerank="lightfield", lf_source="balls", lf_resolution=64
+        ),
+        "field's inside": Config().with_options(
+            rerank="lightfield", lf_source="field", lf_resolution=64
+        ),
+        "field's inside, 128 px": Config().with_options(
+            rerank="lightfield", lf_source="field", lf_resolution=128
+        ),
     }
     for cfg in stores.values():  # compile and warm caches, untimed
         ingest_cpu(models[0], cfg)
@@ -212,6 +243,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--datasets", nargs="+", default=None, choices=CHOICES)
     ap.add_argument("--variants", nargs="*", default=None, choices=list(VARIANTS),
                     help="the field at these settings (none named: all; default sets: web)")  # fmt: skip
+    ap.add_argument("--classes", nargs="+", default=[], help="also NN / 1-T on these classes")
     ap.add_argument("--cost", type=int, default=0, help="time N web validation models")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
@@ -220,7 +252,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         out = args.out or RESULTS / "lightfield_source_cost.json"
     else:
         names = args.datasets or (["web"] if args.variants == [] else list(SETS))
-        got = alone(args.split, names, args.variants)
+        got = alone(args.split, names, args.variants, args.classes)
         tag = "_variants" if args.variants is not None else ""
         out = args.out or RESULTS / f"lightfield_source_{args.split}{tag}.json"
     write_json(out, got)

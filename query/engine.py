@@ -10,7 +10,7 @@ Accepted queries, tried in this order:
 * a :class:`shapedb.mdbd.Decomposition` (its configuration must be the store's; for the
   light field stage, decomposed with ``tail_balls=db.config.light_field_tail`` (and
   ``keep_inside=db.config.light_field_inside``) as ingest does, else its light fields
-  see only its balls and a warning is logged (without the inside it is refused);
+  see only its balls (without the inside: none, the stored order) and a warning is logged;
 * a :class:`shapedb.geometry.Geometry` (decomposed with ``db.config.mdbd``);
 * a :class:`shapedb.schema.ShapeRecord` (its stored feature);
 * a raw feature vector (``(d,)`` array, list or tuple of floats);
@@ -291,11 +291,10 @@ def _resolve(db: Database, query: Any, index: Any) -> _Query:
                 query.n_balls,
             )
         if config.light_field_inside and query.inside is None:
-            raise QueryError(
-                "query decomposition has no inside, and the store's light fields are those "
-                "of the field's inside (lf_source=field): decompose(..., keep_inside=True) "
-                "as ingest does",
-                source="query decomposition",
+            log.warning(
+                "query decomposition has no inside (decompose(..., keep_inside=True) as "
+                "ingest does for lf_source=field): it keeps the stored order, without the "
+                "light field stage"
             )
         return _Query(
             _featurise(query, config), is_sparse(query.sampling, query.spacing),

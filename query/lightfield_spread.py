@@ -10,6 +10,14 @@ subjects in other poses, whose silhouettes change with the pose. The scorer
 its gate (``LightFieldFusionConfig.pool``), so a query is judged by the region of the
 store it falls in, not by itself alone, and a mixed store judges each region apart.
 
+With ``LightFieldFusionConfig.ratio_weight`` ``b > 0`` the stored statistic is
+``spread ** (1 - b) * ratio ** b`` (:func:`local_statistic`): the *ratio* is the median
+light field distance of the shape's nearest others by the stored distance over that of
+its nearest by the light field among its ``ratio_candidates`` nearest by the stored
+distance. It is scale-free and high where the light field finds other shapes nearer
+than the stored distance's neighbours (the same subject's other poses against other
+subjects in the same pose). The pool takes the statistics' ``pool_quantile``.
+
 The spreads depend on the whole store (a new shape changes its neighbours' lists), so
 they belong to a store version. They are computed on demand, for the shapes a search
 pools (a search costs the same whatever the store's size, and a commit costs nothing),
@@ -17,9 +25,10 @@ kept in-process per store version, and written to ``<store>/index_lightfield/`` 
 versioned directory like the index's: ``ids.npy``, ``spreads.npy``, and the store
 version and the parameters they were computed with in ``current.json``) once every
 stored shape has one (an evaluation, :func:`store_spreads`, or the commit hook of a
-store of at most :data:`FULL_AT_COMMIT` shapes); read back while they match. A spread
+store whose statistics cost at most :data:`FULL_AT_COMMIT` light field distances); read back while they match. A spread
 computed for one shape or for all is the same number (deterministic, from the stored
-vectors and light fields). Cost: ``spread_candidates`` light field distances per shape.
+vectors and light fields). Cost: ``spread_candidates`` light field distances per shape
+(``max(spread_candidates, ratio_candidates)`` with the ratio).
 """
 
 from __future__ import annotations
@@ -43,8 +52,11 @@ if TYPE_CHECKING:
 __all__ = [
     "SPREAD_DIR",
     "FULL_AT_COMMIT",
+    "commit_distances",
     "SpreadTable",
     "calibration",
+    "local_statistic",
+    "pooled",
     "local_spreads",
     "spread_table",
     "store_spreads",
@@ -56,9 +68,10 @@ log = logging.getLogger(__name__)
 SPREAD_DIR = "index_lightfield"
 _FORMAT = 1
 _CHUNK = 256
-#: A commit recomputes every spread only in stores of at most this many shapes (larger
-#: stores compute them as searches ask for them).
-FULL_AT_COMMIT = 2000
+#: A commit recomputes every shape's statistic only when that costs at most this many
+#: light field distances (:func:`commit_distances`; 2,000 shapes of the spread over 5);
+#: larger stores compute them as searches ask for them.
+FULL_AT_COMMIT = 10_000
 _CACHE: dict[tuple[str, int], SpreadTable] = {}
 _LOCK = threading.Lock()
 
@@ -70,6 +83,61 @@ def calibration(config: Config) -> float:
     from shapedb.descriptor import LAYOUTS
 
     return float(np.log(10.0) / sum(b[3] for b in LAYOUTS[config.descriptor.version]))
+
+
+def local_statistic(d: NDArray[np.float64], dl: NDArray[np.float64], config: Config) -> float:
+    """One shape's local statistic from its nearest others by the stored distance.
+
+    ``spread ** (1 - b) * ratio ** b`` of :class:`shapedb.config.LightFieldFusionConfig`
+    (``b = ratio_weight``; ``m = spread_candidates``): the spread is the median of ``dl``
+    over the first ``m`` (over ``typical``) over the median of ``d`` over them; the ratio
+    the median of ``dl`` over the first ``m`` over the median of the ``m`` smallest ``dl``
+    among the first ``max(ratio_candidates, m)``.
+
+    Parameters
+    ----------
+    d : (k,) float64
+        Stored distances of the shape's nearest others, in version 4's calibrated units,
+        in list order (non-decreasing; ties by ascending id), the shape left out.
+    dl : (k,) float64
+        Their light field distances to the shape.
+    config : Config
+        Reads ``config.lf_fusion``.
+
+    Returns
+    -------
+    float
+        NaN when ``k`` is 0.
+    """
+    f = config.lf_fusion
+    if not len(d):
+        return float("nan")
+    m = int(f.spread_candidates)
+    near = float(np.median(dl[:m]))
+    b = float(f.ratio_weight)
+    out = 1.0
+    if b < 1.0:
+        spread = near / f.typical / max(float(np.median(d[:m])), 1e-300)
+        out *= spread ** (1.0 - b)
+    if b > 0.0:
+        c = max(int(f.ratio_candidates), m)
+        best = float(np.median(np.sort(dl[:c])[:m]))
+        out *= (near / max(best, 1e-300)) ** b
+    return out
+
+
+def pooled(values: NDArray[np.float64], quantile: float) -> NDArray[np.float64]:
+    """The ``quantile`` of ``values`` (..., p) over the last axis, NaN left out.
+
+    0.5 is the median (:func:`numpy.nanmedian`); NaN where every value is NaN.
+    """
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows: NaN
+        if quantile == 0.5:
+            return np.asarray(np.nanmedian(values, axis=-1), np.float64)
+        return np.asarray(np.nanquantile(values, quantile, axis=-1), np.float64)
 
 
 def local_spreads(
@@ -104,7 +172,7 @@ def local_spreads(
     out = np.full(len(ids), np.nan)
     if len(alive) < 2 or len(ids) == 0:
         return ids, out
-    m = min(int(f.spread_candidates), len(alive) - 1)
+    m = min(_reach(f), len(alive) - 1)
     cal = calibration(config)
     x = np.asarray(index.features_, np.float64)[index.lookup(ids)]
     for lo in range(0, len(ids), _CHUNK):
@@ -124,9 +192,21 @@ def local_spreads(
             if not np.all(np.isfinite(lq)) or not ok.any():
                 continue
             dl = light_field_distance(lq[None], lc[ok])[0]
-            denom = max(float(np.median(d[ok])) / cal, 1e-300)
-            out[lo + row] = float(np.median(dl)) / f.typical / denom
+            out[lo + row] = local_statistic(d[ok] / cal, dl, config)
     return ids, out
+
+
+def commit_distances(n: int, config: Config) -> int:
+    """Light field distances the statistics of a store of ``n`` shapes cost."""
+    return int(n) * _reach(config.lf_fusion)
+
+
+def _reach(f: Any) -> int:
+    """Nearest others the local statistic reads."""
+    reach = int(f.spread_candidates)
+    if f.ratio_weight > 0:
+        reach = max(reach, int(f.ratio_candidates))
+    return reach
 
 
 def _meta(config: Config, version: int) -> dict[str, Any]:
@@ -136,6 +216,8 @@ def _meta(config: Config, version: int) -> dict[str, Any]:
         "version": version,
         "spread_candidates": int(f.spread_candidates),
         "typical": float(f.typical),
+        "ratio_weight": float(f.ratio_weight),
+        "ratio_candidates": int(f.ratio_candidates),
         "light_field": repr(lf),
         "descriptor": int(config.descriptor.version),
         "method": config.kernel.method,
@@ -250,7 +332,8 @@ def on_commit(db: Database, fields: ArrayReader) -> None:
     """Bring the spreads up to date after a commit, for a store whose stage pools them.
 
     Only a store with the ``"lightfield"`` scorer, ``pool > 0`` and light fields stored,
-    whose spreads were written before, and of at most :data:`FULL_AT_COMMIT` shapes; a
+    whose spreads were written before, and whose statistics cost at most
+    :data:`FULL_AT_COMMIT` light field distances (:func:`commit_distances`); a
     larger store's searches compute the spreads they pool.
     """
     cfg = db.config
@@ -259,5 +342,5 @@ def on_commit(db: Database, fields: ArrayReader) -> None:
     if not (Path(db.store.path) / SPREAD_DIR / POINTER).exists():
         return
     table = spread_table(db, fields)
-    if int(np.count_nonzero(table.index.alive_)) <= FULL_AT_COMMIT:
+    if commit_distances(int(np.count_nonzero(table.index.alive_)), cfg) <= FULL_AT_COMMIT:
         table.get(None)

@@ -7,8 +7,8 @@ A store created with ``rerank="lightfield"`` keeps each record's light fields (t
 reciprocal rank fusion of :class:`shapedb.config.LightFieldFusionConfig`: the stored
 distance's rank plus the light field distance's rank, the latter weighted by a gate that
 is off where the light field spreads near neighbours more than the stored distance does
-(jointed subjects, whose silhouettes change with the pose: the stored local spreads of
-the query's first candidates, :mod:`query.lightfield_spread`) and where the stored
+(jointed subjects, whose silhouettes change with the pose: the stored local statistics
+of the query's first candidates, :mod:`query.lightfield_spread`) and where the stored
 distance already sets the query's nearest apart (a low contrast).
 
 The candidates' light fields are read by id (``Candidates.arrays``); the query's are
@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from query.lightfield_spread import calibration, spread_table
+from query.lightfield_spread import calibration, local_statistic, pooled, spread_table
 from query.rerank import Candidates, register_scorer
 
 if TYPE_CHECKING:
@@ -80,6 +80,7 @@ class LightFieldFusion:
     """
 
     def __init__(self, config: Config) -> None:
+        self.config = config
         self.fusion = config.lf_fusion
         self.calibration = calibration(config)
         self._warned = False
@@ -141,14 +142,12 @@ class LightFieldFusion:
             g = (len(np.intersect1d(others[:m], b)) / m) ** f.power
         if f.ceiling > 0:
             if f.pool > 0:
-                pooled = None if spreads is None else spreads[: f.pool]
-                if pooled is None or not np.isfinite(pooled).any():
+                pool = None if spreads is None else spreads[: f.pool]
+                if pool is None or not np.isfinite(pool).any():
                     return 0.0
-                spread = float(np.nanmedian(pooled))
-            else:
-                near = others[: f.spread_candidates]
-                spread = np.median(dl[near]) / f.typical
-                spread /= max(float(np.median(d4[near])), 1e-300)
+                spread = float(pooled(pool, f.pool_quantile))
+            else:  # the query's own statistic over its candidates
+                spread = local_statistic(d4[others], dl[others], self.config)
             g *= float(np.clip((f.ceiling - spread) / f.ramp, 0.0, 1.0))
         if f.contrast_floor > 0:
             far = d4[others[min(f.contrast_depth, len(others)) - 1]]
@@ -289,13 +288,19 @@ def query_light_fields(config: Config, decompositions: list[Any]) -> NDArray[np.
     that is a stored shape (its light fields are read by id) or has no decomposition.
     A decomposition's light fields are those of its balls and its tail
     (:func:`shapedb.lightfield.decomposition_light_field`): a query decomposed with
-    ``tail_balls=config.light_field_tail`` is seen as ingest saw the records.
+    ``tail_balls=config.light_field_tail`` is seen as ingest saw the records. In a store
+    of the field's light fields (``Config.light_field_inside``) a decomposition without
+    its inside (not decomposed with ``keep_inside=True``) gets a NaN row: the query keeps
+    the stored order.
     """
     from shapedb.lightfield import decomposition_light_field, light_field_dim
 
     cfg = config.light_field
     out = np.full((len(decompositions), cfg.n_fields, 10, light_field_dim(cfg)), np.nan)
     for k, d in enumerate(decompositions):
-        if d is not None and d.n_balls:
-            out[k] = decomposition_light_field(d, cfg)
+        if d is None or not d.n_balls:
+            continue
+        if config.light_field_inside and getattr(d, "inside", None) is None:
+            continue
+        out[k] = decomposition_light_field(d, cfg)
     return out

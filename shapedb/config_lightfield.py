@@ -116,14 +116,17 @@ class LightFieldConfig:
 
 
 def product_light_field() -> LightFieldConfig:
-    """The light fields a store keeps: 64 px, 3 light fields, silhouettes only, of the
-    packing continued to 2048 balls."""
-    return LightFieldConfig(n_fields=3, resolution=64, depth_weight=0.0, n_balls=2048)
+    """The light fields a new store keeps: 3 light fields of 128 px, silhouettes only, of
+    the inside of the decomposition's field (``source="field"``); with ``lf_source=balls``,
+    of the packing continued to 2048 balls."""
+    return LightFieldConfig(
+        n_fields=3, resolution=128, depth_weight=0.0, n_balls=2048, source="field"
+    )
 
 
 @dataclass(frozen=True)
 class LightFieldFusionConfig:
-    """The ``"lightfield"`` scorer: a reciprocal rank fusion gated by spread and contrast.
+    """The ``"lightfield"`` scorer: a reciprocal rank fusion gated by the store and contrast.
 
     Among a query's candidates (the store's ``RerankConfig.candidates`` nearest by the
     stored distance ``d``; the query itself, when stored, among them), with ``rank_d``
@@ -134,24 +137,31 @@ class LightFieldFusionConfig:
 
     * the overlap ``(|A ∩ B| / neighbours) ** power`` of the query's ``neighbours``
       nearest candidates by ``d`` and by ``l`` (itself left out; ``power`` 0: off);
-    * the spread ceiling ``clip((ceiling - s_q) / ramp, 0, 1)`` (``ceiling`` 0: off).
-      A shape's *local spread* is the median of ``l / typical`` over the median of ``d /
-      c`` among its ``spread_candidates`` nearest others by ``d`` (``c = ln(10) / (sum of
-      the descriptor's block weights)``, version 4's calibrated units): high where
-      near neighbours by the stored vector look unlike (jointed subjects in other
-      poses). With ``pool > 0``, ``s_q`` is the median of the stored local spreads of the
-      query's first ``pool`` candidates (the query itself among them when stored; kept
-      per store version with the index, :mod:`query.lightfield_spread`); with ``pool``
-      0, the query's own local spread;
+    * the ceiling ``clip((ceiling - s_q) / ramp, 0, 1)`` (``ceiling`` 0: off) on the
+      shapes' *local statistic* ``spread ** (1 - b) * ratio ** b`` (``b =
+      ratio_weight``). A shape's *spread* is the median of ``l / typical`` over the median
+      of ``d / c`` among its ``spread_candidates`` nearest others by ``d`` (``c = ln(10) /
+      (sum of the descriptor's block weights)``, version 4's calibrated units): high where
+      near neighbours by the stored vector look unlike (jointed subjects in other poses).
+      Its *ratio* is the median ``l`` of those neighbours over the median of the
+      ``spread_candidates`` smallest ``l`` among its ``ratio_candidates`` nearest others
+      by ``d``: scale-free, near 1 where the light field's nearest are about as near as
+      the stored distance's, high where the light field finds other shapes much nearer
+      (other subjects in the same pose). With ``pool > 0``, ``s_q`` is the
+      ``pool_quantile`` (0.5: the median) of the stored local statistics of the query's
+      first ``pool`` candidates (the query itself among them when stored; kept per store
+      version with the index, :mod:`query.lightfield_spread`); with ``pool`` 0, the
+      query's own local statistic;
     * the contrast floor ``clip((t_q - contrast_floor) / contrast_ramp, 0, 1)``
       (``contrast_floor`` 0: off), ``t_q`` the median ``d`` of the query's
       ``neighbours`` nearest others over ``d`` of its ``contrast_depth``-th nearest
       other (the last when fewer): low where the stored vector already sets the
       nearest apart, and the light field is kept out.
 
-    The defaults are those chosen on the validation splits (docs/results.md, "Gating
-    the light field by store and query"); stores written before ``pool`` and the
-    contrast read ``pool`` 0 and ``contrast_floor`` 0 (:mod:`shapedb.migrations`), and
+    The defaults are those chosen on the validation splits (docs/results.md, "A gate
+    with a margin (issue 25)"); stores written before ``pool`` and the
+    contrast read ``pool`` 0 and ``contrast_floor`` 0, stores written before the ratio
+    read ``ratio_weight`` 0 and ``pool_quantile`` 0.5 (:mod:`shapedb.migrations`), and
     their stored weight, power, ceiling and spread candidates.
 
     Attributes
@@ -173,28 +183,40 @@ class LightFieldFusionConfig:
     spread_candidates : int
         Nearest others a local spread is measured over, in [1, 100000].
     pool : int
-        Candidates whose stored local spreads make ``s_q``, in [0, 100000]; 0: the
-        query's own local spread.
+        Candidates whose stored local statistics make ``s_q``, in [0, 100000]; 0: the
+        query's own local statistic, taken among its candidates (at most
+        ``RerankConfig.candidates - 1`` others, also for the ratio).
     contrast_floor : float
         The contrast ``t_q`` below which the term is off; 0 disables it. In [0, 1].
     contrast_ramp : float
         Width of the fade above the floor, in (0, 1].
     contrast_depth : int
         Rank of the far candidate of the contrast, in [2, 100000].
+    ratio_weight : float
+        ``b``, the ratio's share of the local statistic (in the log), in [0, 1]; 0: the
+        local spread alone, 1: the ratio alone (``typical`` and the calibration unused).
+    ratio_candidates : int
+        Nearest others by ``d`` among which the ratio takes the light field's nearest, in
+        [1, 100000] (at least ``spread_candidates`` are taken).
+    pool_quantile : float
+        Quantile of the pooled statistics that makes ``s_q``, in [0, 1]; 0.5: the median.
     """
 
-    weight: float = 4.0
+    weight: float = 8.0
     neighbours: int = 5
     power: float = 0.0
-    ceiling: float = 0.11
-    ramp: float = 0.02
+    ceiling: float = 0.17
+    ramp: float = 0.034
     typical: float = 18.03
     offset: float = 60.0
-    spread_candidates: int = 5
-    pool: int = 20
+    spread_candidates: int = 3
+    pool: int = 30
     contrast_floor: float = 0.3
-    contrast_ramp: float = 0.05
+    contrast_ramp: float = 0.2
     contrast_depth: int = 30
+    ratio_weight: float = 0.2
+    ratio_candidates: int = 100
+    pool_quantile: float = 0.25
 
     def __post_init__(self) -> None:
         def number(v: object) -> bool:
@@ -226,3 +248,11 @@ class LightFieldFusionConfig:
         _check(ok, "lf_contrast_ramp", self.contrast_ramp, "must be a number in (0, 1]")
         ok = _is_int(self.contrast_depth) and 2 <= self.contrast_depth <= 100_000
         _check(ok, "lf_contrast_depth", self.contrast_depth, "must be an integer in [2, 100000]")
+        ok = number(self.ratio_weight) and 0.0 <= self.ratio_weight <= 1.0
+        _check(ok, "lf_ratio_weight", self.ratio_weight, "must be a number in [0, 1]")
+        ok = _is_int(self.ratio_candidates) and 1 <= self.ratio_candidates <= 100_000
+        _check(
+            ok, "lf_ratio_candidates", self.ratio_candidates, "must be an integer in [1, 100000]"
+        )
+        ok = number(self.pool_quantile) and 0.0 <= self.pool_quantile <= 1.0
+        _check(ok, "lf_pool_quantile", self.pool_quantile, "must be a number in [0, 1]")

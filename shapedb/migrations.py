@@ -92,7 +92,14 @@ ADDED: dict[str, dict[str, Any]] = {
 #: stored section takes them: a section the layout predates keeps today's defaults.
 STORED_ADDED: dict[str, dict[str, Any]] = {
     # before the pooled spread and the contrast floor: the query's own spread, no floor
-    "lf_fusion": {"pool": 0, "contrast_floor": 0.0},
+    # before the ratio and the pooled quantile: the local spread alone, pooled by its median
+    "lf_fusion": {
+        "pool": 0,
+        "contrast_floor": 0.0,
+        "ratio_weight": 0.0,
+        "ratio_candidates": 100,
+        "pool_quantile": 0.5,
+    },
     # before n_balls, the light fields were those of the decomposition's balls; before
     # source, always of balls
     "light_field": {"n_balls": 0, "source": "balls"},

@@ -52,7 +52,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.cached import SETS, load
-from bench.common import Balls, format_table, retrieval_scores, write_json
+from bench.common import Balls, format_table, per_query, retrieval_scores, write_json
 from bench.datasets import CACHE_DIR, Dataset, mesh_arrays
 from bench.packings import longer
 from bench.studies.lightfield_balls import fill_config
@@ -315,23 +315,6 @@ def residual(split: str, n_balls: int) -> FloatArray:
     path.parent.mkdir(parents=True, exist_ok=True)
     np.save(path, lf)
     return lf
-
-
-def per_query(d: FloatArray, labels: Sequence[str]) -> tuple[NDArray[np.bool_], FloatArray]:
-    """Per query of an (n, n) distance matrix: nearest neighbour right, first-tier share.
-
-    The query itself is left out; a class of one model gets first tier 0.
-    """
-    d = np.array(d, np.float64)
-    np.fill_diagonal(d, np.inf)
-    lab = np.asarray(labels)
-    nn = lab[np.argmin(d, axis=1)] == lab
-    tier = np.zeros(len(lab))
-    for i in range(len(lab)):
-        k = int((lab == lab[i]).sum()) - 1
-        if k:
-            tier[i] = (lab[np.argsort(d[i], kind="stable")[:k]] == lab[i]).sum() / k
-    return nn, tier
 
 
 def per_class(split: str, n_balls: int, residual_too: bool = False) -> dict[str, Any]:

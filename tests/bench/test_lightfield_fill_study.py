@@ -23,7 +23,7 @@ def test_fills_are_spelled_as_the_config_fields() -> None:
 def test_per_query_scores_leave_the_query_out() -> None:
     import numpy as np
 
-    from bench.studies.lightfield_fill import per_query
+    from bench.common import per_query
 
     # points on a line: a a b b c; each query's nearest other model and its first tier
     x = np.array([0.0, 1.0, 1.6, 2.5, 10.0])

@@ -11,13 +11,24 @@ from typing import Any
 import numpy as np
 import pytest
 
+from bench.gate_checks import ANALYTIC, chain
 from bench.lightfield_gate import Store, gate_weights
+from bench.lightfield_gate import local_spreads as local_spreads_of
 from query import rerank
 from query.index import FeatureIndex
-from query.lightfield_spread import SPREAD_DIR, calibration, local_spreads, store_spreads
+from query.lightfield_spread import (
+    FULL_AT_COMMIT,
+    SPREAD_DIR,
+    calibration,
+    commit_distances,
+    local_spreads,
+    local_statistic,
+    pooled,
+    store_spreads,
+)
 from query.rerank_lightfield import COLUMN, SPREAD, LightFieldFusion, stored_arrays
 from shapedb.config import Config
-from shapedb.implicit import Box, Capsule, Sphere
+from shapedb.implicit import Box, Capsule
 from shapedb.kernel import weights
 from shapedb.lightfield import light_field_distance
 
@@ -48,17 +59,27 @@ def _reader(index: FeatureIndex, lf: np.ndarray, config: Config) -> Any:
     return arrays
 
 
-def test_the_pooled_gate_ranks_as_the_selection_bench() -> None:
+#: A gate of the ratio (half the local statistic's log), pooled by the lower quartile.
+RATIO = {"lf_ratio_weight": 0.5, "lf_ratio_candidates": 12, "lf_spread_candidates": 3,
+         "lf_pool_quantile": 0.25}  # fmt: skip
+
+
+@pytest.mark.parametrize("gate", [{}, RATIO], ids=["spread", "ratio"])
+def test_the_pooled_gate_ranks_as_the_selection_bench(gate: dict[str, Any]) -> None:
     config, index, lf, dl = _case()
+    config = config.with_options(**gate)
     x = np.asarray(index.features_, np.float64)
     d = np.abs(x[:, None, :] - x[None, :, :]) @ index.weights_ / calibration(config)
     # a typical distance and a contrast floor that open some gates and close others
     probe = Store(SimpleNamespace(labels=np.arange(40) % 4, sets=np.zeros(40), d4=d, dl=dl),
                   np.arange(40), candidates=40)  # fmt: skip
-    s = np.median(probe.others(probe.L)[:, :5], 1) / np.median(probe.others(probe.D)[:, :5], 1)
+    f = config.lf_fusion
+    s = local_spreads_of(probe, f.spread_candidates, 1.0, f.ratio_weight, f.ratio_candidates)
     dd = probe.others(probe.D)
     t = np.median(dd[:, :5], 1) / dd[:, 29]
-    config = config.with_options(lf_typical=float(np.median(s)) / 0.11,
+    # a typical distance that puts the ceiling at the median statistic
+    typical = (float(np.median(s)) / f.ceiling) ** (1.0 / (1.0 - f.ratio_weight))
+    config = config.with_options(lf_typical=typical,
                                  lf_contrast_floor=float(np.median(t)) - 0.02)  # fmt: skip
     want_w = gate_weights(probe, config.lf_fusion)
     assert 0 < np.count_nonzero(want_w) < 40  # the gate decides
@@ -99,37 +120,24 @@ def _gates(db: Any) -> np.ndarray:
     return np.asarray(out)
 
 
-def _chain(angle: float, bend: float) -> Any:
-    """Four balls joined by rods, its two joints bent by ``angle`` and ``bend`` (radians)."""
-    pts = [np.zeros(3)]
-    heading = 0.0
-    for turn in (0.0, angle, bend):
-        heading += turn
-        pts.append(pts[-1] + 1.6 * np.array([np.cos(heading), np.sin(heading), 0.0]))
-    shape = Sphere(tuple(pts[0]), 0.45)
-    for a, b in zip(pts[:-1], pts[1:], strict=True):
-        shape = shape | Capsule(tuple(a), tuple(b), 0.25) | Sphere(tuple(b), 0.45)
-    return shape
-
-
 @pytest.fixture(scope="module")
 def stores(tmp_path_factory: pytest.TempPathFactory,
            forget: Callable[[Any], None]) -> Iterator[dict[str, Any]]:  # fmt: skip
     """Two stores at the stage's defaults: rigid boxes and rods, and one chain in 8 poses."""
     import shapedb.database as database
 
-    config = Config().with_options(rerank="lightfield", resolution=48, n_balls=128)
+    config = Config().with_options(**ANALYTIC)
     root = tmp_path_factory.mktemp("spread")
     rigid = database.connect(root / "rigid", config=config)
     rigid.ingest([(f"box{k}", Box((0, 0, 0), (2.0 + 0.15 * k, 1.0, 0.6 + 0.05 * k)))
                   for k in range(4)] + [(f"rod{k}", Capsule((0, 0, 0), (3.0 + 0.2 * k, 0, 0), 0.4))
                                         for k in range(4)], workers=1)  # fmt: skip
-    chain = database.connect(root / "chain", config=config)
+    jointed = database.connect(root / "chain", config=config)
     poses = [(a, b) for a in (0.0, 0.5, 1.0, 1.5) for b in (-0.8, 0.8)]
-    chain.ingest([(f"pose{k}", _chain(a, b)) for k, (a, b) in enumerate(poses)], workers=1)
-    yield {"rigid": rigid, "chain": chain}
+    jointed.ingest([(f"pose{k}", chain(a, b)) for k, (a, b) in enumerate(poses)], workers=1)
+    yield {"rigid": rigid, "chain": jointed}
     forget(rigid)
-    forget(chain)
+    forget(jointed)
 
 
 def test_rigid_shapes_turn_the_light_field_on_and_a_chain_in_poses_turns_it_off(
@@ -155,8 +163,27 @@ def test_the_spreads_are_kept_with_the_store_at_its_version(stores: dict[str, An
     assert dict(zip(ids.tolist(), spreads.tolist(), strict=True)) == first
 
 
-def test_spreads_asked_for_a_few_shapes_equal_the_whole_store_s() -> None:
+def test_the_local_statistic_of_a_hand_made_neighbourhood() -> None:
+    d = np.array([1.0, 2.0, 3.0, 4.0, 5.0])  # calibrated stored distances, list order
+    dl = np.array([6.0, 2.0, 9.0, 1.0, 4.0])  # the light field's nearest are the 4th, 2nd
+    config = Config().with_options(lf_spread_candidates=2, lf_typical=2.0, lf_ratio_weight=0.0)
+    assert local_statistic(d, dl, config) == (4.0 / 2.0) / 1.5  # median l / typical / median d
+    config = config.with_options(lf_ratio_weight=1.0, lf_ratio_candidates=5)
+    assert local_statistic(d, dl, config) == 4.0 / 1.5  # median of 6, 2 over median of 1, 2
+    config = config.with_options(lf_ratio_candidates=3)  # among the first 3: 2 and 6
+    assert local_statistic(d, dl, config) == 1.0
+    config = config.with_options(lf_ratio_weight=0.5, lf_ratio_candidates=5)
+    assert np.isclose(local_statistic(d, dl, config), np.sqrt((2.0 / 1.5) * (4.0 / 1.5)))
+    assert np.isnan(local_statistic(d[:0], dl[:0], config))
+    values = np.array([[4.0, 1.0, np.nan, 3.0, 2.0]])
+    assert pooled(values, 0.5).tolist() == [2.5]
+    assert pooled(values, 0.25).tolist() == [1.75]
+
+
+@pytest.mark.parametrize("gate", [{}, RATIO], ids=["spread", "ratio"])
+def test_spreads_asked_for_a_few_shapes_equal_the_whole_store_s(gate: dict[str, Any]) -> None:
     config, index, lf, _ = _case()
+    config = config.with_options(**gate)
     _, whole = local_spreads(index, _reader(index, lf, config), config)
     few = np.array([31, 3, 17, 99])  # 99 is not stored: left out
     got_ids, got = local_spreads(index, _reader(index, lf, config), config, few)
@@ -190,3 +217,10 @@ def test_a_search_computes_only_the_spreads_it_pools(
     assert got.tolist() == [whole[2], whole[5]]
     table.get(np.array([5]))
     assert asked == [2]  # known: not computed again
+
+
+def test_a_commit_recomputes_the_statistics_within_a_budget_of_light_field_distances() -> None:
+    ratio, spread = Config(), Config().with_options(lf_ratio_weight=0.0, lf_spread_candidates=5)
+    assert commit_distances(2000, spread) == FULL_AT_COMMIT  # the spread gate's 2,000 shapes
+    assert commit_distances(100, ratio) == 100 * max(ratio.lf_fusion.ratio_candidates, 3)
+    assert commit_distances(101, ratio) > FULL_AT_COMMIT >= commit_distances(100, ratio)

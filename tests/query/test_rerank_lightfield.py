@@ -26,6 +26,8 @@ from shapedb.kernel import weights
 from shapedb.lightfield import light_field_distance
 
 STAGE = CONFIG.with_options(rerank="lightfield", rerank_candidates=6)
+#: The stage on the balls' light fields (the fills and the longer packing are theirs).
+BALLS = STAGE.with_options(lf_source="balls", lf_resolution=64)
 
 
 def _study_case(n: int = 40, seed: int = 0) -> tuple[Config, np.ndarray, np.ndarray, np.ndarray]:
@@ -41,7 +43,7 @@ def _study_case(n: int = 40, seed: int = 0) -> tuple[Config, np.ndarray, np.ndar
 #: The stage's settings before the pooled spread and the contrast floor (issue 25's
 #: first product): what a store written then reads (shapedb.migrations).
 LEGACY = {"lf_weight": 8.0, "lf_power": 3.0, "lf_ceiling": 0.09, "lf_spread_candidates": 100,
-          "lf_pool": 0, "lf_contrast_floor": 0.0}  # fmt: skip
+          "lf_pool": 0, "lf_contrast_floor": 0.0, "lf_ramp": 0.02, "lf_ratio_weight": 0.0}  # fmt: skip
 
 
 def test_a_store_written_before_the_pool_reads_the_legacy_gate() -> None:
@@ -50,6 +52,21 @@ def test_a_store_written_before_the_pool_reads_the_legacy_gate() -> None:
     got = Config.from_json(json.dumps(stored)).lf_fusion
     assert (got.pool, got.contrast_floor, got.weight, got.power) == (0, 0.0, 8.0, 3.0)
     assert Config().lf_fusion.pool > 0 and Config().lf_fusion.contrast_floor > 0
+
+
+def test_a_store_written_before_the_ratio_reads_its_spread_gate() -> None:
+    spread_gate = {"lf_pool": 20, "lf_ceiling": 0.11, "lf_spread_candidates": 5,
+                   "lf_contrast_floor": 0.3}  # fmt: skip
+    stored = json.loads(Config().with_options(rerank="lightfield", **spread_gate).to_json())
+    for key in ("ratio_weight", "ratio_candidates", "pool_quantile"):
+        del stored["lf_fusion"][key]
+    got = Config.from_json(json.dumps(stored)).lf_fusion
+    assert (got.ratio_weight, got.pool_quantile) == (0.0, 0.5)
+    assert (got.pool, got.ceiling, got.spread_candidates) == (20, 0.11, 5)
+    ratio = Config().with_options(lf_ratio_weight=0.5, lf_ratio_candidates=30,
+                                  lf_pool_quantile=0.25)  # fmt: skip
+    assert Config.from_json(ratio.to_json()) == ratio
+    assert ratio.lf_fusion.ratio_candidates == 30
 
 
 def test_with_every_shape_a_candidate_the_legacy_gate_ranks_as_the_study() -> None:
@@ -99,7 +116,8 @@ def test_bad_fusion_values_name_the_field() -> None:
     for option, value in [("lf_weight", -1.0), ("lf_neighbours", 0), ("lf_ramp", 0.0),
                           ("lf_typical", 0.0), ("lf_spread_candidates", 0), ("lf_n_fields", 11),
                           ("lf_pool", -1), ("lf_contrast_floor", 1.5), ("lf_contrast_ramp", 0.0),
-                          ("lf_contrast_depth", 1)]:  # fmt: skip
+                          ("lf_contrast_depth", 1), ("lf_ratio_weight", 1.5),
+                          ("lf_ratio_candidates", 0), ("lf_pool_quantile", -0.1)]:  # fmt: skip
         with pytest.raises(ConfigError, match=option.removeprefix("lf_")):
             Config().with_options(**{option: value})
     assert Config().with_options(lf_weight=2.0).lf_fusion.weight == 2.0
@@ -231,7 +249,7 @@ def test_a_store_with_filled_silhouettes_fills_its_records_and_its_queries(
     from shapedb.lightfield import record_light_field
     from shapedb.mdbd import decompose
 
-    filled = STAGE.with_options(lf_edges=True, lf_n_balls=0)  # the decomposition's balls
+    filled = BALLS.with_options(lf_edges=True, lf_n_balls=0)  # the decomposition's balls
     db = database.connect(tmp_path / "store", config=filled)
     shapes = {n: g for n, g in _shapes().items() if n in ("box_a", "rod_a", "ring_a")}
     db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
@@ -256,7 +274,7 @@ def test_a_store_with_a_longer_packing_renders_records_and_queries_from_it(
     from shapedb.lightfield import decomposition_light_field, record_light_field
     from shapedb.mdbd import decompose
 
-    longer = STAGE.with_options(lf_n_balls=STAGE.mdbd.n_balls + 200)
+    longer = BALLS.with_options(lf_n_balls=STAGE.mdbd.n_balls + 200)
     db = database.connect(tmp_path / "store", config=longer)
     shapes = {n: g for n, g in _shapes().items() if n in ("box_a", "box_b", "rod_a", "ring_a")}
     db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
@@ -280,26 +298,30 @@ def test_a_store_with_a_longer_packing_renders_records_and_queries_from_it(
 
 
 def test_a_decomposition_query_without_the_store_s_tail_is_warned_about(
-    lf_db: Any, caplog: pytest.LogCaptureFixture
+    tmp_path: Path, forget: Callable[[Any], None], caplog: pytest.LogCaptureFixture
 ) -> None:
+    import shapedb.database as database
     from shapedb.mdbd import decompose
 
-    cfg = lf_db.config
+    db = database.connect(tmp_path / "store", config=BALLS)
+    shapes = {n: g for n, g in _shapes().items() if n in ("box_a", "rod_a", "ring_a")}
+    db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
+    cfg = db.config
     assert cfg.light_field_tail > 0
-    shape = _shapes()["box_a"]
+    shape = shapes["box_a"]
     with caplog.at_level(logging.WARNING, logger="query.engine"):
-        lf_db.search(decompose(shape, config=cfg.mdbd, tail_balls=cfg.light_field_tail), k=2)
+        db.search(decompose(shape, config=cfg.mdbd, tail_balls=cfg.light_field_tail), k=2)
     assert "tail" not in caplog.text
     with caplog.at_level(logging.WARNING, logger="query.engine"):
-        lf_db.search(decompose(shape, config=cfg.mdbd), k=2)
+        db.search(decompose(shape, config=cfg.mdbd), k=2)
     assert "no tail balls" in caplog.text
+    forget(db)
 
 
 def test_a_store_of_the_field_s_light_fields_renders_records_and_queries_from_the_inside(
-    tmp_path: Path, forget: Callable[[Any], None]
+    tmp_path: Path, forget: Callable[[Any], None], caplog: pytest.LogCaptureFixture
 ) -> None:
     import shapedb.database as database
-    from shapedb.errors import QueryError
     from shapedb.lightfield import inside_light_field
     from shapedb.mdbd import decompose
 
@@ -323,7 +345,12 @@ def test_a_store_of_the_field_s_light_fields_renders_records_and_queries_from_th
     assert [h.name for h in again.search(box, k=2)][0] == "box_a"
     # a record (no inside: never stored) queries with the light fields it carries
     assert [h.id for h in again.search(rec, k=3)] == [h.id for h in again.search("box_a", k=3)]
-    with pytest.raises(QueryError, match="keep_inside=True"):
-        again.search(decompose(shapes["box_a"], config=field.mdbd), k=2)
+    plain = database.connect(tmp_path / "plain", config=field.with_options(rerank="none"))
+    plain.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
+    with caplog.at_level(logging.WARNING, logger="query.engine"):  # no inside: stored order
+        hits = again.search(decompose(shapes["box_a"], config=field.mdbd), k=3)
+    assert "no inside" in caplog.text
+    assert [h.name for h in hits] == [h.name for h in plain.search(shapes["box_a"], k=3)]
+    forget(plain)
     forget(db)
     forget(again)

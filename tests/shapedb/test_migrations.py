@@ -16,6 +16,7 @@ from shapedb.config import (
     Config,
     DescriptorConfig,
     KernelConfig,
+    LightFieldConfig,
     MDBDConfig,
     PartConfig,
     RerankConfig,
@@ -74,7 +75,8 @@ def test_each_later_field_takes_the_value_that_built_the_store() -> None:
 
 def test_nothing_stored_is_todays_defaults_but_the_stage_the_layout_predates() -> None:
     # a dict without ``layout`` is layout 1, written before re-ranking: no stage
-    plain = Config().with_options(rerank="none")
+    # (and the light fields the product kept when the section came: unused without a stage)
+    plain = Config().with_options(rerank="none", lf_source="balls", lf_resolution=64)
     assert Config().rerank.scorer == "lightfield"
     assert Config.from_dict({}) == plain
     assert Config.from_dict({"kernel": {}, "mdbd": {}}) == plain
@@ -128,6 +130,8 @@ def _layout1_store_config() -> Config:
         descriptor=DescriptorConfig(version=3),
         cloud=CloudConfig(view_cells=4.0, reconstruct=False, reconstruct_depth=7),
         rerank=RerankConfig(scorer="none"),  # written before re-ranking stages
+        # before the light fields: those the product kept when the section came
+        light_field=LightFieldConfig(n_fields=3, resolution=64, n_balls=2048, source="balls"),
     )
 
 
@@ -211,7 +215,7 @@ def test_light_fields_stored_before_the_fills_read_as_the_plain_discs() -> None:
 
 
 def test_light_fields_stored_before_the_longer_packing_read_as_the_decompositions_balls() -> None:
-    longer = Config().with_options(rerank="lightfield", lf_n_balls=1024)
+    longer = Config().with_options(rerank="lightfield", lf_source="balls", lf_n_balls=1024)
     assert longer.light_field.n_balls == 1024 and longer.light_field_tail == 1024 - 512
     stored = longer.to_dict()
     assert Config.from_dict(stored) == longer

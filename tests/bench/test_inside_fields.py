@@ -1,0 +1,54 @@
+"""Cutting a configuration's light fields from the field bench's cached renderings."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from bench.inside_fields import cut
+from shapedb.config import LightFieldConfig, MDBDConfig
+from shapedb.implicit import Box
+from shapedb.inside import field_inside
+from shapedb.lightfield import inside_light_field
+from shapedb.mdbd import prepare_field
+
+
+@pytest.fixture(scope="module")
+def cached() -> dict[str, np.ndarray]:
+    prep = prepare_field(Box((0, 0, 0), (2.0, 1.0, 0.3)), MDBDConfig(resolution=24))
+    inside = field_inside(prep.F, prep.grid, prep.frame, prep.scale)
+    base = LightFieldConfig(n_fields=10, resolution=64)
+    return {
+        "inside": inside,  # type: ignore[dict-item]
+        "lf64": inside_light_field(inside, dataclasses.replace(base, depth_weight=1.0)),
+        "lf128": inside_light_field(inside, dataclasses.replace(base, resolution=128)),
+    }
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        {},
+        {"n_fields": 10},
+        {"resolution": 128},
+        {"depth_weight": 2.0},
+        {"n_fields": 1, "depth_weight": 0.5},
+    ],
+)
+def test_a_cut_is_the_light_field_rendered_directly(cached: dict, options: dict) -> None:
+    cfg = LightFieldConfig(**{"n_fields": 3, "resolution": 64, "source": "field", **options})
+    got = cut(cached, cfg)
+    want = inside_light_field(cached["inside"], cfg)
+    assert got.shape == want.shape
+    assert np.allclose(got, want, rtol=1e-6, atol=1e-7)
+
+
+@pytest.mark.parametrize(
+    "options", [{"resolution": 96}, {"zernike_order": 8}, {"seed": 1}, {"close_px": 1},
+                {"resolution": 128, "depth_weight": 1.0}],
+)  # fmt: skip
+def test_what_is_not_cached_is_refused(cached: dict, options: dict) -> None:
+    with pytest.raises(ValueError, match="not cached"):
+        cut(cached, LightFieldConfig(source="field", **options))
