@@ -14,6 +14,7 @@ from bench.studies.field_depth import (
     depth_images,
     fuse,
     harmonic_descriptor,
+    harmonic_descriptor_grid,
     principal_coordinates,
 )
 from shapedb.geometry import Grid
@@ -46,7 +47,14 @@ def _rel(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
     return float(np.abs(a - b).sum() / np.abs(a).sum())
 
 
-@pytest.mark.parametrize("descriptor", [_dbd, lambda s: harmonic_descriptor(s.shell, s.centroid)])
+@pytest.mark.parametrize(
+    "descriptor",
+    [
+        _dbd,
+        lambda s: harmonic_descriptor(s.shell, s.centroid),
+        lambda s: harmonic_descriptor_grid(s.shell, s.centroid),
+    ],
+)
 def test_a_turned_box_keeps_its_descriptor_and_a_cylinder_does_not(
     descriptor: Callable[[Inside], NDArray[np.float64]],
 ) -> None:
@@ -97,3 +105,13 @@ def test_fusion_divides_each_distance_by_its_median() -> None:
 def test_an_empty_shell_is_refused() -> None:
     with pytest.raises(ValueError, match="empty"):
         principal_coordinates(np.zeros((0, 3)), np.zeros(3))
+
+
+def test_the_angle_grid_harmonics_match_the_exact_ones_up_to_the_snapping() -> None:
+    s = _voxelised(_cylinder, Rotation.from_euler("xy", [20, 40], degrees=True))
+    exact = harmonic_descriptor(s.shell, s.centroid, shells=8, bands=6)
+    grid = harmonic_descriptor_grid(s.shell, s.centroid, shells=8, bands=6)
+    coarse = harmonic_descriptor_grid(s.shell, s.centroid, shells=8, bands=6, n_theta=8)
+    assert grid.shape == exact.shape == (48,)
+    assert _rel(exact, grid) < 0.02
+    assert _rel(exact, coarse) > _rel(exact, grid)
