@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from bench.cached import CHOICES, load
+from bench.cached import CHOICES, ENGINE_COMMITS, load
 from bench.common import cache_path, format_table, retrieval_scores, variant_geometry, write_json
 from bench.datasets import CACHE_DIR, Dataset
 from shapedb.config import MDBDConfig
@@ -58,8 +58,19 @@ RESULTS = Path(__file__).resolve().parents[1] / "results"
 # --------------------------------------------------------------------------------------
 
 
+def _paths(model: Any) -> list[Path]:
+    """Today's cache path of a model's shell, then those of the older engines
+    (:data:`bench.cached.ENGINE_COMMITS`, whose fields are today's)."""
+    cfg = MDBDConfig()
+    keys = [cache_path(model, "mesh", cfg).stem]
+    keys += [cache_path(model, "mesh", cfg, engine_commit=c).stem for c in ENGINE_COMMITS]
+    return [FOLDER / f"{k}_{VERSION}.npz" for k in keys]
+
+
 def _path(model: Any) -> Path:
-    return FOLDER / f"{cache_path(model, 'mesh', MDBDConfig()).stem}_{VERSION}.npz"
+    """The model's cached shell if any engine's exists, else today's path."""
+    paths = _paths(model)
+    return next((p for p in paths if p.exists()), paths[0])
 
 
 def _compute(args: tuple[Any, str]) -> str | None:
