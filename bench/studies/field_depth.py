@@ -6,7 +6,7 @@ Usage (from the repository root)::
     nice -n 5 python -m bench.studies.field_depth --fill --datasets web --split validation
     nice -n 5 python -m bench.studies.field_depth                     # web validation study
     nice -n 5 python -m bench.studies.field_depth --split test --datasets web webplus \
-        --only "field LF + DBD"                                        # the chosen fusion
+        --only "DBD 64 px, k 8" "SHD 32 x 16, grid" --triple 0.5 0.5   # the chosen fusion
 
 For each model of a split (those :func:`bench.cached.load` has): the field of
 :func:`shapedb.mdbd.prepare_field` and its inside (:func:`shapedb.inside.field_inside`,
@@ -17,7 +17,9 @@ its shell cells), cached under ``$SHAPEDB_BENCH_CACHE/field_depth``. From the sh
   made invariant to the frame's sign flips (mirror-symmetrised magnitudes; opposite views
   paired by sum and absolute difference).
 - :func:`harmonic_descriptor` (Kazhdan's SHD): spherical-harmonic energies of the shell
-  cells on concentric spheres about the volume centroid (rotation invariant).
+  cells on concentric spheres about the volume centroid (rotation invariant);
+  :func:`harmonic_descriptor_grid` the same with directions snapped to an angle grid and
+  the harmonics evaluated once (a twentieth of the cost).
 
 Both are compared by L1 (indexable). Measured alone and fused with the cached field
 light fields (:func:`bench.inside_fields.light_fields`, 3 x 128 px) and the mesh light
