@@ -25,7 +25,7 @@ Both are compared by L1 (indexable). Measured alone and fused with the cached fi
 light fields (:func:`bench.inside_fields.light_fields`, 3 x 128 px) and the mesh light
 field descriptor (:func:`bench.rerank_select.lfd_matrix`), in the same run: fusion is
 the sum of distances each divided by its median off-diagonal distance, the second
-weighted. Results go to bench/results/field_depth_<split>.json.
+weighted. Results go to bench/results/studies/field_depth_<split>.json.
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ FloatArray = NDArray[np.float64]
 #: Bump when the cached shells change.
 VERSION = "v1"
 FOLDER = CACHE_DIR / "field_depth"
-RESULTS = Path(__file__).resolve().parents[1] / "results"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 
 
 # --------------------------------------------------------------------------------------
