@@ -44,8 +44,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from bench.cached import CHOICES, ENGINE_COMMITS, load
-from bench.common import cache_path, format_table, retrieval_scores, variant_geometry, write_json
+from bench.common import cache_path, format_table, retrieval_scores, write_json
 from bench.datasets import CACHE_DIR, Dataset
+from bench.inside_fields import model_inside
 from shapedb.config import MDBDConfig
 
 FloatArray = NDArray[np.float64]
@@ -77,21 +78,14 @@ def _path(model: Any) -> Path:
 
 def _compute(args: tuple[Any, str]) -> str | None:
     """Worker: the model's field and its inside's shell, written to ``path``."""
-    from shapedb.inside import field_inside
-    from shapedb.mdbd import prepare_field
-
     model, path = args
     try:
-        cfg = MDBDConfig()
-        c0 = time.process_time()
-        prep = prepare_field(variant_geometry(model, "mesh", cfg), cfg)
-        inside = field_inside(prep.F, prep.grid, prep.frame, prep.scale)
-        c1 = time.process_time()
+        inside, field_cpu = model_inside(model)
         tmp = f"{path}.{os.getpid()}.tmp.npz"
         np.savez_compressed(
             tmp, shell=inside.shell.astype(np.float32), cell=np.float64(inside.cell),
             centroid=inside.centroid, count=np.int64(inside.count),
-            field_cpu=np.float64(c1 - c0),
+            field_cpu=np.float64(field_cpu),
         )  # fmt: skip
         Path(tmp).replace(path)
     except Exception as exc:  # noqa: BLE001 - reported per model, the run goes on
@@ -293,6 +287,27 @@ def _harmonics_on_grid(bands: int, n_theta: int) -> tuple[FloatArray, NDArray[np
     return np.asarray(weights), np.stack(cols, axis=1)
 
 
+def _spherical(
+    shell: ArrayLike, centroid: ArrayLike, shells: int
+) -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
+    """Each shell cell's ring (of ``shells`` up to twice the mean distance to ``centroid``),
+    polar angle in [0, pi] and azimuth in (-pi, pi].
+
+    Raises
+    ------
+    ValueError
+        If the shell is empty or all its cells sit on the centroid.
+    """
+    x = np.asarray(shell, dtype=np.float64) - np.asarray(centroid, dtype=np.float64)
+    dist = np.linalg.norm(x, axis=1)
+    mean = float(dist.mean()) if len(x) else 0.0
+    if not mean > 0:
+        raise ValueError("degenerate shell: empty or every cell on the centroid")
+    ring = np.minimum((dist / (2.0 * mean) * shells).astype(np.int64), shells - 1)
+    theta = np.arccos(np.clip(x[:, 2] / np.maximum(dist, 1e-300), -1.0, 1.0))
+    return ring, theta, np.arctan2(x[:, 1], x[:, 0])
+
+
 def harmonic_descriptor_grid(
     shell: ArrayLike, centroid: ArrayLike, *, shells: int = 32, bands: int = 16, n_theta: int = 64
 ) -> FloatArray:
@@ -308,15 +323,9 @@ def harmonic_descriptor_grid(
     ValueError
         If the shell is empty or all its cells sit on the centroid.
     """
-    x = np.asarray(shell, dtype=np.float64) - np.asarray(centroid, dtype=np.float64)
-    dist = np.linalg.norm(x, axis=1)
-    mean = float(dist.mean()) if len(x) else 0.0
-    if not mean > 0:
-        raise ValueError("degenerate shell: empty or every cell on the centroid")
+    ring, theta, phi = _spherical(shell, centroid, shells)
+    phi = phi % (2 * np.pi)
     n_phi = 2 * n_theta
-    ring = np.minimum((dist / (2.0 * mean) * shells).astype(np.int64), shells - 1)
-    theta = np.arccos(np.clip(x[:, 2] / np.maximum(dist, 1e-300), -1.0, 1.0))
-    phi = np.arctan2(x[:, 1], x[:, 0]) % (2 * np.pi)
     it = np.minimum((theta / np.pi * n_theta).astype(np.int64), n_theta - 1)
     ip = np.minimum((phi / (2 * np.pi) * n_phi).astype(np.int64), n_phi - 1)
     g = n_theta * n_phi
@@ -325,7 +334,7 @@ def harmonic_descriptor_grid(
     power = weights * np.abs(counts @ table) ** 2  # (shells, columns)
     degree = np.repeat(np.arange(bands), np.arange(1, bands + 1))
     out = np.stack([power[:, degree == n].sum(axis=1) for n in range(bands)], axis=1)
-    return (np.sqrt(out) / len(x)).reshape(-1)
+    return (np.sqrt(out) / len(ring)).reshape(-1)
 
 
 def harmonic_descriptor(
@@ -346,14 +355,7 @@ def harmonic_descriptor(
     """
     from scipy.special import sph_harm_y
 
-    x = np.asarray(shell, dtype=np.float64) - np.asarray(centroid, dtype=np.float64)
-    dist = np.linalg.norm(x, axis=1)
-    mean = float(dist.mean()) if len(x) else 0.0
-    if not mean > 0:
-        raise ValueError("degenerate shell: empty or every cell on the centroid")
-    ring = np.minimum((dist / (2.0 * mean) * shells).astype(np.int64), shells - 1)
-    theta = np.arccos(np.clip(x[:, 2] / np.maximum(dist, 1e-300), -1.0, 1.0))
-    phi = np.arctan2(x[:, 1], x[:, 0])
+    ring, theta, phi = _spherical(shell, centroid, shells)
     out = np.zeros((shells, bands))
     for n in range(bands):
         power = np.zeros(shells)
@@ -363,7 +365,7 @@ def harmonic_descriptor(
                 ring, weights=y.imag, minlength=shells
             )
             power += (2.0 if m else 1.0) * np.abs(a) ** 2
-        out[:, n] = np.sqrt(power) / len(x)
+        out[:, n] = np.sqrt(power) / len(ring)
     return out.reshape(-1)
 
 
