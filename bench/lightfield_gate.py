@@ -418,14 +418,19 @@ def _row(stores: dict[str, Store], weights: dict[str, FloatArray],
     return entry
 
 
-def select(args: argparse.Namespace) -> dict[str, Any]:
-    """Rows of every store; on validation the grid and its choice; returns the JSON."""
+def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, Any]:
+    """Rows of every store; on validation the grid and its choice; returns the JSON.
+
+    ``split``: the shapes and distances to score (default: :class:`Split` of ``args``;
+    a study passes its own distances this way).
+    """
     import itertools
 
     t0 = time.perf_counter()
-    split = Split(
-        args.split, args.datasets, args.lf_n_balls, args.lf_within, args.lf_source, args.lf_set
-    )
+    if split is None:
+        split = Split(
+            args.split, args.datasets, args.lf_n_balls, args.lf_within, args.lf_source, args.lf_set
+        )
     names: dict[str, tuple[str, ...]] = {s: (s,) for s in args.datasets}
     names.update({k: v for k, v in MIXES.items() if set(v) <= set(args.datasets)})
     stores = {k: Store(split, split.store(v)) for k, v in names.items()}
@@ -647,8 +652,8 @@ def _print(rows: dict[str, dict[str, Any]], stores: dict[str, Store], split: str
     ))  # fmt: skip
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command-line entry point; returns the exit status."""
+def parser() -> argparse.ArgumentParser:
+    """The command line of :func:`main` (and of the studies that score their own distances)."""
     ap = argparse.ArgumentParser(
         prog="python -m bench.lightfield_gate", description=__doc__.split("\n")[0]
     )
@@ -673,7 +678,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--fusion", nargs="*", default=[], metavar="FIELD=VALUE",
                     help="LightFieldFusionConfig fields of the 'stage now' row")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None)
-    args = ap.parse_args(argv)
+    return ap
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point; returns the exit status."""
+    args = parser().parse_args(argv)
     result = select(args)
     tag = f"_n{args.lf_n_balls}" if args.lf_n_balls is not None else ""
     tag += f"_{args.lf_source}" if args.lf_source is not None else ""

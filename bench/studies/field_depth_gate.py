@@ -1,0 +1,94 @@
+"""The light field stage with the field's depth buffers and harmonics fused into its distance.
+
+Usage (from the repository root)::
+
+    python -m bench.studies.field_depth_gate                  # validation, every set and mix
+    python -m bench.studies.field_depth_gate --split test
+    python -m bench.studies.field_depth_gate --grid         # the gate re-chosen on validation
+
+The gate bench (:mod:`bench.lightfield_gate`, its fixed rows: version 4, the light fields
+alone, the product's stage) scores a split whose light field distance ``l`` (the product's:
+the field's inside, :mod:`bench.inside_fields`) is replaced by
+
+    ``m_l * (l / m_l + a * b / m_b + c * h / m_h) / (1 + a + c)``
+
+with ``b`` and ``h`` the L1 distances of the depth buffer descriptor and of the
+spherical-harmonic energies of the same field's inside (:mod:`bench.studies.field_depth`,
+its cached shells), ``m`` each distance's median over the split's off-diagonal pairs and
+``a``, ``c`` the weights chosen on web validation there (0.5, 0.5). The division keeps the
+fused distance's scale near the light field's, so the gate's spread keeps its units.
+Every set's shapes are scored in every store they belong to, as in the gate bench; the
+rule is the same (no set more than two queries below version 4). Written to
+bench/results/studies/field_depth_gate_<split>.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from bench.cached import load
+from bench.common import write_json
+from bench.lightfield_gate import SETS, Split, parser, select
+from bench.studies.field_depth import descriptor_matrix, shells
+
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
+DBD = "DBD 64 px, k 8"
+SHD = "SHD 32 x 16, grid"
+
+
+def _median(d: NDArray[np.float64]) -> float:
+    return float(np.median(d[~np.eye(len(d), dtype=bool)]))
+
+
+def fused_split(split: str, names: Sequence[str], dbd: float, shd: float) -> Split:
+    """The gate bench's :class:`Split` with its light field distance fused as above."""
+    out = Split(split, names)
+    all_shells, keys = [], []
+    for name in names:
+        ds, _ = load(name, split)
+        all_shells += shells(ds)
+        keys += [f"{name}:{m.name}{m.source}" for m in ds.models]
+    b, _ = descriptor_matrix(DBD, all_shells, keys)
+    h, _ = descriptor_matrix(SHD, all_shells, keys)
+    if b.shape != out.dl.shape:
+        raise ValueError(f"{b.shape[0]} shells for {out.dl.shape[0]} light fields")
+    m = _median(out.dl)
+    fused = out.dl / m + dbd * b / _median(b) + shd * h / _median(h)
+    out.dl = m * fused / (1.0 + dbd + shd)
+    return out
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point; returns the exit status."""
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.studies.field_depth_gate", description=__doc__.split("\n")[0]
+    )
+    ap.add_argument("--split", default="validation", choices=["validation", "test"])
+    ap.add_argument("--datasets", nargs="+", default=list(SETS))
+    ap.add_argument("--dbd", type=float, default=0.5, help="weight of the depth buffers")
+    ap.add_argument("--shd", type=float, default=0.5, help="weight of the harmonics")
+    ap.add_argument("--grid", action="store_true",
+                    help="validation: also the gate bench's selection grid on these distances")  # fmt: skip
+    ap.add_argument("--fusion", nargs="*", default=[], metavar="FIELD=VALUE",
+                    help="LightFieldFusionConfig fields of the 'stage now' row")  # fmt: skip
+    ap.add_argument("--out", type=Path, default=None)
+    args = ap.parse_args(argv)
+    flags = ["--split", args.split, "--datasets", *args.datasets, "--fusion", *args.fusion]
+    gate_args = parser().parse_args(flags + ([] if args.grid else ["--no-grid"]))
+    split = fused_split(args.split, args.datasets, args.dbd, args.shd)
+    result = select(gate_args, split=split)
+    result["fusion"] = {"dbd": args.dbd, "shd": args.shd, "dbd_name": DBD, "shd_name": SHD}
+    out = args.out or RESULTS / f"field_depth_gate_{args.split}.json"
+    write_json(out, result)
+    print(f"written {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
