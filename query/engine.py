@@ -225,7 +225,8 @@ class _Query:
     the query has none (a raw vector, a decomposition, a rejected reconstruction).
     ``sid`` is the stored shape's id when the query is one, else -1; ``decomposition``
     the query's own decomposition when it has one (a stored shape's is not read);
-    ``light_field`` an unstored record's own light fields, when it carries them.
+    ``light_field`` and ``field_vector`` an unstored record's own light fields and field
+    vector, when it carries them.
     """
 
     feature: NDArray[np.float64]
@@ -234,6 +235,7 @@ class _Query:
     sid: int = -1
     decomposition: Any = None
     light_field: Any = None
+    field_vector: Any = None
 
     def view_feature(self) -> NDArray[np.float64] | None:
         if callable(self.view):
@@ -246,10 +248,14 @@ def _stored_arrays(db: Database, resolved: list[_Query]) -> tuple[Any, Any]:
 
     Only a store that keeps light fields (``Config.stores_light_fields``) has any: its
     records' ``light_field`` column, and each outside query's light fields computed from
-    its decomposition (NaN for a stored query, read by id, or a raw vector).
+    its decomposition (NaN for a stored query, read by id, or a raw vector); in a store
+    with field vectors (:mod:`query.field_fusion`) also their ``field_vector`` column and
+    each outside query's own field vector, when its stage reads them (a field weight or
+    extra candidates).
     """
     if not db.config.stores_light_fields:
         return None, None
+    from query.field_fusion import FIELD, FieldFusion, query_field_vectors
     from query.rerank_lightfield import COLUMN, query_light_fields, stored_arrays
 
     own = [r.decomposition if r.sid < 0 and r.light_field is None else None for r in resolved]
@@ -257,7 +263,16 @@ def _stored_arrays(db: Database, resolved: list[_Query]) -> tuple[Any, Any]:
     for k, r in enumerate(resolved):
         if r.sid < 0 and r.light_field is not None:  # a record's own, as ingest computed it
             fields[k] = np.asarray(r.light_field, dtype=np.float64)
-    return stored_arrays(db), {COLUMN: fields}
+    out = {COLUMN: fields}
+    fusion = FieldFusion.from_config(db.config)
+    if fusion.active or fusion.proposes:
+        own = [r.decomposition if r.sid < 0 and r.field_vector is None else None for r in resolved]
+        vectors = query_field_vectors(db.config, own)
+        for k, r in enumerate(resolved):
+            if r.sid < 0 and r.field_vector is not None:  # a record's own
+                vectors[k] = np.asarray(r.field_vector, dtype=np.float64)
+        out[FIELD] = vectors
+    return stored_arrays(db), out
 
 
 def _resolve(db: Database, query: Any, index: Any) -> _Query:
@@ -310,6 +325,7 @@ def _resolve(db: Database, query: Any, index: Any) -> _Query:
         return _Query(
             _vector(query.feature, dim, source=query.name), is_sparse(d.sampling, d.spacing), view,
             decomposition=d, light_field=query.light_field,
+            field_vector=getattr(query, "field_vector", None),
         )  # fmt: skip
     if isinstance(query, os.PathLike) or (isinstance(query, str) and _is_file(query)):
         return _from_file(db, Path(query))

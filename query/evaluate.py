@@ -347,9 +347,11 @@ def _reranked_rows(
     Stored distances are computed as the index re-ranks them (``|x - q| @ w`` in
     float64), ordered with ties by ascending id, and handed to
     :func:`query.rerank.rerank_candidates` whole, the query among them, as a search
-    for every shape would see them.
+    for every shape would see them; a scorer's extra candidates (the field vectors'
+    nearest, :mod:`query.field_index`) are taken among the shapes ``ids`` and placed
+    after the first ``K`` as a search places them (:func:`query.rerank.with_extras`).
     """
-    from query.rerank import Candidates, rerank_candidates
+    from query.rerank import Candidates, extra_candidates, rerank_candidates, with_extras
 
     n, dim = x.shape
     sorter = np.argsort(ids)
@@ -362,6 +364,10 @@ def _reranked_rows(
             ids[idx], x[idx], ids[order], x[order], w, np.take_along_axis(d, order, 1), config,
             arrays,
         )  # fmt: skip
+        extra = extra_candidates(scorer, batch, ids)
+        if extra is not None:
+            at = np.minimum(np.searchsorted(ids, extra, sorter=sorter), n - 1)
+            batch = with_extras(batch, extra, x[sorter[at]])
         got, _ = rerank_candidates(scorer, batch, n)
         cols = sorter[np.searchsorted(ids, got, sorter=sorter)]
         ranks = np.empty((len(idx), n))

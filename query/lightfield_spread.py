@@ -29,6 +29,10 @@ store whose statistics cost at most :data:`FULL_AT_COMMIT` light field distances
 computed for one shape or for all is the same number (deterministic, from the stored
 vectors and light fields). Cost: ``spread_candidates`` light field distances per shape
 (``max(spread_candidates, ratio_candidates)`` with the ratio).
+
+In a store whose stage fuses the field vectors into the light field distance
+(:mod:`query.field_fusion`), every light field distance above is the fused one, and the
+fusion's weights and scales are among the parameters a stored table must match.
 """
 
 from __future__ import annotations
@@ -43,6 +47,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from query._versioned import POINTER, current, save_version
+from query.field_fusion import FieldFusion
 
 if TYPE_CHECKING:
     from query.rerank import ArrayReader
@@ -151,7 +156,8 @@ def local_spreads(
         Fitted (:mod:`query.index`) over the stored vectors; its alive ids are the shapes.
     fields : ArrayReader
         Reads the ``"light_field"`` column by ids, (m, fields, 10, d), NaN rows for
-        records without.
+        records without; and, when ``config``'s stage fuses the field vectors, the
+        ``"field_vector"`` column (a shape whose row cannot be fused keeps ``l``).
     config : Config
         ``lf_fusion.spread_candidates`` and ``typical``, and the descriptor (calibration).
     ids : (k,) int64, optional
@@ -164,9 +170,11 @@ def local_spreads(
     spreads : (n,) float64
         NaN for a shape with no light fields or no neighbour with them.
     """
+    from query.field_fusion import FIELD
     from shapedb.lightfield import light_field_distance
 
     f = config.lf_fusion
+    fusion = FieldFusion.from_config(config)
     alive = np.sort(np.asarray(index.ids_, np.int64)[np.asarray(index.alive_, bool)])
     ids = alive if ids is None else np.intersect1d(alive, np.asarray(ids, np.int64))
     out = np.full(len(ids), np.nan)
@@ -182,6 +190,7 @@ def local_spreads(
         got = fields("light_field", wanted)
         if got is None:
             continue
+        fv = fields(FIELD, wanted) if fusion.active else None
         pos = {int(i): k for k, i in enumerate(wanted)}
         for row, sid in enumerate(q):
             keep = (near[row] >= 0) & (near[row] != sid)
@@ -192,6 +201,9 @@ def local_spreads(
             if not np.all(np.isfinite(lq)) or not ok.any():
                 continue
             dl = light_field_distance(lq[None], lc[ok])[0]
+            if fusion.active:
+                fc = None if fv is None else fv[[pos[int(i)] for i in nb]][ok]
+                dl = fusion.distance(dl, None if fv is None else fv[pos[int(sid)]], fc)
             out[lo + row] = local_statistic(d[ok] / cal, dl, config)
     return ids, out
 
@@ -221,6 +233,7 @@ def _meta(config: Config, version: int) -> dict[str, Any]:
         "light_field": repr(lf),
         "descriptor": int(config.descriptor.version),
         "method": config.kernel.method,
+        "field_fusion": FieldFusion.from_config(config).key(),
     }
 
 
@@ -310,7 +323,7 @@ def spread_table(db: Database, fields: ArrayReader) -> SpreadTable:
     key = (os.fspath(db.store.path), version)
     with _LOCK:
         table = _CACHE.get(key)
-        if table is None:
+        if table is None or table.meta != _meta(db.config, version):  # new version or config
             table = _CACHE[key] = SpreadTable(db, fields)
             for old in [k for k in _CACHE if k[0] == key[0] and k[1] != version]:
                 _CACHE.pop(old, None)

@@ -61,6 +61,8 @@ __all__ = [
     "scorer_for",
     "scorers",
     "rerank_candidates",
+    "extra_candidates",
+    "with_extras",
     "search",
     "block_slice",
     "SCORER_MODULES",
@@ -104,6 +106,10 @@ class Candidates:
     query_arrays : mapping, optional
         Per-query arrays computed from the queries themselves, by column name: (q, ...)
         float64, NaN rows where a query has none (e.g. a stored query, read by id).
+    head : int, optional
+        Entries of each list the stage re-ranks: version 4's ``K`` nearest and the
+        scorer's extra candidates after them (:func:`with_extras`); None:
+        ``config.rerank.candidates``.
     """
 
     query_ids: NDArray[np.int64]
@@ -115,6 +121,7 @@ class Candidates:
     config: Config
     arrays: ArrayReader | None = None
     query_arrays: Mapping[str, NDArray[np.float64]] | None = None
+    head: int | None = None
 
     @property
     def valid(self) -> NDArray[np.bool_]:
@@ -132,6 +139,11 @@ class Scorer(Protocol):
     """An exact distance for candidates: ``score(batch) -> (q, c)`` float64, lower is nearer.
 
     Padded entries (``batch.valid`` False) may hold anything: they are dropped.
+
+    A scorer may also propose candidates of its own beyond the index's ``K`` nearest,
+    through an optional method ``extra_candidates(batch, allowed) -> (q, e) int64 | None``
+    (ids, -1 pads; ``allowed`` the ids a search is restricted to, or None): the stage
+    re-ranks them after the ``K`` (:func:`with_extras`).
     """
 
     def score(self, batch: Candidates) -> NDArray[np.float64]: ...
@@ -277,6 +289,70 @@ class AdaptiveFusion:
 register_scorer("adaptive", AdaptiveFusion)
 
 
+def extra_candidates(
+    scorer: Scorer, batch: Candidates, allowed: Any = None
+) -> NDArray[np.int64] | None:
+    """The scorer's proposed extra candidates (q, e), or None (it proposes none)."""
+    propose = getattr(scorer, "extra_candidates", None)
+    if propose is None:
+        return None
+    got = propose(batch, allowed)
+    return None if got is None else np.asarray(got, np.int64).reshape(len(batch.ids), -1)
+
+
+def with_extras(
+    batch: Candidates, extra_ids: NDArray[np.int64], extra_features: NDArray[np.float64]
+) -> Candidates:
+    """``batch`` with extra candidates re-ranked after its first ``K`` (the union).
+
+    Each list becomes: its first ``K = batch.head or config.rerank.candidates`` entries,
+    then the extras not among them in stored-distance order (``|x - q| @ weights``, ties
+    by ascending id; -1 / inf pads up to ``e``), then the rest of the list without the
+    extras. ``head`` of the result covers the ``K`` and the ``e`` extra slots.
+
+    Parameters
+    ----------
+    batch : Candidates
+    extra_ids : (q, e) int64
+        Proposed ids, -1 pads; ids among the first ``K`` or repeated are dropped.
+    extra_features : (q, e, d) float64
+        Their stored vectors (anything where padded).
+    """
+    n_k = int(batch.head if batch.head is not None else batch.config.rerank.candidates)
+    n_k = min(n_k, batch.ids.shape[1])
+    head = batch.ids[:, :n_k]
+    ex = np.asarray(extra_ids, np.int64)
+    q, e = ex.shape
+    new = ex >= 0
+    for row in range(q):
+        _, first = np.unique(ex[row], return_index=True)
+        once = np.zeros(e, bool)
+        once[first] = True
+        new[row] &= once & ~np.isin(ex[row], head[row])
+    feats = np.asarray(extra_features, np.float64).reshape(q, e, -1)
+    d = np.abs(feats - batch.queries[:, None, :]) @ batch.weights
+    d = np.where(new, d, np.inf)
+    order = np.lexsort((np.where(new, ex, _NO_ID), d), axis=-1)
+    ex_d = np.take_along_axis(d, order, 1)
+    ex_i = np.where(np.isfinite(ex_d), np.take_along_axis(ex, order, 1), -1)
+    ex_f = np.where(
+        np.isfinite(ex_d)[..., None], np.take_along_axis(feats, order[..., None], 1), 0.0
+    )
+    rest_i = batch.ids[:, n_k:].copy()
+    rest_d = batch.distances[:, n_k:].copy()
+    rest_f = batch.features[:, n_k:].copy()
+    for row in range(q):
+        dup = np.isin(rest_i[row], ex_i[row][ex_i[row] >= 0]) & (rest_i[row] >= 0)
+        rest_i[row, dup], rest_d[row, dup], rest_f[row, dup] = -1, np.inf, 0.0
+    return dataclasses.replace(
+        batch,
+        ids=np.concatenate([head, ex_i, rest_i], axis=1),
+        features=np.concatenate([batch.features[:, :n_k], ex_f, rest_f], axis=1),
+        distances=np.concatenate([batch.distances[:, :n_k], ex_d, rest_d], axis=1),
+        head=n_k + e,
+    )
+
+
 def rerank_candidates(
     scorer: Scorer, batch: Candidates, k: int
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
@@ -286,9 +362,10 @@ def rerank_candidates(
     ----------
     scorer : Scorer
     batch : Candidates
-        Lists of at least ``K = batch.config.rerank.candidates`` entries where the
-        store holds that many (stored-distance order); entries past ``K`` keep their
-        order and stored distance.
+        Lists of at least ``K = batch.head`` (default ``batch.config.rerank.candidates``)
+        entries where the store holds that many (stored-distance order, then any
+        extras, :func:`with_extras`); entries past ``K`` keep their order and stored
+        distance. Padding inside a list is squeezed out.
     k : int
         Results wanted per query.
 
@@ -299,7 +376,7 @@ def rerank_candidates(
     distances : (q, k) float64
         The scorer's distance for the first ``K``, the stored one after; inf pads.
     """
-    n_k = int(batch.config.rerank.candidates)
+    n_k = int(batch.head if batch.head is not None else batch.config.rerank.candidates)
     head = dataclasses.replace(
         batch,
         ids=batch.ids[:, :n_k],
@@ -313,6 +390,13 @@ def rerank_candidates(
     order = np.lexsort((key, d), axis=-1)
     ids = np.concatenate([np.take_along_axis(head.ids, order, 1), batch.ids[:, n_k:]], axis=1)
     dist = np.concatenate([np.take_along_axis(d, order, 1), batch.distances[:, n_k:]], axis=1)
+    real = (ids >= 0) & np.isfinite(dist)
+    if not real.all():  # pads inside the lists (the extras' slots): real entries first
+        squeeze = np.argsort(~real, axis=1, kind="stable")
+        ids = np.take_along_axis(ids, squeeze, 1)
+        dist = np.where(
+            np.take_along_axis(real, squeeze, 1), np.take_along_axis(dist, squeeze, 1), np.inf
+        )
     out_i = np.full((len(ids), k), -1, np.int64)
     out_d = np.full((len(ids), k), np.inf)
     m = min(k, ids.shape[1])
@@ -351,7 +435,9 @@ def search(
     allowed : (m,) int, optional
         Restrict the candidates to these ids (an exhaustive scan).
     scorer : Scorer, optional
-        Overrides ``config.rerank.scorer``.
+        Overrides ``config.rerank.scorer``. A scorer's extra candidates
+        (``extra_candidates``, :class:`Scorer`) are re-ranked after the ``K``, within
+        ``allowed`` and the index's live ids.
     arrays, query_arrays : optional
         Per-record and per-query arrays for the scorer (:class:`Candidates`).
     stored_distances : bool
@@ -382,11 +468,19 @@ def search(
             dist[s : s + _CHUNK], config, arrays,
             None if query_arrays is None else {n: a[s : s + _CHUNK] for n, a in query_arrays.items()},
         )  # fmt: skip
-        out_i[s : s + len(c)], out_d[s : s + len(c)] = rerank_candidates(scorer, batch, k)
-    if stored_distances:
-        for row in range(len(q)):
-            keep = out_i[row] >= 0
-            order = np.argsort(cand[row], kind="stable")
-            at = order[np.searchsorted(cand[row], out_i[row][keep], sorter=order)]
-            out_d[row][keep] = dist[row][at]
+        extra = extra_candidates(scorer, batch, allowed)
+        if extra is not None:
+            at = index.lookup(np.where(extra >= 0, extra, -1).ravel()).reshape(extra.shape)
+            extra = np.where(at >= 0, extra, -1)
+            ex_f = np.asarray(index.features_)[np.maximum(at, 0)].astype(np.float64)
+            batch = with_extras(batch, extra, ex_f)
+        got_i, got_d = rerank_candidates(scorer, batch, k)
+        out_i[s : s + len(c)], out_d[s : s + len(c)] = got_i, got_d
+        if stored_distances:  # each result's stored distance, from its list
+            for row in range(len(c)):
+                keep = got_i[row] >= 0
+                listed = batch.ids[row]
+                order = np.argsort(listed, kind="stable")
+                at = order[np.searchsorted(listed, got_i[row][keep], sorter=order)]
+                out_d[s + row][keep] = batch.distances[row][at]
     return out_i, out_d

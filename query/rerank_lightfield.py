@@ -19,6 +19,13 @@ local spreads are read by id too, as the array :data:`SPREAD`.
 Records without light fields (a store written before the column, or with another scorer
 when the records were built): the query's row keeps the stored-distance order (the
 stage's default) and a warning is logged once per scorer.
+
+A store with field vectors (:mod:`query.field_fusion`) fuses them into the light field
+distance wherever the stage uses it (the ranks, the gate, the stored local statistics)
+when a field weight is above 0, and with ``LightFieldFusionConfig.field_candidates > 0``
+the scorer proposes the nearest shapes by the scaled field vectors as extra candidates
+(:meth:`LightFieldFusion.extra_candidates`, through the field vector index of
+:mod:`query.field_index`, which the store's reader offers: :meth:`StoredArrays.field_index`).
 """
 
 from __future__ import annotations
@@ -29,6 +36,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from query.field_fusion import FIELD, FieldFusion, stores_field_vectors
 from query.lightfield_spread import calibration, local_statistic, pooled, spread_table
 from query.rerank import Candidates, register_scorer
 
@@ -83,7 +91,9 @@ class LightFieldFusion:
         self.config = config
         self.fusion = config.lf_fusion
         self.calibration = calibration(config)
+        self.field = FieldFusion.from_config(config)
         self._warned = False
+        self._warned_index = False
 
     def _warn(self, why: str) -> None:
         if not self._warned:
@@ -173,6 +183,10 @@ class LightFieldFusion:
         if self.fusion.pool > 0 and self.fusion.ceiling > 0:
             spreads = batch.arrays(SPREAD, wanted) if batch.arrays is not None else None
         given = (batch.query_arrays or {}).get(COLUMN)
+        fv = fv_given = None
+        if self.field.active:
+            fv = batch.arrays(FIELD, wanted) if batch.arrays is not None else None
+            fv_given = (batch.query_arrays or {}).get(FIELD)
         for row in range(len(batch.ids)):
             cols = np.flatnonzero(valid[row])
             if not len(cols):
@@ -191,8 +205,54 @@ class LightFieldFusion:
             own = batch.ids[row, cols] == batch.query_ids[row]
             if batch.query_ids[row] < 0:  # an outside query's stored copy counts as itself
                 own |= dl == 0.0
+            if self.field.active:
+                fq = None
+                if fv_given is not None and np.all(np.isfinite(fv_given[row])):
+                    fq = fv_given[row]
+                elif fv is not None and batch.query_ids[row] >= 0:
+                    fq = fv[pos[int(batch.query_ids[row])]]
+                dl = self.field.distance(dl, fq, None if fv is None else fv[at])
             sp = None if spreads is None else spreads[at]
             out[row, cols] = self.fuse(batch.distances[row, cols], dl, own, sp)
+        return out
+
+    def extra_candidates(self, batch: Candidates, allowed: Any = None) -> NDArray[np.int64] | None:
+        """(q, K2) nearest stored shapes by the scaled field vectors, or None (off).
+
+        ``K2 = LightFieldFusionConfig.field_candidates``; the query's own field vector
+        from ``batch.query_arrays`` or, for a stored query, read by id; the index from
+        ``batch.arrays.field_index()`` (:mod:`query.field_index`). Within ``allowed``
+        when given. A query without a field vector gets no extras (-1).
+        """
+        if not self.field.proposes:
+            return None
+        source = getattr(batch.arrays, "field_index", None)
+        if source is None:
+            if not self._warned_index:
+                log.warning("lightfield re-ranking: no field vector index; no extra candidates")
+                self._warned_index = True
+            return None
+        index = source()
+        if not len(index):
+            return None
+        vectors = self._query_vectors(batch)
+        if vectors is None:
+            return np.full((len(batch.ids), self.field.candidates), -1, np.int64)
+        ids, _ = index.search(self.field.scaled(vectors), self.field.candidates, allowed=allowed)
+        return ids
+
+    def _query_vectors(self, batch: Candidates) -> NDArray[np.float64] | None:
+        """(q, d) the queries' field vectors (NaN rows: none); None when no query has one."""
+        given = (batch.query_arrays or {}).get(FIELD)
+        out = None if given is None else np.array(given, np.float64)
+        stored = np.flatnonzero(batch.query_ids >= 0)
+        if len(stored) and batch.arrays is not None:
+            read = batch.arrays(FIELD, batch.query_ids[stored])
+            if read is not None:
+                if out is None or out.shape[1] != read.shape[1]:
+                    out = np.full((len(batch.ids), read.shape[1]), np.nan)
+                missing = ~np.all(np.isfinite(out[stored]), axis=1)
+                out[stored[missing]] = read[missing]
         return out
 
 
@@ -200,57 +260,78 @@ register_scorer("lightfield", LightFieldFusion)
 
 
 class StoredArrays:
-    """Reads a store's per-record ``light_field`` column by ids (an ``ArrayReader``).
+    """Reads a store's per-record array columns by ids (an ``ArrayReader``).
 
-    Rows read are kept (float32) for the store's manifest version, shared by every
-    reader of that store (:func:`stored_arrays`): later searches read only ids not seen
-    yet, and a commit (a new version) starts afresh. Memory: at most the whole column
-    (``n_fields * 10 * 46 * 4`` bytes per record, 5,520 at the defaults).
+    The columns are ``light_field`` (:data:`COLUMN`) and, in a store with field vectors,
+    ``field_vector`` (:data:`query.field_fusion.FIELD`). Rows read are kept (float32)
+    for the store's manifest version, shared by every reader of that store
+    (:func:`stored_arrays`): later searches read only ids not seen yet, and a commit (a
+    new version) starts afresh. Memory: at most the whole columns (``n_fields * 10 * 46
+    * 4`` bytes per record for the light fields, 5,520 at the defaults; 4 per number of
+    a field vector).
 
     Parameters
     ----------
     db : shapedb.Database
     preload : bool
-        Read the whole column on the first call (evaluation: every shape is asked for).
+        Read a whole column on its first call (evaluation: every shape is asked for).
     """
 
     def __init__(self, db: Any, *, preload: bool = False) -> None:
         self.db = db
         self.preload = preload
-        self._cache: dict[int, NDArray[np.float32]] = {}
-        self._absent: set[int] = set()  # read, and null (rows older than the column)
-        self._complete = False
-        self._shape = (int(db.config.light_field.n_fields), 10, -1)
+        self._columns = (COLUMN, FIELD) if stores_field_vectors(db.config) else (COLUMN,)
+        self._cache: dict[str, dict[int, NDArray[np.float32]]] = {c: {} for c in self._columns}
+        # read, and null (rows older than the column)
+        self._absent: dict[str, set[int]] = {c: set() for c in self._columns}
+        self._preload = {c: preload for c in self._columns}
+        self._complete: set[str] = set()
+        self._shape = {COLUMN: (int(db.config.light_field.n_fields), 10, -1), FIELD: (-1,)}
 
-    def _read(self, ids: list[int] | None) -> None:
-        t = self.db.store.shapes(["id", COLUMN], ids=ids)
-        for i, v in zip(t.column("id").to_pylist(), t.column(COLUMN).to_pylist(), strict=True):
+    def _read(self, column: str, ids: list[int] | None) -> None:
+        t = self.db.store.shapes(["id", column], ids=ids)
+        cache, absent = self._cache[column], self._absent[column]
+        for i, v in zip(t.column("id").to_pylist(), t.column(column).to_pylist(), strict=True):
             if v is not None:
-                self._cache[int(i)] = np.asarray(v, np.float32).reshape(self._shape)
+                cache[int(i)] = np.asarray(v, np.float32).reshape(self._shape[column])
             else:
-                self._absent.add(int(i))
+                absent.add(int(i))
         if ids is None:
-            self._complete = True
+            self._complete.add(column)
+
+    def preload_all(self) -> None:
+        """Read each column whole at its next call."""
+        for c in self._columns:
+            if c not in self._complete:
+                self._preload[c] = True
+
+    def field_index(self) -> Any:
+        """The store's field vector index at this version (:func:`query.field_index.field_index`)."""
+        from query.field_index import field_index
+
+        return field_index(self.db)
 
     def __call__(self, name: str, ids: NDArray[np.int64]) -> NDArray[np.float64] | None:
-        """(m, fields, 10, d) float64 light fields of ``ids``; NaN for records without.
+        """(m, ...) float64 rows of column ``name`` for ``ids``; NaN for records without.
 
-        With ``name`` :data:`SPREAD`, the (m,) local spreads of ``ids`` at the store's
-        version (:func:`query.lightfield_spread.spread_table`, computed for the ids not
-        known yet; NaN for ids without).
-        None when ``name`` is neither or no record of ``ids`` has light fields.
+        ``light_field``: (m, fields, 10, d); ``field_vector``: (m, d). With ``name``
+        :data:`SPREAD`, the (m,) local spreads of ``ids`` at the store's version
+        (:func:`query.lightfield_spread.spread_table`, computed for the ids not known
+        yet; NaN for ids without). None when ``name`` is none of these (or not stored)
+        or no record of ``ids`` has it.
         """
         if name == SPREAD:
             return spread_table(self.db, self).get(np.asarray(ids, np.int64))
-        if name != COLUMN:
+        if name not in self._columns:
             return None
         ids = np.asarray(ids, np.int64)
-        if not self._complete:
-            missing = sorted({int(i) for i in ids} - set(self._cache) - self._absent)
+        cache = self._cache[name]
+        if name not in self._complete:
+            missing = sorted({int(i) for i in ids} - set(cache) - self._absent[name])
             if missing:
-                self._read(None if self.preload else missing)
-                self.preload = False
-        found = [self._cache.get(int(i)) for i in ids]
+                self._read(name, None if self._preload[name] else missing)
+                self._preload[name] = False
+        found = [cache.get(int(i)) for i in ids]
         first = next((f for f in found if f is not None), None)
         if first is None:
             return None
@@ -276,8 +357,8 @@ def stored_arrays(db: Any, *, preload: bool = False) -> StoredArrays:
         reader = _READERS[key] = StoredArrays(db, preload=preload)
         while len(_READERS) > _KEEP:
             _READERS.pop(next(iter(_READERS)))
-    elif preload and not reader._complete:
-        reader.preload = True
+    elif preload:
+        reader.preload_all()
     return reader
 
 
