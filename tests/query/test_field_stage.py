@@ -1,0 +1,247 @@
+"""The field vectors in the light field stage: the fused distance and the union candidates.
+
+Hand-made arrays: stored vectors, light fields whose distances are a given matrix (each
+light field is its shape's id; :func:`shapedb.lightfield.light_field_distance` patched to
+read the matrix), and field vectors.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import numpy as np
+import pytest
+
+import shapedb.lightfield
+from query import rerank
+from query.field_fusion import FIELD, FieldFusion
+from query.field_index import FieldIndex
+from query.index import FeatureIndex
+from query.rerank_lightfield import COLUMN, LightFieldFusion
+from shapedb.config import Config
+from shapedb.kernel import weights
+
+DEPTH, HARMONIC = slice(0, 4), slice(4, 7)
+#: The stage with its gate wide open (g = 1): the light field's rank always counts.
+OPEN = {"rerank": "lightfield", "lf_weight": 4.0, "lf_power": 0.0, "lf_ceiling": 0.0,
+        "lf_contrast_floor": 0.0, "lf_pool": 0}  # fmt: skip
+
+
+def _fusion(**kw: Any) -> FieldFusion:
+    args: dict[str, Any] = {
+        "depth_weight": 0.5, "harmonic_weight": 2.0, "light_field_scale": 3.0,
+        "depth_scale": 0.7, "harmonic_scale": 1.9, **kw,
+    }  # fmt: skip
+    return FieldFusion(DEPTH, HARMONIC, **args)
+
+
+class Reader:
+    """An ``ArrayReader`` of hand-made columns, with a field vector index."""
+
+    def __init__(self, lf: np.ndarray, fv: np.ndarray, fusion: FieldFusion) -> None:
+        self.lf, self.fv, self.fusion = lf, fv, fusion
+
+    def __call__(self, name: str, ids: np.ndarray) -> np.ndarray | None:
+        if name == COLUMN:
+            return np.asarray(self.lf[ids], np.float64)
+        if name == FIELD:
+            return np.asarray(self.fv[ids], np.float64)
+        return None
+
+    def field_index(self) -> FieldIndex:
+        ok = np.flatnonzero(np.all(np.isfinite(self.fv), axis=1))
+        return FieldIndex(ok, self.fusion.scaled(self.fv[ok]))
+
+
+@pytest.fixture
+def matrix_distance(monkeypatch: pytest.MonkeyPatch) -> Any:
+    """Light fields are ids: ``light_field_distance`` reads ``state["L"][query, candidates]``."""
+    state: dict[str, np.ndarray] = {}
+
+    def distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        qa = np.asarray(a).reshape(len(a), -1)[:, 0].astype(int)
+        cb = np.asarray(b).reshape(len(b), -1)[:, 0].astype(int)
+        return state["L"][np.ix_(qa, cb)]
+
+    monkeypatch.setattr(shapedb.lightfield, "light_field_distance", distance)
+    return state
+
+
+def _case(n: int = 40, k: int = 8, seed: int = 0, **options: Any) -> dict[str, Any]:
+    """A store of n random vectors, light field distances and field vectors in 4 classes."""
+    rng = np.random.default_rng(seed)
+    config = Config().with_options(**{**OPEN, "rerank_candidates": k, **options})
+    x = rng.random((n, config.dim)).astype(np.float32).astype(np.float64)  # as stored
+    w = weights(config)
+    index = FeatureIndex(kind="flat").fit(np.arange(n), x.astype(np.float32), w)
+    centres = rng.random((4, 7))
+    fv = centres[np.arange(n) % 4] + 0.2 * rng.random((n, 7))
+    pts = rng.random((n, 5))
+    L = np.abs(pts[:, None] - pts[None]).sum(-1)  # a metric, 0 on the diagonal
+    lf = np.arange(n, dtype=np.float64).reshape(n, 1, 1, 1)
+    return {"config": config, "x": x, "index": index, "fv": fv, "L": L, "lf": lf}
+
+
+def _scorer(config: Config, fusion: FieldFusion) -> LightFieldFusion:
+    scorer = LightFieldFusion(config)
+    scorer.field = fusion
+    return scorer
+
+
+def _search(case: dict[str, Any], fusion: FieldFusion, k: int, **kw: Any) -> Any:
+    index = case["index"]
+    n = len(case["x"])
+    q = kw.pop("queries", np.arange(n))
+    return rerank.search(
+        index, case["x"][q], k, config=case["config"], query_ids=q,
+        scorer=_scorer(case["config"], fusion),
+        arrays=Reader(case["lf"], case["fv"], fusion), **kw,
+    )  # fmt: skip
+
+
+def test_the_fused_distance_is_the_formula() -> None:
+    rng = np.random.default_rng(3)
+    fusion = _fusion()
+    q, c, light = rng.random(7), rng.random((5, 7)), rng.random(5)
+    b = np.abs(c[:, :4] - q[:4]).sum(1)
+    h = np.abs(c[:, 4:] - q[4:]).sum(1)
+    want = 3.0 * (light / 3.0 + 0.5 * b / 0.7 + 2.0 * h / 1.9) / (1.0 + 0.5 + 2.0)
+    assert fusion.active
+    np.testing.assert_allclose(fusion.distance(light, q, c), want, rtol=1e-12)
+    s = fusion.scaled(np.vstack([q, c]))  # L1 of the scaled vectors: b / m_b + h / m_h
+    np.testing.assert_allclose(np.abs(s[1:] - s[0]).sum(1), b / 0.7 + h / 1.9, rtol=1e-5)
+    off = _fusion(depth_weight=0.0, harmonic_weight=0.0)
+    assert not off.active and off.key() is None
+    assert np.array_equal(off.distance(light, q, c), light)
+    assert not _fusion(stored=False).active and not _fusion(stored=False, candidates=5).proposes
+
+
+def test_a_row_without_field_vectors_keeps_the_light_field_distance(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    fusion = _fusion()
+    light = np.array([0.3, 0.1, 0.2])
+    c = np.ones((3, 7))
+    c[1, 5] = np.nan
+    with caplog.at_level(logging.WARNING, logger="query.field_fusion"):
+        assert np.array_equal(fusion.distance(light, np.zeros(7), c), light)
+        assert np.array_equal(fusion.distance(light, np.full(7, np.nan), np.ones((3, 7))), light)
+        assert np.array_equal(fusion.distance(light, None, None), light)
+    assert caplog.text.count("no field vector") == 1  # once per fusion
+
+
+def test_the_stage_ranks_by_the_fused_distance_everywhere(matrix_distance: Any) -> None:
+    # the gate's overlap and the query's own spread read the distance too
+    case = _case(lf_power=2.0, lf_ceiling=5.0, lf_ramp=5.0)
+    fusion = _fusion()
+    n = len(case["x"])
+    b = np.abs(case["fv"][:, None, DEPTH] - case["fv"][None, :, DEPTH]).sum(-1)
+    h = np.abs(case["fv"][:, None, HARMONIC] - case["fv"][None, :, HARMONIC]).sum(-1)
+    matrix_distance["L"] = case["L"]
+    got = _search(case, fusion, n)
+    matrix_distance["L"] = fusion.combine(case["L"], b, h)
+    want = _search(case, _fusion(depth_weight=0.0, harmonic_weight=0.0), n)
+    assert np.array_equal(got[0], want[0])
+    np.testing.assert_allclose(got[1], want[1], rtol=1e-12)
+    matrix_distance["L"] = case["L"]
+    plain = _search(case, _fusion(depth_weight=0.0, harmonic_weight=0.0), n)
+    assert not np.array_equal(got[0], plain[0])  # the fusion moved some rankings
+
+
+def test_weights_zero_rank_as_a_store_without_field_vectors(matrix_distance: Any) -> None:
+    case = _case()
+    matrix_distance["L"] = case["L"]
+    n = len(case["x"])
+    zero = _search(case, _fusion(depth_weight=0.0, harmonic_weight=0.0), n)
+    without = _search(case, _fusion(stored=False, candidates=10), n)
+    assert np.array_equal(zero[0], without[0]) and np.array_equal(zero[1], without[1])
+    assert not np.array_equal(_search(case, _fusion(), n)[0], zero[0])
+
+
+def _twin(case: dict[str, Any], query: int, far: int) -> None:
+    """Make ``far`` the query's twin by light field and field vector, far by the vector."""
+    case["fv"][far] = case["fv"][query]
+    case["L"][far] = case["L"][query]
+    case["L"][:, far] = case["L"][:, query]
+    case["L"][far, query] = case["L"][query, far] = 0.0
+
+
+def test_a_neighbour_outside_the_k_is_found_through_the_field_vectors(
+    matrix_distance: Any,
+) -> None:
+    case = _case(k=5)
+    order = np.argsort(np.abs(case["x"] - case["x"][0]) @ weights(case["config"]), kind="stable")
+    far = int(order[-1])  # the farthest shape by the stored vector
+    _twin(case, 0, far)
+    matrix_distance["L"] = case["L"]
+    n = len(case["x"])
+    without, _ = _search(case, _fusion(), n, queries=np.array([0]))
+    assert far not in without[0][:5] and without[0][-1] == far
+    found, dist = _search(case, _fusion(candidates=3), n, queries=np.array([0]))
+    assert found[0][:2].tolist() == [0, far]
+    assert sorted(found[0].tolist()) == list(range(n))  # every shape once
+    stored, sd = _search(case, _fusion(candidates=3), 6, queries=np.array([0]),
+                         stored_distances=True)  # fmt: skip
+    exact = np.abs(case["x"][stored[0]] - case["x"][0]) @ weights(case["config"])
+    np.testing.assert_allclose(sd[0], exact, rtol=1e-12)
+
+
+def test_the_union_honours_where_and_deletions(matrix_distance: Any) -> None:
+    case = _case(k=5)
+    order = np.argsort(np.abs(case["x"] - case["x"][0]) @ weights(case["config"]), kind="stable")
+    far = int(order[-1])
+    _twin(case, 0, far)
+    matrix_distance["L"] = case["L"]
+    n = len(case["x"])
+    allowed = np.setdiff1d(np.arange(n), [far, 3])
+    got, _ = _search(case, _fusion(candidates=3), n, queries=np.array([0]), allowed=allowed)
+    real = got[0][got[0] >= 0]
+    assert set(real.tolist()) == set(allowed.tolist()) and len(real) == len(allowed)
+    case["index"].remove([far])  # deleted: the field index still holds it
+    got, _ = _search(case, _fusion(candidates=3), n, queries=np.array([0]))
+    real = got[0][got[0] >= 0]
+    assert far not in real and len(real) == n - 1 == len(set(real.tolist()))
+
+
+def test_extras_follow_the_k_in_stored_order_without_repeats() -> None:
+    config = Config().with_options(rerank="lightfield", rerank_candidates=2)
+    w = np.ones(config.dim)
+    xq = np.zeros((1, config.dim))
+    feats = np.stack([np.full(config.dim, v) for v in (0.1, 0.2, 0.3, 0.4)])[None]
+    batch = rerank.Candidates(
+        np.array([-1]), xq, np.array([[5, 6, 7, 8]]), feats, w,
+        (feats[0] @ w)[None], config,
+    )  # fmt: skip
+    extra_ids = np.array([[9, 6, 8, -1, 9]])  # 6 is in the K, 9 twice, 8 in the rest
+    extra_f = np.stack([np.full(config.dim, v) for v in (0.35, 0.2, 0.4, 0.0, 0.35)])[None]
+    got = rerank.with_extras(batch, extra_ids, extra_f)
+    assert got.head == 2 + 5
+    assert got.ids[0].tolist() == [5, 6, 9, 8, -1, -1, -1, 7, -1]
+    np.testing.assert_allclose(got.distances[0][:4], [0.1, 0.2, 0.35, 0.4] * np.array(w.sum()))
+    ids, _ = rerank.rerank_candidates(_Stored(), got, 9)
+    assert ids[0].tolist() == [5, 6, 9, 8, 7, -1, -1, -1, -1]  # pads squeezed out
+
+
+class _Stored:
+    def score(self, batch: rerank.Candidates) -> np.ndarray:
+        return np.asarray(batch.distances)
+
+
+def test_the_field_index_is_exact_with_ties_by_id_and_filters() -> None:
+    rng = np.random.default_rng(5)
+    v = rng.random((50, 6)).astype(np.float32)
+    v[17] = v[3]  # a tie
+    ids = np.arange(100, 150)[::-1].copy()
+    index = FieldIndex(ids, v)
+    q = v[[3]].astype(np.float64)
+    got, d = index.search(q, 5)
+    brute = np.abs(v.astype(np.float64) - q).sum(1)
+    want = np.lexsort((ids, brute))[:5]
+    assert got[0].tolist() == ids[want].tolist() and d[0][0] == d[0][1] == 0.0
+    assert got[0][0] < got[0][1]  # ties by ascending id
+    allowed = ids[::2]
+    got, _ = index.search(q, 60, allowed=allowed)
+    real = got[0][got[0] >= 0]
+    assert set(real.tolist()) == set(allowed.tolist())
+    assert index.search(np.full((1, 6), np.nan), 3)[0].tolist() == [[-1, -1, -1]]
