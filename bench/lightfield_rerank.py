@@ -21,11 +21,14 @@ the same run:
   fields read by id as a store keeps them (float32,
   :func:`shapedb.lightfield.record_light_field` of the balls), and the stored local
   spreads computed over the set as a store computes them
-  (:func:`query.lightfield_spread.local_spreads`);
+  (:func:`query.lightfield_spread.local_spreads`); with the field's light fields and the
+  field vectors on (the default), the field vectors too (:func:`field_vectors`, of the
+  shells cached by :mod:`bench.studies.field_depth`): the fused distance and the union
+  candidates (:mod:`query.field_fusion`, :mod:`query.field_index`);
 * ``lightfield (spread gate)``: the same with the gate before the ratio (the pooled
-  local spread alone, :data:`SPREAD_GATE`);
+  local spread alone, :data:`SPREAD_GATE`), without the field vectors;
 * ``lightfield (before)``: the same with the stage's settings before the pooled spread
-  and the contrast floor (what a store written then reads).
+  and the contrast floor (what a store written then reads), without the field vectors.
 
 With ``--baselines``, in the same run: the balls' light fields alone (``light fields
 (balls)``, :func:`shapedb.lightfield.light_field_distance` of the stored light fields),
@@ -35,9 +38,10 @@ and on the meshes the light field descriptor (:mod:`bench.lightfield`) and D2
 That the scorer ranks as the study's formula does is checked by the study
 (``python -m bench.studies.lightfield_balls --check-product``).
 
-``--cost`` builds four stores of the web validation shapes (v4 without a stage, v4 with
-``rerank="lightfield"`` at its defaults and with :data:`SPREAD_GATE`, v7 with
-``rerank="adaptive"``), times the lightfield stores' local statistics (the index-time statistic, read from the light field column), then
+``--cost`` builds five stores of the web validation shapes (v4 without a stage, v4 with
+``rerank="lightfield"`` without the field vectors (:data:`NO_FIELD`), with them (the
+fused distance and the union candidates at the defaults, or :data:`FIELD_STAGE`) and with
+:data:`SPREAD_GATE`, v7 with ``rerank="adaptive"``), times the lightfield stores' local statistics (the index-time statistic, read from the light field column), then
 ``db.search(id, k=10)`` for every shape, interleaved, and prints medians and ratios to
 the plain store.
 ``--lf-source field`` (and ``--lf-set FIELD=VALUE``): the ``lightfield`` rows read the
@@ -64,6 +68,8 @@ from bench.common import class_nn, format_table, retrieval_scores, write_json
 from bench.features import kernel_features
 from bench.packings import light_field_balls
 from query import rerank
+from query.field_fusion import FIELD, FieldFusion
+from query.field_index import FieldIndex
 from query.index import FeatureIndex
 from query.lightfield_spread import local_spreads
 from query.rerank_lightfield import COLUMN, SPREAD
@@ -78,6 +84,12 @@ _CHUNK = 32
 SPREAD_GATE = {"lf_weight": 4.0, "lf_ceiling": 0.11, "lf_ramp": 0.02, "lf_spread_candidates": 5,
                "lf_pool": 20, "lf_contrast_ramp": 0.05, "lf_ratio_weight": 0.0,
                "lf_pool_quantile": 0.5}  # fmt: skip
+#: The stage without the field vectors (today's stage; what a store written before reads).
+NO_FIELD = {"fv_enabled": False, "lf_field_depth_weight": 0.0, "lf_field_harmonic_weight": 0.0,
+            "lf_field_candidates": 0}  # fmt: skip
+#: The field vectors' part of the stage where the defaults do not turn it on.
+FIELD_STAGE = {"lf_field_depth_weight": 0.5, "lf_field_harmonic_weight": 0.5,
+               "lf_field_candidates": 100}  # fmt: skip
 #: The stage's settings before the pooled spread and the contrast floor.
 LEGACY = {"lf_weight": 8.0, "lf_power": 3.0, "lf_ceiling": 0.09, "lf_spread_candidates": 100,
           "lf_pool": 0, "lf_contrast_floor": 0.0, "lf_ramp": 0.02, "lf_ratio_weight": 0.0}  # fmt: skip
@@ -90,28 +102,61 @@ def index_of(x: np.ndarray) -> FeatureIndex:
     )
 
 
-def _reader(lf: np.ndarray, index: FeatureIndex, config: Config) -> Any:
-    """The light fields by id, and the stored local spreads as a store computes them."""
-    spreads: dict[str, np.ndarray] = {}
+class Arrays:
+    """A store's per-record arrays by id (ids 0..n-1): light fields, field vectors, the
+    stored local spreads as a store computes them, and the field vector index."""
 
-    def arrays(name: str, ids: np.ndarray) -> np.ndarray | None:
+    def __init__(
+        self, lf: np.ndarray, index: FeatureIndex, config: Config, fv: np.ndarray | None = None
+    ) -> None:
+        self.lf, self.index, self.config, self.fv = lf, index, config, fv
+        self._spreads: np.ndarray | None = None
+        self._field_index: FieldIndex | None = None
+
+    def __call__(self, name: str, ids: np.ndarray) -> np.ndarray | None:
         if name == COLUMN:
-            return np.asarray(lf[ids], np.float64)
+            return np.asarray(self.lf[ids], np.float64)
+        if name == FIELD and self.fv is not None:
+            return np.asarray(self.fv[ids], np.float64)
         if name == SPREAD:
-            if "s" not in spreads:  # the index's ids are 0..n-1
-                spreads["s"] = local_spreads(index, arrays, config)[1]
-            return spreads["s"][ids]
+            if self._spreads is None:
+                self._spreads = local_spreads(self.index, self, self.config)[1]
+            return self._spreads[ids]
         return None
 
-    return arrays
+    def field_index(self) -> FieldIndex:
+        """The field vector index of the store (empty without field vectors)."""
+        if self._field_index is None:
+            fusion = FieldFusion.from_config(self.config)
+            fv = np.zeros((0, 1)) if self.fv is None else self.fv
+            self._field_index = FieldIndex(np.arange(len(fv)), fusion.scaled(fv))
+        return self._field_index
 
 
-def rankings(index: FeatureIndex, config: Config, lf: np.ndarray | None = None) -> np.ndarray:
+def field_vectors(ds: Any, config: Config) -> np.ndarray:
+    """(n, d) float32 field vectors of ``ds``'s models as a store keeps them:
+    :func:`shapedb.field_descriptors.field_vector` of the field's inside cached by
+    :func:`bench.studies.field_depth.shells`."""
+    from bench.studies.field_depth import shells
+    from shapedb.field_descriptors import field_vector
+    from shapedb.inside import Inside
+
+    rows = []
+    for z in shells(ds):
+        inside = Inside(shell=np.asarray(z["shell"], np.float64), cell=float(z["cell"]),
+                        centroid=np.asarray(z["centroid"], np.float64), count=int(z["count"]))  # fmt: skip
+        rows.append(np.asarray(field_vector(inside, config.field_vector), np.float32))
+    return np.stack(rows)
+
+
+def rankings(
+    index: FeatureIndex, config: Config, lf: np.ndarray | None = None, fv: np.ndarray | None = None
+) -> np.ndarray:
     """(n, n) ids in the order the product returns them, every shape querying by its id."""
     x = np.asarray(index.features_, np.float64)
     n = len(x)
     out = np.empty((n, n), np.int64)
-    arrays = None if lf is None else _reader(lf, index, config)
+    arrays = None if lf is None else Arrays(lf, index, config, fv)
     for lo in range(0, n, _CHUNK):
         q = slice(lo, min(lo + _CHUNK, n))
         out[q], _ = rerank.search(
@@ -160,8 +205,8 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         k, v = kv.split("=", 1)
         lf_cfg = lf_cfg.with_options(**{f"lf_{k}": float(v) if "." in v else int(v)})
     adaptive = Config().with_options(descriptor=7, rerank="adaptive")
-    before = lf_cfg.with_options(**LEGACY)
-    spread = lf_cfg.with_options(**SPREAD_GATE)
+    before = lf_cfg.with_options(**LEGACY, **NO_FIELD)
+    spread = lf_cfg.with_options(**SPREAD_GATE, **NO_FIELD)
     table: dict[str, dict[str, Any]] = {
         "v4": {}, "adaptive (v7)": {}, "lightfield": {}, "lightfield (spread gate)": {},
         "lightfield (before)": {},
@@ -187,12 +232,13 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
                 light_field_balls(name, args.split, ds, balls, lf_cfg, within=args.lf_within),
                 lf_cfg,
             )
+        fv = field_vectors(ds, lf_cfg) if lf_cfg.stores_field_vectors else None
         i4 = index_of(v4)
         add("v4", name, _ranks(rankings(i4, Config())), labels)
         if not args.no_adaptive:
             v7 = kernel_features(balls, Config().with_options(descriptor=7))
             add("adaptive (v7)", name, _ranks(rankings(index_of(v7), adaptive)), labels)
-        add("lightfield", name, _ranks(rankings(i4, lf_cfg, lf)), labels)
+        add("lightfield", name, _ranks(rankings(i4, lf_cfg, lf, fv)), labels)
         add("lightfield (spread gate)", name, _ranks(rankings(i4, spread, lf)), labels)
         add("lightfield (before)", name, _ranks(rankings(i4, before, lf)), labels)
         if args.baselines:
@@ -231,9 +277,13 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
     from shapedb.schema import ShapeRecord
 
     ds, balls = load("web", "validation")
+    product = Config().with_options(rerank="lightfield", fv_enabled=True)
+    if not product.lf_fusion.field_candidates:  # the stage's field options, if not the default
+        product = product.with_options(**FIELD_STAGE)
     configs = {
         "none (v4)": Config().with_options(rerank="none"),
-        "lightfield (v4)": Config().with_options(rerank="lightfield"),
+        "lightfield (v4)": Config().with_options(rerank="lightfield", **NO_FIELD),
+        "lightfield + field vectors (v4)": product,
         "lightfield, spread gate (v4)": Config().with_options(rerank="lightfield", **SPREAD_GATE),
         "adaptive (v7)": Config().with_options(descriptor=7, rerank="adaptive"),
     }
@@ -243,13 +293,15 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
         for k, (label, cfg) in enumerate(configs.items()):
             x = np.stack([features(b.decomposition(), cfg) for b in balls])
             lf = light_fields(balls, cfg) if cfg.stores_light_fields else None
+            fv = field_vectors(ds, cfg) if cfg.stores_field_vectors else None
             db = shapedb.connect(Path(tmp) / f"s{k}", config=cfg)
             db.commit([
                 ShapeRecord(name=m.name, decomposition=b.decomposition(),
                             feature=x[j].astype(np.float32), config=cfg,
                             content_hash=hashlib.sha256(m.name.encode()).hexdigest(),
                             representation="mesh", label=m.label,
-                            light_field=None if lf is None else lf[j])
+                            light_field=None if lf is None else lf[j],
+                            field_vector=None if fv is None else fv[j])
                 for j, (m, b) in enumerate(zip(ds.models, balls, strict=True))
             ])  # fmt: skip
             dbs[label] = db

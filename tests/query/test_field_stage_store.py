@@ -1,0 +1,123 @@
+"""The field vectors in the light field stage of a store: search, eval, outside queries, spreads."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+import pytest
+from query_helpers import CONFIG
+
+from query.evaluate import evaluate, retrieval_scores
+from query.field_fusion import FIELD, FieldFusion, query_field_vectors
+from query.field_index import field_index
+from query.lightfield_spread import SPREAD_DIR, spread_table, store_spreads
+from query.rerank_lightfield import stored_arrays
+from shapedb.implicit import Box, Capsule, Cylinder, Sphere, Torus
+from shapedb.mdbd import decompose
+
+#: The stage with field vectors: K = 3 of version 4 and K2 = 2 by the field vectors.
+FIELD_STAGE = CONFIG.with_options(
+    rerank="lightfield", rerank_candidates=3, fv_enabled=True, lf_field_depth_weight=0.5,
+    lf_field_harmonic_weight=0.5, lf_field_candidates=2,
+)  # fmt: skip
+
+
+def _shapes() -> dict[str, Any]:
+    return {
+        "box_a": Box((0, 0, 0), (2.0, 1.0, 1.0)),
+        "box_b": Box((0, 0, 0), (2.4, 1.0, 0.9)),
+        "rod_a": Capsule((0, 0, 0), (3.0, 0, 0), 0.4),
+        "rod_b": Cylinder((0, 0, 0), (3.2, 0, 0), 0.45),
+        "ring_a": Torus((0, 0, 0), 1.0, 0.3),
+        "ring_b": Torus((0, 0, 0), 1.1, 0.35),
+        "ball": Sphere((0, 0, 0), 1.0),
+    }
+
+
+@pytest.fixture(scope="module")
+def fv_db(tmp_path_factory: pytest.TempPathFactory, forget: Callable[[Any], None]) -> Iterator[Any]:
+    """Seven analytic shapes in a store whose stage reads field vectors."""
+    import shapedb.database as database
+
+    db = database.connect(tmp_path_factory.mktemp("fv") / "store", config=FIELD_STAGE)
+    shapes = _shapes()
+    db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
+    yield db
+    forget(db)
+
+
+def test_the_store_keeps_field_vectors_and_the_stage_reads_them(fv_db: Any) -> None:
+    assert fv_db.config.stores_field_vectors
+    fusion = FieldFusion.from_config(fv_db.config)
+    assert fusion.active and fusion.proposes
+    ids, _ = fv_db.store.features()
+    got = stored_arrays(fv_db)(FIELD, ids)
+    assert got is not None and got.shape[0] == 7 and np.all(np.isfinite(got))
+    assert len(field_index(fv_db)) == 7
+
+
+def test_evaluation_ranks_as_search_does(fv_db: Any) -> None:
+    ids, _ = fv_db.store.features()
+    labels = fv_db.store.shapes(["label"]).column("label").to_pylist()
+    hits = fv_db.search_batch([int(i) for i in ids], k=len(ids))
+    ranks = np.empty((len(ids), len(ids)))
+    for row, found in enumerate(hits):
+        assert len(found) == len(ids)
+        ranks[row, np.searchsorted(ids, [h.id for h in found])] = np.arange(len(ids))
+    want = retrieval_scores(ranks, labels, ids=ids, distance=True).to_dict()
+    got = evaluate(fv_db).to_dict()
+    for key in ("nn", "first_tier", "dcg"):
+        assert got[key] == pytest.approx(want[key], abs=1e-12)
+
+
+def test_an_outside_query_uses_its_own_field_vector(fv_db: Any) -> None:
+    config = fv_db.config
+    shapes = _shapes()
+    d = decompose(shapes["rod_b"], config=config.mdbd, keep_inside=True)
+    own = query_field_vectors(config, [d, None])
+    sid = fv_db.store.resolve("rod_b")
+    stored = stored_arrays(fv_db)(FIELD, np.array([sid]))
+    assert np.all(np.isnan(own[1]))
+    np.testing.assert_allclose(own[0], stored[0], rtol=1e-6, atol=1e-7)
+    for name, shape in shapes.items():
+        inside = [h.id for h in fv_db.search(name, k=7)]
+        outside = [h.id for h in fv_db.search(shape, k=7)]
+        assert outside == inside, name
+
+
+def test_a_where_filter_and_a_deletion_keep_the_union_within_the_store(
+    tmp_path: Path, forget: Callable[[Any], None]
+) -> None:
+    import shapedb.database as database
+
+    db = database.connect(tmp_path / "s", config=FIELD_STAGE)
+    db.ingest([(n, n.split("_")[0], g) for n, g in _shapes().items()], workers=1)
+    hits = db.search("box_a", k=7, where="label <> 'ring'")
+    assert {h.label for h in hits} == {"box", "rod", "ball"} and len(hits) == 5
+    db.delete(["box_b"])
+    hits = db.search("box_a", k=7)
+    assert "box_b" not in [h.name for h in hits] and len(hits) == 6
+    assert len({h.id for h in hits}) == 6
+    forget(db)
+
+
+def test_the_spread_table_is_recomputed_when_the_fusion_changes(fv_db: Any) -> None:
+    first = store_spreads(fv_db, stored_arrays(fv_db))
+    root = Path(fv_db.store.path) / SPREAD_DIR
+    meta = json.loads((root / "current.json").read_text())
+    assert meta["field_fusion"] == FieldFusion.from_config(fv_db.config).key()
+    other = fv_db.config.with_options(lf_field_depth_weight=4.0, lf_field_harmonic_weight=0.0)
+    view = SimpleNamespace(store=fv_db.store, config=other)
+    table = spread_table(view, stored_arrays(fv_db))  # type: ignore[arg-type]
+    assert not table.complete  # the stored table is another fusion's
+    again = dict(zip(sorted(first), table.get(np.array(sorted(first))), strict=True))
+    assert again != first
+    plain = SimpleNamespace(store=fv_db.store, config=fv_db.config)
+    assert spread_table(plain, stored_arrays(fv_db)).get(  # type: ignore[arg-type]
+        np.array(sorted(first))
+    ).tolist() == [first[i] for i in sorted(first)]
