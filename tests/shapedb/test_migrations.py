@@ -174,6 +174,8 @@ def test_a_store_written_with_the_previous_layout_opens_and_searches(tmp_path: P
     again = shapedb.connect(path, create=False)
     assert again.config == _layout1_store_config() and len(again) == 7
     assert again.get("slab").config == again.config
+    # written before the field vectors: neither the old rows nor the new one carry one
+    assert again.get("slab").field_vector is None and again.get("rods1").field_vector is None
     assert [h.name for h in again.search("rods1", k=3)] == ["rods1", "rods2", "rods0"]
 
 
