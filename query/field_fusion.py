@@ -45,7 +45,7 @@ FIELD = "field_vector"
 
 def stores_field_vectors(config: Config) -> bool:
     """Whether ``config``'s records keep field vectors (``Config.stores_field_vectors``)."""
-    return bool(getattr(config, "stores_field_vectors", False))
+    return bool(config.stores_field_vectors)
 
 
 class FieldFusion:
@@ -104,12 +104,12 @@ class FieldFusion:
             depth, harmonic = field_vector_parts(config.field_vector)
         return cls(
             depth, harmonic,
-            depth_weight=getattr(f, "field_depth_weight", 0.0),
-            harmonic_weight=getattr(f, "field_harmonic_weight", 0.0),
-            light_field_scale=getattr(f, "light_field_scale", 1.0),
-            depth_scale=getattr(f, "field_depth_scale", 1.0),
-            harmonic_scale=getattr(f, "field_harmonic_scale", 1.0),
-            candidates=getattr(f, "field_candidates", 0),
+            depth_weight=f.field_depth_weight,
+            harmonic_weight=f.field_harmonic_weight,
+            light_field_scale=f.light_field_scale,
+            depth_scale=f.field_depth_scale,
+            harmonic_scale=f.field_harmonic_scale,
+            candidates=f.field_candidates,
             stored=stored,
         )  # fmt: skip
 

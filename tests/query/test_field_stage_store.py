@@ -20,10 +20,12 @@ from query.rerank_lightfield import stored_arrays
 from shapedb.implicit import Box, Capsule, Cylinder, Sphere, Torus
 from shapedb.mdbd import decompose
 
-#: The stage with field vectors: K = 3 of version 4 and K2 = 2 by the field vectors.
+#: The stage with field vectors: K = 3 of version 4 and K2 = 2 by the field vectors, the
+#: gate open (g = 1) so that the fused distance always counts.
 FIELD_STAGE = CONFIG.with_options(
     rerank="lightfield", rerank_candidates=3, fv_enabled=True, lf_field_depth_weight=0.5,
-    lf_field_harmonic_weight=0.5, lf_field_candidates=2,
+    lf_field_harmonic_weight=0.5, lf_field_candidates=2, lf_power=0.0, lf_ceiling=0.0,
+    lf_contrast_floor=0.0, lf_pool=0,
 )  # fmt: skip
 
 

@@ -15,6 +15,7 @@ from bench.gate_checks import ANALYTIC, chain
 from bench.lightfield_gate import Store, gate_weights
 from bench.lightfield_gate import local_spreads as local_spreads_of
 from query import rerank
+from query.field_fusion import FIELD
 from query.index import FeatureIndex
 from query.lightfield_spread import (
     FULL_AT_COMMIT,
@@ -114,6 +115,9 @@ def _gates(db: Any) -> np.ndarray:
         c = cand[0]
         fields = reader(COLUMN, np.append(c, sid))
         dl = light_field_distance(fields[-1][None], fields[:-1])[0]
+        if scorer.field.active:  # the stage's distance: the field vectors fused in
+            fv = reader(FIELD, np.append(c, sid))
+            dl = scorer.field.distance(dl, fv[-1], fv[:-1])
         spreads = reader(SPREAD, c)
         d4 = dist[0] / calibration(db.config)
         out.append(scorer.gate(d4, dl, c == sid, spreads))
