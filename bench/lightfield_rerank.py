@@ -284,7 +284,9 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
         "none (v4)": Config().with_options(rerank="none"),
         "lightfield (v4)": Config().with_options(rerank="lightfield", **NO_FIELD),
         "lightfield + field vectors (v4)": product,
-        "lightfield, spread gate (v4)": Config().with_options(rerank="lightfield", **SPREAD_GATE),
+        "lightfield, spread gate (v4)": Config().with_options(
+            rerank="lightfield", **SPREAD_GATE, **NO_FIELD
+        ),
         "adaptive (v7)": Config().with_options(descriptor=7, rerank="adaptive"),
     }
     out: dict[str, Any] = {"models": len(balls)}

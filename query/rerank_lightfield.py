@@ -287,6 +287,7 @@ class StoredArrays:
         self._preload = {c: preload for c in self._columns}
         self._complete: set[str] = set()
         self._shape = {COLUMN: (int(db.config.light_field.n_fields), 10, -1), FIELD: (-1,)}
+        self._field_index: Any = None
 
     def _read(self, column: str, ids: list[int] | None) -> None:
         t = self.db.store.shapes(["id", column], ids=ids)
@@ -306,10 +307,15 @@ class StoredArrays:
                 self._preload[c] = True
 
     def field_index(self) -> Any:
-        """The store's field vector index at this version (:func:`query.field_index.field_index`)."""
-        from query.field_index import field_index
+        """The store's field vector index at this version (:func:`query.field_index.field_index`).
 
-        return field_index(self.db)
+        Kept by the reader after its first call (the reader is its store version's).
+        """
+        if self._field_index is None:
+            from query.field_index import field_index
+
+            self._field_index = field_index(self.db)
+        return self._field_index
 
     def __call__(self, name: str, ids: NDArray[np.int64]) -> NDArray[np.float64] | None:
         """(m, ...) float64 rows of column ``name`` for ``ids``; NaN for records without.
