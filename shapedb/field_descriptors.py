@@ -342,6 +342,10 @@ def field_vector(
     config : FieldVectorConfig or Config, optional
         Default: :class:`FieldVectorConfig`'s fields (``enabled`` is not read).
 
+    Computed with one BLAS thread (:mod:`threadpoolctl`) whatever the process's setting:
+    the harmonics' matrix product is small enough that a multi-threaded BLAS spends more
+    CPU waking threads than computing.
+
     Returns
     -------
     (field_vector_dim(config),) float32
@@ -352,11 +356,14 @@ def field_vector(
     ValueError
         If the inside has no cell, or all its shell cells sit on its centroid.
     """
+    from threadpoolctl import threadpool_limits
+
     if inside.count == 0 or len(inside.shell) == 0:
         raise ValueError("the field's inside is empty: no field vector")
     cfg = _section(config)
-    depth = depth_buffer_descriptor(inside.shell, inside.centroid, float(inside.cell), cfg)
-    harmonic = harmonic_energies(inside.shell, inside.centroid, cfg)
+    with threadpool_limits(limits=1, user_api="blas"):
+        depth = depth_buffer_descriptor(inside.shell, inside.centroid, float(inside.cell), cfg)
+        harmonic = harmonic_energies(inside.shell, inside.centroid, cfg)
     return np.concatenate([depth, harmonic]).astype(np.float32)
 
 
