@@ -335,11 +335,18 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
     base = med["none (v4)"]
     out["median_s"] = med
     out["ratio"] = {k: v / base for k, v in med.items()}
+    # the field vectors' cost: per query, against the same query without them (paired)
+    paired = np.asarray(times["lightfield + field vectors (v4)"]) / np.asarray(
+        times["lightfield (v4)"]
+    )
+    out["field_vectors_paired_ratio"] = float(np.median(paired))
     print(format_table(
         f"db.search per query, k = 10, {len(ids)} stored web shapes, {repeats} x {len(ids)} queries",
         ("stage", "median ms", "ratio"),
         [[k, f"{v * 1e3:.2f}", f"{v / base:.2f}"] for k, v in med.items()],
     ))  # fmt: skip
+    print(f"field vectors (fused distance and union) against the lightfield stage alone: "
+          f"median per-query ratio x{out['field_vectors_paired_ratio']:.2f}")  # fmt: skip
     return out
 
 

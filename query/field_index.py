@@ -5,9 +5,10 @@ nearest shapes, and with ``LightFieldFusionConfig.field_candidates = K2 > 0`` al
 ``K2`` nearest by the L1 distance of the scaled field vectors ``[depth / m_b, harmonic
 / m_h]`` (:meth:`query.field_fusion.FieldFusion.scaled`) not among those ``K``. This
 module finds those ``K2``: a faiss ``IndexFlat(dim, METRIC_L1)`` over the scaled stored
-vectors proposes, and the exact float64 L1 of the float32 scaled vectors orders (ties
-by ascending id); a search restricted to some ids (a ``where`` filter, an evaluation
-over the labelled shapes) scans them exactly instead.
+vectors proposes (a float32 numpy scan up to :data:`SCAN_MAX` vectors, which is faster
+there), and the exact float64 L1 of the float32 scaled vectors orders (ties by ascending
+id); a search restricted to some ids (a ``where`` filter, an evaluation over the
+labelled shapes) scans them exactly instead.
 
 One index per store version (:func:`field_index`): built from the store's
 ``field_vector`` column at a version's first search that asks for it, shared by every
@@ -30,13 +31,17 @@ from query.field_fusion import FIELD, FieldFusion
 if TYPE_CHECKING:
     from shapedb.database import Database
 
-__all__ = ["FieldIndex", "field_index"]
+__all__ = ["FieldIndex", "field_index", "SCAN_MAX"]
 
 log = logging.getLogger(__name__)
 
-#: Extra proposals asked of faiss past k, so that float32 rounding cannot push a
-#: neighbour out before the exact float64 order.
+#: Extra proposals asked past k, so that float32 rounding cannot push a neighbour out
+#: before the exact float64 order.
 _MARGIN = 16
+#: Up to this many vectors a float32 numpy scan proposes the candidates (faiss's flat L1
+#: search is slower per vector than numpy's at the field vector's length); beyond, the
+#: faiss index.
+SCAN_MAX = 65_536
 _SCAN_BLOCK = 4096
 _NO_ID = np.iinfo(np.int64).max
 
@@ -108,8 +113,16 @@ class FieldIndex:
                 out_i[row], out_d[row] = self._exact(q[row], cand, k)
             return out_i, out_d
         n_cand = min(k + _MARGIN, len(self.ids_))
-        _, found = self._index().search(np.ascontiguousarray(q[ok], np.float32), n_cand)
-        for at, row in enumerate(np.flatnonzero(ok)):
+        rows = np.flatnonzero(ok)
+        q32 = np.ascontiguousarray(q[rows], np.float32)
+        if len(self.ids_) > SCAN_MAX:
+            _, found = self._index().search(q32, n_cand)
+        else:  # a float32 scan proposes as the flat index would, faster at this size
+            found = np.empty((len(rows), n_cand), np.int64)
+            for at in range(len(rows)):
+                d = np.abs(self.vectors_ - q32[at]).sum(axis=1)
+                found[at] = np.argpartition(d, n_cand - 1)[:n_cand]
+        for at, row in enumerate(rows):
             cand = found[at][found[at] >= 0]
             out_i[row], out_d[row] = self._exact(q[row], cand, k)
         return out_i, out_d

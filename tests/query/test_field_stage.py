@@ -228,7 +228,11 @@ class _Stored:
         return np.asarray(batch.distances)
 
 
-def test_the_field_index_is_exact_with_ties_by_id_and_filters() -> None:
+@pytest.mark.parametrize("scan_max", [0, 65_536])  # faiss proposes, or a numpy scan
+def test_the_field_index_is_exact_with_ties_by_id_and_filters(
+    scan_max: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr("query.field_index.SCAN_MAX", scan_max)
     rng = np.random.default_rng(5)
     v = rng.random((50, 6)).astype(np.float32)
     v[17] = v[3]  # a tie
@@ -240,6 +244,11 @@ def test_the_field_index_is_exact_with_ties_by_id_and_filters() -> None:
     want = np.lexsort((ids, brute))[:5]
     assert got[0].tolist() == ids[want].tolist() and d[0][0] == d[0][1] == 0.0
     assert got[0][0] < got[0][1]  # ties by ascending id
+    queries = rng.random((7, 6))
+    many, _ = index.search(queries, 9)
+    for row, qv in enumerate(queries):
+        d = np.abs(v.astype(np.float64) - qv).sum(1)
+        assert many[row].tolist() == ids[np.lexsort((ids, d))[:9]].tolist()
     allowed = ids[::2]
     got, _ = index.search(q, 60, allowed=allowed)
     real = got[0][got[0] >= 0]
