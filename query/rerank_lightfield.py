@@ -224,7 +224,7 @@ class LightFieldFusion:
         ``batch.arrays.field_index()`` (:mod:`query.field_index`). Within ``allowed``
         when given. A query without a field vector gets no extras (-1).
         """
-        if not self.field.proposes:
+        if not self.field.proposes or batch.arrays is None:  # no arrays: score() warns
             return None
         source = getattr(batch.arrays, "field_index", None)
         if source is None:
@@ -279,7 +279,6 @@ class StoredArrays:
 
     def __init__(self, db: Any, *, preload: bool = False) -> None:
         self.db = db
-        self.preload = preload
         self._columns = (COLUMN, FIELD) if stores_field_vectors(db.config) else (COLUMN,)
         self._cache: dict[str, dict[int, NDArray[np.float32]]] = {c: {} for c in self._columns}
         # read, and null (rows older than the column)
