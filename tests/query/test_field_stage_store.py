@@ -92,6 +92,30 @@ def test_an_outside_query_uses_its_own_field_vector(fv_db: Any) -> None:
         assert outside == inside, name
 
 
+def test_a_file_query_computes_its_field_vector(
+    fv_db: Any, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import trimesh
+
+    import query.field_fusion as field_fusion
+
+    seen: list[np.ndarray] = []
+
+    def spy(config: Any, decompositions: Any) -> np.ndarray:
+        out = query_field_vectors(config, decompositions)
+        seen.append(out)
+        return out
+
+    monkeypatch.setattr(field_fusion, "query_field_vectors", spy)
+    path = tmp_path / "box.obj"
+    trimesh.creation.box(extents=(2.0, 1.0, 1.0)).export(path)
+    hits = fv_db.search(str(path), k=3)
+    assert hits[0].name == "box_a"
+    assert len(seen) == 1 and np.all(np.isfinite(seen[0]))
+    fv_db.search("box_a", k=3)  # a stored query: its vector is read by id
+    assert np.all(np.isnan(seen[1]))
+
+
 def test_a_where_filter_and_a_deletion_keep_the_union_within_the_store(
     tmp_path: Path, forget: Callable[[Any], None]
 ) -> None:
