@@ -68,6 +68,7 @@ from bench.gate_checks import (
     JOINTED_SETS,
     MIN_MARGIN,
     analytic_gates,
+    analytic_shapes,
     analytic_stores,
     margin,
     ratio_settings,
@@ -107,7 +108,14 @@ class Split:
         Version 4's stored distance (pre-weighted L1 of float32 vectors, as the index
         holds them).
     dl : (n, n) float64
-        Light field distances of the float32 light fields.
+        The stage's distance: the light field distances of the float32 light fields, or
+        their fusion with the field vectors (:func:`bench.field_vectors.fuse`).
+    light : (n, n) float64
+        The light field distances.
+    dv : (n, n) float64 or None
+        The scaled field vectors' L1 distances (a fused split's union candidates).
+    stage : bench.field_vectors.FieldStage or None
+        The field vectors' part of a fused split.
     """
 
     def __init__(
@@ -154,6 +162,9 @@ class Split:
             self.d4[i] = np.abs(v - v[i]).sum(axis=1)
         self.d4 /= np.log(10.0) / sum(b[3] for b in LAYOUTS[4])  # calibrated units
         self.dl = _light_field_matrix(np.concatenate(fields), keys)
+        self.light = self.dl  # the light field distance (dl: the stage's, bench.field_vectors)
+        self.dv: FloatArray | None = None  # the scaled field vectors' L1 (the union candidates)
+        self.stage: Any = None  # bench.field_vectors.FieldStage of a fused split
 
     def store(self, names: Sequence[str]) -> NDArray[np.int64]:
         """Row indices of a store made of these sets."""
@@ -187,17 +198,26 @@ class Store:
         K, the candidates re-ranked per query.
     offset : float
         The rank fusion's offset.
+    field_candidates : int
+        K2: each query's candidates also take its ``K2`` nearest by ``split.dv`` (the
+        scaled field vectors' L1, :mod:`bench.field_vectors`) that are not among the K,
+        after them in the stored distance's order (the product's union). 0, or a split
+        without ``dv``: the K alone.
 
     Attributes
     ----------
-    cand : (n, K) int64
-        Each query's candidates by the stored distance (ties by id), itself among them.
-    rank_l : (n, K) float64
-        Rank of each candidate by the light field distance among the K (ties in list order).
+    cand : (n, C) int64
+        Each query's candidates in list order (the stored distance, ties by id), itself
+        among them; ``C`` the longest list, shorter lists padded past ``count``.
+    count : (n,) int64
+        Each query's candidates (K, plus its field vectors' extras).
+    rank_l : (n, C) float64
+        Rank of each candidate by the light field distance among the query's candidates
+        (ties in list order); padding ranks last.
     """
 
     def __init__(self, split: Split, rows: NDArray[np.int64], candidates: int = 100,
-                 offset: float = 60.0) -> None:  # fmt: skip
+                 offset: float = 60.0, field_candidates: int = 0) -> None:  # fmt: skip
         self.rows = rows
         self.labels = split.labels[rows]
         self.sets = split.sets[rows]
@@ -207,13 +227,23 @@ class Store:
         k = min(candidates, n)
         self.order = np.argsort(d4, axis=1, kind="stable")  # whole list, ties by id
         self._d4, self._dl = d4, dl
-        self.cand = self.order[:, :k]
-        self.D = np.take_along_axis(d4, self.cand, 1)
-        self.L = np.take_along_axis(dl, self.cand, 1)
+        self.listing, self.count = self.order, np.full(n, k)
+        dv = getattr(split, "dv", None)
+        if field_candidates > 0 and dv is not None:
+            from bench.field_vectors import union_order
+
+            self.listing, self.count = union_order(
+                self.order, dv[np.ix_(rows, rows)], k, min(field_candidates, n))  # fmt: skip
+        c = int(self.count.max())
+        self.cand = self.listing[:, :c]
+        pad = np.arange(c)[None, :] >= self.count[:, None]
+        self.D = np.where(pad, np.inf, np.take_along_axis(d4, self.cand, 1))
+        self.L = np.where(pad, np.inf, np.take_along_axis(dl, self.cand, 1))
         self.own = self.cand == np.arange(n)[:, None]
-        self.rank_l = np.empty((n, k))
+        self.pad = pad
+        self.rank_l = np.empty((n, c))
         np.put_along_axis(self.rank_l, np.argsort(self.L, axis=1, kind="stable"),
-                          np.arange(k, dtype=np.float64)[None, :], 1)  # fmt: skip
+                          np.arange(c, dtype=np.float64)[None, :], 1)  # fmt: skip
         self.offset = offset
         self.same = self.labels[:, None] == self.labels[None, :]
         self.size = self.same.sum(axis=1) - 1  # relevant results per query
@@ -271,8 +301,17 @@ class Store:
                                                        w / (self.offset + self.rank_l))  # fmt: skip
         fused[alone] = 1.0 / (self.offset + self.rank_l[alone])
         ids = self.cand
-        head = np.take_along_axis(ids, np.lexsort((ids, -fused), axis=-1), 1)
-        return np.concatenate([head, self.order[:, k:]], axis=1)
+        if not self.pad.any():
+            head = np.take_along_axis(ids, np.lexsort((ids, -fused), axis=-1), 1)
+        else:  # the padding keeps its list order after the candidates
+            at = np.broadcast_to(np.arange(k, dtype=np.float64), ids.shape)
+            keys = (
+                np.where(self.pad, at, ids),
+                np.where(self.pad, at, -fused),
+                self.pad.astype(int),
+            )
+            head = np.take_along_axis(ids, np.lexsort(keys, axis=-1), 1)
+        return np.concatenate([head, self.listing[:, k:]], axis=1)
 
     def measures(self, weight: FloatArray) -> FloatArray:
         """(n, 3) NN, 1-T, DCG of every query at per-query weights ``weight`` (:meth:`rankings`)."""
@@ -399,7 +438,7 @@ LEGACY = {"weight": 8.0, "power": 3.0, "ceiling": 0.09, "spread_candidates": 100
           "contrast_floor": 0.0, "ramp": 0.02, "ratio_weight": 0.0}  # fmt: skip
 
 
-def _row(stores: dict[str, Store], weights: dict[str, FloatArray],
+def score_row(stores: dict[str, Store], weights: dict[str, FloatArray],
          base: dict[str, dict[str, dict[str, float]]]) -> dict[str, Any]:  # fmt: skip
     """Scores per store and set, the worst loss in queries against v4, the objective."""
     entry: dict[str, Any] = {"stores": {}, "worst_queries": 0.0, "worst_at": None}
@@ -418,22 +457,34 @@ def _row(stores: dict[str, Store], weights: dict[str, FloatArray],
     return entry
 
 
-def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, Any]:
+def select(args: argparse.Namespace, split: Split | None = None,
+           analytic: dict[str, Any] | None = None) -> dict[str, Any]:  # fmt: skip
     """Rows of every store; on validation the grid and its choice; returns the JSON.
 
-    ``split``: the shapes and distances to score (default: :class:`Split` of ``args``;
-    a study passes its own distances this way).
+    ``split``: the shapes and distances to score (default: :class:`Split` of ``args``,
+    fused with the field vectors of :func:`bench.field_vectors.stage_of` ``args``; a
+    study passes its own distances this way; a split with a ``stage``
+    (:func:`bench.field_vectors.fuse`) takes its union candidates and checks the
+    analytic stores on its distance). ``analytic``: the analytic stores
+    (:func:`bench.gate_checks.analytic_stores`), built here when None.
     """
     import itertools
+
+    from bench.field_vectors import analytic_distance, fuse, stage_of
 
     t0 = time.perf_counter()
     if split is None:
         split = Split(
             args.split, args.datasets, args.lf_n_balls, args.lf_within, args.lf_source, args.lf_set
         )
+        chosen = stage_of(args)
+        if chosen is not None:
+            split = fuse(split, args.datasets, chosen)
+    stage = getattr(split, "stage", None)
+    k2 = stage.candidates if stage is not None else 0
     names: dict[str, tuple[str, ...]] = {s: (s,) for s in args.datasets}
     names.update({k: v for k, v in MIXES.items() if set(v) <= set(args.datasets)})
-    stores = {k: Store(split, split.store(v)) for k, v in names.items()}
+    stores = {k: Store(split, split.store(v), field_candidates=k2) for k, v in names.items()}
     print(f"  {len(split.sets)} shapes, {len(stores)} stores ({time.perf_counter() - t0:.0f} s)")
     zero = {k: np.zeros(len(st.rows)) for k, st in stores.items()}
     base = {k: st.per_set(st.measures(zero[k])) for k, st in stores.items()}
@@ -445,18 +496,19 @@ def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, An
     memo: dict[Any, FloatArray] = {}
     margins: dict[str, dict[str, float]] = {}
     rows: dict[str, dict[str, Any]] = {
-        "v4 (no stage)": _row(stores, zero, base),
-        "light fields alone (K = 100)": _row(
+        "v4 (no stage)": score_row(stores, zero, base),
+        ("light fields alone (K = 100)" if stage is None else
+         f"the stage's distance alone (K = 100, K2 = {k2})"): score_row(
             stores, {k: np.full(len(st.rows), np.inf) for k, st in stores.items()}, base),
-        "rank fusion 0.5, ungated": _row(
+        "rank fusion 0.5, ungated": score_row(
             stores, {k: np.full(len(st.rows), 0.5) for k, st in stores.items()}, base),
     }  # fmt: skip
     legacy = dataclasses.replace(default, **LEGACY)  # type: ignore[arg-type]
-    rows["stage before (overlap^3, own spread over 100)"] = _row(
+    rows["stage before (overlap^3, own spread over 100)"] = score_row(
         stores, {k: gate_weights(st, legacy) for k, st in stores.items()}, base
     )
     spread_gate = dataclasses.replace(default, **SPREAD_GATE)  # type: ignore[arg-type]
-    rows["spread gate (pooled median spread, the default before the ratio)"] = _row(
+    rows["spread gate (pooled median spread, the default before the ratio)"] = score_row(
         stores, {k: gate_weights(st, spread_gate, memo) for k, st in stores.items()}, base
     )
     margins["spread gate (pooled median spread, the default before the ratio)"] = gate_margin(
@@ -471,14 +523,23 @@ def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, An
         settings = ratio_settings()
         subsets = (("the local spread alone (ratio weight 0)", lambda s: s["ratio_weight"] == 0),
                    ("the ratio alone (ratio weight 1)", lambda s: s["ratio_weight"] == 1))  # fmt: skip
-    tmp = tempfile.TemporaryDirectory(prefix="lightfield_gate_")
-    analytic = analytic_stores(Path(tmp.name))
+    tmp = None
+    if analytic is None:
+        tmp = tempfile.TemporaryDirectory(prefix="lightfield_gate_")
+        analytic = analytic_stores(Path(tmp.name))
     amemo: dict[Any, Any] = {}
+    fused = {}  # the analytic stores on the stage's distance
+    if stage is not None and stage.fuses:
+        shapes = analytic_shapes()
+        fused = {k: analytic_distance(db, shapes[k], stage) for k, db in analytic.items()}
+
+    def gates(which: str, f: Any) -> tuple[FloatArray, FloatArray]:
+        return analytic_gates(analytic[which], f, amemo, fused.get(which))
 
     def closed(f: Any) -> bool:
         """The chain in poses shut and the rigid analytic store open (some of it)."""
-        g_rigid, _ = analytic_gates(analytic["rigid"], f, amemo)
-        g_chain, _ = analytic_gates(analytic["chain"], f, amemo)
+        g_rigid, _ = gates("rigid", f)
+        g_chain, _ = gates("chain", f)
         return bool(np.all(g_chain == 0) and np.count_nonzero(g_rigid) >= 6)
 
     if args.split == "validation" and not args.no_grid:
@@ -486,7 +547,7 @@ def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, An
         t0 = time.perf_counter()
         for s in settings:
             f = dataclasses.replace(default, power=0.0, **s)  # type: ignore[arg-type]
-            grid.append((s, _row(stores, {k: gate_weights(st, f, memo)
+            grid.append((s, score_row(stores, {k: gate_weights(st, f, memo)
                                           for k, st in stores.items()}, base)))  # fmt: skip
         passing = [g for g in grid if g[1]["passes"]]
         n_rule = len(passing)
@@ -523,7 +584,7 @@ def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, An
             rows[f"best of the grid: {best[0]}"] = best[1]
             f = dataclasses.replace(default, power=0.0, **best[0])  # type: ignore[arg-type]
             margins[f"best of the grid: {best[0]}"] = gate_margin(stores, f, memo)
-    rows["stage now (LightFieldFusionConfig defaults)"] = _row(
+    rows["stage now (LightFieldFusionConfig defaults)"] = score_row(
         stores, {k: gate_weights(st, default) for k, st in stores.items()}, base
     )
     if args.oracle:
@@ -532,7 +593,7 @@ def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, An
         for field, values in AROUND.items():
             for v in values:
                 f = dataclasses.replace(default, **{field: v})  # type: ignore[arg-type]
-                rows[f"defaults, {field} {v:g}"] = _row(
+                rows[f"defaults, {field} {v:g}"] = score_row(
                     stores, {k: gate_weights(st, f) for k, st in stores.items()}, base
                 )
     margins["stage now (LightFieldFusionConfig defaults)"] = gate_margin(stores, default, memo)
@@ -541,12 +602,12 @@ def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, An
             default, power=0.0, **_setting(label))  # fmt: skip
         if label.startswith("spread gate"):
             f = spread_gate
-        m["chain_min"] = float(np.nanmin(analytic_gates(analytic["chain"], f, amemo)[1]))
-        m["chain_open"] = float(np.count_nonzero(analytic_gates(analytic["chain"], f, amemo)[0]))
-        m["analytic_rigid_open"] = float(np.count_nonzero(
-            analytic_gates(analytic["rigid"], f, amemo)[0]))  # fmt: skip
+        m["chain_min"] = float(np.nanmin(gates("chain", f)[1]))
+        m["chain_open"] = float(np.count_nonzero(gates("chain", f)[0]))
+        m["analytic_rigid_open"] = float(np.count_nonzero(gates("rigid", f)[0]))
         m["ceiling"] = float(f.ceiling)
-    tmp.cleanup()
+    if tmp is not None:
+        tmp.cleanup()
     _print(rows, stores, args.split)
     if margins and "jointed_5" in margins[next(iter(margins))]:
         print(format_table(
@@ -563,6 +624,7 @@ def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, An
              for k, m in margins.items()],
         ))  # fmt: skip
     return {"split": args.split, "rows": rows, "defaults": dataclasses.asdict(default),
+            "field_stage": None if stage is None else dataclasses.asdict(stage),
             "margins": margins,
             "statistics": statistics(stores, default),
             "sizes": {k: len(st.rows) for k, st in stores.items()}}  # fmt: skip
@@ -585,7 +647,7 @@ def oracle_rows(stores: dict[str, Store], base: dict[str, dict[str, dict[str, fl
         for st in stores.values():
             st.offset = offset
         try:
-            rows[label] = _row(stores, weights, base)
+            rows[label] = score_row(stores, weights, base)
         finally:
             for k, st in stores.items():
                 st.offset = kept[k]
@@ -677,6 +739,15 @@ def parser() -> argparse.ArgumentParser:
                     help="LightFieldConfig fields of the light fields (e.g. resolution=128)")  # fmt: skip
     ap.add_argument("--fusion", nargs="*", default=[], metavar="FIELD=VALUE",
                     help="LightFieldFusionConfig fields of the 'stage now' row")  # fmt: skip
+    ap.add_argument("--field-vectors", action=argparse.BooleanOptionalAction, default=None,
+                    help="the stage with the field vectors (default: the product's; "
+                         "--no-field-vectors: the light field alone, today's rows)")  # fmt: skip
+    ap.add_argument("--fv-weights", type=float, nargs=2, default=None, metavar=("A", "C"),
+                    help="weights of the depth and the harmonic distances")  # fmt: skip
+    ap.add_argument("--fv-scales", type=float, nargs=3, default=None,
+                    metavar=("M_L", "M_B", "M_H"), help="scales of l, b and h")  # fmt: skip
+    ap.add_argument("--fv-candidates", type=int, default=None, metavar="K2",
+                    help="the field vectors' nearest added to version 4's K")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None)
     return ap
 
@@ -688,6 +759,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     tag = f"_n{args.lf_n_balls}" if args.lf_n_balls is not None else ""
     tag += f"_{args.lf_source}" if args.lf_source is not None else ""
     tag += "".join(f"_{kv.replace('=', '')}" for kv in args.lf_set)
+    tag += "_fv" if result["field_stage"] is not None else ""
     out = args.out or RESULTS / f"lightfield_gate_{args.split}{tag}.json"
     write_json(out, result)
     print(f"written {out}")
