@@ -41,6 +41,18 @@ continued to M); version 4 stays that of the cached balls. ``--lf-source field``
 light fields of the field's inside (``LightFieldConfig.source``, computed once per model
 and cached by :mod:`bench.inside_fields`); ``--lf-set FIELD=VALUE``: other
 ``LightFieldConfig`` fields (e.g. ``resolution=128``).
+
+The field vectors (:mod:`bench.field_vectors`): ``--field-vectors`` scores the stage whose
+distance fuses the light field distance with the L1 distances of the field's depth
+buffers and harmonics (fixed scales) and whose candidates are the union of version 4's
+K and the field vectors' K2 nearest, everywhere the stage uses the light field distance
+(ranks, the gate's statistics, the analytic stores); ``--fv-weights``, ``--fv-scales``,
+``--fv-candidates`` replace the product's values (``LightFieldFusionConfig``'s, once it
+has them), and ``--no-field-vectors`` keeps the light field alone. Such a run also
+scores the stage before the field vectors (the light field distance, K alone) in the
+same run. ``--mesh-lfd``: the peer's row, every shape of each store ranked by the mesh
+light field descriptor (:func:`bench.rerank_select.lfd_split_matrix`, cached).
+``--no-rigid-margin``: the ratio grid keeps the jointed margin alone.
 """
 
 from __future__ import annotations
@@ -487,7 +499,10 @@ def select(args: argparse.Namespace, split: Split | None = None,
     stores = {k: Store(split, split.store(v), field_candidates=k2) for k, v in names.items()}
     print(f"  {len(split.sets)} shapes, {len(stores)} stores ({time.perf_counter() - t0:.0f} s)")
     zero = {k: np.zeros(len(st.rows)) for k, st in stores.items()}
-    base = {k: st.per_set(st.measures(zero[k])) for k, st in stores.items()}
+    v4 = stores  # version 4 alone: no union (its extras would come before the rest)
+    if k2 > 0:
+        v4 = {k: Store(split, split.store(v)) for k, v in names.items()}
+    base = {k: st.per_set(st.measures(zero[k])) for k, st in v4.items()}
     default = Config().lf_fusion
     if args.fusion:  # the "stage now" row at other values (a setting chosen elsewhere)
         pairs = dict(kv.split("=", 1) for kv in args.fusion)
@@ -496,13 +511,26 @@ def select(args: argparse.Namespace, split: Split | None = None,
     memo: dict[Any, FloatArray] = {}
     margins: dict[str, dict[str, float]] = {}
     rows: dict[str, dict[str, Any]] = {
-        "v4 (no stage)": score_row(stores, zero, base),
+        "v4 (no stage)": score_row(v4, zero, base),
         ("light fields alone (K = 100)" if stage is None else
          f"the stage's distance alone (K = 100, K2 = {k2})"): score_row(
             stores, {k: np.full(len(st.rows), np.inf) for k, st in stores.items()}, base),
         "rank fusion 0.5, ungated": score_row(
             stores, {k: np.full(len(st.rows), 0.5) for k, st in stores.items()}, base),
     }  # fmt: skip
+    if stage is not None:  # the product before the field vectors, in the same run
+        import copy
+
+        before = copy.copy(split)
+        before.dl, before.dv = split.light, None
+        plain = {k: Store(before, before.store(v)) for k, v in names.items()}
+        rows["the stage before the field vectors (light field distance, K = 100)"] = score_row(
+            plain, {k: gate_weights(st, Config().lf_fusion) for k, st in plain.items()}, base
+        )
+    if getattr(args, "mesh_lfd", False):  # the peer: every shape ranked by the mesh LFD
+        rows["mesh light field descriptor (every shape ranked)"] = mesh_lfd_row(
+            split, args.datasets, names, base
+        )
     legacy = dataclasses.replace(default, **LEGACY)  # type: ignore[arg-type]
     rows["stage before (overlap^3, own spread over 100)"] = score_row(
         stores, {k: gate_weights(st, legacy) for k, st in stores.items()}, base
@@ -558,8 +586,8 @@ def select(args: argparse.Namespace, split: Split | None = None,
             """Both margins: the jointed sets well above the ceiling, the rigid ones below."""
             f = dataclasses.replace(default, power=0.0, **g[0])  # type: ignore[arg-type]
             m = gate_margin(stores, f, memo)
-            return bool(m["jointed_min"] >= args.min_margin * f.ceiling
-                        and m["rigid_95"] <= f.ceiling)  # fmt: skip
+            rigid = m["rigid_95"] <= f.ceiling or not args.rigid_margin
+            return bool(m["jointed_min"] >= args.min_margin * f.ceiling and rigid)
 
         if args.grid == "ratio" and len(set(stores) & JOINTED_SETS) == len(JOINTED_SETS):
             passing = [g for g in passing if wide(g)]
@@ -628,6 +656,24 @@ def select(args: argparse.Namespace, split: Split | None = None,
             "margins": margins,
             "statistics": statistics(stores, default),
             "sizes": {k: len(st.rows) for k, st in stores.items()}}  # fmt: skip
+
+
+def mesh_lfd_row(split: Split, sets: Sequence[str], names: dict[str, tuple[str, ...]],
+                 base: dict[str, dict[str, dict[str, float]]]) -> dict[str, Any]:  # fmt: skip
+    """The mesh light field descriptor's row (:func:`bench.rerank_select.lfd_split_matrix`):
+    every shape of each store ranked by it alone, scored like the stage's rows."""
+    import copy
+
+    from bench.rerank_select import lfd_split_matrix
+
+    models = [m for s in sets for m in load(s, split.split)[0].models]
+    peer = copy.copy(split)
+    peer.dl = lfd_split_matrix(models)
+    peer.dv = None
+    stores = {
+        k: Store(peer, peer.store(v), candidates=len(peer.store(v))) for k, v in names.items()
+    }
+    return score_row(stores, {k: np.full(len(st.rows), np.inf) for k, st in stores.items()}, base)
 
 
 def oracle_rows(stores: dict[str, Store], base: dict[str, dict[str, dict[str, float]]],
@@ -724,6 +770,9 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--no-grid", action="store_true", help="only the fixed rows")
     ap.add_argument("--min-margin", type=float, default=MIN_MARGIN,
                     help="the ratio grid's least jointed statistic over the ceiling")  # fmt: skip
+    ap.add_argument("--rigid-margin", action=argparse.BooleanOptionalAction, default=True,
+                    help="the ratio grid's second margin: every rigid set's 95 %% at most the "
+                         "ceiling (--no-rigid-margin: the jointed margin alone)")  # fmt: skip
     ap.add_argument("--grid", default="ratio", choices=["ratio", "spread"],
                     help="the selection's grid: the ratio gate's (default) or the spread gate's")  # fmt: skip
     ap.add_argument("--around", action="store_true", help="the defaults, one field moved")
@@ -739,6 +788,8 @@ def parser() -> argparse.ArgumentParser:
                     help="LightFieldConfig fields of the light fields (e.g. resolution=128)")  # fmt: skip
     ap.add_argument("--fusion", nargs="*", default=[], metavar="FIELD=VALUE",
                     help="LightFieldFusionConfig fields of the 'stage now' row")  # fmt: skip
+    ap.add_argument("--mesh-lfd", action="store_true",
+                    help="the peer's row: every shape ranked by the mesh light field descriptor")  # fmt: skip
     ap.add_argument("--field-vectors", action=argparse.BooleanOptionalAction, default=None,
                     help="the stage with the field vectors (default: the product's; "
                          "--no-field-vectors: the light field alone, today's rows)")  # fmt: skip
