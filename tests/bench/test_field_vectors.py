@@ -70,3 +70,24 @@ def test_the_stage_of_a_config_without_the_fields_is_none() -> None:
     off = SimpleNamespace(**{**vars(fields), "field_depth_weight": 0.0,
                              "field_harmonic_weight": 0.0, "field_candidates": 0})  # fmt: skip
     assert FieldStage.of(off) is None
+
+
+def test_the_analytic_gates_on_the_light_field_distance_are_the_product_s(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from bench.field_vectors import analytic_distance
+    from bench.gate_checks import analytic_gates, analytic_shapes, analytic_stores
+
+    stores = analytic_stores(tmp_path)
+    f = Config().lf_fusion
+    for name, db in stores.items():
+        want = analytic_gates(db, f, {})  # the product's local spreads and gate
+        got = analytic_gates(db, f, {}, lambda q, ids, dl: dl)  # the bench's, same distance
+        assert np.array_equal(want[0], got[0]) and np.allclose(want[1], got[1]), name
+    stage = FieldStage(0.25, 0.25, 20.0, 6.0, 2.0, 200)
+    fused = analytic_distance(stores["chain"], analytic_shapes()["chain"], stage)
+    ids = np.sort(np.asarray(stores["chain"].store.shapes(["id"]).column("id").to_pylist()))
+    a, b = int(ids[0]), int(ids[2])  # other poses (0 and 1 are mirror images)
+    assert fused(a, np.array([a]), np.array([0.0]))[0] == 0.0
+    assert (
+        fused(a, np.array([b]), np.array([3.0]))[0] == fused(b, np.array([a]), np.array([3.0]))[0]
+    )
+    assert fused(a, np.array([b]), np.array([3.0]))[0] > 3.0 / 1.5  # the field vectors count
