@@ -110,10 +110,17 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
             t3 = time.perf_counter()
             light_field = decomposition_light_field(decomposition, config.light_field)
             timings["light_field"] = time.perf_counter() - t3
+        field_vector = None
+        if config.stores_field_vectors:
+            from shapedb.field_descriptors import decomposition_field_vector
+
+            t4 = time.perf_counter()
+            field_vector = decomposition_field_vector(decomposition, config.field_vector)
+            timings["field_vector"] = time.perf_counter() - t4
         timings["load"] = t_load
         timings["features"] = t2 - t1
         timings["cpu"] = time.process_time() - c0  # this process's CPU seconds
-        # the inside served the light fields only: the record does not carry it
+        # the inside served the light fields and the field vector: the record does not carry it
         decomposition = replace(decomposition, timings=timings, inside=None)
     except Exception as exc:  # any bad input becomes a recorded failure, never a crash
         if not isinstance(exc, ShapeDBError):
@@ -132,6 +139,7 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
         build_seconds=time.perf_counter() - t0,
         view_feature=view,
         light_field=light_field,
+        field_vector=field_vector,
     )
 
 

@@ -10,7 +10,9 @@ A :class:`Config` composes the settings that determine a store's records:
   the candidates of the index;
 * :class:`LightFieldConfig` and :class:`LightFieldFusionConfig` (module
   :mod:`shapedb.config_lightfield`): the light fields of the balls stored per record and
-  the ``"lightfield"`` re-ranking scorer's fusion.
+  the ``"lightfield"`` re-ranking scorer's fusion;
+* :class:`FieldVectorConfig` (module :mod:`shapedb.config_field`): the field vector
+  (depth buffers and spherical harmonics of the field's inside) stored per record.
 
 :class:`PartConfig` (substructure matching) embeds a :class:`KernelConfig` of its own.
 
@@ -21,8 +23,9 @@ fields) are read through :mod:`shapedb.migrations`, the only module that knows t
 
 On the command line and in :func:`shapedb.connect` every setting is one flat option
 (:data:`OPTIONS`): the field's name, except ``descriptor`` for
-``DescriptorConfig.version``, ``rerank`` / ``rerank_<field>`` for :class:`RerankConfig`
-and ``lf_<field>`` for the two light field sections.
+``DescriptorConfig.version``, ``rerank`` / ``rerank_<field>`` for :class:`RerankConfig`,
+``lf_<field>`` for the two light field sections and ``fv_<field>`` for
+:class:`FieldVectorConfig`.
 """
 
 from __future__ import annotations
@@ -35,7 +38,13 @@ from typing import Any, TypeVar
 
 from shapedb import migrations
 from shapedb.config_checks import check, is_int
-from shapedb.config_lightfield import LightFieldConfig, LightFieldFusionConfig, product_light_field
+from shapedb.config_field import FieldVectorConfig, product_field_vector
+from shapedb.config_lightfield import (
+    LightFieldConfig,
+    LightFieldFusionConfig,
+    product_light_field,
+    product_light_field_fusion,
+)
 from shapedb.config_rerank import RerankConfig
 from shapedb.errors import ConfigError
 
@@ -46,6 +55,7 @@ __all__ = [
     "CloudConfig",
     "LightFieldConfig",
     "LightFieldFusionConfig",
+    "FieldVectorConfig",
     "RerankConfig",
     "PartConfig",
     "Config",
@@ -419,6 +429,7 @@ _SECTIONS: dict[str, type] = {
     "rerank": RerankConfig,
     "light_field": LightFieldConfig,
     "lf_fusion": LightFieldFusionConfig,
+    "field_vector": FieldVectorConfig,
 }
 
 
@@ -429,13 +440,16 @@ def _option(section: str, name: str) -> str:
         return "rerank" if name == "scorer" else f"rerank_{name}"
     if section in ("light_field", "lf_fusion"):
         return f"lf_{name}"
+    if section == "field_vector":
+        return f"fv_{name}"
     return name
 
 
 #: Every flat option (``connect(path, **options)``, ``--set KEY=VALUE``) and the
 #: ``(section, field)`` of :class:`Config` it sets: a field's own name, except
 #: ``descriptor`` for ``DescriptorConfig.version``, ``rerank`` for ``RerankConfig.scorer``
-#: and ``rerank_<field>`` for its other fields.
+#: and ``rerank_<field>`` for its other fields, ``lf_<field>`` for the light field
+#: sections and ``fv_<field>`` for the field vector's.
 OPTIONS: dict[str, tuple[str, str]] = {
     _option(section, f.name): (section, f.name)
     for section, cls in _SECTIONS.items()
@@ -466,7 +480,10 @@ class Config:
         (default: 64 px, 3 light fields, silhouettes only, of the packing continued to
         2048 balls: ``LightFieldConfig.n_balls``).
     lf_fusion : LightFieldFusionConfig
-        How the ``"lightfield"`` scorer fuses them with the stored distance.
+        How the ``"lightfield"`` scorer fuses them with the stored distance (and, in a
+        store that keeps field vectors, fuses those into the light field distance).
+    field_vector : FieldVectorConfig
+        The field vector stored per record when :attr:`stores_field_vectors`.
     """
 
     mdbd: MDBDConfig = field(default_factory=MDBDConfig)
@@ -475,7 +492,8 @@ class Config:
     cloud: CloudConfig = field(default_factory=CloudConfig)
     rerank: RerankConfig = field(default_factory=RerankConfig)
     light_field: LightFieldConfig = field(default_factory=product_light_field)
-    lf_fusion: LightFieldFusionConfig = field(default_factory=LightFieldFusionConfig)
+    lf_fusion: LightFieldFusionConfig = field(default_factory=product_light_field_fusion)
+    field_vector: FieldVectorConfig = field(default_factory=product_field_vector)
 
     @property
     def stores_light_fields(self) -> bool:
@@ -502,6 +520,16 @@ class Config:
         ``"field"`` (``keep_inside`` of :func:`shapedb.mdbd.decompose`).
         """
         return self.stores_light_fields and self.light_field.source == "field"
+
+    @property
+    def stores_field_vectors(self) -> bool:
+        """Whether ingest computes and stores each record's field vector (``field_vector``).
+
+        True when ``FieldVectorConfig.enabled`` and the store keeps the light fields of
+        the field's inside (:attr:`light_field_inside`: the inside the vector is read
+        from is then at hand).
+        """
+        return self.field_vector.enabled and self.light_field_inside
 
     @property
     def dim(self) -> int:

@@ -19,7 +19,14 @@ from dataclasses import dataclass
 from shapedb.config_checks import check as _check
 from shapedb.config_checks import is_int as _is_int
 
-__all__ = ["LightFieldConfig", "LightFieldFusionConfig", "SOURCES", "product_light_field"]
+__all__ = [
+    "LightFieldConfig",
+    "LightFieldFusionConfig",
+    "SOURCES",
+    "product_light_field",
+    "product_light_field_fusion",
+    "PRODUCT_SCALES",
+]
 
 #: What a light field can see (``LightFieldConfig.source``).
 SOURCES = ("balls", "field")
@@ -200,6 +207,28 @@ class LightFieldFusionConfig:
         [1, 100000] (at least ``spread_candidates`` are taken).
     pool_quantile : float
         Quantile of the pooled statistics that makes ``s_q``, in [0, 1]; 0.5: the median.
+    field_depth_weight : float
+        ``a``: weight of the field vectors' depth buffer distance in the fused light field
+        distance ``m_l * (l / m_l + a * b / m_b + c * h / m_h) / (1 + a + c)`` (``b``, ``h``:
+        L1 distances of the depth and harmonic parts of the stored field vectors,
+        :func:`shapedb.field_descriptors.field_vector_parts`), which replaces ``l``
+        everywhere the scorer reads it, in [0, 1000]. Read only by stores that keep field
+        vectors (:attr:`shapedb.config.Config.stores_field_vectors`); 0 with
+        ``field_harmonic_weight`` 0: ``l`` alone (the default, and stores written before).
+    field_harmonic_weight : float
+        ``c``: weight of the harmonic distance ``h`` in the fused distance, in [0, 1000].
+    light_field_scale : float
+        ``m_l``: the light field distance's fixed scale (a typical value), > 0.
+    field_depth_scale : float
+        ``m_b``: the depth buffer distance's fixed scale, > 0.
+    field_harmonic_scale : float
+        ``m_h``: the harmonic distance's fixed scale, > 0.
+    field_candidates : int
+        K2: the candidates of the stage are the union of the stored vector's ``candidates``
+        nearest and the K2 nearest by the L1 distance of the scaled field vectors
+        ``[depth / m_b, harmonic / m_h]``, in [0, 100000]; 0: the stored vector's alone
+        (the default, and stores written before). Read only by stores that keep field
+        vectors.
     """
 
     weight: float = 8.0
@@ -217,6 +246,12 @@ class LightFieldFusionConfig:
     ratio_weight: float = 0.2
     ratio_candidates: int = 100
     pool_quantile: float = 0.25
+    field_depth_weight: float = 0.0
+    field_harmonic_weight: float = 0.0
+    light_field_scale: float = 1.0
+    field_depth_scale: float = 1.0
+    field_harmonic_scale: float = 1.0
+    field_candidates: int = 0
 
     def __post_init__(self) -> None:
         def number(v: object) -> bool:
@@ -256,3 +291,37 @@ class LightFieldFusionConfig:
         )
         ok = number(self.pool_quantile) and 0.0 <= self.pool_quantile <= 1.0
         _check(ok, "lf_pool_quantile", self.pool_quantile, "must be a number in [0, 1]")
+        for name in ("field_depth_weight", "field_harmonic_weight"):
+            v = getattr(self, name)
+            ok = number(v) and 0.0 <= v <= 1000.0
+            _check(ok, f"lf_{name}", v, "must be a number in [0, 1000]")
+        for name in ("light_field_scale", "field_depth_scale", "field_harmonic_scale"):
+            v = getattr(self, name)
+            ok = number(v) and 0.0 < v < float("inf")
+            _check(ok, f"lf_{name}", v, "must be a finite number > 0")
+        ok = _is_int(self.field_candidates) and 0 <= self.field_candidates <= 100_000
+        _check(
+            ok, "lf_field_candidates", self.field_candidates, "must be an integer in [0, 100000]"
+        )
+
+
+#: ``(m_l, m_b, m_h)`` of :func:`product_light_field_fusion`: the medians, over the web
+#: validation split's off-diagonal pairs, of the light field distance (the field's, 3 x
+#: 128 px), the depth buffer L1 and the harmonic L1 of the default field vector.
+PRODUCT_SCALES = (22.88, 6.995, 2.828)
+
+
+def product_light_field_fusion() -> LightFieldFusionConfig:
+    """The fusion a new store's ``"lightfield"`` scorer uses: the defaults of
+    :class:`LightFieldFusionConfig` with the field vectors fused into the light field
+    distance and their index's nearest among the candidates (provisional weights 0.5 and
+    0.5, 100 field candidates; the scales are the median off-diagonal distances of the
+    web validation split, docs/results.md, "The field vector in the store")."""
+    return LightFieldFusionConfig(
+        field_depth_weight=0.5,
+        field_harmonic_weight=0.5,
+        light_field_scale=PRODUCT_SCALES[0],
+        field_depth_scale=PRODUCT_SCALES[1],
+        field_harmonic_scale=PRODUCT_SCALES[2],
+        field_candidates=100,
+    )

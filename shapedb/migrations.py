@@ -20,6 +20,10 @@ Store configuration layouts (``Config.to_dict()``):
   keeps per record, and that scorer's fusion); a store of an earlier layout kept no light
   fields and reads both sections at today's defaults for the product (64 px, 3 light
   fields, silhouettes only).
+* **5**: layout 4 plus ``"field_vector"`` (``FieldVectorConfig``: the depth buffers and
+  spherical harmonics of the field's inside a store keeps per record); a store of an
+  earlier layout kept none (``enabled`` False), and its ``lf_fusion`` section, stored or
+  not, reads the field vector's fusion fields off (weights 0, no field candidates).
 
 Part-index configuration layouts (``PartConfig.to_dict()``):
 
@@ -54,7 +58,7 @@ __all__ = [
 ]
 
 #: The layout :meth:`Config.to_dict` writes.
-LAYOUT = 4
+LAYOUT = 5
 #: The layout :meth:`PartConfig.to_dict` writes.
 PART_LAYOUT = 2
 
@@ -85,6 +89,16 @@ ADDED: dict[str, dict[str, Any]] = {
         "n_balls": 2048,
         "source": "balls",
     },
+    # before the field vectors: none stored, none fused, no candidates from them
+    "lf_fusion": {
+        "field_depth_weight": 0.0,
+        "field_harmonic_weight": 0.0,
+        "light_field_scale": 1.0,
+        "field_depth_scale": 1.0,
+        "field_harmonic_scale": 1.0,
+        "field_candidates": 0,
+    },
+    "field_vector": {"enabled": False},
 }
 
 #: Fields added to a section after stores first wrote that section, and the value that
@@ -108,7 +122,12 @@ STORED_ADDED: dict[str, dict[str, Any]] = {
 #: Sections added to the store configuration, by the first layout that writes them:
 #: a configuration of an earlier layout gets the section with the values of
 #: :data:`ADDED` (what its store did), never today's defaults.
-SECTIONS_ADDED: dict[str, int] = {"rerank": 3, "light_field": 4, "lf_fusion": 4}
+SECTIONS_ADDED: dict[str, int] = {
+    "rerank": 3,
+    "light_field": 4,
+    "lf_fusion": 4,
+    "field_vector": 5,
+}
 
 #: Decomposition fields added after ``Config.fingerprint`` was first stored, and the
 #: value at which the fingerprint leaves them out, so that stores written before each
@@ -136,7 +155,8 @@ def upgrade_config(data: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
     -------
     dict
         ``{section: {field: value}}`` for the sections ``mdbd``, ``kernel``,
-        ``descriptor``, ``cloud``, ``rerank``, ``light_field``, ``lf_fusion`` that ``data`` stores (without ``layout``),
+        ``descriptor``, ``cloud``, ``rerank``, ``light_field``, ``lf_fusion``,
+        ``field_vector`` that ``data`` stores (without ``layout``),
         and the sections its layout predates (:data:`SECTIONS_ADDED`); fields a stored
         section predates are filled in from :data:`ADDED` and :data:`STORED_ADDED`. Unknown keys are
         passed on, for the caller to refuse.

@@ -92,6 +92,9 @@ def shapes_schema(dim: int) -> pa.Schema:
         # the balls' light fields (shapedb.lightfield), (fields * 10 * d) row-major; null
         # unless the store's re-ranking scorer is "lightfield", and in rows older than it
         pa.field("light_field", pa.list_(pa.float32())),
+        # the field vector (shapedb.field_descriptors): depth buffers and harmonics of the
+        # field's inside; null unless the store keeps them, and in rows older than it
+        pa.field("field_vector", pa.list_(pa.float32())),
     ]
     return pa.schema(fields, metadata={"shapedb.schema_version": str(SCHEMA_VERSION)})
 
@@ -200,6 +203,11 @@ class ShapeRecord:
         The balls' light fields (:func:`shapedb.lightfield.ball_light_field` under
         ``config.light_field``), when the store keeps them
         (``config.stores_light_fields``); None otherwise and in rows older than them.
+    field_vector : (d,) float32 or None
+        The field vector (:func:`shapedb.field_descriptors.field_vector` of the
+        decomposition's inside under ``config.field_vector``, ``d =
+        field_vector_dim(config)``), when the store keeps them
+        (``config.stores_field_vectors``); None otherwise and in rows older than them.
     """
 
     name: str
@@ -216,6 +224,7 @@ class ShapeRecord:
     id: int | None = None
     view_feature: NDArray[np.float32] | None = None
     light_field: NDArray[np.float32] | None = None
+    field_vector: NDArray[np.float32] | None = None
 
     @property
     def n_balls(self) -> int:
@@ -322,6 +331,9 @@ def shapes_table(records: Sequence[ShapeRecord], dim: int) -> pa.Table:
             None if r.light_field is None else np.asarray(r.light_field, np.float32).ravel()
             for r in records
         ],
+        "field_vector": [
+            None if r.field_vector is None else _field_vector(r, r.field_vector) for r in records
+        ],
     }
     schema = shapes_schema(dim)
     arrays = [
@@ -336,6 +348,16 @@ def _checked(record: ShapeRecord, view: Any, dim: int) -> list[float]:
     if v.shape != (dim,) or not np.all(np.isfinite(v)):
         raise ValueError(f"record {record.name!r}: view feature must be {dim} finite values")
     return v.tolist()
+
+
+def _field_vector(record: ShapeRecord, vector: Any) -> NDArray[np.float32]:
+    from shapedb.field_descriptors import field_vector_dim
+
+    v = np.asarray(vector, dtype=np.float32).ravel()
+    d = field_vector_dim(record.config)
+    if v.shape != (d,) or not np.all(np.isfinite(v)):
+        raise ValueError(f"record {record.name!r}: field vector must be {d} finite values")
+    return v
 
 
 def balls_table(records: Sequence[ShapeRecord]) -> pa.Table:
@@ -469,6 +491,11 @@ def record_from_rows(row: Mapping[str, Any], balls: pa.Table, edges: pa.Table) -
             else np.asarray(row["view_feature"], dtype=np.float32)
         ),
         light_field=_light_field(row.get("light_field"), config),
+        field_vector=(
+            None
+            if row.get("field_vector") is None
+            else np.asarray(row["field_vector"], dtype=np.float32)
+        ),
     )
 
 

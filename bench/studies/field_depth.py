@@ -10,7 +10,8 @@ Usage (from the repository root)::
 
 For each model of a split (those :func:`bench.cached.load` has): the field of
 :func:`shapedb.mdbd.prepare_field` and its inside (:func:`shapedb.inside.field_inside`,
-its shell cells), cached under ``$SHAPEDB_BENCH_CACHE/field_depth``. From the shell:
+its shell cells), cached under ``$SHAPEDB_BENCH_CACHE/field_depth``. From the shell (the
+descriptors the product stores, :mod:`shapedb.field_descriptors`):
 
 - :func:`depth_buffer_descriptor` (Vranic's DBD): the cells in their principal frame,
   six orthographic depth images (+-x, +-y, +-z), low-frequency 2D Fourier magnitudes,
@@ -19,7 +20,8 @@ its shell cells), cached under ``$SHAPEDB_BENCH_CACHE/field_depth``. From the sh
 - :func:`harmonic_descriptor` (Kazhdan's SHD): spherical-harmonic energies of the shell
   cells on concentric spheres about the volume centroid (rotation invariant);
   :func:`harmonic_descriptor_grid` the same with directions snapped to an angle grid and
-  the harmonics evaluated once (a twentieth of the cost).
+  the harmonics evaluated once (a twentieth of the cost; the product's
+  :func:`shapedb.field_descriptors.harmonic_energies`).
 
 Both are compared by L1 (indexable). Measured alone and fused with the cached field
 light fields (:func:`bench.inside_fields.light_fields`, 3 x 128 px) and the mesh light
@@ -32,7 +34,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import functools
+import inspect
 import os
 import sys
 import time
@@ -47,7 +49,9 @@ from bench.cached import CHOICES, ENGINE_COMMITS, load
 from bench.common import cache_path, format_table, retrieval_scores, write_json
 from bench.datasets import CACHE_DIR, Dataset
 from bench.inside_fields import model_inside
-from shapedb.config import MDBDConfig
+from shapedb import field_descriptors
+from shapedb.config import FieldVectorConfig, MDBDConfig
+from shapedb.field_descriptors import spherical_coordinates
 
 FloatArray = NDArray[np.float64]
 #: Bump when the cached shells change.
@@ -130,7 +134,7 @@ def shells(ds: Dataset, *, workers: int = 2) -> list[dict[str, Any]]:
 
 @dataclasses.dataclass(frozen=True)
 class DepthConfig:
-    """Depth buffer descriptor settings.
+    """Depth buffer descriptor settings (``FieldVectorConfig``'s depth fields).
 
     Attributes
     ----------
@@ -144,197 +148,22 @@ class DepthConfig:
     frequencies: int = 8
 
 
-def principal_coordinates(shell: ArrayLike, centroid: ArrayLike) -> tuple[FloatArray, float]:
-    """The shell's cells about ``centroid`` in their principal frame, scaled into the unit cube.
-
-    Parameters
-    ----------
-    shell : (s, 3) float
-        Cell centres, model units; s >= 1.
-    centroid : (3,) float
-        The solid's volume centroid, model units.
-
-    Returns
-    -------
-    (s, 3) float64, float
-        Coordinates along the principal axes (largest variance first), divided by the
-        largest absolute coordinate so they lie in [-1, 1]; and that divisor (model units).
-        Axis signs are arbitrary: the descriptors are invariant to them.
-
-    Raises
-    ------
-    ValueError
-        If the shell is empty or all its cells sit on the centroid.
-    """
-    x = np.asarray(shell, dtype=np.float64) - np.asarray(centroid, dtype=np.float64)
-    if len(x) == 0:
-        raise ValueError("empty shell: no inside cell")
-    w, v = np.linalg.eigh(x.T @ x / len(x))
-    y = x @ v[:, ::-1]
-    s = float(np.abs(y).max())
-    if not s > 0:
-        raise ValueError("degenerate shell: every cell on the centroid")
-    return y / s, s
-
-
-def depth_images(coords: ArrayLike, half_cell: float, resolution: int) -> NDArray[np.float64]:
-    """Six orthographic depth images of cells (cubes of ``2 * half_cell`` splatted as squares).
-
-    Parameters
-    ----------
-    coords : (s, 3) float
-        Cell centres in [-1, 1].
-    half_cell : float
-        Half a cell's edge in the same units.
-    resolution : int
-        Pixels per side.
-
-    Returns
-    -------
-    (6, resolution, resolution) float64
-        Views from +x, -x, +y, -y, +z, -z; image axes are the two other coordinates in
-        increasing order (no mirroring between opposite views). A pixel holds the
-        nearest surface's height above the far face of the unit cube, in [0, 1]
-        (0: nothing seen).
-    """
-    c = np.asarray(coords, dtype=np.float64)
-    n = int(resolution)
-    pix = 2.0 / n
-    r = int(np.ceil(max(half_cell - pix / 2, 0.0) / pix))
-    out = np.zeros((6, n * n))
-    for axis in range(3):
-        a, b = [k for k in range(3) if k != axis]
-        iu = np.floor((c[:, a] + 1.0) / pix).astype(np.int64)
-        iv = np.floor((c[:, b] + 1.0) / pix).astype(np.int64)
-        for sign, view in ((1.0, 2 * axis), (-1.0, 2 * axis + 1)):
-            depth = (1.0 + sign * c[:, axis]) / 2.0
-            img = out[view]
-            for du in range(-r, r + 1):
-                for dv in range(-r, r + 1):
-                    u = np.clip(iu + du, 0, n - 1)
-                    v = np.clip(iv + dv, 0, n - 1)
-                    np.maximum.at(img, u * n + v, depth)
-    return out.reshape(6, n, n)
-
-
-def _flip_invariant(img: FloatArray, k: int) -> FloatArray:
-    """Fourier magnitudes of an image made invariant to flipping either image axis."""
-    f = np.abs(np.fft.fft2(img)) / img.size
-    feats = []
-    for u in range(k + 1):
-        for v in range(k + 1 - u):
-            a, b = f[u, v], f[-u, v]  # |F(u, v)|, |F(-u, v)| = |F(u, -v)|
-            feats.append(a + b)
-            if u and v:
-                feats.append(abs(a - b))
-    return np.asarray(feats)
-
-
 def depth_buffer_descriptor(
     shell: ArrayLike, centroid: ArrayLike, cell: float, config: DepthConfig | None = None
 ) -> FloatArray:
-    """Vranic's depth buffer descriptor of a solid's shell cells: (d,) float64.
-
-    The cells in their principal frame (:func:`principal_coordinates`), six depth
-    images (:func:`depth_images`), their low Fourier magnitudes made invariant to the
-    principal axes' signs: each image's to flips of its axes, each pair of opposite
-    views by the sum and the absolute difference of their features. Invariant to
-    rotation, translation and scale up to the principal frame's stability; compare by L1.
-
-    Parameters
-    ----------
-    shell : (s, 3) float
-        Cell centres, model units.
-    centroid : (3,) float
-        Volume centroid, model units.
-    cell : float
-        Cell edge, model units, > 0.
-    config : DepthConfig, optional
-
-    Raises
-    ------
-    ValueError
-        As :func:`principal_coordinates`.
-    """
+    """:func:`shapedb.field_descriptors.depth_buffer_descriptor` at ``config``'s settings."""
     cfg = config or DepthConfig()
-    y, s = principal_coordinates(shell, centroid)
-    imgs = depth_images(y, cell / 2.0 / s, cfg.resolution)
-    out = []
-    for axis in range(3):
-        p = _flip_invariant(imgs[2 * axis], cfg.frequencies)
-        m = _flip_invariant(imgs[2 * axis + 1], cfg.frequencies)
-        out += [p + m, np.abs(p - m)]
-    return np.concatenate(out)
-
-
-@functools.lru_cache(maxsize=4)
-def _harmonics_on_grid(bands: int, n_theta: int) -> tuple[FloatArray, NDArray[np.complex128]]:
-    """Conjugate harmonics ``Y_lm`` (l < bands, 0 <= m <= l) at the centres of an angle grid.
-
-    Returns the per-column weights (2 for m > 0, else 1) and (n_theta * 2 n_theta, columns).
-    """
-    from scipy.special import sph_harm_y
-
-    n_phi = 2 * n_theta
-    t = (np.arange(n_theta) + 0.5) * np.pi / n_theta
-    p = (np.arange(n_phi) + 0.5) * 2 * np.pi / n_phi
-    tt, pp = (a.reshape(-1) for a in np.meshgrid(t, p, indexing="ij"))
-    cols, weights = [], []
-    for n in range(bands):
-        for m in range(n + 1):
-            cols.append(np.conj(sph_harm_y(n, m, tt, pp)))
-            weights.append(2.0 if m else 1.0)
-    return np.asarray(weights), np.stack(cols, axis=1)
-
-
-def _spherical(
-    shell: ArrayLike, centroid: ArrayLike, shells: int
-) -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
-    """Each shell cell's ring (of ``shells`` up to twice the mean distance to ``centroid``),
-    polar angle in [0, pi] and azimuth in (-pi, pi].
-
-    Raises
-    ------
-    ValueError
-        If the shell is empty or all its cells sit on the centroid.
-    """
-    x = np.asarray(shell, dtype=np.float64) - np.asarray(centroid, dtype=np.float64)
-    dist = np.linalg.norm(x, axis=1)
-    mean = float(dist.mean()) if len(x) else 0.0
-    if not mean > 0:
-        raise ValueError("degenerate shell: empty or every cell on the centroid")
-    ring = np.minimum((dist / (2.0 * mean) * shells).astype(np.int64), shells - 1)
-    theta = np.arccos(np.clip(x[:, 2] / np.maximum(dist, 1e-300), -1.0, 1.0))
-    return ring, theta, np.arctan2(x[:, 1], x[:, 0])
+    fv = FieldVectorConfig(depth_resolution=cfg.resolution, depth_frequencies=cfg.frequencies)
+    return field_descriptors.depth_buffer_descriptor(shell, centroid, cell, fv)
 
 
 def harmonic_descriptor_grid(
     shell: ArrayLike, centroid: ArrayLike, *, shells: int = 32, bands: int = 16, n_theta: int = 64
 ) -> FloatArray:
-    """:func:`harmonic_descriptor` with each cell's direction snapped to an angle grid.
-
-    The cells are counted per ring and per cell of an ``n_theta`` x ``2 n_theta`` grid in
-    polar and azimuthal angle, and the harmonics, evaluated once per grid
-    (:func:`_harmonics_on_grid`, cached), summed by a matrix product: the same energies
-    up to the snapping, at a fraction of the cost. (shells * bands,) float64.
-
-    Raises
-    ------
-    ValueError
-        If the shell is empty or all its cells sit on the centroid.
-    """
-    ring, theta, phi = _spherical(shell, centroid, shells)
-    phi = phi % (2 * np.pi)
-    n_phi = 2 * n_theta
-    it = np.minimum((theta / np.pi * n_theta).astype(np.int64), n_theta - 1)
-    ip = np.minimum((phi / (2 * np.pi) * n_phi).astype(np.int64), n_phi - 1)
-    g = n_theta * n_phi
-    counts = np.bincount(ring * g + it * n_phi + ip, minlength=shells * g).reshape(shells, g)
-    weights, table = _harmonics_on_grid(bands, n_theta)
-    power = weights * np.abs(counts @ table) ** 2  # (shells, columns)
-    degree = np.repeat(np.arange(bands), np.arange(1, bands + 1))
-    out = np.stack([power[:, degree == n].sum(axis=1) for n in range(bands)], axis=1)
-    return (np.sqrt(out) / len(ring)).reshape(-1)
+    """:func:`shapedb.field_descriptors.harmonic_energies` (the harmonics on an angle grid,
+    the product's) at these settings: (shells * bands,) float64."""
+    fv = FieldVectorConfig(harmonic_shells=shells, harmonic_bands=bands, harmonic_angles=n_theta)
+    return field_descriptors.harmonic_energies(shell, centroid, fv)
 
 
 def harmonic_descriptor(
@@ -345,8 +174,10 @@ def harmonic_descriptor(
     Kazhdan's SHD over the cells (each a point mass): about the volume centroid, radii
     scaled by twice their mean and cut into ``shells`` rings; per ring and degree
     ``l < bands``, the norm of the degree's coefficients, divided by the number of
-    cells. Rotation, translation and scale invariant up to the grid (a face tilted to
-    the grid has more shell cells per area); compare by L1 or L2.
+    cells, with the harmonics evaluated at every cell's exact direction (the product's
+    :func:`harmonic_descriptor_grid` snaps them to an angle grid). Rotation, translation
+    and scale invariant up to the grid (a face tilted to the grid has more shell cells
+    per area); compare by L1 or L2.
 
     Raises
     ------
@@ -355,7 +186,7 @@ def harmonic_descriptor(
     """
     from scipy.special import sph_harm_y
 
-    ring, theta, phi = _spherical(shell, centroid, shells)
+    ring, theta, phi = spherical_coordinates(shell, centroid, shells)
     out = np.zeros((shells, bands))
     for n in range(bands):
         power = np.zeros(shells)
@@ -411,6 +242,7 @@ def descriptor_matrix(
     fn, metric = DESCRIPTORS[name]
     text = Path(__file__).read_text()
     code = text[text.index("# Descriptors of a shell") : text.index("# The study")].encode()
+    code += inspect.getsource(field_descriptors).encode()
     key = hashlib.sha256(code + name.encode() + "\n".join(keys).encode()).hexdigest()[:16]
     path = FOLDER / "matrices" / f"{key}.npz"
     if path.exists():

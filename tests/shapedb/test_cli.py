@@ -91,6 +91,22 @@ def test_ingest_sets_any_option_of_a_new_store(
     assert "unknown configuration option 'colour'" in capsys.readouterr().err
 
 
+def test_fv_enabled_false_makes_the_store_of_before_the_field_vectors(
+    tmp_path: Path, models: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (models / "broken.stl").unlink()
+    plain, kept = tmp_path / "plain", tmp_path / "kept"
+    assert _ingest(models / "rods", plain, "--set", "fv_enabled=false") == 0
+    assert _ingest(models / "rods", kept) == 0
+    capsys.readouterr()
+    query = "SELECT count(field_vector) AS n FROM shapes"
+    for db, n in ((plain, 0), (kept, 3)):
+        assert main(["sql", query, "--db", str(db), "--json"]) == 0
+        assert _json(capsys) == [{"n": n}]
+    assert main(["info", "--db", str(plain), "--json"]) == 0
+    assert _json(capsys)["config"]["field_vector"]["enabled"] is False
+
+
 def test_plain_output(tmp_path: Path, models: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert _ingest(models, tmp_path / "db") == 1
     out = capsys.readouterr().out

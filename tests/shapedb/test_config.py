@@ -11,6 +11,7 @@ from shapedb.config import (
     CloudConfig,
     Config,
     DescriptorConfig,
+    FieldVectorConfig,
     KernelConfig,
     LightFieldConfig,
     LightFieldFusionConfig,
@@ -44,7 +45,8 @@ def test_each_concern_is_its_own_section() -> None:
     assert cfg.cloud == CloudConfig(view_cells=4.0, reconstruct_depth=6)
     assert cfg.rerank == RerankConfig(power=2.0)
     assert set(cfg.to_dict()) == {
-        "layout", "mdbd", "kernel", "descriptor", "cloud", "rerank", "light_field", "lf_fusion"
+        "layout", "mdbd", "kernel", "descriptor", "cloud", "rerank", "light_field", "lf_fusion",
+        "field_vector",
     }  # fmt: skip
     kernel_fields = {f.name for f in dataclasses.fields(KernelConfig)}
     assert kernel_fields == {"n_r", "t", "w", "la", "lb", "lam", "method"}
@@ -60,8 +62,14 @@ def test_every_flat_option_names_one_field() -> None:
     assert typed == {"rerank": "adaptive", "rerank_ratio": 0.4, "rerank_candidates": 50}
     assert OPTIONS["lf_resolution"] == ("light_field", "resolution")
     assert OPTIONS["lf_weight"] == ("lf_fusion", "weight")
+    assert OPTIONS["lf_field_candidates"] == ("lf_fusion", "field_candidates")
+    assert OPTIONS["fv_enabled"] == ("field_vector", "enabled")
+    assert OPTIONS["fv_harmonic_bands"] == ("field_vector", "harmonic_bands")
+    assert parse_options(["fv_enabled=false", "fv_depth_resolution=32"]) == {
+        "fv_enabled": False, "fv_depth_resolution": 32
+    }  # fmt: skip
     sections = (MDBDConfig, KernelConfig, DescriptorConfig, CloudConfig, RerankConfig,
-                LightFieldConfig, LightFieldFusionConfig)  # fmt: skip
+                LightFieldConfig, LightFieldFusionConfig, FieldVectorConfig)  # fmt: skip
     assert len(OPTIONS) == sum(len(dataclasses.fields(c)) for c in sections)
     options = Config().options()
     assert set(options) == set(OPTIONS) and options["descriptor"] == 4

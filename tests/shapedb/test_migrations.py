@@ -15,8 +15,10 @@ from shapedb.config import (
     CloudConfig,
     Config,
     DescriptorConfig,
+    FieldVectorConfig,
     KernelConfig,
     LightFieldConfig,
+    LightFieldFusionConfig,
     MDBDConfig,
     PartConfig,
     RerankConfig,
@@ -77,6 +79,8 @@ def test_nothing_stored_is_todays_defaults_but_the_stage_the_layout_predates() -
     # a dict without ``layout`` is layout 1, written before re-ranking: no stage
     # (and the light fields the product kept when the section came: unused without a stage)
     plain = Config().with_options(rerank="none", lf_source="balls", lf_resolution=64)
+    # and no field vectors, none fused (the sections' own defaults are the legacy ones)
+    plain = replace(plain, lf_fusion=LightFieldFusionConfig(), field_vector=FieldVectorConfig())
     assert Config().rerank.scorer == "lightfield"
     assert Config.from_dict({}) == plain
     assert Config.from_dict({"kernel": {}, "mdbd": {}}) == plain
@@ -132,6 +136,9 @@ def _layout1_store_config() -> Config:
         rerank=RerankConfig(scorer="none"),  # written before re-ranking stages
         # before the light fields: those the product kept when the section came
         light_field=LightFieldConfig(n_fields=3, resolution=64, n_balls=2048, source="balls"),
+        # before the field vectors: none stored, none fused
+        lf_fusion=LightFieldFusionConfig(),
+        field_vector=FieldVectorConfig(),
     )
 
 
@@ -167,6 +174,8 @@ def test_a_store_written_with_the_previous_layout_opens_and_searches(tmp_path: P
     again = shapedb.connect(path, create=False)
     assert again.config == _layout1_store_config() and len(again) == 7
     assert again.get("slab").config == again.config
+    # written before the field vectors: neither the old rows nor the new one carry one
+    assert again.get("slab").field_vector is None and again.get("rods1").field_vector is None
     assert [h.name for h in again.search("rods1", k=3)] == ["rods1", "rods2", "rods0"]
 
 
@@ -246,3 +255,30 @@ def test_light_fields_stored_before_the_source_read_as_the_balls() -> None:
     assert not field.with_options(rerank="none").light_field_inside
     with pytest.raises(ConfigError, match="lf_source"):
         Config().with_options(lf_source="mesh")
+
+
+def test_stores_written_before_the_field_vectors_keep_none_and_fuse_none() -> None:
+    new = Config()
+    assert new.stores_field_vectors and new.lf_fusion.field_candidates > 0
+    stored = new.to_dict()
+    assert stored["layout"] == 5 and Config.from_dict(stored) == new
+    # a layout-4 store: its lf_fusion section without the fusion's fields, no field_vector
+    del stored["field_vector"]
+    for name in ("field_depth_weight", "field_harmonic_weight", "light_field_scale",
+                 "field_depth_scale", "field_harmonic_scale", "field_candidates"):  # fmt: skip
+        del stored["lf_fusion"][name]
+    stored["layout"] = 4
+    old = Config.from_dict(stored)
+    assert old.field_vector == FieldVectorConfig() and not old.field_vector.enabled
+    assert not old.stores_field_vectors
+    fusion = old.lf_fusion
+    assert (fusion.field_depth_weight, fusion.field_harmonic_weight) == (0.0, 0.0)
+    assert fusion.field_candidates == 0
+    assert replace(fusion, field_depth_weight=0.0) == LightFieldFusionConfig()
+    # everything else as the store wrote it
+    assert replace(old, lf_fusion=new.lf_fusion, field_vector=new.field_vector) == new
+    # a layout-3 store: neither light fields nor field vectors
+    del stored["lf_fusion"], stored["light_field"]
+    stored["layout"] = 3
+    older = Config.from_dict(stored)
+    assert older.lf_fusion == LightFieldFusionConfig() and not older.field_vector.enabled

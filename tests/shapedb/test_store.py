@@ -10,6 +10,7 @@ from pathlib import Path
 
 import duckdb
 import numpy as np
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
@@ -161,6 +162,28 @@ def test_sampling_round_trips_and_old_rows_read_as_exact(tmp_store: Store) -> No
     again = Store.open(tmp_store.path)
     assert again.shapes(["sampling"]).column("sampling").to_pylist() == [None]
     assert again.get("cloud").decomposition.sampling == 0.0
+
+
+def test_field_vector_round_trips_and_old_rows_read_as_none(tmp_store: Store) -> None:
+    from shapedb.field_descriptors import field_vector_dim
+
+    vector = np.linspace(0.0, 1.0, field_vector_dim(CONFIG), dtype=np.float32)
+    tmp_store.add([replace(make_record("fv"), field_vector=vector), make_record("plain")])
+    np.testing.assert_array_equal(tmp_store.get("fv").field_vector, vector)
+    assert tmp_store.get("plain").field_vector is None
+    column = tmp_store.shapes(["field_vector"]).column("field_vector")
+    assert column.type.value_type == pa.float32() and column.to_pylist()[1] is None
+    # a segment written before the column existed: its rows read back without a vector
+    seg = next(p for p in tmp_store.path.rglob("*.parquet") if "shapes" in str(p))
+    pq.write_table(pq.read_table(seg).drop_columns(["field_vector"]), seg)
+    forget_checksums(tmp_store.path)
+    again = Store.open(tmp_store.path)
+    assert again.shapes(["field_vector"]).column("field_vector").to_pylist() == [None, None]
+    assert again.get("fv").field_vector is None
+    # a vector of another length, or not finite, is refused
+    for bad in (vector[:-1], np.full_like(vector, np.nan)):
+        with pytest.raises(ValueError, match="field vector"):
+            shapes_table([replace(make_record("bad"), id=9, field_vector=bad)], CONFIG.dim)
 
 
 def test_reads_through_pyarrow_and_duckdb(tmp_store: Store) -> None:
