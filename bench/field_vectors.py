@@ -25,7 +25,8 @@ stored distance's order.
 :func:`fuse` turns a :class:`bench.lightfield_gate.Split` into that stage's split (its
 light field distance replaced by the fused one, the scaled vectors' distance kept for
 the candidates); :class:`bench.lightfield_gate.Store` takes the union. The vectors of
-the bench models come from the field shells cached by :mod:`bench.studies.field_depth`
+the bench models (:func:`shapedb.field_descriptors.field_vector`) come from the field
+shells cached by :mod:`bench.studies.field_depth`
 (``$SHAPEDB_BENCH_CACHE/field_depth``, ``--fill`` there) and are cached under
 ``$SHAPEDB_BENCH_CACHE/field_vectors``. :func:`analytic_distance` gives the analytic
 stores of :mod:`bench.gate_checks` the same fused distance, so the analytic chain is
@@ -112,27 +113,12 @@ class FieldStage:
 
 
 def _describer() -> tuple[Callable[[dict[str, Any]], NDArray[np.float32]], bytes]:
-    """The field vector of a cached shell and the code it depends on (for the cache key).
+    """The product's field vector of a cached shell
+    (:func:`shapedb.field_descriptors.field_vector`) and its code (for the cache key)."""
+    from shapedb import field_descriptors as fd
+    from shapedb.config_field import FieldVectorConfig
+    from shapedb.inside import Inside
 
-    The product's :func:`shapedb.field_descriptors.field_vector` once it exists, else
-    the study's functions it is ported from (the same numbers).
-    """
-    try:
-        from shapedb.config_field import FieldVectorConfig  # type: ignore[import-not-found]
-
-        from shapedb import field_descriptors as fd  # type: ignore[attr-defined]
-        from shapedb.inside import Inside
-    except ImportError:
-        from bench.studies import field_depth as fdst
-
-        def study(z: dict[str, Any]) -> NDArray[np.float32]:
-            depth = fdst.depth_buffer_descriptor(z["shell"], z["centroid"], float(z["cell"]))
-            harmonic = fdst.harmonic_descriptor_grid(z["shell"], z["centroid"])
-            return np.concatenate([depth, harmonic]).astype(np.float32)
-
-        text = Path(fdst.__file__).read_text()
-        code = text[text.index("# Descriptors of a shell") : text.index("# The study")]
-        return study, code.encode()
     cfg = FieldVectorConfig(enabled=True)
 
     def product(z: dict[str, Any]) -> NDArray[np.float32]:
@@ -140,7 +126,7 @@ def _describer() -> tuple[Callable[[dict[str, Any]], NDArray[np.float32]], bytes
                         centroid=np.asarray(z["centroid"], np.float64), count=int(z["count"]))  # fmt: skip
         return np.asarray(fd.field_vector(inside, cfg), np.float32)
 
-    return product, Path(fd.__file__).read_bytes()
+    return product, Path(fd.__file__).read_bytes() + repr(cfg).encode()
 
 
 def set_vectors(name: str, split: str) -> NDArray[np.float32]:

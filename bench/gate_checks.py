@@ -135,7 +135,9 @@ def analytic_stores(root: Path) -> dict[str, Any]:
     """
     from shapedb.database import connect
 
-    config = Config().with_options(**ANALYTIC)
+    # no stored field vectors: the stage sees the light field alone, and a field-vector
+    # run passes its fused distance to analytic_gates (bench.field_vectors.analytic_distance)
+    config = Config().with_options(**ANALYTIC, fv_enabled=False)
     out = {}
     for name, shapes in analytic_shapes().items():
         out[name] = connect(root / name, config=config)
