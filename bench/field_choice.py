@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from bench.common import format_table, write_json
 from bench.field_vectors import FieldStage, analytic_distance, fuse, off_median, split_parts
 from bench.gate_checks import MIN_MARGIN, analytic_gates, analytic_shapes, analytic_stores
-from bench.lightfield_gate import (
+from bench.gate_stores import (
     MIXES,
     SETS,
     Split,

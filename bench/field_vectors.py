@@ -22,9 +22,9 @@ nearest followed by those of the ``K2`` nearest by the L1 distance of the scaled
 ``[depth / m_b, harmonic / m_h]`` (``field_candidates``) that are not among them, in the
 stored distance's order.
 
-:func:`fuse` turns a :class:`bench.lightfield_gate.Split` into that stage's split (its
+:func:`fuse` turns a :class:`bench.gate_stores.Split` into that stage's split (its
 light field distance replaced by the fused one, the scaled vectors' distance kept for
-the candidates); :class:`bench.lightfield_gate.Store` takes the union. The vectors of
+the candidates); :class:`bench.gate_stores.Store` takes the union. The vectors of
 the bench models (:func:`shapedb.field_descriptors.field_vector`) come from the field
 shells cached by :mod:`bench.studies.field_depth`
 (``$SHAPEDB_BENCH_CACHE/field_depth``, ``--fill`` there) and are cached under
@@ -50,7 +50,7 @@ from numpy.typing import NDArray
 from bench.cached import load
 from bench.datasets import CACHE_DIR
 
-#: A :class:`bench.lightfield_gate.Split` (that module imports this one).
+#: A :class:`bench.gate_stores.Split` (that module imports this one).
 Split = Any
 
 FloatArray = NDArray[np.float64]
