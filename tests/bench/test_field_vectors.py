@@ -91,3 +91,19 @@ def test_the_analytic_gates_on_the_light_field_distance_are_the_product_s(tmp_pa
         fused(a, np.array([b]), np.array([3.0]))[0] == fused(b, np.array([a]), np.array([3.0]))[0]
     )
     assert fused(a, np.array([b]), np.array([3.0]))[0] > 3.0 / 1.5  # the field vectors count
+
+
+def test_a_run_s_stage_is_the_product_s_unless_flags_say_otherwise() -> None:
+    import dataclasses
+
+    from bench.field_vectors import INTERIM, stage_of
+    from bench.lightfield_gate import parser
+
+    product = FieldStage.of(Config().lf_fusion)
+    assert stage_of(parser().parse_args([])) == product
+    assert stage_of(parser().parse_args(["--no-field-vectors"])) is None
+    got = stage_of(parser().parse_args(["--fv-candidates", "200", "--fv-weights", "0.25", "0.3"]))
+    want = dataclasses.replace(
+        product or INTERIM, depth_weight=0.25, harmonic_weight=0.3, candidates=200
+    )
+    assert got == want
