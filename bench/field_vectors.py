@@ -292,9 +292,9 @@ def analytic_distance(db: Any, shapes: Sequence[tuple[str, Any]], stage: FieldSt
 # The stage of a run, and the choice on validation
 # --------------------------------------------------------------------------------------
 
-#: Until the product's defaults exist: weights 0.5 / 0.5, K2 100, and the study's scales
-#: (medians of ``l``, ``b``, ``h`` over the validation split's off-diagonal pairs, pooled).
-INTERIM = FieldStage(0.5, 0.5, 22.24, 6.704, 2.775, 100)
+#: The choice on validation (docs/results.md, "The field vectors in the stage"): the stage
+#: of ``--field-vectors`` when the product's fusion is off (its gate: ``contrast_ramp`` 0.05).
+CHOSEN = FieldStage(0.25, 0.25, 20.67, 6.045, 2.168, 200)
 
 
 def stage_of(args: argparse.Namespace) -> FieldStage | None:
@@ -302,7 +302,7 @@ def stage_of(args: argparse.Namespace) -> FieldStage | None:
 
     ``--no-field-vectors``: None. No flag: the product's (``LightFieldFusionConfig()``'s
     fields, None while it has none). ``--field-vectors`` or any ``--fv-*``: the
-    product's stage (:data:`INTERIM` while it has none) with those values replaced.
+    product's stage (:data:`CHOSEN` while it is off) with those values replaced.
     """
     from shapedb.config import Config
 
@@ -311,7 +311,7 @@ def stage_of(args: argparse.Namespace) -> FieldStage | None:
     given = {k: getattr(args, k, None) for k in ("fv_weights", "fv_scales", "fv_candidates")}
     if on is False or (on is None and all(v is None for v in given.values())):
         return None if on is False else product
-    stage = product or INTERIM
+    stage = product or CHOSEN
     if given["fv_weights"] is not None:
         a, c = given["fv_weights"]
         stage = dataclasses.replace(stage, depth_weight=a, harmonic_weight=c)

@@ -96,7 +96,7 @@ def test_the_analytic_gates_on_the_light_field_distance_are_the_product_s(tmp_pa
 def test_a_run_s_stage_is_the_product_s_unless_flags_say_otherwise() -> None:
     import dataclasses
 
-    from bench.field_vectors import INTERIM, stage_of
+    from bench.field_vectors import CHOSEN, stage_of
     from bench.lightfield_gate import parser
 
     product = FieldStage.of(Config().lf_fusion)
@@ -104,6 +104,6 @@ def test_a_run_s_stage_is_the_product_s_unless_flags_say_otherwise() -> None:
     assert stage_of(parser().parse_args(["--no-field-vectors"])) is None
     got = stage_of(parser().parse_args(["--fv-candidates", "200", "--fv-weights", "0.25", "0.3"]))
     want = dataclasses.replace(
-        product or INTERIM, depth_weight=0.25, harmonic_weight=0.3, candidates=200
+        product or CHOSEN, depth_weight=0.25, harmonic_weight=0.3, candidates=200
     )
     assert got == want
