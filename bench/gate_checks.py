@@ -15,6 +15,7 @@ Used by the gate's selection (:mod:`bench.lightfield_gate`) and by the tests of 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +35,7 @@ __all__ = [
     "MIN_MARGIN",
     "MARGIN",
     "chain",
+    "analytic_shapes",
     "analytic_stores",
     "analytic_gates",
     "margin",
@@ -41,6 +43,8 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
+#: The stage's distance from the light field's: ``(query id, candidate ids, dl) -> (c,)``.
+Distance = Callable[[int, NDArray[np.int64], NDArray[np.float64]], NDArray[np.float64]]
 
 #: Sets whose subjects are jointed (the light field finds another pose): the oracle's "off".
 JOINTED = ("figures", "people")
@@ -109,28 +113,40 @@ def chain(angle: float, bend: float) -> Any:
 ANALYTIC = {"rerank": "lightfield", "resolution": 48, "n_balls": 128}
 
 
+def analytic_shapes() -> dict[str, list[tuple[str, Any]]]:
+    """The analytic stores' shapes by name: ``rigid`` (4 boxes, 4 rods), ``chain`` (8 poses)."""
+    from shapedb.implicit import Box, Capsule
+
+    poses = [(a, b) for a in (0.0, 0.5, 1.0, 1.5) for b in (-0.8, 0.8)]
+    return {
+        "rigid": [(f"box{k}", Box((0, 0, 0), (2.0 + 0.15 * k, 1.0, 0.6 + 0.05 * k)))
+                  for k in range(4)] + [(f"rod{k}", Capsule((0, 0, 0), (3.0 + 0.2 * k, 0, 0), 0.4))
+                                        for k in range(4)],
+        "chain": [(f"pose{k}", chain(a, b)) for k, (a, b) in enumerate(poses)],
+    }  # fmt: skip
+
+
 def analytic_stores(root: Path) -> dict[str, Any]:
     """Two stores under ``root``: ``rigid`` (4 boxes, 4 rods) and ``chain`` (8 poses of one).
 
     A gate must open on the first and stay shut on the second (a jointed subject alone
     in a store, none of the people's other subjects in the same pose to betray it).
+    The shapes are :func:`analytic_shapes`'.
     """
     from shapedb.database import connect
-    from shapedb.implicit import Box, Capsule
 
-    config = Config().with_options(**ANALYTIC)
-    rigid = connect(root / "rigid", config=config)
-    rigid.ingest([(f"box{k}", Box((0, 0, 0), (2.0 + 0.15 * k, 1.0, 0.6 + 0.05 * k)))
-                  for k in range(4)] + [(f"rod{k}", Capsule((0, 0, 0), (3.0 + 0.2 * k, 0, 0), 0.4))
-                                        for k in range(4)], workers=1)  # fmt: skip
-    jointed = connect(root / "chain", config=config)
-    poses = [(a, b) for a in (0.0, 0.5, 1.0, 1.5) for b in (-0.8, 0.8)]
-    jointed.ingest([(f"pose{k}", chain(a, b)) for k, (a, b) in enumerate(poses)], workers=1)
-    return {"rigid": rigid, "chain": jointed}
+    # no stored field vectors: the stage sees the light field alone, and a field-vector
+    # run passes its fused distance to analytic_gates (bench.field_vectors.analytic_distance)
+    config = Config().with_options(**ANALYTIC, fv_enabled=False)
+    out = {}
+    for name, shapes in analytic_shapes().items():
+        out[name] = connect(root / name, config=config)
+        out[name].ingest(shapes, workers=1)
+    return out
 
 
 def analytic_gates(
-    db: Any, f: Any, memo: dict[Any, Any] | None = None
+    db: Any, f: Any, memo: dict[Any, Any] | None = None, distance: Distance | None = None
 ) -> tuple[FloatArray, FloatArray]:
     """(n,) ``g(q)`` and (n,) ``s_q`` of every shape of ``db`` querying it, at ``f``.
 
@@ -140,6 +156,10 @@ def analytic_gates(
     ``f``: a :class:`shapedb.config.LightFieldFusionConfig` (the store's own light fields
     and descriptor); the local statistics computed by
     :func:`query.lightfield_spread.local_spreads` under ``f``, every shape a candidate.
+    ``distance``: the stage's distance in place of the light field's,
+    ``distance(query id, candidate ids, light field distances)`` (the field vectors'
+    fusion, :func:`bench.field_vectors.analytic_distance`), in the statistics and the
+    gate alike; ``memo`` keys it by its identity.
     """
     from query.index import open_index
     from query.lightfield_spread import calibration, local_spreads
@@ -148,8 +168,13 @@ def analytic_gates(
     config = dataclasses.replace(db.config, lf_fusion=f)
     index, reader = open_index(db), stored_arrays(db)
     key = (str(db.store.path), f.spread_candidates, f.typical, f.ratio_weight,
-           f.ratio_candidates if f.ratio_weight > 0 else 0)  # fmt: skip
-    if memo is None or key not in memo:
+           f.ratio_candidates if f.ratio_weight > 0 else 0, id(distance))  # fmt: skip
+    if (memo is None or key not in memo) and distance is not None:
+        got = _fused_spreads(index, reader, config, distance)
+        if memo is None:
+            memo = {}
+        memo[key] = dict(zip(got[0].tolist(), got[1].tolist(), strict=True))
+    elif memo is None or key not in memo:
         got = local_spreads(index, reader, config)
         if memo is None:
             memo = {}
@@ -166,10 +191,34 @@ def analytic_gates(
         fields = reader(COLUMN, np.append(c, sid))
         assert fields is not None, "the analytic stores keep light fields"
         dl = light_field_distance(fields[-1][None], fields[:-1])[0]
+        if distance is not None:
+            dl = distance(int(sid), c, dl)
         spreads = np.array([stat.get(int(i), np.nan) for i in c])
         gates.append(scorer.gate(dist[0] / calibration(config), dl, c == sid, spreads))
         pooled_s.append(pooled(spreads[: f.pool], f.pool_quantile) if f.pool > 0 else np.nan)
     return np.asarray(gates), np.asarray(pooled_s, np.float64)
+
+
+def _fused_spreads(index: Any, reader: Any, config: Any,
+                   distance: Distance) -> tuple[NDArray[np.int64], FloatArray]:  # fmt: skip
+    """:func:`query.lightfield_spread.local_spreads` of every alive shape on ``distance``."""
+    from query.lightfield_spread import calibration, local_statistic
+    from query.rerank_lightfield import COLUMN
+
+    f = config.lf_fusion
+    ids = np.sort(np.asarray(index.ids_, np.int64)[np.asarray(index.alive_, bool)])
+    reach = max(f.spread_candidates, f.ratio_candidates if f.ratio_weight > 0 else 0)
+    m = min(reach, len(ids) - 1)
+    out = np.full(len(ids), np.nan)
+    for k, sid in enumerate(ids):
+        feature = index.features_of(int(sid))
+        near, dist = index.search(feature[None], m + 1)
+        keep = (near[0] >= 0) & (near[0] != sid)
+        nb, d = near[0][keep][:m], dist[0][keep][:m]
+        fields = reader(COLUMN, np.append(nb, sid))
+        dl = light_field_distance(fields[-1][None], fields[:-1])[0]
+        out[k] = local_statistic(d / calibration(config), distance(int(sid), nb, dl), config)
+    return ids, out
 
 
 #: The keys of :func:`margin`.

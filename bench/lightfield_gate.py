@@ -41,13 +41,24 @@ continued to M); version 4 stays that of the cached balls. ``--lf-source field``
 light fields of the field's inside (``LightFieldConfig.source``, computed once per model
 and cached by :mod:`bench.inside_fields`); ``--lf-set FIELD=VALUE``: other
 ``LightFieldConfig`` fields (e.g. ``resolution=128``).
+
+The field vectors (:mod:`bench.field_vectors`): ``--field-vectors`` scores the stage whose
+distance fuses the light field distance with the L1 distances of the field's depth
+buffers and harmonics (fixed scales) and whose candidates are the union of version 4's
+K and the field vectors' K2 nearest, everywhere the stage uses the light field distance
+(ranks, the gate's statistics, the analytic stores); ``--fv-weights``, ``--fv-scales``,
+``--fv-candidates`` replace the product's values (``LightFieldFusionConfig``'s, once it
+has them), and ``--no-field-vectors`` keeps the light field alone. Such a run also
+scores the stage before the field vectors (the light field distance, K alone) in the
+same run. ``--mesh-lfd``: the peer's row, every shape of each store ranked by the mesh
+light field descriptor (:func:`bench.rerank_select.lfd_split_matrix`, cached).
+``--no-rigid-margin``: the ratio grid keeps the jointed margin alone.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import hashlib
 import sys
 import tempfile
 import time
@@ -58,290 +69,54 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench import cached, inside_fields
 from bench.cached import load
 from bench.common import format_table, write_json
-from bench.datasets import CACHE_DIR
-from bench.features import kernel_features
 from bench.gate_checks import (
     JOINTED,
     JOINTED_SETS,
     MIN_MARGIN,
     analytic_gates,
+    analytic_shapes,
     analytic_stores,
-    margin,
     ratio_settings,
 )
-from bench.packings import light_field_balls
-from query.lightfield_spread import pooled
+from bench.gate_stores import (
+    CHOICES,
+    MEASURES,
+    MIXES,
+    SETS,
+    Split,
+    Store,
+    gate_margin,
+    gate_statistic,
+    gate_weights,
+    local_spreads,
+    score_row,
+)
 from shapedb.config import Config
-from shapedb.descriptor import LAYOUTS
-from shapedb.lightfield import light_field_distance, record_light_field
+
+__all__ = [
+    "SETS",
+    "MIXES",
+    "CHOICES",
+    "MEASURES",
+    "Split",
+    "Store",
+    "local_spreads",
+    "gate_statistic",
+    "gate_margin",
+    "gate_weights",
+    "score_row",
+    "select",
+    "mesh_lfd_row",
+    "oracle_rows",
+    "statistics",
+    "parser",
+    "main",
+]
 
 FloatArray = NDArray[np.float64]
 RESULTS = Path(__file__).resolve().parent / "results"
-SETS = ("web", "generic", "capod", "figures", "parts", "people")
-MIXES = {
-    "web+figures": ("web", "figures"),
-    "web+people": ("web", "people"),
-    "generic+parts": ("generic", "parts"),
-    "all six": SETS,
-    "webplus+figures": ("webplus", "figures"),
-    "webplus+people": ("webplus", "people"),
-}
-#: Sets a run may name: the six, and the held-out ones :mod:`bench.cached` knows (``webplus``).
-CHOICES = tuple(getattr(cached, "CHOICES", SETS))
-MEASURES = ("nn", "first_tier", "dcg")
-
-
-class Split:
-    """Every set of one split together: names, set and class labels, v4 vectors, distances.
-
-    Attributes
-    ----------
-    sets : (n,) str
-        The set of each shape.
-    labels : (n,) str
-        ``set:class`` of each shape.
-    d4 : (n, n) float64
-        Version 4's stored distance (pre-weighted L1 of float32 vectors, as the index
-        holds them).
-    dl : (n, n) float64
-        Light field distances of the float32 light fields.
-    """
-
-    def __init__(
-        self,
-        split: str,
-        names: Sequence[str] = SETS,
-        lf_n_balls: int | None = None,
-        lf_within: int = 0,
-        lf_source: str | None = None,
-        lf_set: Sequence[str] = (),
-    ) -> None:
-        sets, labels, x, fields, keys = [], [], [], [], []
-        cfg = Config().with_options(rerank="lightfield")  # the product's light fields
-        if lf_n_balls is not None:
-            cfg = cfg.with_options(lf_n_balls=lf_n_balls)
-        if lf_source is not None:
-            cfg = cfg.with_options(lf_source=lf_source)
-        for kv in lf_set:  # other light-field settings (the field's: bench.inside_fields.cut)
-            k, v = kv.split("=", 1)
-            cfg = cfg.with_options(**{f"lf_{k}": float(v) if "." in v else int(v)})
-        lf_n_balls = cfg.light_field.n_balls
-        for name in names:
-            ds, balls = load(name, split)
-            x.append(kernel_features(balls, Config()).astype(np.float32))
-            if cfg.light_field_inside:  # the field's inside, cached by bench.inside_fields
-                fields.append(inside_fields.light_fields(name, split, ds, cfg.light_field))
-            else:
-                seen = light_field_balls(name, split, ds, balls, cfg, within=lf_within)
-                fields.append(np.stack(
-                    [record_light_field(b.centers, b.radii, cfg.light_field) for b in seen]
-                ))  # fmt: skip
-            sets += [name] * len(balls)
-            labels += [f"{name}:{lab}" for lab in ds.labels]
-            tag = f"|n{lf_n_balls}w{lf_within}" if cfg.light_field_tail else ""
-            tag += f"|inside-{inside_fields.VERSION}" if cfg.light_field_inside else ""
-            tag += f"|{cfg.light_field}" if lf_set else ""
-            keys += [m.name + m.source + tag for m in ds.models]
-        self.split = split
-        self.sets = np.asarray(sets)
-        self.labels = np.asarray(labels)
-        v = np.concatenate(x).astype(np.float64)
-        self.d4 = np.empty((len(v), len(v)))
-        for i in range(len(v)):
-            self.d4[i] = np.abs(v - v[i]).sum(axis=1)
-        self.d4 /= np.log(10.0) / sum(b[3] for b in LAYOUTS[4])  # calibrated units
-        self.dl = _light_field_matrix(np.concatenate(fields), keys)
-
-    def store(self, names: Sequence[str]) -> NDArray[np.int64]:
-        """Row indices of a store made of these sets."""
-        return np.flatnonzero(np.isin(self.sets, list(names)))
-
-
-def _light_field_matrix(fields: NDArray[np.float32], keys: list[str]) -> FloatArray:
-    core = Path(__file__).resolve().parents[1] / "shapedb"
-    code = b"".join((core / f).read_bytes() for f in ("lightfield.py", "lightfield_descriptor.py"))
-    key = hashlib.sha256(code + "\n".join(keys).encode()).hexdigest()[:16]
-    path = CACHE_DIR / "lightfield_gate" / f"{key}.npy"
-    if path.exists():
-        return np.load(path)
-    t = time.perf_counter()
-    d = light_field_distance(fields.astype(np.float64))
-    print(f"  light field distances {d.shape}: {time.perf_counter() - t:.0f} s", flush=True)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.save(path, d)
-    return d
-
-
-class Store:
-    """One store's candidate lists and per-query statistics, for any gate at once.
-
-    Parameters
-    ----------
-    split : Split
-    rows : (n,) int
-        The store's shapes (indices into ``split``); ids are their positions.
-    candidates : int
-        K, the candidates re-ranked per query.
-    offset : float
-        The rank fusion's offset.
-
-    Attributes
-    ----------
-    cand : (n, K) int64
-        Each query's candidates by the stored distance (ties by id), itself among them.
-    rank_l : (n, K) float64
-        Rank of each candidate by the light field distance among the K (ties in list order).
-    """
-
-    def __init__(self, split: Split, rows: NDArray[np.int64], candidates: int = 100,
-                 offset: float = 60.0) -> None:  # fmt: skip
-        self.rows = rows
-        self.labels = split.labels[rows]
-        self.sets = split.sets[rows]
-        d4 = split.d4[np.ix_(rows, rows)]
-        dl = split.dl[np.ix_(rows, rows)]
-        n = len(rows)
-        k = min(candidates, n)
-        self.order = np.argsort(d4, axis=1, kind="stable")  # whole list, ties by id
-        self._d4, self._dl = d4, dl
-        self.cand = self.order[:, :k]
-        self.D = np.take_along_axis(d4, self.cand, 1)
-        self.L = np.take_along_axis(dl, self.cand, 1)
-        self.own = self.cand == np.arange(n)[:, None]
-        self.rank_l = np.empty((n, k))
-        np.put_along_axis(self.rank_l, np.argsort(self.L, axis=1, kind="stable"),
-                          np.arange(k, dtype=np.float64)[None, :], 1)  # fmt: skip
-        self.offset = offset
-        self.same = self.labels[:, None] == self.labels[None, :]
-        self.size = self.same.sum(axis=1) - 1  # relevant results per query
-
-    def others(self, x: FloatArray) -> FloatArray:
-        """(n, K - 1) ``x`` over each query's candidates without the query itself."""
-        return x[~self.own].reshape(len(x), -1) if self.own.any(axis=1).all() else x[:, 1:]
-
-    def nearest(self, c: int) -> tuple[FloatArray, FloatArray]:
-        """(n, c) stored and light field distances of each shape's ``c`` nearest others.
-
-        In the stored distance's order (ties by id), the shape left out, as the index
-        hands them to :func:`query.lightfield_spread.local_spreads`.
-        """
-        n = len(self.rows)
-        c = min(c, n - 1)
-        head = self.order[:, : c + 1]
-        keep = head != np.arange(n)[:, None]
-        keep[keep.all(axis=1), -1] = False  # the shape not among them: its c first
-        idx = head[keep].reshape(n, c)
-        return np.take_along_axis(self._d4, idx, 1), np.take_along_axis(self._dl, idx, 1)
-
-    def overlap(self, m: int) -> FloatArray:
-        """(n,) share of the query's ``m`` nearest others common to both distances."""
-        cand = self.others(self.cand.astype(np.float64)).astype(np.int64)
-        ll = self.others(self.L)
-        a = cand[:, :m]
-        b = np.take_along_axis(cand, np.argsort(ll, axis=1, kind="stable")[:, :m], 1)
-        return np.array([len(np.intersect1d(x, y)) / m for x, y in zip(a, b, strict=True)])
-
-    def spread(self, typical: float = 18.03) -> FloatArray:
-        """(n,) the product's ``s_q``: median light field over median stored distance."""
-        return np.median(self.others(self.L), 1) / typical / np.median(self.others(self.D), 1)
-
-    def spearman(self) -> FloatArray:
-        """(n,) rank correlation of the two distances over the query's other candidates."""
-        a = np.argsort(np.argsort(self.others(self.D), 1, kind="stable"), 1).astype(float)
-        b = np.argsort(np.argsort(self.others(self.L), 1, kind="stable"), 1).astype(float)
-        a -= a.mean(1, keepdims=True)
-        b -= b.mean(1, keepdims=True)
-        return (a * b).sum(1) / np.sqrt((a * a).sum(1) * (b * b).sum(1))
-
-    def rankings(self, weight: FloatArray) -> NDArray[np.int64]:
-        """(n, n) each query's whole list (store positions) at per-query weights ``weight``.
-
-        ``weight`` (n,): the weight of the light field's rank term (``w g(q)``); inf
-        ranks by the light field alone among the candidates. Past the K candidates the
-        list keeps the stored-distance order.
-        """
-        n, k = self.cand.shape
-        rank_d = np.arange(k, dtype=np.float64)[None, :]
-        w = np.asarray(weight, np.float64)[:, None]
-        alone = np.isinf(w[:, 0])
-        fused = 1.0 / (self.offset + rank_d) + np.where(alone[:, None], 0.0,
-                                                       w / (self.offset + self.rank_l))  # fmt: skip
-        fused[alone] = 1.0 / (self.offset + self.rank_l[alone])
-        ids = self.cand
-        head = np.take_along_axis(ids, np.lexsort((ids, -fused), axis=-1), 1)
-        return np.concatenate([head, self.order[:, k:]], axis=1)
-
-    def measures(self, weight: FloatArray) -> FloatArray:
-        """(n, 3) NN, 1-T, DCG of every query at per-query weights ``weight`` (:meth:`rankings`)."""
-        n = len(self.cand)
-        full = self.rankings(weight)
-        hit = np.take_along_axis(self.same, full, 1)
-        hit[full == np.arange(n)[:, None]] = False
-        keep = full != np.arange(n)[:, None]
-        hit = hit[keep].reshape(n, -1)
-        c = np.maximum(self.size, 1)
-        disc = np.ones(n - 1)
-        disc[1:] = 1.0 / np.log2(np.arange(2, n))
-        ideal = np.cumsum(disc)
-        tier = np.array([hit[i, : c[i]].sum() for i in range(n)]) / c
-        out = np.stack([hit[:, 0].astype(float), tier, (hit * disc).sum(1) / ideal[c - 1]], 1)
-        out[self.size < 1] = np.nan
-        return out
-
-    def per_set(self, m: FloatArray) -> dict[str, dict[str, float]]:
-        """Mean NN, 1-T, DCG per set of the store."""
-        out = {}
-        for s in dict.fromkeys(self.sets):
-            rows = (self.sets == s) & np.isfinite(m[:, 0])
-            out[str(s)] = {k: float(m[rows, j].mean()) for j, k in enumerate(MEASURES)}
-        return out
-
-
-def local_spreads(st: Store, candidates: int, typical: float, ratio_weight: float = 0.0,
-                  ratio_candidates: int = 100) -> FloatArray:  # fmt: skip
-    """(n,) each stored shape's local statistic (:func:`query.lightfield_spread.local_statistic`).
-
-    The local spread over its ``candidates`` nearest others, times the ratio to the
-    power ``ratio_weight`` (the spread's power ``1 - ratio_weight``).
-    """
-    reach = max(candidates, ratio_candidates) if ratio_weight > 0 else candidates
-    d, ll = st.nearest(reach)
-    near = np.median(ll[:, :candidates], 1)
-    out = np.ones(len(d))
-    if ratio_weight < 1:
-        spread = near / typical / np.maximum(np.median(d[:, :candidates], 1), 1e-300)
-        out *= spread ** (1.0 - ratio_weight)
-    if ratio_weight > 0:
-        best = np.median(np.sort(ll, 1)[:, :candidates], 1)
-        out *= (near / np.maximum(best, 1e-300)) ** ratio_weight
-    return out
-
-
-def gate_statistic(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
-    """(n,) ``s_q`` of :class:`shapedb.config.LightFieldFusionConfig` ``f`` for every query.
-
-    ``memo``: results kept by store and the fields they read (a grid reuses them).
-    """
-    key = (id(st), f.spread_candidates, f.typical, f.ratio_weight,
-           f.ratio_candidates if f.ratio_weight > 0 else 0, f.pool, f.pool_quantile)  # fmt: skip
-    if memo is not None and key in memo:
-        return memo[key]
-    s = local_spreads(st, f.spread_candidates, f.typical, f.ratio_weight, f.ratio_candidates)
-    if f.pool > 0:
-        s = pooled(s[st.cand[:, : f.pool]], f.pool_quantile)
-    if memo is not None:
-        memo[key] = s
-    return s
-
-
-def gate_margin(stores: dict[str, Store], f: Any,
-                memo: dict[Any, FloatArray] | None = None) -> dict[str, float]:  # fmt: skip
-    """:func:`margin` of ``f``'s pooled statistic over every set in every store."""
-    return margin({(k, str(s)): gate_statistic(st, f, memo)[st.sets == s]
-                   for k, st in stores.items() for s in dict.fromkeys(st.sets)})  # fmt: skip
 
 
 def _short(setting: dict[str, Any]) -> str:
@@ -357,25 +132,6 @@ def _setting(label: str) -> dict[str, Any]:
     import ast
 
     return dict(ast.literal_eval(label[label.index(": {") + 2 :]))
-
-
-def gate_weights(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
-    """(n,) ``weight * g(q)`` of :class:`shapedb.config.LightFieldFusionConfig` ``f``.
-
-    ``memo``: the pooled statistics already computed, by store and the fields they read.
-    """
-    n = len(st.rows)
-    g = np.ones(n)
-    if f.power > 0:
-        g *= st.overlap(f.neighbours) ** f.power
-    if f.ceiling > 0:
-        g *= np.clip((f.ceiling - gate_statistic(st, f, memo)) / f.ramp, 0.0, 1.0)
-    if f.contrast_floor > 0:
-        d = st.others(st.D)
-        far = d[:, min(f.contrast_depth, d.shape[1]) - 1]
-        t = np.median(d[:, : f.neighbours], 1) / np.maximum(far, 1e-300)
-        g *= np.clip((t - f.contrast_floor) / f.contrast_ramp, 0.0, 1.0)
-    return f.weight * g
 
 
 #: The grid of the selection (``LightFieldFusionConfig`` fields; power 0, neighbours 5).
@@ -399,44 +155,40 @@ LEGACY = {"weight": 8.0, "power": 3.0, "ceiling": 0.09, "spread_candidates": 100
           "contrast_floor": 0.0, "ramp": 0.02, "ratio_weight": 0.0}  # fmt: skip
 
 
-def _row(stores: dict[str, Store], weights: dict[str, FloatArray],
-         base: dict[str, dict[str, dict[str, float]]]) -> dict[str, Any]:  # fmt: skip
-    """Scores per store and set, the worst loss in queries against v4, the objective."""
-    entry: dict[str, Any] = {"stores": {}, "worst_queries": 0.0, "worst_at": None}
-    for name, st in stores.items():
-        per = st.per_set(st.measures(weights[name]))
-        entry["stores"][name] = per
-        for s, v in per.items():
-            n = int((st.sets == s).sum())
-            loss = min((v[m] - base[name][s][m]) * n for m in MEASURES)
-            if loss < entry["worst_queries"] - 1e-9:
-                entry["worst_queries"], entry["worst_at"] = float(loss), f"{name}: {s}"
-    entry["objective"] = float(np.mean(
-        [np.mean([entry["stores"][s][s][m] for m in MEASURES]) for s in CHOICES if s in stores]
-    ))  # fmt: skip
-    entry["passes"] = entry["worst_queries"] >= -2.0 - 1e-9
-    return entry
-
-
-def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, Any]:
+def select(args: argparse.Namespace, split: Split | None = None,
+           analytic: dict[str, Any] | None = None) -> dict[str, Any]:  # fmt: skip
     """Rows of every store; on validation the grid and its choice; returns the JSON.
 
-    ``split``: the shapes and distances to score (default: :class:`Split` of ``args``;
-    a study passes its own distances this way).
+    ``split``: the shapes and distances to score (default: :class:`Split` of ``args``,
+    fused with the field vectors of :func:`bench.field_vectors.stage_of` ``args``; a
+    study passes its own distances this way; a split with a ``stage``
+    (:func:`bench.field_vectors.fuse`) takes its union candidates and checks the
+    analytic stores on its distance). ``analytic``: the analytic stores
+    (:func:`bench.gate_checks.analytic_stores`), built here when None.
     """
     import itertools
+
+    from bench.field_vectors import analytic_distance, fuse, stage_of
 
     t0 = time.perf_counter()
     if split is None:
         split = Split(
             args.split, args.datasets, args.lf_n_balls, args.lf_within, args.lf_source, args.lf_set
         )
+        chosen = stage_of(args)
+        if chosen is not None:
+            split = fuse(split, args.datasets, chosen)
+    stage = getattr(split, "stage", None)
+    k2 = stage.candidates if stage is not None else 0
     names: dict[str, tuple[str, ...]] = {s: (s,) for s in args.datasets}
     names.update({k: v for k, v in MIXES.items() if set(v) <= set(args.datasets)})
-    stores = {k: Store(split, split.store(v)) for k, v in names.items()}
+    stores = {k: Store(split, split.store(v), field_candidates=k2) for k, v in names.items()}
     print(f"  {len(split.sets)} shapes, {len(stores)} stores ({time.perf_counter() - t0:.0f} s)")
     zero = {k: np.zeros(len(st.rows)) for k, st in stores.items()}
-    base = {k: st.per_set(st.measures(zero[k])) for k, st in stores.items()}
+    v4 = stores  # version 4 alone: no union (its extras would come before the rest)
+    if k2 > 0:
+        v4 = {k: Store(split, split.store(v)) for k, v in names.items()}
+    base = {k: st.per_set(st.measures(zero[k])) for k, st in v4.items()}
     default = Config().lf_fusion
     if args.fusion:  # the "stage now" row at other values (a setting chosen elsewhere)
         pairs = dict(kv.split("=", 1) for kv in args.fusion)
@@ -445,18 +197,32 @@ def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, An
     memo: dict[Any, FloatArray] = {}
     margins: dict[str, dict[str, float]] = {}
     rows: dict[str, dict[str, Any]] = {
-        "v4 (no stage)": _row(stores, zero, base),
-        "light fields alone (K = 100)": _row(
+        "v4 (no stage)": score_row(v4, zero, base),
+        ("light fields alone (K = 100)" if stage is None else
+         f"the stage's distance alone (K = 100, K2 = {k2})"): score_row(
             stores, {k: np.full(len(st.rows), np.inf) for k, st in stores.items()}, base),
-        "rank fusion 0.5, ungated": _row(
+        "rank fusion 0.5, ungated": score_row(
             stores, {k: np.full(len(st.rows), 0.5) for k, st in stores.items()}, base),
     }  # fmt: skip
+    if stage is not None:  # the product before the field vectors, in the same run
+        import copy
+
+        before = copy.copy(split)
+        before.dl, before.dv = split.light, None
+        plain = {k: Store(before, before.store(v)) for k, v in names.items()}
+        rows["the stage before the field vectors (light field distance, K = 100)"] = score_row(
+            plain, {k: gate_weights(st, Config().lf_fusion) for k, st in plain.items()}, base
+        )
+    if getattr(args, "mesh_lfd", False):  # the peer: every shape ranked by the mesh LFD
+        rows["mesh light field descriptor (every shape ranked)"] = mesh_lfd_row(
+            split, args.datasets, names, base
+        )
     legacy = dataclasses.replace(default, **LEGACY)  # type: ignore[arg-type]
-    rows["stage before (overlap^3, own spread over 100)"] = _row(
+    rows["stage before (overlap^3, own spread over 100)"] = score_row(
         stores, {k: gate_weights(st, legacy) for k, st in stores.items()}, base
     )
     spread_gate = dataclasses.replace(default, **SPREAD_GATE)  # type: ignore[arg-type]
-    rows["spread gate (pooled median spread, the default before the ratio)"] = _row(
+    rows["spread gate (pooled median spread, the default before the ratio)"] = score_row(
         stores, {k: gate_weights(st, spread_gate, memo) for k, st in stores.items()}, base
     )
     margins["spread gate (pooled median spread, the default before the ratio)"] = gate_margin(
@@ -471,14 +237,23 @@ def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, An
         settings = ratio_settings()
         subsets = (("the local spread alone (ratio weight 0)", lambda s: s["ratio_weight"] == 0),
                    ("the ratio alone (ratio weight 1)", lambda s: s["ratio_weight"] == 1))  # fmt: skip
-    tmp = tempfile.TemporaryDirectory(prefix="lightfield_gate_")
-    analytic = analytic_stores(Path(tmp.name))
+    tmp = None
+    if analytic is None:
+        tmp = tempfile.TemporaryDirectory(prefix="lightfield_gate_")
+        analytic = analytic_stores(Path(tmp.name))
     amemo: dict[Any, Any] = {}
+    fused = {}  # the analytic stores on the stage's distance
+    if stage is not None and stage.fuses:
+        shapes = analytic_shapes()
+        fused = {k: analytic_distance(db, shapes[k], stage) for k, db in analytic.items()}
+
+    def gates(which: str, f: Any) -> tuple[FloatArray, FloatArray]:
+        return analytic_gates(analytic[which], f, amemo, fused.get(which))
 
     def closed(f: Any) -> bool:
         """The chain in poses shut and the rigid analytic store open (some of it)."""
-        g_rigid, _ = analytic_gates(analytic["rigid"], f, amemo)
-        g_chain, _ = analytic_gates(analytic["chain"], f, amemo)
+        g_rigid, _ = gates("rigid", f)
+        g_chain, _ = gates("chain", f)
         return bool(np.all(g_chain == 0) and np.count_nonzero(g_rigid) >= 6)
 
     if args.split == "validation" and not args.no_grid:
@@ -486,7 +261,7 @@ def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, An
         t0 = time.perf_counter()
         for s in settings:
             f = dataclasses.replace(default, power=0.0, **s)  # type: ignore[arg-type]
-            grid.append((s, _row(stores, {k: gate_weights(st, f, memo)
+            grid.append((s, score_row(stores, {k: gate_weights(st, f, memo)
                                           for k, st in stores.items()}, base)))  # fmt: skip
         passing = [g for g in grid if g[1]["passes"]]
         n_rule = len(passing)
@@ -497,8 +272,8 @@ def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, An
             """Both margins: the jointed sets well above the ceiling, the rigid ones below."""
             f = dataclasses.replace(default, power=0.0, **g[0])  # type: ignore[arg-type]
             m = gate_margin(stores, f, memo)
-            return bool(m["jointed_min"] >= args.min_margin * f.ceiling
-                        and m["rigid_95"] <= f.ceiling)  # fmt: skip
+            rigid = m["rigid_95"] <= f.ceiling or not args.rigid_margin
+            return bool(m["jointed_min"] >= args.min_margin * f.ceiling and rigid)
 
         if args.grid == "ratio" and len(set(stores) & JOINTED_SETS) == len(JOINTED_SETS):
             passing = [g for g in passing if wide(g)]
@@ -523,7 +298,7 @@ def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, An
             rows[f"best of the grid: {best[0]}"] = best[1]
             f = dataclasses.replace(default, power=0.0, **best[0])  # type: ignore[arg-type]
             margins[f"best of the grid: {best[0]}"] = gate_margin(stores, f, memo)
-    rows["stage now (LightFieldFusionConfig defaults)"] = _row(
+    rows["stage now (LightFieldFusionConfig defaults)"] = score_row(
         stores, {k: gate_weights(st, default) for k, st in stores.items()}, base
     )
     if args.oracle:
@@ -532,7 +307,7 @@ def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, An
         for field, values in AROUND.items():
             for v in values:
                 f = dataclasses.replace(default, **{field: v})  # type: ignore[arg-type]
-                rows[f"defaults, {field} {v:g}"] = _row(
+                rows[f"defaults, {field} {v:g}"] = score_row(
                     stores, {k: gate_weights(st, f) for k, st in stores.items()}, base
                 )
     margins["stage now (LightFieldFusionConfig defaults)"] = gate_margin(stores, default, memo)
@@ -541,12 +316,12 @@ def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, An
             default, power=0.0, **_setting(label))  # fmt: skip
         if label.startswith("spread gate"):
             f = spread_gate
-        m["chain_min"] = float(np.nanmin(analytic_gates(analytic["chain"], f, amemo)[1]))
-        m["chain_open"] = float(np.count_nonzero(analytic_gates(analytic["chain"], f, amemo)[0]))
-        m["analytic_rigid_open"] = float(np.count_nonzero(
-            analytic_gates(analytic["rigid"], f, amemo)[0]))  # fmt: skip
+        m["chain_min"] = float(np.nanmin(gates("chain", f)[1]))
+        m["chain_open"] = float(np.count_nonzero(gates("chain", f)[0]))
+        m["analytic_rigid_open"] = float(np.count_nonzero(gates("rigid", f)[0]))
         m["ceiling"] = float(f.ceiling)
-    tmp.cleanup()
+    if tmp is not None:
+        tmp.cleanup()
     _print(rows, stores, args.split)
     if margins and "jointed_5" in margins[next(iter(margins))]:
         print(format_table(
@@ -563,9 +338,28 @@ def select(args: argparse.Namespace, split: Split | None = None) -> dict[str, An
              for k, m in margins.items()],
         ))  # fmt: skip
     return {"split": args.split, "rows": rows, "defaults": dataclasses.asdict(default),
+            "field_stage": None if stage is None else dataclasses.asdict(stage),
             "margins": margins,
             "statistics": statistics(stores, default),
             "sizes": {k: len(st.rows) for k, st in stores.items()}}  # fmt: skip
+
+
+def mesh_lfd_row(split: Split, sets: Sequence[str], names: dict[str, tuple[str, ...]],
+                 base: dict[str, dict[str, dict[str, float]]]) -> dict[str, Any]:  # fmt: skip
+    """The mesh light field descriptor's row (:func:`bench.rerank_select.lfd_split_matrix`):
+    every shape of each store ranked by it alone, scored like the stage's rows."""
+    import copy
+
+    from bench.rerank_select import lfd_split_matrix
+
+    models = [m for s in sets for m in load(s, split.split)[0].models]
+    peer = copy.copy(split)
+    peer.dl = lfd_split_matrix(models)
+    peer.dv = None
+    stores = {
+        k: Store(peer, peer.store(v), candidates=len(peer.store(v))) for k, v in names.items()
+    }
+    return score_row(stores, {k: np.full(len(st.rows), np.inf) for k, st in stores.items()}, base)
 
 
 def oracle_rows(stores: dict[str, Store], base: dict[str, dict[str, dict[str, float]]],
@@ -585,7 +379,7 @@ def oracle_rows(stores: dict[str, Store], base: dict[str, dict[str, dict[str, fl
         for st in stores.values():
             st.offset = offset
         try:
-            rows[label] = _row(stores, weights, base)
+            rows[label] = score_row(stores, weights, base)
         finally:
             for k, st in stores.items():
                 st.offset = kept[k]
@@ -662,6 +456,9 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--no-grid", action="store_true", help="only the fixed rows")
     ap.add_argument("--min-margin", type=float, default=MIN_MARGIN,
                     help="the ratio grid's least jointed statistic over the ceiling")  # fmt: skip
+    ap.add_argument("--rigid-margin", action=argparse.BooleanOptionalAction, default=True,
+                    help="the ratio grid's second margin: every rigid set's 95 %% at most the "
+                         "ceiling (--no-rigid-margin: the jointed margin alone)")  # fmt: skip
     ap.add_argument("--grid", default="ratio", choices=["ratio", "spread"],
                     help="the selection's grid: the ratio gate's (default) or the spread gate's")  # fmt: skip
     ap.add_argument("--around", action="store_true", help="the defaults, one field moved")
@@ -677,6 +474,17 @@ def parser() -> argparse.ArgumentParser:
                     help="LightFieldConfig fields of the light fields (e.g. resolution=128)")  # fmt: skip
     ap.add_argument("--fusion", nargs="*", default=[], metavar="FIELD=VALUE",
                     help="LightFieldFusionConfig fields of the 'stage now' row")  # fmt: skip
+    ap.add_argument("--mesh-lfd", action="store_true",
+                    help="the peer's row: every shape ranked by the mesh light field descriptor")  # fmt: skip
+    ap.add_argument("--field-vectors", action=argparse.BooleanOptionalAction, default=None,
+                    help="the stage with the field vectors (default: the product's; "
+                         "--no-field-vectors: the light field alone, today's rows)")  # fmt: skip
+    ap.add_argument("--fv-weights", type=float, nargs=2, default=None, metavar=("A", "C"),
+                    help="weights of the depth and the harmonic distances")  # fmt: skip
+    ap.add_argument("--fv-scales", type=float, nargs=3, default=None,
+                    metavar=("M_L", "M_B", "M_H"), help="scales of l, b and h")  # fmt: skip
+    ap.add_argument("--fv-candidates", type=int, default=None, metavar="K2",
+                    help="the field vectors' nearest added to version 4's K")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None)
     return ap
 
@@ -688,6 +496,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     tag = f"_n{args.lf_n_balls}" if args.lf_n_balls is not None else ""
     tag += f"_{args.lf_source}" if args.lf_source is not None else ""
     tag += "".join(f"_{kv.replace('=', '')}" for kv in args.lf_set)
+    tag += "_fv" if result["field_stage"] is not None else ""
     out = args.out or RESULTS / f"lightfield_gate_{args.split}{tag}.json"
     write_json(out, result)
     print(f"written {out}")

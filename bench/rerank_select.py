@@ -115,6 +115,25 @@ def lfd_matrix(ds: Dataset) -> np.ndarray:
     return np.asarray(lfd_distance(np.stack(out)), np.float64)
 
 
+def lfd_split_matrix(models: Sequence[Any]) -> np.ndarray:
+    """:func:`lfd_matrix` of any models together (several sets' splits), (n, n), cached
+    under ``$SHAPEDB_BENCH_CACHE/lfd/matrices`` by the models and the descriptor's code."""
+    from types import SimpleNamespace
+
+    keys = "\n".join(f"{m.source}|{m.name}" for m in models)
+    code = _digest("bench/lightfield.py")
+    key = hashlib.sha256((code + keys).encode()).hexdigest()[:16]
+    path = CACHE_DIR / "lfd" / "matrices" / f"{key}.npy"
+    if path.exists():
+        return np.load(path)
+    t = time.perf_counter()
+    d = lfd_matrix(SimpleNamespace(models=list(models)))  # type: ignore[arg-type]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.save(path, d)
+    print(f"  mesh light field distances {d.shape}: {time.perf_counter() - t:.0f} s", flush=True)
+    return d
+
+
 def ranking_scores(
     index: FeatureIndex, x: np.ndarray, labels: np.ndarray, config: Config
 ) -> dict[str, float]:

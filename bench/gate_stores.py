@@ -1,0 +1,387 @@
+"""The gate bench's stores: every set of a split together, and one store's rankings at any gate.
+
+:class:`Split` holds a split's shapes (sets, labels), version 4's stored distances and the
+stage's distance (the light fields', or its fusion with the field vectors:
+:func:`bench.field_vectors.fuse`); :class:`Store` one store's candidate lists (version 4's
+K, and with the field vectors the union with their K2 nearest) and its rankings at
+per-query weights; :func:`gate_weights` the product's gate
+(:class:`shapedb.config.LightFieldFusionConfig`) on a store, :func:`score_row` a row of
+scores against version 4 with the two-queries rule. Used by :mod:`bench.lightfield_gate`
+(which re-exports these names) and :mod:`bench.field_choice`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from bench import cached, inside_fields
+from bench.cached import load
+from bench.datasets import CACHE_DIR
+from bench.features import kernel_features
+from bench.gate_checks import margin
+from bench.packings import light_field_balls
+from query.lightfield_spread import pooled
+from shapedb.config import Config
+from shapedb.descriptor import LAYOUTS
+from shapedb.lightfield import light_field_distance, record_light_field
+
+__all__ = [
+    "SETS",
+    "MIXES",
+    "CHOICES",
+    "MEASURES",
+    "Split",
+    "Store",
+    "local_spreads",
+    "gate_statistic",
+    "gate_margin",
+    "gate_weights",
+    "score_row",
+]
+
+FloatArray = NDArray[np.float64]
+SETS = ("web", "generic", "capod", "figures", "parts", "people")
+MIXES = {
+    "web+figures": ("web", "figures"),
+    "web+people": ("web", "people"),
+    "generic+parts": ("generic", "parts"),
+    "all six": SETS,
+    "webplus+figures": ("webplus", "figures"),
+    "webplus+people": ("webplus", "people"),
+}
+#: Sets a run may name: the six, and the held-out ones :mod:`bench.cached` knows (``webplus``).
+CHOICES = tuple(getattr(cached, "CHOICES", SETS))
+MEASURES = ("nn", "first_tier", "dcg")
+
+
+class Split:
+    """Every set of one split together: names, set and class labels, v4 vectors, distances.
+
+    Attributes
+    ----------
+    sets : (n,) str
+        The set of each shape.
+    labels : (n,) str
+        ``set:class`` of each shape.
+    d4 : (n, n) float64
+        Version 4's stored distance (pre-weighted L1 of float32 vectors, as the index
+        holds them).
+    dl : (n, n) float64
+        The stage's distance: the light field distances of the float32 light fields, or
+        their fusion with the field vectors (:func:`bench.field_vectors.fuse`).
+    light : (n, n) float64
+        The light field distances.
+    dv : (n, n) float64 or None
+        The scaled field vectors' L1 distances (a fused split's union candidates).
+    stage : bench.field_vectors.FieldStage or None
+        The field vectors' part of a fused split.
+    """
+
+    def __init__(
+        self,
+        split: str,
+        names: Sequence[str] = SETS,
+        lf_n_balls: int | None = None,
+        lf_within: int = 0,
+        lf_source: str | None = None,
+        lf_set: Sequence[str] = (),
+    ) -> None:
+        sets, labels, x, fields, keys = [], [], [], [], []
+        cfg = Config().with_options(rerank="lightfield")  # the product's light fields
+        if lf_n_balls is not None:
+            cfg = cfg.with_options(lf_n_balls=lf_n_balls)
+        if lf_source is not None:
+            cfg = cfg.with_options(lf_source=lf_source)
+        for kv in lf_set:  # other light-field settings (the field's: bench.inside_fields.cut)
+            k, v = kv.split("=", 1)
+            cfg = cfg.with_options(**{f"lf_{k}": float(v) if "." in v else int(v)})
+        lf_n_balls = cfg.light_field.n_balls
+        for name in names:
+            ds, balls = load(name, split)
+            x.append(kernel_features(balls, Config()).astype(np.float32))
+            if cfg.light_field_inside:  # the field's inside, cached by bench.inside_fields
+                fields.append(inside_fields.light_fields(name, split, ds, cfg.light_field))
+            else:
+                seen = light_field_balls(name, split, ds, balls, cfg, within=lf_within)
+                fields.append(np.stack(
+                    [record_light_field(b.centers, b.radii, cfg.light_field) for b in seen]
+                ))  # fmt: skip
+            sets += [name] * len(balls)
+            labels += [f"{name}:{lab}" for lab in ds.labels]
+            tag = f"|n{lf_n_balls}w{lf_within}" if cfg.light_field_tail else ""
+            tag += f"|inside-{inside_fields.VERSION}" if cfg.light_field_inside else ""
+            tag += f"|{cfg.light_field}" if lf_set else ""
+            keys += [m.name + m.source + tag for m in ds.models]
+        self.split = split
+        self.sets = np.asarray(sets)
+        self.labels = np.asarray(labels)
+        v = np.concatenate(x).astype(np.float64)
+        self.d4 = np.empty((len(v), len(v)))
+        for i in range(len(v)):
+            self.d4[i] = np.abs(v - v[i]).sum(axis=1)
+        self.d4 /= np.log(10.0) / sum(b[3] for b in LAYOUTS[4])  # calibrated units
+        self.dl = _light_field_matrix(np.concatenate(fields), keys)
+        self.light = self.dl  # the light field distance (dl: the stage's, bench.field_vectors)
+        self.dv: FloatArray | None = None  # the scaled field vectors' L1 (the union candidates)
+        self.stage: Any = None  # bench.field_vectors.FieldStage of a fused split
+
+    def store(self, names: Sequence[str]) -> NDArray[np.int64]:
+        """Row indices of a store made of these sets."""
+        return np.flatnonzero(np.isin(self.sets, list(names)))
+
+
+def _light_field_matrix(fields: NDArray[np.float32], keys: list[str]) -> FloatArray:
+    core = Path(__file__).resolve().parents[1] / "shapedb"
+    code = b"".join((core / f).read_bytes() for f in ("lightfield.py", "lightfield_descriptor.py"))
+    key = hashlib.sha256(code + "\n".join(keys).encode()).hexdigest()[:16]
+    path = CACHE_DIR / "lightfield_gate" / f"{key}.npy"
+    if path.exists():
+        return np.load(path)
+    t = time.perf_counter()
+    d = light_field_distance(fields.astype(np.float64))
+    print(f"  light field distances {d.shape}: {time.perf_counter() - t:.0f} s", flush=True)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.save(path, d)
+    return d
+
+
+class Store:
+    """One store's candidate lists and per-query statistics, for any gate at once.
+
+    Parameters
+    ----------
+    split : Split
+    rows : (n,) int
+        The store's shapes (indices into ``split``); ids are their positions.
+    candidates : int
+        K, the candidates re-ranked per query.
+    offset : float
+        The rank fusion's offset.
+    field_candidates : int
+        K2: each query's candidates also take its ``K2`` nearest by ``split.dv`` (the
+        scaled field vectors' L1, :mod:`bench.field_vectors`) that are not among the K,
+        after them in the stored distance's order (the product's union). 0, or a split
+        without ``dv``: the K alone.
+
+    Attributes
+    ----------
+    cand : (n, C) int64
+        Each query's candidates in list order (the stored distance, ties by id), itself
+        among them; ``C`` the longest list, shorter lists padded past ``count``.
+    count : (n,) int64
+        Each query's candidates (K, plus its field vectors' extras).
+    rank_l : (n, C) float64
+        Rank of each candidate by the light field distance among the query's candidates
+        (ties in list order); padding ranks last.
+    """
+
+    def __init__(self, split: Split, rows: NDArray[np.int64], candidates: int = 100,
+                 offset: float = 60.0, field_candidates: int = 0) -> None:  # fmt: skip
+        self.rows = rows
+        self.labels = split.labels[rows]
+        self.sets = split.sets[rows]
+        d4 = split.d4[np.ix_(rows, rows)]
+        dl = split.dl[np.ix_(rows, rows)]
+        n = len(rows)
+        k = min(candidates, n)
+        self.order = np.argsort(d4, axis=1, kind="stable")  # whole list, ties by id
+        self._d4, self._dl = d4, dl
+        self.listing, self.count = self.order, np.full(n, k)
+        dv = getattr(split, "dv", None)
+        if field_candidates > 0 and dv is not None:
+            from bench.field_vectors import union_order
+
+            self.listing, self.count = union_order(
+                self.order, dv[np.ix_(rows, rows)], k, min(field_candidates, n))  # fmt: skip
+        c = int(self.count.max())
+        self.cand = self.listing[:, :c]
+        pad = np.arange(c)[None, :] >= self.count[:, None]
+        self.D = np.where(pad, np.inf, np.take_along_axis(d4, self.cand, 1))
+        self.L = np.where(pad, np.inf, np.take_along_axis(dl, self.cand, 1))
+        self.own = self.cand == np.arange(n)[:, None]
+        self.pad = pad
+        self.rank_l = np.empty((n, c))
+        np.put_along_axis(self.rank_l, np.argsort(self.L, axis=1, kind="stable"),
+                          np.arange(c, dtype=np.float64)[None, :], 1)  # fmt: skip
+        self.offset = offset
+        self.same = self.labels[:, None] == self.labels[None, :]
+        self.size = self.same.sum(axis=1) - 1  # relevant results per query
+
+    def others(self, x: FloatArray) -> FloatArray:
+        """(n, K - 1) ``x`` over each query's candidates without the query itself."""
+        return x[~self.own].reshape(len(x), -1) if self.own.any(axis=1).all() else x[:, 1:]
+
+    def nearest(self, c: int) -> tuple[FloatArray, FloatArray]:
+        """(n, c) stored and light field distances of each shape's ``c`` nearest others.
+
+        In the stored distance's order (ties by id), the shape left out, as the index
+        hands them to :func:`query.lightfield_spread.local_spreads`.
+        """
+        n = len(self.rows)
+        c = min(c, n - 1)
+        head = self.order[:, : c + 1]
+        keep = head != np.arange(n)[:, None]
+        keep[keep.all(axis=1), -1] = False  # the shape not among them: its c first
+        idx = head[keep].reshape(n, c)
+        return np.take_along_axis(self._d4, idx, 1), np.take_along_axis(self._dl, idx, 1)
+
+    def overlap(self, m: int) -> FloatArray:
+        """(n,) share of the query's ``m`` nearest others common to both distances."""
+        cand = self.others(self.cand.astype(np.float64)).astype(np.int64)
+        ll = self.others(self.L)
+        a = cand[:, :m]
+        b = np.take_along_axis(cand, np.argsort(ll, axis=1, kind="stable")[:, :m], 1)
+        return np.array([len(np.intersect1d(x, y)) / m for x, y in zip(a, b, strict=True)])
+
+    def spread(self, typical: float = 18.03) -> FloatArray:
+        """(n,) the product's ``s_q``: median light field over median stored distance."""
+        return np.median(self.others(self.L), 1) / typical / np.median(self.others(self.D), 1)
+
+    def spearman(self) -> FloatArray:
+        """(n,) rank correlation of the two distances over the query's other candidates."""
+        a = np.argsort(np.argsort(self.others(self.D), 1, kind="stable"), 1).astype(float)
+        b = np.argsort(np.argsort(self.others(self.L), 1, kind="stable"), 1).astype(float)
+        a -= a.mean(1, keepdims=True)
+        b -= b.mean(1, keepdims=True)
+        return (a * b).sum(1) / np.sqrt((a * a).sum(1) * (b * b).sum(1))
+
+    def rankings(self, weight: FloatArray) -> NDArray[np.int64]:
+        """(n, n) each query's whole list (store positions) at per-query weights ``weight``.
+
+        ``weight`` (n,): the weight of the light field's rank term (``w g(q)``); inf
+        ranks by the light field alone among the candidates. Past the K candidates the
+        list keeps the stored-distance order.
+        """
+        n, k = self.cand.shape
+        rank_d = np.arange(k, dtype=np.float64)[None, :]
+        w = np.asarray(weight, np.float64)[:, None]
+        alone = np.isinf(w[:, 0])
+        fused = 1.0 / (self.offset + rank_d) + np.where(alone[:, None], 0.0,
+                                                       w / (self.offset + self.rank_l))  # fmt: skip
+        fused[alone] = 1.0 / (self.offset + self.rank_l[alone])
+        ids = self.cand
+        if not self.pad.any():
+            head = np.take_along_axis(ids, np.lexsort((ids, -fused), axis=-1), 1)
+        else:  # the padding keeps its list order after the candidates
+            at = np.broadcast_to(np.arange(k, dtype=np.float64), ids.shape)
+            keys = (
+                np.where(self.pad, at, ids),
+                np.where(self.pad, at, -fused),
+                self.pad.astype(int),
+            )
+            head = np.take_along_axis(ids, np.lexsort(keys, axis=-1), 1)
+        return np.concatenate([head, self.listing[:, k:]], axis=1)
+
+    def measures(self, weight: FloatArray) -> FloatArray:
+        """(n, 3) NN, 1-T, DCG of every query at per-query weights ``weight`` (:meth:`rankings`)."""
+        n = len(self.cand)
+        full = self.rankings(weight)
+        hit = np.take_along_axis(self.same, full, 1)
+        hit[full == np.arange(n)[:, None]] = False
+        keep = full != np.arange(n)[:, None]
+        hit = hit[keep].reshape(n, -1)
+        c = np.maximum(self.size, 1)
+        disc = np.ones(n - 1)
+        disc[1:] = 1.0 / np.log2(np.arange(2, n))
+        ideal = np.cumsum(disc)
+        tier = np.array([hit[i, : c[i]].sum() for i in range(n)]) / c
+        out = np.stack([hit[:, 0].astype(float), tier, (hit * disc).sum(1) / ideal[c - 1]], 1)
+        out[self.size < 1] = np.nan
+        return out
+
+    def per_set(self, m: FloatArray) -> dict[str, dict[str, float]]:
+        """Mean NN, 1-T, DCG per set of the store."""
+        out = {}
+        for s in dict.fromkeys(self.sets):
+            rows = (self.sets == s) & np.isfinite(m[:, 0])
+            out[str(s)] = {k: float(m[rows, j].mean()) for j, k in enumerate(MEASURES)}
+        return out
+
+
+def local_spreads(st: Store, candidates: int, typical: float, ratio_weight: float = 0.0,
+                  ratio_candidates: int = 100) -> FloatArray:  # fmt: skip
+    """(n,) each stored shape's local statistic (:func:`query.lightfield_spread.local_statistic`).
+
+    The local spread over its ``candidates`` nearest others, times the ratio to the
+    power ``ratio_weight`` (the spread's power ``1 - ratio_weight``).
+    """
+    reach = max(candidates, ratio_candidates) if ratio_weight > 0 else candidates
+    d, ll = st.nearest(reach)
+    near = np.median(ll[:, :candidates], 1)
+    out = np.ones(len(d))
+    if ratio_weight < 1:
+        spread = near / typical / np.maximum(np.median(d[:, :candidates], 1), 1e-300)
+        out *= spread ** (1.0 - ratio_weight)
+    if ratio_weight > 0:
+        best = np.median(np.sort(ll, 1)[:, :candidates], 1)
+        out *= (near / np.maximum(best, 1e-300)) ** ratio_weight
+    return out
+
+
+def gate_statistic(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
+    """(n,) ``s_q`` of :class:`shapedb.config.LightFieldFusionConfig` ``f`` for every query.
+
+    ``memo``: results kept by store and the fields they read (a grid reuses them).
+    """
+    key = (id(st), f.spread_candidates, f.typical, f.ratio_weight,
+           f.ratio_candidates if f.ratio_weight > 0 else 0, f.pool, f.pool_quantile)  # fmt: skip
+    if memo is not None and key in memo:
+        return memo[key]
+    s = local_spreads(st, f.spread_candidates, f.typical, f.ratio_weight, f.ratio_candidates)
+    if f.pool > 0:
+        s = pooled(s[st.cand[:, : f.pool]], f.pool_quantile)
+    if memo is not None:
+        memo[key] = s
+    return s
+
+
+def gate_margin(stores: dict[str, Store], f: Any,
+                memo: dict[Any, FloatArray] | None = None) -> dict[str, float]:  # fmt: skip
+    """:func:`margin` of ``f``'s pooled statistic over every set in every store."""
+    return margin({(k, str(s)): gate_statistic(st, f, memo)[st.sets == s]
+                   for k, st in stores.items() for s in dict.fromkeys(st.sets)})  # fmt: skip
+
+
+def gate_weights(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
+    """(n,) ``weight * g(q)`` of :class:`shapedb.config.LightFieldFusionConfig` ``f``.
+
+    ``memo``: the pooled statistics already computed, by store and the fields they read.
+    """
+    n = len(st.rows)
+    g = np.ones(n)
+    if f.power > 0:
+        g *= st.overlap(f.neighbours) ** f.power
+    if f.ceiling > 0:
+        g *= np.clip((f.ceiling - gate_statistic(st, f, memo)) / f.ramp, 0.0, 1.0)
+    if f.contrast_floor > 0:
+        d = st.others(st.D)
+        far = d[:, min(f.contrast_depth, d.shape[1]) - 1]
+        t = np.median(d[:, : f.neighbours], 1) / np.maximum(far, 1e-300)
+        g *= np.clip((t - f.contrast_floor) / f.contrast_ramp, 0.0, 1.0)
+    return f.weight * g
+
+
+def score_row(stores: dict[str, Store], weights: dict[str, FloatArray],
+         base: dict[str, dict[str, dict[str, float]]]) -> dict[str, Any]:  # fmt: skip
+    """Scores per store and set, the worst loss in queries against v4, the objective."""
+    entry: dict[str, Any] = {"stores": {}, "worst_queries": 0.0, "worst_at": None}
+    for name, st in stores.items():
+        per = st.per_set(st.measures(weights[name]))
+        entry["stores"][name] = per
+        for s, v in per.items():
+            n = int((st.sets == s).sum())
+            loss = min((v[m] - base[name][s][m]) * n for m in MEASURES)
+            if loss < entry["worst_queries"] - 1e-9:
+                entry["worst_queries"], entry["worst_at"] = float(loss), f"{name}: {s}"
+    entry["objective"] = float(np.mean(
+        [np.mean([entry["stores"][s][s][m] for m in MEASURES]) for s in CHOICES if s in stores]
+    ))  # fmt: skip
+    entry["passes"] = entry["worst_queries"] >= -2.0 - 1e-9
+    return entry
