@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from bench.field_vectors import CHOSEN
 from bench.gate_checks import ANALYTIC, chain
 from bench.lightfield_gate import Store, gate_weights
 from bench.lightfield_gate import local_spreads as local_spreads_of
@@ -124,14 +125,11 @@ def _gates(db: Any) -> np.ndarray:
     return np.asarray(out)
 
 
-@pytest.fixture(scope="module")
-def stores(tmp_path_factory: pytest.TempPathFactory,
-           forget: Callable[[Any], None]) -> Iterator[dict[str, Any]]:  # fmt: skip
-    """Two stores at the stage's defaults: rigid boxes and rods, and one chain in 8 poses."""
+def _analytic(root: Path, **options: Any) -> dict[str, Any]:
+    """Two stores: rigid boxes and rods, and one chain in 8 poses (the bench's analytic stores)."""
     import shapedb.database as database
 
-    config = Config().with_options(**ANALYTIC)
-    root = tmp_path_factory.mktemp("spread")
+    config = Config().with_options(**ANALYTIC, **options)
     rigid = database.connect(root / "rigid", config=config)
     rigid.ingest([(f"box{k}", Box((0, 0, 0), (2.0 + 0.15 * k, 1.0, 0.6 + 0.05 * k)))
                   for k in range(4)] + [(f"rod{k}", Capsule((0, 0, 0), (3.0 + 0.2 * k, 0, 0), 0.4))
@@ -139,9 +137,17 @@ def stores(tmp_path_factory: pytest.TempPathFactory,
     jointed = database.connect(root / "chain", config=config)
     poses = [(a, b) for a in (0.0, 0.5, 1.0, 1.5) for b in (-0.8, 0.8)]
     jointed.ingest([(f"pose{k}", chain(a, b)) for k, (a, b) in enumerate(poses)], workers=1)
-    yield {"rigid": rigid, "chain": jointed}
-    forget(rigid)
-    forget(jointed)
+    return {"rigid": rigid, "chain": jointed}
+
+
+@pytest.fixture(scope="module")
+def stores(tmp_path_factory: pytest.TempPathFactory,
+           forget: Callable[[Any], None]) -> Iterator[dict[str, Any]]:  # fmt: skip
+    """The analytic stores at the stage's defaults, on the light field distance alone."""
+    got = _analytic(tmp_path_factory.mktemp("spread"), fv_enabled=False)
+    yield got
+    for db in got.values():
+        forget(db)
 
 
 def test_rigid_shapes_turn_the_light_field_on_and_a_chain_in_poses_turns_it_off(
@@ -150,6 +156,26 @@ def test_rigid_shapes_turn_the_light_field_on_and_a_chain_in_poses_turns_it_off(
     rigid, chain = _gates(stores["rigid"]), _gates(stores["chain"])
     assert np.count_nonzero(rigid) >= 6, rigid
     assert np.count_nonzero(chain) == 0, chain
+
+
+def test_on_the_fused_distance_the_chosen_stage_keeps_the_chain_shut(
+    tmp_path: Path, forget: Callable[[Any], None]
+) -> None:
+    # engineer C's choice on validation (bench.field_vectors.CHOSEN, contrast ramp 0.05):
+    # the stored spreads, the gate and the ranks read the fused distance
+    c = CHOSEN
+    got = _analytic(
+        tmp_path, fv_enabled=True, lf_field_depth_weight=c.depth_weight,
+        lf_field_harmonic_weight=c.harmonic_weight, lf_light_field_scale=c.light_field_scale,
+        lf_field_depth_scale=c.depth_scale, lf_field_harmonic_scale=c.harmonic_scale,
+        lf_field_candidates=c.candidates, lf_contrast_ramp=0.05,
+    )  # fmt: skip
+    assert LightFieldFusion(got["chain"].config).field.active
+    rigid, chain = _gates(got["rigid"]), _gates(got["chain"])
+    assert np.count_nonzero(rigid) >= 6, rigid
+    assert np.count_nonzero(chain) == 0, chain
+    for db in got.values():
+        forget(db)
 
 
 def test_the_spreads_are_kept_with_the_store_at_its_version(stores: dict[str, Any]) -> None:
