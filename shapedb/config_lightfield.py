@@ -305,23 +305,25 @@ class LightFieldFusionConfig:
         )
 
 
-#: ``(m_l, m_b, m_h)`` of :func:`product_light_field_fusion`: the medians, over the web
-#: validation split's off-diagonal pairs, of the light field distance (the field's, 3 x
-#: 128 px), the depth buffer L1 and the harmonic L1 of the default field vector.
-PRODUCT_SCALES = (22.88, 6.995, 2.828)
+#: ``(m_l, m_b, m_h)`` of :func:`product_light_field_fusion`: the medians of the light field
+#: distance (the field's, 3 x 128 px), the depth buffer L1 and the harmonic L1 of the default
+#: field vector over each validation set's off-diagonal pairs, then the median of the six sets.
+PRODUCT_SCALES = (20.67, 6.045, 2.168)
 
 
 def product_light_field_fusion() -> LightFieldFusionConfig:
     """The fusion a new store's ``"lightfield"`` scorer uses: the defaults of
     :class:`LightFieldFusionConfig` with the field vectors fused into the light field
-    distance and their index's nearest among the candidates (provisional weights 0.5 and
-    0.5, 100 field candidates; the scales are the median off-diagonal distances of the
-    web validation split, docs/results.md, "The field vector in the store")."""
+    distance (weights 0.25 and 0.25, the scales :data:`PRODUCT_SCALES`), their index's 200
+    nearest added to the candidates, and the gate's contrast ramp at 0.05. Chosen on the
+    validation splits (docs/results.md, "The field vectors in the stage: the choice and the
+    rows")."""
     return LightFieldFusionConfig(
-        field_depth_weight=0.5,
-        field_harmonic_weight=0.5,
+        field_depth_weight=0.25,
+        field_harmonic_weight=0.25,
         light_field_scale=PRODUCT_SCALES[0],
         field_depth_scale=PRODUCT_SCALES[1],
         field_harmonic_scale=PRODUCT_SCALES[2],
-        field_candidates=100,
+        field_candidates=200,
+        contrast_ramp=0.05,
     )

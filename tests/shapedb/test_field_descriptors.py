@@ -227,5 +227,6 @@ def test_new_stores_keep_field_vectors_only_beside_the_fields_light_fields() -> 
     assert not Config().with_options(lf_source="balls").stores_field_vectors
     assert not Config().with_options(rerank="none").stores_field_vectors
     fusion = Config().lf_fusion
-    assert fusion.field_candidates == 100
-    assert (fusion.field_depth_weight, fusion.field_harmonic_weight) == (0.5, 0.5)
+    assert fusion.field_candidates == 200
+    assert (fusion.field_depth_weight, fusion.field_harmonic_weight) == (0.25, 0.25)
+    assert fusion.contrast_ramp == 0.05

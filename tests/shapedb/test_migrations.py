@@ -274,7 +274,12 @@ def test_stores_written_before_the_field_vectors_keep_none_and_fuse_none() -> No
     fusion = old.lf_fusion
     assert (fusion.field_depth_weight, fusion.field_harmonic_weight) == (0.0, 0.0)
     assert fusion.field_candidates == 0
-    assert replace(fusion, field_depth_weight=0.0) == LightFieldFusionConfig()
+    default = LightFieldFusionConfig()
+    assert fusion == replace(new.lf_fusion, **{
+        name: getattr(default, name)
+        for name in ("field_depth_weight", "field_harmonic_weight", "light_field_scale",
+                     "field_depth_scale", "field_harmonic_scale", "field_candidates")
+    })  # fmt: skip
     # everything else as the store wrote it
     assert replace(old, lf_fusion=new.lf_fusion, field_vector=new.field_vector) == new
     # a layout-3 store: neither light fields nor field vectors
