@@ -26,8 +26,8 @@ stored distance's order.
 light field distance replaced by the fused one, the scaled vectors' distance kept for
 the candidates); :class:`bench.gate_stores.Store` takes the union. The vectors of
 the bench models (:func:`shapedb.field_descriptors.field_vector`) come from the field
-shells cached by :mod:`bench.studies.field_depth`
-(``$SHAPEDB_BENCH_CACHE/field_depth``, ``--fill`` there) and are cached under
+shells cached by :mod:`bench.field_shells`
+(``$SHAPEDB_BENCH_CACHE/field_depth``, computed by :func:`bench.field_shells.fill` when missing) and are cached under
 ``$SHAPEDB_BENCH_CACHE/field_vectors``. :func:`analytic_distance` gives the analytic
 stores of :mod:`bench.gate_checks` the same fused distance, so the analytic chain is
 checked on it. The choice of the scales, the weights and ``K2`` on validation is
@@ -135,7 +135,7 @@ def set_vectors(name: str, split: str) -> NDArray[np.float32]:
     Read from the cache, else computed from the study's cached shells (computing the
     shells the cache lacks).
     """
-    from bench.studies.field_depth import shells
+    from bench.field_shells import shells
 
     ds, _ = load(name, split)
     fn, code = _describer()

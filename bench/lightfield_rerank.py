@@ -23,7 +23,7 @@ the same run:
   spreads computed over the set as a store computes them
   (:func:`query.lightfield_spread.local_spreads`); with the field's light fields and the
   field vectors on (the default), the field vectors too (:func:`field_vectors`, of the
-  shells cached by :mod:`bench.studies.field_depth`): the fused distance and the union
+  shells cached by :mod:`bench.field_shells`): the fused distance and the union
   candidates (:mod:`query.field_fusion`, :mod:`query.field_index`);
 * ``lightfield (spread gate)``: the same with the gate before the ratio (the pooled
   local spread alone, :data:`SPREAD_GATE`), without the field vectors;
@@ -136,8 +136,8 @@ class Arrays:
 def field_vectors(ds: Any, config: Config) -> np.ndarray:
     """(n, d) float32 field vectors of ``ds``'s models as a store keeps them:
     :func:`shapedb.field_descriptors.field_vector` of the field's inside cached by
-    :func:`bench.studies.field_depth.shells`."""
-    from bench.studies.field_depth import shells
+    :func:`bench.field_shells.shells`."""
+    from bench.field_shells import shells
     from shapedb.field_descriptors import field_vector
     from shapedb.inside import Inside
 

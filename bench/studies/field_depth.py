@@ -10,7 +10,7 @@ Usage (from the repository root)::
 
 For each model of a split (those :func:`bench.cached.load` has): the field of
 :func:`shapedb.mdbd.prepare_field` and its inside (:func:`shapedb.inside.field_inside`,
-its shell cells), cached under ``$SHAPEDB_BENCH_CACHE/field_depth``. From the shell (the
+its shell cells), cached by :mod:`bench.field_shells`. From the shell (the
 descriptors the product stores, :mod:`shapedb.field_descriptors`):
 
 - :func:`depth_buffer_descriptor` (Vranic's DBD): the cells in their principal frame,
@@ -35,7 +35,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import inspect
-import os
 import sys
 import time
 from collections.abc import Sequence
@@ -45,86 +44,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from bench.cached import CHOICES, ENGINE_COMMITS, load
-from bench.common import cache_path, format_table, retrieval_scores, write_json
-from bench.datasets import CACHE_DIR, Dataset
-from bench.inside_fields import model_inside
+from bench.cached import CHOICES, load
+from bench.common import format_table, retrieval_scores, write_json
+from bench.field_shells import FOLDER, fill, shells
 from shapedb import field_descriptors
-from shapedb.config import FieldVectorConfig, MDBDConfig
+from shapedb.config import FieldVectorConfig
 from shapedb.field_descriptors import spherical_coordinates
 
 FloatArray = NDArray[np.float64]
-#: Bump when the cached shells change.
-VERSION = "v1"
-FOLDER = CACHE_DIR / "field_depth"
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
-
-
-# --------------------------------------------------------------------------------------
-# Cached shells of the field's inside
-# --------------------------------------------------------------------------------------
-
-
-def _paths(model: Any) -> list[Path]:
-    """Today's cache path of a model's shell, then those of the older engines
-    (:data:`bench.cached.ENGINE_COMMITS`, whose fields are today's)."""
-    cfg = MDBDConfig()
-    keys = [cache_path(model, "mesh", cfg).stem]
-    keys += [cache_path(model, "mesh", cfg, engine_commit=c).stem for c in ENGINE_COMMITS]
-    return [FOLDER / f"{k}_{VERSION}.npz" for k in keys]
-
-
-def _path(model: Any) -> Path:
-    """The model's cached shell if any engine's exists, else today's path."""
-    paths = _paths(model)
-    return next((p for p in paths if p.exists()), paths[0])
-
-
-def _compute(args: tuple[Any, str]) -> str | None:
-    """Worker: the model's field and its inside's shell, written to ``path``."""
-    model, path = args
-    try:
-        inside, field_cpu = model_inside(model)
-        tmp = f"{path}.{os.getpid()}.tmp.npz"
-        np.savez_compressed(
-            tmp, shell=inside.shell.astype(np.float32), cell=np.float64(inside.cell),
-            centroid=inside.centroid, count=np.int64(inside.count),
-            field_cpu=np.float64(field_cpu),
-        )  # fmt: skip
-        Path(tmp).replace(path)
-    except Exception as exc:  # noqa: BLE001 - reported per model, the run goes on
-        return f"{model.name}: {type(exc).__name__}: {exc}"
-    return None
-
-
-def fill(ds: Dataset, *, workers: int = 2) -> None:
-    """Compute the shells the cache lacks for ``ds``'s models."""
-    from concurrent.futures import ProcessPoolExecutor
-
-    FOLDER.mkdir(parents=True, exist_ok=True)
-    todo = [(m, str(_path(m))) for m in ds.models if not _path(m).exists()]
-    if not todo:
-        return
-    t0 = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        for err in pool.map(_compute, todo, chunksize=2):
-            if err:
-                print(f"  failed {err}", flush=True)
-    print(f"  {len(todo)} shells computed ({time.perf_counter() - t0:.0f} s)", flush=True)
-
-
-def shells(ds: Dataset, *, workers: int = 2) -> list[dict[str, Any]]:
-    """Per model of ``ds``: its cached shell (``shell`` (s, 3), ``cell``, ``centroid``,
-    ``count``, ``field_cpu``), computing what the cache lacks."""
-    fill(ds, workers=workers)
-    out = []
-    for m in ds.models:
-        p = _path(m)
-        if not p.exists():
-            raise ValueError(f"no field shell for {m.name}")
-        with np.load(p) as z:
-            out.append({k: np.asarray(z[k]) for k in z.files})
-    return out
 
 
 # --------------------------------------------------------------------------------------
