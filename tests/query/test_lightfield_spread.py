@@ -161,7 +161,7 @@ def test_rigid_shapes_turn_the_light_field_on_and_a_chain_in_poses_turns_it_off(
 def test_on_the_fused_distance_the_chosen_stage_keeps_the_chain_shut(
     tmp_path: Path, forget: Callable[[Any], None]
 ) -> None:
-    # engineer C's choice on validation (bench.field_vectors.CHOSEN, contrast ramp 0.05):
+    # the choice on validation (bench.field_vectors.CHOSEN, contrast ramp 0.05):
     # the stored spreads, the gate and the ranks read the fused distance
     c = CHOSEN
     got = _analytic(
