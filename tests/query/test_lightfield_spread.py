@@ -11,7 +11,6 @@ from typing import Any
 import numpy as np
 import pytest
 
-from bench.field_vectors import CHOSEN
 from bench.gate_checks import ANALYTIC, chain
 from bench.lightfield_gate import Store, gate_weights
 from bench.lightfield_gate import local_spreads as local_spreads_of
@@ -158,18 +157,13 @@ def test_rigid_shapes_turn_the_light_field_on_and_a_chain_in_poses_turns_it_off(
     assert np.count_nonzero(chain) == 0, chain
 
 
-def test_on_the_fused_distance_the_chosen_stage_keeps_the_chain_shut(
+def test_on_the_fused_distance_the_product_stage_keeps_the_chain_shut(
     tmp_path: Path, forget: Callable[[Any], None]
 ) -> None:
-    # the choice on validation (bench.field_vectors.CHOSEN, contrast ramp 0.05):
-    # the stored spreads, the gate and the ranks read the fused distance
-    c = CHOSEN
-    got = _analytic(
-        tmp_path, fv_enabled=True, lf_field_depth_weight=c.depth_weight,
-        lf_field_harmonic_weight=c.harmonic_weight, lf_light_field_scale=c.light_field_scale,
-        lf_field_depth_scale=c.depth_scale, lf_field_harmonic_scale=c.harmonic_scale,
-        lf_field_candidates=c.candidates, lf_contrast_ramp=0.05,
-    )  # fmt: skip
+    # the product's fusion (chosen on validation): the stored spreads, the gate and the
+    # ranks read the fused distance
+    got = _analytic(tmp_path, fv_enabled=True)
+    assert got["chain"].config.lf_fusion == Config().lf_fusion
     assert LightFieldFusion(got["chain"].config).field.active
     rigid, chain = _gates(got["rigid"]), _gates(got["chain"])
     assert np.count_nonzero(rigid) >= 6, rigid
