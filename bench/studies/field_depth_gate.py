@@ -48,9 +48,10 @@ def _median(d: NDArray[np.float64]) -> float:
     return float(np.median(d[~np.eye(len(d), dtype=bool)]))
 
 
-def fused_split(split: str, names: Sequence[str], dbd: float, shd: float) -> Split:
-    """The gate bench's :class:`Split` with its light field distance fused as above."""
-    out = Split(split, names)
+def field_matrices(
+    split: str, names: Sequence[str]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(n, n) L1 distances of the depth buffers and of the harmonics over the sets' models."""
     all_shells, keys = [], []
     for name in names:
         ds, _ = load(name, split)
@@ -58,6 +59,13 @@ def fused_split(split: str, names: Sequence[str], dbd: float, shd: float) -> Spl
         keys += [f"{name}:{m.name}{m.source}" for m in ds.models]
     b, _ = descriptor_matrix(DBD, all_shells, keys)
     h, _ = descriptor_matrix(SHD, all_shells, keys)
+    return b, h
+
+
+def fused_split(split: str, names: Sequence[str], dbd: float, shd: float) -> Split:
+    """The gate bench's :class:`Split` with its light field distance fused as above."""
+    out = Split(split, names)
+    b, h = field_matrices(split, names)
     if b.shape != out.dl.shape:
         raise ValueError(f"{b.shape[0]} shells for {out.dl.shape[0]} light fields")
     m = _median(out.dl)
@@ -73,13 +81,7 @@ def candidates(split: str, names: Sequence[str], dbd: float, shd: float) -> dict
     the union of version 4's 100 and that index's 100."""
     base = Split(split, names)
     fused = fused_split(split, names, dbd, shd).dl
-    all_shells, keys = [], []
-    for name in names:
-        ds, _ = load(name, split)
-        all_shells += shells(ds)
-        keys += [f"{name}:{m.name}{m.source}" for m in ds.models]
-    b, _ = descriptor_matrix(DBD, all_shells, keys)
-    h, _ = descriptor_matrix(SHD, all_shells, keys)
+    b, h = field_matrices(split, names)
     vec = b / _median(b) + h / _median(h)
     rules = {
         "whole store": lambda d4, v, i: np.arange(len(d4)),
