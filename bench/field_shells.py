@@ -1,9 +1,8 @@
 """The shells of each model's field inside (the cells the field vector reads), cached.
 
 :func:`shells` gives a split's models (those :func:`bench.cached.load` has, in its order)
-the shell cells of the inside of their MDBD field (:func:`bench.inside_fields.model_inside`:
-the field of :func:`shapedb.mdbd.prepare_field`, its inside by
-:func:`shapedb.inside.field_inside`), with the cell edge, the volume centroid, the inside
+the shell cells of the inside of their MDBD field (:func:`model_inside`: the field of
+:func:`shapedb.mdbd.prepare_field`, its inside by :func:`shapedb.inside.field_inside`), with the cell edge, the volume centroid, the inside
 cell count and the field's CPU seconds: what :func:`shapedb.field_descriptors.field_vector`
 reads. Cached under ``$SHAPEDB_BENCH_CACHE/field_depth`` keyed by the model's cache key of
 :func:`bench.common.cache_path` (the older engines of :data:`bench.cached.ENGINE_COMMITS`
@@ -22,14 +21,34 @@ import numpy as np
 from bench.cached import ENGINE_COMMITS
 from bench.common import cache_path
 from bench.datasets import CACHE_DIR, Dataset
-from bench.inside_fields import model_inside
 from shapedb.config import MDBDConfig
+from shapedb.inside import Inside
 
-__all__ = ["VERSION", "FOLDER", "fill", "shells"]
+__all__ = ["VERSION", "FOLDER", "fill", "shells", "model_inside", "as_inside"]
 
 #: Bump when the cached shells change.
 VERSION = "v1"
 FOLDER = CACHE_DIR / "field_depth"
+
+
+def model_inside(model: Any) -> tuple[Inside, float]:
+    """A bench model's field inside (as ``decompose(keep_inside=True)`` keeps it) and the
+    CPU seconds of its field, at the default :class:`MDBDConfig`."""
+    from bench.common import variant_geometry
+    from shapedb.inside import field_inside
+    from shapedb.mdbd import prepare_field
+
+    cfg = MDBDConfig()
+    c0 = time.process_time()
+    prep = prepare_field(variant_geometry(model, "mesh", cfg), cfg)
+    inside = field_inside(prep.F, prep.grid, prep.frame, prep.scale)
+    return inside, time.process_time() - c0
+
+
+def as_inside(z: Any) -> Inside:
+    """The :class:`shapedb.inside.Inside` of a cached shell (:func:`shells`' dicts)."""
+    return Inside(shell=np.asarray(z["shell"], np.float64), cell=float(z["cell"]),
+                  centroid=np.asarray(z["centroid"], np.float64), count=int(z["count"]))  # fmt: skip
 
 
 def _paths(model: Any) -> list[Path]:

@@ -49,6 +49,7 @@ from numpy.typing import NDArray
 
 from bench.cached import load
 from bench.datasets import CACHE_DIR
+from bench.field_shells import as_inside
 
 #: A :class:`bench.gate_stores.Split` (that module imports this one).
 Split = Any
@@ -117,14 +118,11 @@ def _describer() -> tuple[Callable[[dict[str, Any]], NDArray[np.float32]], bytes
     (:func:`shapedb.field_descriptors.field_vector`) and its code (for the cache key)."""
     from shapedb import field_descriptors as fd
     from shapedb.config_field import FieldVectorConfig
-    from shapedb.inside import Inside
 
     cfg = FieldVectorConfig(enabled=True)
 
     def product(z: dict[str, Any]) -> NDArray[np.float32]:
-        inside = Inside(shell=np.asarray(z["shell"], np.float64), cell=float(z["cell"]),
-                        centroid=np.asarray(z["centroid"], np.float64), count=int(z["count"]))  # fmt: skip
-        return np.asarray(fd.field_vector(inside, cfg), np.float32)
+        return np.asarray(fd.field_vector(as_inside(z), cfg), np.float32)
 
     return product, Path(fd.__file__).read_bytes() + repr(cfg).encode()
 

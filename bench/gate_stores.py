@@ -101,7 +101,10 @@ class Split:
             cfg = cfg.with_options(lf_source=lf_source)
         for kv in lf_set:  # other light-field settings (the field's: bench.inside_fields.cut)
             k, v = kv.split("=", 1)
-            cfg = cfg.with_options(**{f"lf_{k}": float(v) if "." in v else int(v)})
+            value: Any = (
+                v if not v.replace(".", "", 1).isdigit() else float(v) if "." in v else int(v)
+            )
+            cfg = cfg.with_options(**{f"lf_{k}": value})
         lf_n_balls = cfg.light_field.n_balls
         for name in names:
             ds, balls = load(name, split)
@@ -116,7 +119,8 @@ class Split:
             sets += [name] * len(balls)
             labels += [f"{name}:{lab}" for lab in ds.labels]
             tag = f"|n{lf_n_balls}w{lf_within}" if cfg.light_field_tail else ""
-            tag += f"|inside-{inside_fields.VERSION}" if cfg.light_field_inside else ""
+            tag += (f"|inside-{inside_fields.VERSION}-{cfg.light_field.centre}"
+                    if cfg.light_field_inside else "")  # fmt: skip
             tag += f"|{cfg.light_field}" if lf_set else ""
             keys += [m.name + m.source + tag for m in ds.models]
         self.split = split

@@ -9,7 +9,10 @@ benches ask for is cut: 10 light fields at 64 px with the depth images (depth we
 and 10 light fields at 128 px, silhouettes only. Fewer light fields are the first ones
 (:func:`shapedb.lightfield.field_rotations` draws the same turns first), and another
 depth weight rescales the depth block. Other Zernike orders, Fourier settings, seeds
-or fills are not cached (a ``ValueError``).
+or fills are not cached (a ``ValueError``). The renderings about the volume centroid
+(``LightFieldConfig.centre="volume"``) are computed from the model's field; those about
+the shell's mean (``"surface"``) from its cached shell (:mod:`bench.field_shells`), in
+files of their own that record their centre.
 
 Cached under ``$SHAPEDB_BENCH_CACHE/lightfield_inside``, keyed by the model's cache key
 of :func:`bench.common.cache_path` (model, MDBD configuration, engine code; the older
@@ -34,12 +37,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.cached import CHOICES, ENGINE_COMMITS, load
-from bench.common import cache_path, variant_geometry
+from bench.common import cache_path
 from bench.datasets import CACHE_DIR, Dataset
+from bench.field_shells import as_inside, model_inside, shells
 from shapedb.config import LightFieldConfig, MDBDConfig
-from shapedb.inside import Inside
 
-__all__ = ["VERSION", "light_fields", "fill", "cut", "model_inside"]
+__all__ = ["VERSION", "light_fields", "fill", "cut"]
 
 #: Bump when the rendering of the cached light fields changes.
 VERSION = "v1"
@@ -47,70 +50,83 @@ FOLDER = CACHE_DIR / "lightfield_inside"
 _BASE = LightFieldConfig(n_fields=10, resolution=64)
 
 
-def _paths(model: Any) -> list[Path]:
-    """Today's cache path of a model, then those of the older engines."""
+def _paths(model: Any, centre: str = "volume") -> list[Path]:
+    """Today's cache path of a model's renderings about ``centre``, then those of the
+    older engines."""
     cfg = MDBDConfig()
     keys = [cache_path(model, "mesh", cfg).stem]
     keys += [cache_path(model, "mesh", cfg, engine_commit=c).stem for c in ENGINE_COMMITS]
-    return [FOLDER / f"{k}_{VERSION}.npz" for k in keys]
+    tail = "" if centre == "volume" else f"_{centre}"
+    return [FOLDER / f"{k}_{VERSION}{tail}.npz" for k in keys]
 
 
-def model_inside(model: Any) -> tuple[Inside, float]:
-    """A bench model's field inside (as ``decompose(keep_inside=True)`` keeps it) and the
-    CPU seconds of its field, at the default :class:`MDBDConfig`."""
-    from shapedb.inside import field_inside
-    from shapedb.mdbd import prepare_field
+def _render(inside: Any, centre: str, path: str, **extra: Any) -> None:
+    """Both renderings of an inside about ``centre``, written to ``path`` atomically."""
+    from shapedb.lightfield import inside_light_field
 
-    cfg = MDBDConfig()
-    c0 = time.process_time()
-    prep = prepare_field(variant_geometry(model, "mesh", cfg), cfg)
-    inside = field_inside(prep.F, prep.grid, prep.frame, prep.scale)
-    return inside, time.process_time() - c0
+    base = replace(_BASE, centre=centre)
+    c1 = time.process_time()
+    lf64 = inside_light_field(inside, replace(base, depth_weight=1.0))
+    c2 = time.process_time()
+    lf128 = inside_light_field(inside, replace(base, resolution=128))
+    c3 = time.process_time()
+    tmp = f"{path}.{os.getpid()}.tmp.npz"
+    np.savez_compressed(
+        tmp, lf64=lf64, lf128=lf128, shell=np.int64(len(inside.shell)),
+        count=np.int64(inside.count), render64_cpu=np.float64(c2 - c1),
+        render128_cpu=np.float64(c3 - c2), centre=np.str_(centre), **extra,
+    )  # fmt: skip
+    Path(tmp).replace(path)
 
 
 def _compute(args: tuple[Any, str]) -> str | None:
-    """Worker: the model's field, its inside and both renderings; written to ``path``."""
-    from shapedb.lightfield import inside_light_field
-
+    """Worker: the model's field, its inside and both renderings about the volume
+    centroid; written to ``path``."""
     model, path = args
     try:
         inside, field_cpu = model_inside(model)
-        c1 = time.process_time()
-        lf64 = inside_light_field(inside, replace(_BASE, depth_weight=1.0))
-        c2 = time.process_time()
-        lf128 = inside_light_field(inside, replace(_BASE, resolution=128))
-        c3 = time.process_time()
-        tmp = f"{path}.{os.getpid()}.tmp.npz"
-        np.savez_compressed(
-            tmp, lf64=lf64, lf128=lf128, shell=np.int64(len(inside.shell)),
-            count=np.int64(inside.count), field_cpu=np.float64(field_cpu),
-            render64_cpu=np.float64(c2 - c1), render128_cpu=np.float64(c3 - c2),
-        )  # fmt: skip
-        Path(tmp).replace(path)
+        _render(inside, "volume", path, field_cpu=np.float64(field_cpu))
     except Exception as exc:  # noqa: BLE001 - reported per model, the run goes on
         return f"{model.name}: {type(exc).__name__}: {exc}"
     return None
 
 
-def fill(name: str, split: str, *, workers: int = 2) -> Dataset:
-    """Compute what the cache lacks for a split's models (those :func:`load` has)."""
+def _compute_shell(args: tuple[Any, dict[str, Any], str, str]) -> str | None:
+    """Worker: both renderings of a cached shell about ``centre``; written to ``path``."""
+    name, z, centre, path = args
+    try:
+        _render(as_inside(z), centre, path, field_cpu=np.float64(z["field_cpu"]))
+    except Exception as exc:  # noqa: BLE001 - reported per model, the run goes on
+        return f"{name}: {type(exc).__name__}: {exc}"
+    return None
+
+
+def fill(name: str, split: str, *, workers: int = 2, centre: str = "volume") -> Dataset:
+    """Compute what the cache lacks for a split's models (those :func:`load` has), about
+    ``centre`` (``LightFieldConfig.centre``)."""
     from concurrent.futures import ProcessPoolExecutor
 
     ds, _ = load(name, split)
     FOLDER.mkdir(parents=True, exist_ok=True)
-    todo = []
-    for m in ds.models:
-        paths = _paths(m)
-        if not any(p.exists() for p in paths):
-            todo.append((m, str(paths[0])))
-    if todo:
-        t0 = time.perf_counter()
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            for err in pool.map(_compute, todo, chunksize=2):
-                if err:
-                    print(f"  failed {err}", flush=True)
-        print(f"  {name} {split}: {len(todo)} fields rendered "
-              f"({time.perf_counter() - t0:.0f} s)", flush=True)  # fmt: skip
+    missing = [i for i, m in enumerate(ds.models)
+               if not any(p.exists() for p in _paths(m, centre))]  # fmt: skip
+    if not missing:
+        return ds
+    t0 = time.perf_counter()
+    if centre == "volume":
+        fn: Any = _compute
+        todo: list[Any] = [(ds.models[i], str(_paths(ds.models[i])[0])) for i in missing]
+    else:  # from the cached shells (computing those the shell cache lacks)
+        got = shells(ds, workers=workers)
+        fn = _compute_shell
+        todo = [(ds.models[i].name, got[i], centre, str(_paths(ds.models[i], centre)[0]))
+                for i in missing]  # fmt: skip
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        for err in pool.map(fn, todo, chunksize=2):
+            if err:
+                print(f"  failed {err}", flush=True)
+    print(f"  {name} {split}: {len(todo)} fields rendered about the {centre} centre "
+          f"({time.perf_counter() - t0:.0f} s)", flush=True)  # fmt: skip
     return ds
 
 
@@ -121,12 +137,17 @@ def cut(z: Any, config: LightFieldConfig) -> NDArray[np.float32]:
     ------
     ValueError
         If ``config`` differs from the cached renderings in anything but ``n_fields``,
-        ``resolution`` (64 or 128), ``depth_weight`` (64 px only) and the fills.
+        ``resolution`` (64 or 128), ``depth_weight`` (64 px only) and the fills, or sees
+        the field about another centre (renderings without a recorded centre are the
+        volume centroid's).
     """
     fixed = ("zernike_order", "fourier", "angles", "fourier_weight", "seed", "dilate_px",
              "close_px")  # fmt: skip
     if any(getattr(config, f) != getattr(_BASE, f) for f in fixed):
         raise ValueError(f"light fields of {config} are not cached")
+    centre = str(z["centre"]) if "centre" in z else "volume"
+    if config.centre != centre:
+        raise ValueError(f"light fields of {config} are not cached (rendered about the {centre})")
     k = config.n_fields
     if config.resolution == 128 and config.depth_weight == 0:
         return np.asarray(z["lf128"][:k])
@@ -153,10 +174,11 @@ def light_fields(
     ValueError
         If a model's field could not be computed, or ``config`` is not cached (:func:`cut`).
     """
-    found = [next((p for p in _paths(m) if p.exists()), None) for m in ds.models]
+    centre = config.centre
+    found = [next((p for p in _paths(m, centre) if p.exists()), None) for m in ds.models]
     if any(p is None for p in found):
-        fill(name, split, workers=workers)
-        found = [next((p for p in _paths(m) if p.exists()), None) for m in ds.models]
+        fill(name, split, workers=workers, centre=centre)
+        found = [next((p for p in _paths(m, centre) if p.exists()), None) for m in ds.models]
     rows = []
     for m, p in zip(ds.models, found, strict=True):
         if p is None:
@@ -185,12 +207,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--split", nargs="+", default=["validation"], choices=["validation", "test"])
     ap.add_argument("--datasets", nargs="+", default=["web"], choices=CHOICES)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument(
+        "--centre",
+        default="surface",
+        choices=["volume", "surface"],
+        help="the centre the field is seen about (LightFieldConfig.centre)",
+    )
     args = ap.parse_args(argv)
     for split in args.split:
         for name in args.datasets:
             if name in ("webplus",) and split != "test":
                 continue
-            ds = fill(name, split, workers=args.workers)
+            ds = fill(name, split, workers=args.workers, centre=args.centre)
             print(f"{name} {split}: {len(ds)} models, medians {cpu(name, split, ds)}", flush=True)
     return 0
 

@@ -23,6 +23,7 @@ __all__ = [
     "LightFieldConfig",
     "LightFieldFusionConfig",
     "SOURCES",
+    "CENTRES",
     "product_light_field",
     "product_light_field_fusion",
     "PRODUCT_SCALES",
@@ -30,6 +31,8 @@ __all__ = [
 
 #: What a light field can see (``LightFieldConfig.source``).
 SOURCES = ("balls", "field")
+#: About which point the field's inside is seen (``LightFieldConfig.centre``).
+CENTRES = ("volume", "surface")
 
 
 @dataclass(frozen=True)
@@ -78,7 +81,14 @@ class LightFieldConfig:
         half a cell, :mod:`shapedb.inside`), which keeps the sheets thinner than the
         smallest ball; ``decompose(keep_inside=True)`` keeps it in memory
         (:attr:`Config.light_field_inside`). Both are normalised alike: about the
-        solid's volume centroid, the farthest far side on the unit sphere.
+        solid's volume centroid (for the field, see ``centre``), the farthest far side on
+        the unit sphere.
+    centre : str
+        The point the field's inside is seen about (``source="field"`` only; a ball
+        union is always seen about its volume centroid). ``"volume"``: the centroid of
+        all the inside cells. ``"surface"``: the mean of the shell cells (the surface as
+        the grid sees it, as a mesh light field descriptor centres on its surface), which
+        a thin sheet or wall pulls as much as a bulky part of the same area.
     """
 
     n_fields: int = 10
@@ -94,6 +104,7 @@ class LightFieldConfig:
     close_px: int = 0
     n_balls: int = 0
     source: str = "balls"
+    centre: str = "volume"
 
     def __post_init__(self) -> None:
         ints = {"n_fields": (1, 10), "resolution": (16, 256), "zernike_order": (2, 16)}
@@ -120,15 +131,19 @@ class LightFieldConfig:
         _check(ok, "lf_n_balls", self.n_balls, "must be an integer in [0, 100000]")
         ok = isinstance(self.source, str) and self.source in SOURCES
         _check(ok, "lf_source", self.source, f"must be one of {', '.join(SOURCES)}")
+        ok = isinstance(self.centre, str) and self.centre in CENTRES
+        _check(ok, "lf_centre", self.centre, f"must be one of {', '.join(CENTRES)}")
 
 
 def product_light_field() -> LightFieldConfig:
     """The light fields a new store keeps: 3 light fields of 128 px, silhouettes only, of
-    the inside of the decomposition's field (``source="field"``); with ``lf_source=balls``,
-    of the packing continued to 2048 balls."""
+    the inside of the decomposition's field (``source="field"``) seen about the mean of
+    its shell cells (``centre="surface"``); with ``lf_source=balls``, of the packing
+    continued to 2048 balls."""
     return LightFieldConfig(
-        n_fields=3, resolution=128, depth_weight=0.0, n_balls=2048, source="field"
-    )
+        n_fields=3, resolution=128, depth_weight=0.0, n_balls=2048, source="field",
+        centre="surface",
+    )  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -16,8 +16,8 @@ absolute difference.
 
 The light fields of the inside of the decomposition's field (``LightFieldConfig.source
 = "field"``, :func:`inside_light_field`) are those of its inside cells, each a ball of
-half a cell, centred on the cells' centroid rather than on the shell's it renders
-(:mod:`shapedb.inside`).
+half a cell, seen about all the cells' centroid or the mean of the shell's it renders
+(``LightFieldConfig.centre``, :mod:`shapedb.inside`).
 
 Silhouettes of other sources (surface splats of a mesh, ``bench/lightfield.py``) use
 :func:`silhouette_features`, :func:`field_directions` and :func:`light_field_distance`
@@ -365,8 +365,9 @@ def inside_light_field(
     """Light fields of the inside cells, each a ball of half a cell, as a store keeps them.
 
     :func:`shapedb.lightfield.record_light_field` of the shell's cells, normalised as a
-    ball union is but over all the inside cells: about their centroid, the farthest
-    cell's far side at radius 1 (the farthest inside cell is a shell cell).
+    ball union is but over all the inside cells: about their centroid
+    (``config.centre="volume"``) or the mean of the shell cells (``"surface"``), the
+    farthest cell's far side at radius 1 (the farthest inside cell is a shell cell).
 
     Returns
     -------
@@ -383,10 +384,11 @@ def inside_light_field(
         raise ValueError("the field has no inside cell: no light field")
     cfg = config or LightFieldConfig()
     half = 0.5 * inside.cell
-    extent = float(np.max(np.linalg.norm(inside.shell - inside.centroid, axis=1))) + half
+    centre = inside.centroid if cfg.centre == "volume" else inside.shell.mean(axis=0)
+    extent = float(np.max(np.linalg.norm(inside.shell - centre, axis=1))) + half
     radii = np.full(len(inside.shell), half)
     cfg = replace(cfg, edges=False) if cfg.edges else cfg
-    return record_light_field(inside.shell, radii, cfg, frame=(inside.centroid, extent))
+    return record_light_field(inside.shell, radii, cfg, frame=(centre, extent))
 
 
 def decomposition_light_field(

@@ -88,6 +88,7 @@ ADDED: dict[str, dict[str, Any]] = {
         "close_px": 0,
         "n_balls": 2048,
         "source": "balls",
+        "centre": "volume",
     },
     # before the field vectors: none stored, none fused, no candidates from them
     "lf_fusion": {
@@ -115,8 +116,8 @@ STORED_ADDED: dict[str, dict[str, Any]] = {
         "pool_quantile": 0.5,
     },
     # before n_balls, the light fields were those of the decomposition's balls; before
-    # source, always of balls
-    "light_field": {"n_balls": 0, "source": "balls"},
+    # source, always of balls; before centre, the field was seen about its volume centroid
+    "light_field": {"n_balls": 0, "source": "balls", "centre": "volume"},
 }
 
 #: Sections added to the store configuration, by the first layout that writes them:

@@ -52,3 +52,20 @@ def test_a_cut_is_the_light_field_rendered_directly(cached: dict, options: dict)
 def test_what_is_not_cached_is_refused(cached: dict, options: dict) -> None:
     with pytest.raises(ValueError, match="not cached"):
         cut(cached, LightFieldConfig(source="field", **options))
+
+
+def test_renderings_about_the_surface_centre_are_cut_for_that_centre_only(cached: dict) -> None:
+    inside = cached["inside"]
+    base = LightFieldConfig(n_fields=10, resolution=64, centre="surface")
+    surface = {
+        "lf64": inside_light_field(inside, dataclasses.replace(base, depth_weight=1.0)),
+        "lf128": inside_light_field(inside, dataclasses.replace(base, resolution=128)),
+        "centre": np.str_("surface"),
+    }
+    cfg = LightFieldConfig(n_fields=3, resolution=128, source="field", centre="surface")
+    assert np.allclose(cut(surface, cfg), inside_light_field(inside, cfg), rtol=1e-6, atol=1e-7)
+    # a rendering is never cut for the other centre (files without a centre: the volume's)
+    with pytest.raises(ValueError, match="not cached"):
+        cut(surface, dataclasses.replace(cfg, centre="volume"))
+    with pytest.raises(ValueError, match="not cached"):
+        cut(cached, cfg)

@@ -14,6 +14,7 @@ from shapedb.lightfield import (
     decomposition_light_field,
     image_axes,
     inside_light_field,
+    record_light_field,
     render_discs,
 )
 from shapedb.mdbd import decompose
@@ -104,6 +105,49 @@ def test_a_thin_fin_is_in_the_field_s_silhouette_and_not_in_the_balls() -> None:
     got = decomposition_light_field(d, cfg)
     assert np.array_equal(got, inside_light_field(d.inside, cfg))
     assert not np.array_equal(got, decomposition_light_field(d, LightFieldConfig()))
+
+
+def test_the_surface_centre_is_the_shell_mean_and_moves_the_silhouette() -> None:
+    # a bulky cube with a wide thin sheet: the sheet pulls the shell's mean far more than
+    # the volume centroid
+    solid = Box((0, 0, 0), (1, 1, 1)) | Box((2.5, 0, 0), (4, 1, 0.2))
+    d = decompose(solid, resolution=64, n_balls=8, keep_inside=True)
+    assert d.inside is not None
+    surface = d.inside.shell.mean(axis=0)
+    assert surface[0] > d.inside.centroid[0] + 0.3
+    cfg = LightFieldConfig(source="field", n_fields=1, centre="surface")
+    ext = float(np.max(np.linalg.norm(d.inside.shell - surface, axis=1))) + 0.5 * d.inside.cell
+    want = record_light_field(
+        d.inside.shell, np.full(len(d.inside.shell), 0.5 * d.inside.cell), cfg,
+        frame=(surface, ext),
+    )  # fmt: skip
+    got = inside_light_field(d.inside, cfg)
+    assert np.array_equal(got, want)
+    assert np.array_equal(got, decomposition_light_field(d, cfg))
+    volume = inside_light_field(d.inside, LightFieldConfig(source="field", n_fields=1))
+    assert not np.allclose(got, volume)
+    # seen about the shell's mean, the top view (the sheet's area) sits nearer the image
+    # centre: its image centroid
+    view = np.array([[0.0, 0.0, 1.0]])
+    r = np.full(len(d.inside.shell), 0.5 * d.inside.cell)
+    c = (np.arange(RES) + 0.5) / RES * 2.0 - 1.0
+    offsets = []
+    for o in (d.inside.centroid, surface):
+        e = float(np.max(np.linalg.norm(d.inside.shell - o, axis=1))) + 0.5 * d.inside.cell
+        img, _ = render_discs(d.inside.shell, r, view, RES, frame=(o, e))
+        ys, xs = np.nonzero(img[0])
+        offsets.append(np.hypot(c[xs].mean(), c[ys].mean()))
+    assert offsets[1] < offsets[0] - 0.05
+    # translating the solid moves neither
+    moved = decompose(solid.translate((5.0, -2.0, 1.0)), resolution=64, n_balls=8,
+                      keep_inside=True)  # fmt: skip
+    assert moved.inside is not None
+    assert np.allclose(inside_light_field(moved.inside, cfg), got, atol=1e-4)
+
+
+def test_a_light_field_centre_must_be_known() -> None:
+    with pytest.raises(ConfigError, match="lf_centre"):
+        LightFieldConfig(centre="bbox")
 
 
 def test_field_light_fields_need_the_inside() -> None:

@@ -78,7 +78,9 @@ def test_each_later_field_takes_the_value_that_built_the_store() -> None:
 def test_nothing_stored_is_todays_defaults_but_the_stage_the_layout_predates() -> None:
     # a dict without ``layout`` is layout 1, written before re-ranking: no stage
     # (and the light fields the product kept when the section came: unused without a stage)
-    plain = Config().with_options(rerank="none", lf_source="balls", lf_resolution=64)
+    plain = Config().with_options(
+        rerank="none", lf_source="balls", lf_resolution=64, lf_centre="volume"
+    )
     # and no field vectors, none fused (the sections' own defaults are the legacy ones)
     plain = replace(plain, lf_fusion=LightFieldFusionConfig(), field_vector=FieldVectorConfig())
     assert Config().rerank.scorer == "lightfield"
@@ -255,6 +257,20 @@ def test_light_fields_stored_before_the_source_read_as_the_balls() -> None:
     assert not field.with_options(rerank="none").light_field_inside
     with pytest.raises(ConfigError, match="lf_source"):
         Config().with_options(lf_source="mesh")
+
+
+def test_light_fields_stored_before_the_centre_read_about_the_volume_centroid() -> None:
+    today = Config().with_options(rerank="lightfield")
+    assert today.light_field.source == "field" and today.light_field.centre == "surface"
+    stored = today.to_dict()
+    assert Config.from_dict(stored) == today
+    del stored["light_field"]["centre"]
+    assert Config.from_dict(stored).light_field.centre == "volume"
+    del stored["light_field"], stored["lf_fusion"]
+    stored["layout"] = 3
+    assert Config.from_dict(stored).light_field.centre == "volume"
+    with pytest.raises(ConfigError, match="lf_centre"):
+        Config().with_options(lf_centre="middle")
 
 
 def test_stores_written_before_the_field_vectors_keep_none_and_fuse_none() -> None:
