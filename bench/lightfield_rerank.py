@@ -71,8 +71,9 @@ from query import rerank
 from query.field_fusion import FIELD, FieldFusion
 from query.field_index import FieldIndex
 from query.index import FeatureIndex
+from query.lightfield_neighbours import NEIGHBOURS, stage_lists
 from query.lightfield_spread import local_spreads
-from query.rerank_lightfield import COLUMN, SPREAD
+from query.rerank_lightfield import COLUMN, SPREAD, LightFieldFusion
 from shapedb.config import Config
 from shapedb.lightfield import light_field_distance, record_light_field
 
@@ -104,13 +105,15 @@ def index_of(x: np.ndarray) -> FeatureIndex:
 
 class Arrays:
     """A store's per-record arrays by id (ids 0..n-1): light fields, field vectors, the
-    stored local spreads as a store computes them, and the field vector index."""
+    stored local spreads and shared-neighbour lists as a store computes them, and the
+    field vector index."""
 
     def __init__(
         self, lf: np.ndarray, index: FeatureIndex, config: Config, fv: np.ndarray | None = None
     ) -> None:
         self.lf, self.index, self.config, self.fv = lf, index, config, fv
         self._spreads: np.ndarray | None = None
+        self._lists: np.ndarray | None = None
         self._field_index: FieldIndex | None = None
 
     def __call__(self, name: str, ids: np.ndarray) -> np.ndarray | None:
@@ -122,6 +125,11 @@ class Arrays:
             if self._spreads is None:
                 self._spreads = local_spreads(self.index, self, self.config)[1]
             return self._spreads[ids]
+        if name == NEIGHBOURS and self.config.lf_fusion.shares_neighbours:
+            if self._lists is None:
+                stage = LightFieldFusion(self.config)
+                self._lists = stage_lists(self.index, self, self.config, stage)[1]
+            return np.asarray(self._lists[ids], np.float64)
         return None
 
     def field_index(self) -> FieldIndex:
