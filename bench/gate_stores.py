@@ -220,6 +220,7 @@ class Store:
         self.same = self.labels[:, None] == self.labels[None, :]
         self.size = self.same.sum(axis=1) - 1  # relevant results per query
         self.rank_s: FloatArray | None = None  # rank_l with the shared-neighbour term
+        self.keep_first = True  # the term keeps each query's first other candidate
 
     def with_shared(self, k: int, beta: float, scale: float, within: str = "store") -> Store:
         """This store with the shared-neighbour term in the light field's rank (a copy).
@@ -312,14 +313,14 @@ class Store:
         ranks by the light field alone among the candidates. Past the K candidates the
         list keeps the stored-distance order. With the shared-neighbour term
         (:meth:`with_shared`), a query whose weight is above 0 is ranked with the term,
-        then the first of its other candidates without the term is moved back to the
-        first place among them.
+        then (unless :attr:`keep_first` is False: a study's) the first of its other
+        candidates without the term is moved back to the first place among them.
         """
         w = np.asarray(weight, np.float64)
         head = self._head(w, self.rank_l)
         if self.rank_s is not None and (w > 0).any():
             plain, term = head, self._head(w, self.rank_s)
-            for q in np.flatnonzero(w > 0):
+            for q in np.flatnonzero(w > 0) if self.keep_first else ():
                 first = plain[q][plain[q] != q][0]
                 row = term[q]
                 at = int(np.flatnonzero(row != q)[0])
