@@ -25,7 +25,9 @@ import shapedb.lightfield
 from query import rerank
 from query.index import FeatureIndex
 from query.lightfield_neighbours import (
+    FULL_AT_COMMIT,
     NEIGHBOURS,
+    commit_distances,
     keep_first,
     nearest_others,
     shared_scores,
@@ -211,3 +213,11 @@ def test_the_product_turns_the_term_on_and_a_store_written_before_reads_it_off()
     old = Config.from_dict(stored)
     assert (old.lf_fusion.shared_neighbours, old.lf_fusion.shared_weight) == (0, 0.0)
     assert not old.lf_fusion.shares_neighbours
+
+
+def test_a_commit_recomputes_the_lists_within_a_budget_of_stage_distances() -> None:
+    product = Config()  # K 100 and K2 200: a list reaches 300 shapes, or the whole store
+    assert commit_distances(100, product) == 100 * 100 == FULL_AT_COMMIT
+    assert commit_distances(101, product) > FULL_AT_COMMIT
+    assert commit_distances(400, product) == 400 * 300
+    assert commit_distances(400, product.with_options(fv_enabled=False)) == 400 * 100
