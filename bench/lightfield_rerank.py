@@ -217,7 +217,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         k, v = kv.split("=", 1)
         lf_cfg = lf_cfg.with_options(**{f"lf_{k}": float(v) if "." in v else int(v)})
     adaptive = Config().with_options(descriptor=7, rerank="adaptive")
-    before = lf_cfg.with_options(**LEGACY, **NO_FIELD)
+    before = lf_cfg.with_options(**{**LEGACY, **NO_FIELD})
     spread = lf_cfg.with_options(**SPREAD_GATE, **NO_FIELD)
     table: dict[str, dict[str, Any]] = {
         "v4": {}, "adaptive (v7)": {}, "lightfield": {}, "lightfield (spread gate)": {},
