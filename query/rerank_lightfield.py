@@ -96,7 +96,10 @@ class LightFieldFusion:
     The formula, the gate ``g(q)`` and the spread are those of
     :class:`shapedb.config.LightFieldFusionConfig` (``config.lf_fusion``); ranks and
     the neighbourhoods are taken among the query's valid candidates in their list
-    order (stored distance, ties by ascending id).
+    order (stored distance, ties by ascending id). With the shared-neighbour term
+    (``shared_neighbours``, ``shared_weight``) ``rank_l`` ranks by ``dl / m_l - beta *
+    S(q, x)`` where the gate is open, and the first result among the query's others is
+    the one without the term (:meth:`fuse`).
 
     Parameters
     ----------
@@ -293,7 +296,8 @@ class LightFieldFusion:
             if spreads is not None:
                 sp = np.array([spreads[int(i)] for i in batch.ids[row, cols]])
             gates.append(self.gate(batch.distances[row, cols] / self.calibration, dl, own, sp))
-        lists = self._lists(batch, [r for r, g in zip(rows, gates, strict=True) if g > 0])
+        term_on = [r for r, g in zip(rows, gates, strict=True) if g > 0 and self.fusion.weight > 0]
+        lists = self._lists(batch, term_on)
         k = int(self.fusion.shared_neighbours)
         for (row, cols, dl, own), g in zip(rows, gates, strict=True):
             ids = batch.ids[row, cols]
