@@ -54,11 +54,9 @@ same run. ``--mesh-lfd``: the peer's row, every shape of each store ranked by th
 light field descriptor (:func:`bench.rerank_select.lfd_split_matrix`, cached).
 ``--no-rigid-margin``: the ratio grid keeps the jointed margin alone.
 
-The shared-neighbour term (``LightFieldFusionConfig.shared_neighbours`` and
-``shared_weight``, :mod:`query.lightfield_neighbours`): the "stage now" row has the
-product's (``--shared K BETA``: another), with the same stage without it in the same
-run; ``--shared-grid`` adds the row at every ``k`` x ``beta`` of
-:data:`bench.gate_stores.SHARED_GRID` (:func:`bench.gate_stores.shared_rows`).
+The shared-neighbour term (:mod:`query.lightfield_neighbours`): "stage now" has the product's
+(``--shared K BETA``: another), beside the stage without it; ``--shared-grid`` adds every
+``k`` x ``beta`` of :data:`bench.gate_stores.SHARED_GRID` (:func:`bench.gate_stores.shared_rows`).
 """
 
 from __future__ import annotations
