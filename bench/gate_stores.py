@@ -44,6 +44,10 @@ __all__ = [
     "gate_margin",
     "gate_weights",
     "score_row",
+    "shared_scale",
+    "shared_stores",
+    "shared_rows",
+    "SHARED_GRID",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -59,6 +63,8 @@ MIXES = {
 #: Sets a run may name: the six, and the held-out ones :mod:`bench.cached` knows (``webplus``).
 CHOICES = tuple(getattr(cached, "CHOICES", SETS))
 MEASURES = ("nn", "first_tier", "dcg")
+#: The shared-neighbour grid of ``--shared-grid``: ``k`` x ``beta``.
+SHARED_GRID = ((2, 3, 4, 5), (0.4, 0.8, 1.6))
 
 
 class Split:
@@ -217,6 +223,54 @@ class Store:
         self.offset = offset
         self.same = self.labels[:, None] == self.labels[None, :]
         self.size = self.same.sum(axis=1) - 1  # relevant results per query
+        self.rank_s: FloatArray | None = None  # rank_l with the shared-neighbour term
+        self.keep_first = True  # the term keeps each query's first other candidate
+
+    def with_shared(self, k: int, beta: float, scale: float, within: str = "store") -> Store:
+        """This store with the shared-neighbour term in the light field's rank (a copy).
+
+        ``rank_l`` of the copy's fused rankings ranks by ``dl / scale - beta * S(q, x)``
+        over each query's candidates (:mod:`query.lightfield_neighbours`: ``S = |({q} ∪
+        N_k(q)) ∩ ({x} ∪ N_k(x))| / (k + 1)``, every query a stored shape), and the first
+        result among the query's others stays the one without the term (:meth:`rankings`).
+
+        Parameters
+        ----------
+        k, beta : int, float
+            The term's ``k`` and ``beta``; ``k`` 0 or ``beta`` 0: this store unchanged.
+        scale : float
+            ``m_l`` (the product's ``light_field_scale`` on a fused split, else ``typical``).
+        within : str
+            Where ``N_k`` is taken: ``"store"``, each shape's ``k`` nearest others over the
+            whole store (``split.dl`` restricted to the store's rows, ties by position);
+            ``"candidates"``, among the shape's own candidates (its list as a query, ties
+            in list order), as the product's table takes them.
+        """
+        import copy
+
+        out = copy.copy(self)
+        if k <= 0 or beta <= 0:
+            return out
+        n = len(self.rows)
+        k = min(int(k), n - 1)
+        if within == "store":
+            d = np.array(self._dl, np.float64, copy=True)
+            np.fill_diagonal(d, np.inf)
+            nb = np.argsort(d, axis=1, kind="stable")[:, :k]
+        elif within == "candidates":
+            mine = np.where(self.own | self.pad, np.inf, self.L)
+            nb = np.take_along_axis(self.cand, np.argsort(mine, axis=1, kind="stable")[:, :k], 1)
+        else:
+            raise ValueError(f"within={within!r}: expected 'store' or 'candidates'")
+        member = np.zeros((n, n), np.float32)
+        member[np.arange(n)[:, None], nb] = 1.0
+        member[np.arange(n), np.arange(n)] = 1.0  # {x} ∪ N_k(x); a stored query is its id
+        shared = np.take_along_axis(member @ member.T, self.cand, 1) / (k + 1.0)
+        value = np.where(self.pad, np.inf, self.L / scale - beta * shared)
+        out.rank_s = np.empty_like(self.rank_l)
+        np.put_along_axis(out.rank_s, np.argsort(value, axis=1, kind="stable"),
+                          np.arange(value.shape[1], dtype=np.float64)[None, :], 1)  # fmt: skip
+        return out
 
     def others(self, x: FloatArray) -> FloatArray:
         """(n, K - 1) ``x`` over each query's candidates without the query itself."""
@@ -261,27 +315,40 @@ class Store:
 
         ``weight`` (n,): the weight of the light field's rank term (``w g(q)``); inf
         ranks by the light field alone among the candidates. Past the K candidates the
-        list keeps the stored-distance order.
+        list keeps the stored-distance order. With the shared-neighbour term
+        (:meth:`with_shared`), a query whose weight is above 0 is ranked with the term,
+        then (unless :attr:`keep_first` is False: a study's) the first of its other
+        candidates without the term is moved back to the first place among them.
         """
+        w = np.asarray(weight, np.float64)
+        head = self._head(w, self.rank_l)
+        if self.rank_s is not None and (w > 0).any():
+            plain, term = head, self._head(w, self.rank_s)
+            for q in np.flatnonzero(w > 0) if self.keep_first else ():
+                first = plain[q][plain[q] != q][0]
+                row = term[q]
+                at = int(np.flatnonzero(row != q)[0])
+                if row[at] != first:
+                    rest = row[row != first]
+                    term[q] = np.concatenate([rest[:at], [first], rest[at:]])
+            head = term
+        return np.concatenate([head, self.listing[:, head.shape[1] :]], axis=1)
+
+    def _head(self, w: FloatArray, rank_l: FloatArray) -> NDArray[np.int64]:
+        """(n, C) the candidates re-ranked at weights ``w`` with light field ranks ``rank_l``."""
         n, k = self.cand.shape
         rank_d = np.arange(k, dtype=np.float64)[None, :]
-        w = np.asarray(weight, np.float64)[:, None]
-        alone = np.isinf(w[:, 0])
+        alone = np.isinf(w)
         fused = 1.0 / (self.offset + rank_d) + np.where(alone[:, None], 0.0,
-                                                       w / (self.offset + self.rank_l))  # fmt: skip
-        fused[alone] = 1.0 / (self.offset + self.rank_l[alone])
+                                                       w[:, None] / (self.offset + rank_l))  # fmt: skip
+        fused[alone] = 1.0 / (self.offset + rank_l[alone])
         ids = self.cand
         if not self.pad.any():
-            head = np.take_along_axis(ids, np.lexsort((ids, -fused), axis=-1), 1)
-        else:  # the padding keeps its list order after the candidates
-            at = np.broadcast_to(np.arange(k, dtype=np.float64), ids.shape)
-            keys = (
-                np.where(self.pad, at, ids),
-                np.where(self.pad, at, -fused),
-                self.pad.astype(int),
-            )
-            head = np.take_along_axis(ids, np.lexsort(keys, axis=-1), 1)
-        return np.concatenate([head, self.listing[:, k:]], axis=1)
+            return np.take_along_axis(ids, np.lexsort((ids, -fused), axis=-1), 1)
+        # the padding keeps its list order after the candidates
+        at = np.broadcast_to(np.arange(k, dtype=np.float64), ids.shape)
+        keys = (np.where(self.pad, at, ids), np.where(self.pad, at, -fused), self.pad.astype(int))
+        return np.take_along_axis(ids, np.lexsort(keys, axis=-1), 1)
 
     def measures(self, weight: FloatArray) -> FloatArray:
         """(n, 3) NN, 1-T, DCG of every query at per-query weights ``weight`` (:meth:`rankings`)."""
@@ -389,3 +456,47 @@ def score_row(stores: dict[str, Store], weights: dict[str, FloatArray],
     ))  # fmt: skip
     entry["passes"] = entry["worst_queries"] >= -2.0 - 1e-9
     return entry
+
+
+def shared_scale(split: Split, f: Any) -> float:
+    """``m_l`` of the shared-neighbour term on ``split`` under the fusion ``f``: its
+    ``light_field_scale`` when the split's distance fuses the field vectors, else
+    ``typical`` (as :attr:`query.rerank_lightfield.LightFieldFusion.scale`)."""
+    stage = getattr(split, "stage", None)
+    return float(stage.light_field_scale if stage is not None and stage.fuses else f.typical)
+
+
+def shared_stores(stores: dict[str, Store], split: Split, f: Any,
+                  within: str = "store") -> dict[str, Store]:  # fmt: skip
+    """``stores`` with the shared-neighbour term of the fusion ``f`` (:meth:`Store.with_shared`;
+    unchanged where ``f`` has it off)."""
+    k, beta = int(f.shared_neighbours), float(f.shared_weight)
+    scale = shared_scale(split, f)
+    return {name: st.with_shared(k, beta, scale, within) for name, st in stores.items()}
+
+
+def shared_rows(stores: dict[str, Store], split: Split, f: Any,
+                base: dict[str, dict[str, dict[str, float]]], grid: bool = False,
+                within: str = "store") -> dict[str, dict[str, Any]]:  # fmt: skip
+    """The "stage now" rows of the gate bench at the fusion ``f`` (its gate in every row).
+
+    With ``f``'s shared-neighbour term on, first the same stage without it; with ``grid``,
+    the stage at every ``k`` x ``beta`` of :data:`SHARED_GRID`; last the stage at ``f``
+    (``"stage now (LightFieldFusionConfig defaults)"``). ``within``: where ``N_k`` is taken
+    (:meth:`Store.with_shared`).
+    """
+    import dataclasses
+    import itertools
+
+    gated = {k: gate_weights(st, f) for k, st in stores.items()}
+    rows: dict[str, dict[str, Any]] = {}
+    if f.shared_neighbours > 0 and f.shared_weight > 0:
+        rows["stage now without the shared neighbours (k 0)"] = score_row(stores, gated, base)
+    for k, beta in itertools.product(*SHARED_GRID) if grid else ():
+        g = dataclasses.replace(f, shared_neighbours=k, shared_weight=beta)
+        rows[f"stage now, shared k {k} beta {beta:g}"] = score_row(
+            shared_stores(stores, split, g, within), gated, base)  # fmt: skip
+    rows["stage now (LightFieldFusionConfig defaults)"] = score_row(
+        shared_stores(stores, split, f, within), gated, base
+    )
+    return rows

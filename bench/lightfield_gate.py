@@ -53,6 +53,10 @@ scores the stage before the field vectors (the light field distance, K alone) in
 same run. ``--mesh-lfd``: the peer's row, every shape of each store ranked by the mesh
 light field descriptor (:func:`bench.rerank_select.lfd_split_matrix`, cached).
 ``--no-rigid-margin``: the ratio grid keeps the jointed margin alone.
+
+The shared-neighbour term (:mod:`query.lightfield_neighbours`): "stage now" has the product's
+(``--shared K BETA``: another), beside the stage without it; ``--shared-grid`` adds every
+``k`` x ``beta`` of :data:`bench.gate_stores.SHARED_GRID` (:func:`bench.gate_stores.shared_rows`).
 """
 
 from __future__ import annotations
@@ -92,6 +96,7 @@ from bench.gate_stores import (
     gate_weights,
     local_spreads,
     score_row,
+    shared_rows,
 )
 from shapedb.config import Config
 
@@ -194,6 +199,9 @@ def select(args: argparse.Namespace, split: Split | None = None,
         pairs = dict(kv.split("=", 1) for kv in args.fusion)
         default = dataclasses.replace(default, **{k: float(v) if "." in v else int(v)
                                                   for k, v in pairs.items()})  # type: ignore[arg-type]  # fmt: skip
+    if getattr(args, "shared", None):  # the term of the "stage now" row, not the product's
+        default = dataclasses.replace(default, shared_neighbours=int(args.shared[0]),
+                                      shared_weight=float(args.shared[1]))  # fmt: skip
     memo: dict[Any, FloatArray] = {}
     margins: dict[str, dict[str, float]] = {}
     rows: dict[str, dict[str, Any]] = {
@@ -298,9 +306,8 @@ def select(args: argparse.Namespace, split: Split | None = None,
             rows[f"best of the grid: {best[0]}"] = best[1]
             f = dataclasses.replace(default, power=0.0, **best[0])  # type: ignore[arg-type]
             margins[f"best of the grid: {best[0]}"] = gate_margin(stores, f, memo)
-    rows["stage now (LightFieldFusionConfig defaults)"] = score_row(
-        stores, {k: gate_weights(st, default) for k, st in stores.items()}, base
-    )
+    rows.update(shared_rows(stores, split, default, base, getattr(args, "shared_grid", False),
+                            getattr(args, "shared_within", "store")))  # fmt: skip
     if args.oracle:
         rows.update(oracle_rows(stores, base, default))
     if args.around:  # one field of the defaults moved at a time
@@ -485,6 +492,12 @@ def parser() -> argparse.ArgumentParser:
                     metavar=("M_L", "M_B", "M_H"), help="scales of l, b and h")  # fmt: skip
     ap.add_argument("--fv-candidates", type=int, default=None, metavar="K2",
                     help="the field vectors' nearest added to version 4's K")  # fmt: skip
+    ap.add_argument("--shared", nargs=2, default=None, metavar=("K", "BETA"),
+                    help="the shared-neighbour term of the 'stage now' row (default: the product's)")  # fmt: skip
+    ap.add_argument("--shared-grid", action="store_true",
+                    help="the 'stage now' row at every k x beta of SHARED_GRID")  # fmt: skip
+    ap.add_argument("--shared-within", default="store", choices=["store", "candidates"],
+                    help="where a shape's N_k is taken: the whole store, or its own candidates")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None)
     return ap
 

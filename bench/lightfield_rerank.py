@@ -38,12 +38,14 @@ and on the meshes the light field descriptor (:mod:`bench.lightfield`) and D2
 That the scorer ranks as the study's formula does is checked by the study
 (``python -m bench.studies.lightfield_balls --check-product``).
 
-``--cost`` builds five stores of the web validation shapes (v4 without a stage, v4 with
+``--cost`` builds six stores of the web validation shapes (v4 without a stage, v4 with
 ``rerank="lightfield"`` without the field vectors (:data:`NO_FIELD`), with them (the
-fused distance and the union candidates at the defaults, or :data:`FIELD_STAGE`) and with
-:data:`SPREAD_GATE`, v7 with ``rerank="adaptive"``), times the lightfield stores' local statistics (the index-time statistic, read from the light field column), then
-``db.search(id, k=10)`` for every shape, interleaved, and prints medians and ratios to
-the plain store.
+fused distance and the union candidates at the defaults, or :data:`FIELD_STAGE`), the
+same with the shared-neighbour term (the default's, or k 3, beta 0.8) and with
+:data:`SPREAD_GATE`, v7 with ``rerank="adaptive"``), times the lightfield stores' local
+statistics and shared-neighbour lists (the index-time tables), then ``db.search(id,
+k=10)`` for every shape, interleaved, and prints medians and ratios to the plain store;
+and the first search on a fresh copy of the stores with and without the term (cold).
 ``--lf-source field`` (and ``--lf-set FIELD=VALUE``): the ``lightfield`` rows read the
 light fields of the field's inside (cached by :mod:`bench.inside_fields`).
 Written to bench/results/lightfield_rerank_<split>.json (``lightfield_rerank_cost.json``).
@@ -71,8 +73,9 @@ from query import rerank
 from query.field_fusion import FIELD, FieldFusion
 from query.field_index import FieldIndex
 from query.index import FeatureIndex
+from query.lightfield_neighbours import NEIGHBOURS, stage_lists
 from query.lightfield_spread import local_spreads
-from query.rerank_lightfield import COLUMN, SPREAD
+from query.rerank_lightfield import COLUMN, SPREAD, LightFieldFusion
 from shapedb.config import Config
 from shapedb.lightfield import light_field_distance, record_light_field
 
@@ -84,15 +87,17 @@ _CHUNK = 32
 SPREAD_GATE = {"lf_weight": 4.0, "lf_ceiling": 0.11, "lf_ramp": 0.02, "lf_spread_candidates": 5,
                "lf_pool": 20, "lf_contrast_ramp": 0.05, "lf_ratio_weight": 0.0,
                "lf_pool_quantile": 0.5}  # fmt: skip
-#: The stage without the field vectors (today's stage; what a store written before reads).
+#: The stage without the field vectors (what a store written before them reads: no
+#: shared-neighbour term either).
 NO_FIELD = {"fv_enabled": False, "lf_field_depth_weight": 0.0, "lf_field_harmonic_weight": 0.0,
-            "lf_field_candidates": 0}  # fmt: skip
+            "lf_field_candidates": 0, "lf_shared_neighbours": 0}  # fmt: skip
 #: The field vectors' part of the stage where the defaults do not turn it on.
 FIELD_STAGE = {"lf_field_depth_weight": 0.5, "lf_field_harmonic_weight": 0.5,
                "lf_field_candidates": 100}  # fmt: skip
-#: The stage's settings before the pooled spread and the contrast floor.
+#: The stage's settings before the pooled spread and the contrast floor (no shared neighbours).
 LEGACY = {"lf_weight": 8.0, "lf_power": 3.0, "lf_ceiling": 0.09, "lf_spread_candidates": 100,
-          "lf_pool": 0, "lf_contrast_floor": 0.0, "lf_ramp": 0.02, "lf_ratio_weight": 0.0}  # fmt: skip
+          "lf_pool": 0, "lf_contrast_floor": 0.0, "lf_ramp": 0.02, "lf_ratio_weight": 0.0,
+          "lf_shared_neighbours": 0}  # fmt: skip
 
 
 def index_of(x: np.ndarray) -> FeatureIndex:
@@ -104,13 +109,15 @@ def index_of(x: np.ndarray) -> FeatureIndex:
 
 class Arrays:
     """A store's per-record arrays by id (ids 0..n-1): light fields, field vectors, the
-    stored local spreads as a store computes them, and the field vector index."""
+    stored local spreads and shared-neighbour lists as a store computes them, and the
+    field vector index."""
 
     def __init__(
         self, lf: np.ndarray, index: FeatureIndex, config: Config, fv: np.ndarray | None = None
     ) -> None:
         self.lf, self.index, self.config, self.fv = lf, index, config, fv
         self._spreads: np.ndarray | None = None
+        self._lists: np.ndarray | None = None
         self._field_index: FieldIndex | None = None
 
     def __call__(self, name: str, ids: np.ndarray) -> np.ndarray | None:
@@ -122,6 +129,11 @@ class Arrays:
             if self._spreads is None:
                 self._spreads = local_spreads(self.index, self, self.config)[1]
             return self._spreads[ids]
+        if name == NEIGHBOURS and self.config.lf_fusion.shares_neighbours:
+            if self._lists is None:
+                stage = LightFieldFusion(self.config)
+                self._lists = stage_lists(self.index, self, self.config, stage)[1]
+            return np.asarray(self._lists[ids], np.float64)
         return None
 
     def field_index(self) -> FieldIndex:
@@ -205,7 +217,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         k, v = kv.split("=", 1)
         lf_cfg = lf_cfg.with_options(**{f"lf_{k}": float(v) if "." in v else int(v)})
     adaptive = Config().with_options(descriptor=7, rerank="adaptive")
-    before = lf_cfg.with_options(**LEGACY, **NO_FIELD)
+    before = lf_cfg.with_options(**{**LEGACY, **NO_FIELD})
     spread = lf_cfg.with_options(**SPREAD_GATE, **NO_FIELD)
     table: dict[str, dict[str, Any]] = {
         "v4": {}, "adaptive (v7)": {}, "lightfield": {}, "lightfield (spread gate)": {},
@@ -270,9 +282,21 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     return {"split": args.split, "table": table, "per_kind_nn": per_kind}
 
 
-def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
-    """Median per-query ``db.search`` seconds of three web validation stores, same run."""
+def cost(args: argparse.Namespace, repeats: int = 3, cold: int = 8) -> dict[str, Any]:
+    """Median per-query ``db.search`` seconds of web validation stores, same run.
+
+    Warm: every store's index, statistics and lists computed, ``repeats`` x n queries
+    interleaved. Cold (the stage with and without the shared-neighbour term): the first
+    ``db.search`` on a fresh copy of each store as committed (its index built, nothing
+    else computed), for ``cold`` queries, paired.
+    """
+    import shutil
+
     import shapedb
+    from query.index import open_index
+    from query.lightfield_neighbours import neighbour_table, store_neighbours
+    from query.lightfield_spread import store_spreads
+    from query.rerank_lightfield import stored_arrays
     from shapedb.kernel import features
     from shapedb.schema import ShapeRecord
 
@@ -280,10 +304,14 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
     product = Config().with_options(rerank="lightfield", fv_enabled=True)
     if not product.lf_fusion.field_candidates:  # the stage's field options, if not the default
         product = product.with_options(**FIELD_STAGE)
+    if not product.lf_fusion.shares_neighbours:  # the term, if not the default
+        product = product.with_options(lf_shared_neighbours=3, lf_shared_weight=0.8)
+    shared, fused = "lightfield + field vectors + shared (v4)", "lightfield + field vectors (v4)"
     configs = {
         "none (v4)": Config().with_options(rerank="none"),
         "lightfield (v4)": Config().with_options(rerank="lightfield", **NO_FIELD),
-        "lightfield + field vectors (v4)": product,
+        fused: product.with_options(lf_shared_neighbours=0),
+        shared: product,
         "lightfield, spread gate (v4)": Config().with_options(
             rerank="lightfield", **SPREAD_GATE, **NO_FIELD
         ),
@@ -308,16 +336,20 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
             ])  # fmt: skip
             dbs[label] = db
             if cfg.rerank.scorer == "lightfield":  # the index-time statistic, timed alone
-                from query.index import open_index
-                from query.lightfield_spread import store_spreads
-                from query.rerank_lightfield import stored_arrays
-
                 open_index(db)
+                if label in (shared, fused):  # the store as committed, for the cold queries
+                    shutil.copytree(db.store.path, Path(tmp) / f"fresh{k}")
                 t = time.perf_counter()
                 store_spreads(db, stored_arrays(db))
                 out[f"spreads_s {label}"] = time.perf_counter() - t
                 print(f"  local statistics of {len(balls)} shapes, {label}: "
                       f"{out[f'spreads_s {label}']:.2f} s")  # fmt: skip
+                if cfg.lf_fusion.shares_neighbours:
+                    t = time.perf_counter()
+                    store_neighbours(db, stored_arrays(db), LightFieldFusion(cfg))
+                    out[f"lists_s {label}"] = time.perf_counter() - t
+                    print(f"  shared-neighbour lists of {len(balls)} shapes, {label}: "
+                          f"{out[f'lists_s {label}']:.2f} s")  # fmt: skip
             got = db.evaluate()
             out[f"evaluate {label}"] = {m: float(getattr(got, m)) for m in _MEASURES}
             print(f"  db.evaluate {label}: {got.nn:.3f} / {got.first_tier:.3f} / {got.dcg:.3f}")
@@ -331,15 +363,37 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
                     t = time.perf_counter()
                     db.search(sid, k=10)
                     times[label].append(time.perf_counter() - t)
+        first: dict[str, list[float]] = {fused: [], shared: []}
+        computed: list[int] = []  # lists the cold query computed
+        sample = ids[:: max(1, len(ids) // cold)][:cold]
+        for n, sid in enumerate(sample):  # cold: a fresh copy per query and store
+            for label in (fused, shared) if n % 2 == 0 else (shared, fused):
+                k = list(configs).index(label)
+                root = Path(tmp) / f"cold{k}-{n}"
+                shutil.copytree(Path(tmp) / f"fresh{k}", root)
+                fresh = shapedb.connect(root)
+                t = time.perf_counter()
+                fresh.search(sid, k=10)
+                first[label].append(time.perf_counter() - t)
+                if label == shared:
+                    table = neighbour_table(fresh, stored_arrays(fresh), LightFieldFusion(product))
+                    computed.append(len(table.values))
+            print(f"  cold query {sid}: {first[fused][-1]:.2f} s without the term, "
+                  f"{first[shared][-1]:.2f} s with it ({computed[-1]} lists)", flush=True)  # fmt: skip
+        out["cold_lists"] = computed
     med = {k: float(np.median(v)) for k, v in times.items()}
     base = med["none (v4)"]
     out["median_s"] = med
     out["ratio"] = {k: v / base for k, v in med.items()}
-    # the field vectors' cost: per query, against the same query without them (paired)
-    paired = np.asarray(times["lightfield + field vectors (v4)"]) / np.asarray(
-        times["lightfield (v4)"]
-    )
-    out["field_vectors_paired_ratio"] = float(np.median(paired))
+
+    def paired(a: list[float], b: list[float]) -> float:
+        return float(np.median(np.asarray(a) / np.asarray(b)))
+
+    # per query, against the same query without them (paired)
+    out["field_vectors_paired_ratio"] = paired(times[fused], times["lightfield (v4)"])
+    out["shared_paired_ratio"] = paired(times[shared], times[fused])
+    out["cold_median_s"] = {k: float(np.median(v)) for k, v in first.items()}
+    out["cold_shared_paired_ratio"] = paired(first[shared], first[fused])
     print(format_table(
         f"db.search per query, k = 10, {len(ids)} stored web shapes, {repeats} x {len(ids)} queries",
         ("stage", "median ms", "ratio"),
@@ -347,6 +401,10 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
     ))  # fmt: skip
     print(f"field vectors (fused distance and union) against the lightfield stage alone: "
           f"median per-query ratio x{out['field_vectors_paired_ratio']:.2f}")  # fmt: skip
+    print(f"shared-neighbour term against the same stage without it: warm x"
+          f"{out['shared_paired_ratio']:.2f}; cold (first query on a fresh store, "
+          f"{len(first[shared])} queries) {out['cold_median_s'][shared]:.2f} s against "
+          f"{out['cold_median_s'][fused]:.2f} s, x{out['cold_shared_paired_ratio']:.2f}")  # fmt: skip
     return out
 
 

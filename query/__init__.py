@@ -52,15 +52,17 @@ def on_commit(db: Database, *args: object, **kwargs: object) -> None:
 
     Whole-shape and part indexes that were already built are updated, and so are the
     light field spreads of a ``"lightfield"`` store that pools them
-    (:mod:`query.lightfield_spread`); a store never searched gets them lazily on first
-    use.
+    (:mod:`query.lightfield_spread`) and the shared-neighbour lists of one whose stage
+    reads them (:mod:`query.lightfield_neighbours`); a store never searched gets them
+    lazily on first use.
     """
     from query import index, parts_index
 
     index.on_commit(db, *args, **kwargs)
     parts_index.on_commit(db, *args, **kwargs)
     if db.config.rerank.scorer == "lightfield":
-        from query import lightfield_spread
-        from query.rerank_lightfield import stored_arrays
+        from query import lightfield_neighbours, lightfield_spread
+        from query.rerank_lightfield import LightFieldFusion, stored_arrays
 
         lightfield_spread.on_commit(db, stored_arrays(db))
+        lightfield_neighbours.on_commit(db, stored_arrays(db), LightFieldFusion(db.config))

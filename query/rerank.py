@@ -63,6 +63,7 @@ __all__ = [
     "rerank_candidates",
     "extra_candidates",
     "with_extras",
+    "stage_batch",
     "search",
     "block_slice",
     "SCORER_MODULES",
@@ -405,6 +406,59 @@ def rerank_candidates(
     return out_i, out_d
 
 
+def stage_batch(
+    index: Any,
+    queries: NDArray[np.float64],
+    ids: NDArray[np.int64],
+    distances: NDArray[np.float64],
+    *,
+    config: Config,
+    scorer: Scorer,
+    query_ids: NDArray[np.int64],
+    allowed: Any = None,
+    arrays: ArrayReader | None = None,
+    query_arrays: Mapping[str, NDArray[np.float64]] | None = None,
+) -> Candidates:
+    """The candidate lists of some queries as the stage receives them (:func:`search`).
+
+    Parameters
+    ----------
+    index : FeatureIndex
+        Fitted; the candidates' stored vectors are read from it.
+    queries : (q, d) float64
+        The queries' stored vectors.
+    ids, distances : (q, c) int64, (q, c) float64
+        The index's lists (``index.search`` of ``queries``, at least ``K`` each).
+    config : Config
+    scorer : Scorer
+        Its extra candidates (within ``allowed`` and the index's live ids) are placed
+        after the first ``K`` (:func:`with_extras`).
+    query_ids : (q,) int64
+        Stored ids of the queries, -1 for one that is not stored.
+    allowed, arrays, query_arrays : optional
+        As :func:`search`'s.
+
+    Returns
+    -------
+    Candidates
+        ``head`` covers the entries the stage re-ranks.
+    """
+    pos = index.lookup(np.where(ids >= 0, ids, -1).ravel()).reshape(ids.shape)
+    feats = np.asarray(index.features_)[np.maximum(pos, 0)].astype(np.float64)
+    feats[pos < 0] = 0.0
+    batch = Candidates(
+        np.asarray(query_ids, np.int64), np.asarray(queries, np.float64), ids, feats,
+        index.weights_, distances, config, arrays, query_arrays,
+    )  # fmt: skip
+    extra = extra_candidates(scorer, batch, allowed)
+    if extra is not None:
+        at = index.lookup(np.where(extra >= 0, extra, -1).ravel()).reshape(extra.shape)
+        extra = np.where(at >= 0, extra, -1)
+        ex_f = np.asarray(index.features_)[np.maximum(at, 0)].astype(np.float64)
+        batch = with_extras(batch, extra, ex_f)
+    return batch
+
+
 def search(
     index: Any,
     queries: NDArray[np.float64],
@@ -460,20 +514,12 @@ def search(
     out_d = np.full((len(q), k), np.inf)
     for s in range(0, len(q), _CHUNK):
         c = cand[s : s + _CHUNK]
-        pos = index.lookup(np.where(c >= 0, c, -1).ravel()).reshape(c.shape)
-        feats = np.asarray(index.features_)[np.maximum(pos, 0)].astype(np.float64)
-        feats[pos < 0] = 0.0
-        batch = Candidates(
-            qid[s : s + _CHUNK], q[s : s + _CHUNK], c, feats, index.weights_,
-            dist[s : s + _CHUNK], config, arrays,
-            None if query_arrays is None else {n: a[s : s + _CHUNK] for n, a in query_arrays.items()},
+        batch = stage_batch(
+            index, q[s : s + _CHUNK], c, dist[s : s + _CHUNK], config=config, scorer=scorer,
+            query_ids=qid[s : s + _CHUNK], allowed=allowed, arrays=arrays,
+            query_arrays=None if query_arrays is None else {
+                n: a[s : s + _CHUNK] for n, a in query_arrays.items()},
         )  # fmt: skip
-        extra = extra_candidates(scorer, batch, allowed)
-        if extra is not None:
-            at = index.lookup(np.where(extra >= 0, extra, -1).ravel()).reshape(extra.shape)
-            extra = np.where(at >= 0, extra, -1)
-            ex_f = np.asarray(index.features_)[np.maximum(at, 0)].astype(np.float64)
-            batch = with_extras(batch, extra, ex_f)
         got_i, got_d = rerank_candidates(scorer, batch, k)
         out_i[s : s + len(c)], out_d[s : s + len(c)] = got_i, got_d
         if stored_distances:  # each result's stored distance, from its list

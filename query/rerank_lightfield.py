@@ -26,17 +26,33 @@ when a field weight is above 0, and with ``LightFieldFusionConfig.field_candidat
 the scorer proposes the nearest shapes by the scaled field vectors as extra candidates
 (:meth:`LightFieldFusion.extra_candidates`, through the field vector index of
 :mod:`query.field_index`, which the store's reader offers: :meth:`StoredArrays.field_index`).
+
+With ``LightFieldFusionConfig.shared_neighbours`` ``k > 0`` and ``shared_weight`` ``beta
+> 0`` the light field's rank ranks by ``dl / m_l - beta * S(q, x)``, ``S`` the share of
+the query's and the candidate's ``k`` nearest neighbours in common
+(:mod:`query.lightfield_neighbours`, whose per-store-version table of the stored shapes'
+lists the reader serves as :data:`NEIGHBOURS`); the gate reads ``dl`` alone, and the
+first result among the query's other candidates is the one without the term
+(:meth:`LightFieldFusion.fuse`).
 """
 
 from __future__ import annotations
 
 import logging
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from query.field_fusion import FIELD, FieldFusion, stores_field_vectors
+from query.lightfield_neighbours import (
+    NEIGHBOURS,
+    keep_first,
+    nearest_others,
+    neighbour_table,
+    shared_scores,
+)
 from query.lightfield_spread import calibration, local_statistic, pooled, spread_table
 from query.rerank import Candidates, register_scorer
 
@@ -50,6 +66,7 @@ __all__ = [
     "query_light_fields",
     "COLUMN",
     "SPREAD",
+    "NEIGHBOURS",
 ]
 
 log = logging.getLogger(__name__)
@@ -79,7 +96,10 @@ class LightFieldFusion:
     The formula, the gate ``g(q)`` and the spread are those of
     :class:`shapedb.config.LightFieldFusionConfig` (``config.lf_fusion``); ranks and
     the neighbourhoods are taken among the query's valid candidates in their list
-    order (stored distance, ties by ascending id).
+    order (stored distance, ties by ascending id). With the shared-neighbour term
+    (``shared_neighbours``, ``shared_weight``) ``rank_l`` ranks by ``dl / m_l - beta *
+    S(q, x)`` where the gate is open, and the first result among the query's others is
+    the one without the term (:meth:`fuse`).
 
     Parameters
     ----------
@@ -94,6 +114,7 @@ class LightFieldFusion:
         self.field = FieldFusion.from_config(config)
         self._warned = False
         self._warned_index = False
+        self._warned_lists = False
 
     def _warn(self, why: str) -> None:
         if not self._warned:
@@ -106,28 +127,61 @@ class LightFieldFusion:
         dl: NDArray[np.float64],
         own: NDArray[np.bool_],
         spreads: NDArray[np.float64] | None = None,
+        *,
+        gate: float | None = None,
+        shared: NDArray[np.float64] | None = None,
+        ids: NDArray[np.int64] | None = None,
     ) -> NDArray[np.float64]:
         """Fused scores (c,) of one query's candidates.
+
+        With ``shared`` (the term's ``S(q, x)``, :mod:`query.lightfield_neighbours`) and
+        an open gate, the light field's rank is taken by ``dl / m_l - beta * S`` instead
+        of ``dl`` (:class:`shapedb.config.LightFieldFusionConfig`; ``m_l``:
+        :attr:`scale`); the gate reads ``dl`` alone. **The first result is kept**: the
+        candidate first among those not ``own`` without the term (by fused score, ties
+        by ascending id, as :func:`query.rerank.rerank_candidates` orders) is first among
+        them with it (:func:`query.lightfield_neighbours.keep_first`), so the nearest
+        neighbour never changes; the term only reorders the rest.
 
         Parameters
         ----------
         d : (c,) float64
             Stored distances, in list order (non-decreasing).
         dl : (c,) float64
-            Light field distances.
+            Light field distances (the stage's).
         own : (c,) bool
-            The query itself among the candidates (left out of the gate).
+            The query itself among the candidates (left out of the gate and of the
+            first result).
         spreads : (c,) float64, optional
             The candidates' stored local spreads (NaN: unknown), pooled when
             ``LightFieldFusionConfig.pool > 0``; None there: the term is off.
+        gate : float, optional
+            ``g(q)`` when already known (:meth:`gate` of the same arguments).
+        shared : (c,) float64, optional
+            ``S(q, x)`` of each candidate; None: no shared-neighbour term.
+        ids : (c,) int64, optional
+            The candidates' ids (the first result's ties); needed with ``shared``.
         """
         f = self.fusion
         d4 = d / self.calibration
         fused = 1.0 / (f.offset + _ranks(d4))
-        g = self.gate(d4, dl, own, spreads)
-        if g > 0:
-            fused = fused + f.weight * g / (f.offset + _ranks(dl))
-        return np.maximum((1.0 + f.weight * g) / f.offset - fused, 0.0)
+        g = self.gate(d4, dl, own, spreads) if gate is None else float(gate)
+        if g <= 0:
+            return np.maximum(1.0 / f.offset - fused, 0.0)
+        top = (1.0 + f.weight * g) / f.offset
+        plain = np.maximum(top - (fused + f.weight * g / (f.offset + _ranks(dl))), 0.0)
+        if shared is None or ids is None:
+            return plain
+        rank_s = _ranks(dl / self.scale - f.shared_weight * np.asarray(shared, np.float64))
+        term = np.maximum(top - (fused + f.weight * g / (f.offset + rank_s)), 0.0)
+        return keep_first(plain, term, own, ids)
+
+    @property
+    def scale(self) -> float:
+        """``m_l`` of the shared-neighbour term: ``light_field_scale`` when the field vectors
+        are fused into the light field distance, else ``typical``."""
+        f = self.fusion
+        return float(f.light_field_scale if self.field.active else f.typical)
 
     def gate(
         self,
@@ -165,11 +219,19 @@ class LightFieldFusion:
             g *= float(np.clip((contrast - f.contrast_floor) / f.contrast_ramp, 0.0, 1.0))
         return float(g)
 
-    def score(self, batch: Candidates) -> NDArray[np.float64]:
-        """Fused distances, (q, c); rows without light fields keep the stored distances."""
+    def stage_rows(
+        self, batch: Candidates
+    ) -> Iterator[tuple[int, NDArray[np.intp], NDArray[np.float64], NDArray[np.bool_]]]:
+        """``(row, cols, dl, own)`` of each query of ``batch`` the stage can score.
+
+        ``cols`` are the row's valid columns (list order), ``dl`` (len(cols),) the stage
+        distance to them (the light field distance, fused with the field vectors when
+        the store fuses them: :mod:`query.field_fusion`), ``own`` the query itself among
+        them (for an outside query also a stored copy, ``dl == 0``). Rows without light
+        fields (the query's or a candidate's) are left out, with one warning per scorer.
+        """
         from shapedb.lightfield import light_field_distance
 
-        out = np.array(batch.distances, dtype=np.float64, copy=True)
         valid = batch.valid
         wanted = np.unique(
             np.concatenate([batch.ids[valid], batch.query_ids[batch.query_ids >= 0]])
@@ -177,11 +239,8 @@ class LightFieldFusion:
         stored = None if batch.arrays is None else batch.arrays(COLUMN, wanted)
         if stored is None:
             self._warn("the store keeps no light fields")
-            return out
+            return
         pos = {int(i): k for k, i in enumerate(wanted)}
-        spreads = None
-        if self.fusion.pool > 0 and self.fusion.ceiling > 0:
-            spreads = batch.arrays(SPREAD, wanted) if batch.arrays is not None else None
         given = (batch.query_arrays or {}).get(COLUMN)
         fv = fv_given = None
         if self.field.active:
@@ -212,9 +271,62 @@ class LightFieldFusion:
                 elif fv is not None and batch.query_ids[row] >= 0:
                     fq = fv[pos[int(batch.query_ids[row])]]
                 dl = self.field.distance(dl, fq, None if fv is None else fv[at])
-            sp = None if spreads is None else spreads[at]
-            out[row, cols] = self.fuse(batch.distances[row, cols], dl, own, sp)
+            yield row, cols, dl, own
+
+    def score(self, batch: Candidates) -> NDArray[np.float64]:
+        """Fused distances, (q, c); rows without light fields keep the stored distances.
+
+        With the shared-neighbour term on, the lists of the candidates of the queries
+        whose gate is open are read through ``batch.arrays`` (:data:`NEIGHBOURS`); a
+        reader without them leaves the term out (one warning per scorer).
+        """
+        out = np.array(batch.distances, dtype=np.float64, copy=True)
+        rows = list(self.stage_rows(batch))
+        if not rows:
+            return out
+        spreads = None
+        if self.fusion.pool > 0 and self.fusion.ceiling > 0 and batch.arrays is not None:
+            wanted = np.unique(np.concatenate([batch.ids[row, cols] for row, cols, _, _ in rows]))
+            got = batch.arrays(SPREAD, wanted)
+            if got is not None:
+                spreads = dict(zip(wanted.tolist(), got, strict=True))
+        gates = []
+        for row, cols, dl, own in rows:
+            sp = None
+            if spreads is not None:
+                sp = np.array([spreads[int(i)] for i in batch.ids[row, cols]])
+            gates.append(self.gate(batch.distances[row, cols] / self.calibration, dl, own, sp))
+        term_on = [r for r, g in zip(rows, gates, strict=True) if g > 0 and self.fusion.weight > 0]
+        lists = self._lists(batch, term_on)
+        k = int(self.fusion.shared_neighbours)
+        for (row, cols, dl, own), g in zip(rows, gates, strict=True):
+            ids = batch.ids[row, cols]
+            shared = None
+            if lists is not None and g > 0:
+                mine = nearest_others(dl, own, ids, k)
+                theirs = np.stack([lists[int(i)] for i in ids])
+                shared = shared_scores(mine, int(batch.query_ids[row]), ids, theirs, k)
+            out[row, cols] = self.fuse(
+                batch.distances[row, cols], dl, own, gate=g, shared=shared, ids=ids
+            )
         return out
+
+    def _lists(self, batch: Candidates, rows: list[Any]) -> dict[int, NDArray[np.int64]] | None:
+        """The stored lists ``N_k(x)`` of the candidates of ``rows``, by id; None: no term."""
+        if not self.fusion.shares_neighbours or not rows:
+            return None
+        wanted = np.unique(np.concatenate([batch.ids[row, cols] for row, cols, _, _ in rows]))
+        got = None if batch.arrays is None else batch.arrays(NEIGHBOURS, wanted)
+        if got is None:
+            if not self._warned_lists:
+                log.warning(
+                    "lightfield re-ranking: no shared-neighbour lists; the term is left out"
+                )
+                self._warned_lists = True
+            return None
+        table = np.asarray(got, np.float64)
+        table = np.where(np.isfinite(table), table, -1.0).astype(np.int64)
+        return {int(i): table[n] for n, i in enumerate(wanted)}
 
     def extra_candidates(self, batch: Candidates, allowed: Any = None) -> NDArray[np.int64] | None:
         """(q, K2) nearest stored shapes by the scaled field vectors, or None (off).
@@ -287,6 +399,7 @@ class StoredArrays:
         self._complete: set[str] = set()
         self._shape = {COLUMN: (int(db.config.light_field.n_fields), 10, -1), FIELD: (-1,)}
         self._field_index: Any = None
+        self._stage: LightFieldFusion | None = None
 
     def _read(self, column: str, ids: list[int] | None) -> None:
         t = self.db.store.shapes(["id", column], ids=ids)
@@ -322,11 +435,21 @@ class StoredArrays:
         ``light_field``: (m, fields, 10, d); ``field_vector``: (m, d). With ``name``
         :data:`SPREAD`, the (m,) local spreads of ``ids`` at the store's version
         (:func:`query.lightfield_spread.spread_table`, computed for the ids not known
-        yet; NaN for ids without). None when ``name`` is none of these (or not stored)
-        or no record of ``ids`` has it.
+        yet; NaN for ids without); with :data:`NEIGHBOURS`, in a store whose stage has
+        the shared-neighbour term, the (m, k) lists ``N_k`` of ``ids`` as float ids, -1
+        pads (:func:`query.lightfield_neighbours.neighbour_table`, computed likewise).
+        None when ``name`` is none of these (or not stored) or no record of ``ids`` has
+        it.
         """
         if name == SPREAD:
             return spread_table(self.db, self).get(np.asarray(ids, np.int64))
+        if name == NEIGHBOURS:
+            if not self.db.config.lf_fusion.shares_neighbours:
+                return None
+            if self._stage is None:
+                self._stage = LightFieldFusion(self.db.config)
+            table = neighbour_table(self.db, self, self._stage)
+            return table.get(np.asarray(ids, np.int64)).astype(np.float64)
         if name not in self._columns:
             return None
         ids = np.asarray(ids, np.int64)

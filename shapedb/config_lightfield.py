@@ -244,6 +244,20 @@ class LightFieldFusionConfig:
         ``[depth / m_b, harmonic / m_h]``, in [0, 100000]; 0: the stored vector's alone
         (the default, and stores written before). Read only by stores that keep field
         vectors.
+    shared_neighbours : int
+        ``k`` of the shared-neighbour term, in [0, 50]; 0: the term is off (the default,
+        and stores written before). With ``k > 0`` and ``shared_weight > 0`` the light
+        field's rank ``rank_l`` ranks the candidates by ``l / m_l - beta * S(q, x)``
+        instead of ``l`` (``m_l``: ``light_field_scale`` when the field vectors are fused
+        into ``l``, else ``typical``), where ``S(q, x) = |({q} ∪ N_k(q)) ∩ ({x} ∪
+        N_k(x))| / (k + 1)``: ``N_k(q)`` the query's ``k`` nearest other candidates by
+        ``l``, ``N_k(x)`` the stored shape's ``k`` nearest others among its own stage
+        candidates (a per-store-version table, :mod:`query.lightfield_neighbours`); an
+        outside query matches no stored id. The gate and its statistics read ``l``
+        alone, and the first result among the query's other candidates stays the one
+        without the term.
+    shared_weight : float
+        ``beta``, the weight of ``S`` against ``l / m_l``, in [0, 100]; 0: the term is off.
     """
 
     weight: float = 8.0
@@ -267,6 +281,8 @@ class LightFieldFusionConfig:
     field_depth_scale: float = 1.0
     field_harmonic_scale: float = 1.0
     field_candidates: int = 0
+    shared_neighbours: int = 0
+    shared_weight: float = 0.0
 
     def __post_init__(self) -> None:
         def number(v: object) -> bool:
@@ -318,6 +334,15 @@ class LightFieldFusionConfig:
         _check(
             ok, "lf_field_candidates", self.field_candidates, "must be an integer in [0, 100000]"
         )
+        ok = _is_int(self.shared_neighbours) and 0 <= self.shared_neighbours <= 50
+        _check(ok, "lf_shared_neighbours", self.shared_neighbours, "must be an integer in [0, 50]")
+        ok = number(self.shared_weight) and 0.0 <= self.shared_weight <= 100.0
+        _check(ok, "lf_shared_weight", self.shared_weight, "must be a number in [0, 100]")
+
+    @property
+    def shares_neighbours(self) -> bool:
+        """Whether the shared-neighbour term is on (``k > 0`` and ``beta > 0``)."""
+        return self.shared_neighbours > 0 and self.shared_weight > 0
 
 
 #: ``(m_l, m_b, m_h)`` of :func:`product_light_field_fusion`: the medians of the light field
@@ -332,7 +357,8 @@ def product_light_field_fusion() -> LightFieldFusionConfig:
     distance (weights 0.25 and 0.25, the scales :data:`PRODUCT_SCALES`), their index's 200
     nearest added to the candidates, and the gate's contrast ramp at 0.05. Chosen on the
     validation splits (docs/results.md, "The field vectors in the stage: the choice and the
-    rows")."""
+    rows"). The shared-neighbour term at ``k`` 3, ``beta`` 0.8 (provisional: docs/results.md,
+    "Shared neighbours in the light field stage")."""
     return LightFieldFusionConfig(
         field_depth_weight=0.25,
         field_harmonic_weight=0.25,
@@ -341,4 +367,6 @@ def product_light_field_fusion() -> LightFieldFusionConfig:
         field_harmonic_scale=PRODUCT_SCALES[2],
         field_candidates=200,
         contrast_ramp=0.05,
+        shared_neighbours=3,
+        shared_weight=0.8,
     )

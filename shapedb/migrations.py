@@ -24,6 +24,8 @@ Store configuration layouts (``Config.to_dict()``):
   spherical harmonics of the field's inside a store keeps per record); a store of an
   earlier layout kept none (``enabled`` False), and its ``lf_fusion`` section, stored or
   not, reads the field vector's fusion fields off (weights 0, no field candidates).
+  An ``lf_fusion`` section written before the shared-neighbour term reads it off
+  (``shared_neighbours`` 0, ``shared_weight`` 0).
 
 Part-index configuration layouts (``PartConfig.to_dict()``):
 
@@ -90,7 +92,8 @@ ADDED: dict[str, dict[str, Any]] = {
         "source": "balls",
         "centre": "volume",
     },
-    # before the field vectors: none stored, none fused, no candidates from them
+    # before the field vectors: none stored, none fused, no candidates from them; before
+    # the shared-neighbour term: no term
     "lf_fusion": {
         "field_depth_weight": 0.0,
         "field_harmonic_weight": 0.0,
@@ -98,6 +101,8 @@ ADDED: dict[str, dict[str, Any]] = {
         "field_depth_scale": 1.0,
         "field_harmonic_scale": 1.0,
         "field_candidates": 0,
+        "shared_neighbours": 0,
+        "shared_weight": 0.0,
     },
     "field_vector": {"enabled": False},
 }

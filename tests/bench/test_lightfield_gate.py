@@ -9,8 +9,7 @@ import pytest
 
 from bench.features import kernel_features
 from bench.lightfield_gate import Split, Store, gate_weights
-from bench.lightfield_rerank import index_of, light_fields, rankings
-from bench.packings import light_field_balls
+from bench.lightfield_rerank import index_of, rankings
 from shapedb.config import Config
 
 
@@ -19,18 +18,26 @@ from shapedb.config import Config
     not os.environ.get("SHAPEDB_BENCH_CACHE"), reason="needs the cached decompositions"
 )
 def test_the_gate_bench_ranks_the_parts_and_people_as_the_product() -> None:
+    from bench import inside_fields
     from bench.cached import load
+    from bench.gate_stores import shared_stores
 
-    config = Config().with_options(rerank="lightfield")
+    # the product's light fields without the field vectors (the split fuses none), the
+    # shared-neighbour term on; a shape's N_k among its candidates, as the product's table
+    config = Config().with_options(rerank="lightfield", fv_enabled=False)
+    assert config.lf_fusion.shares_neighbours
     split = Split("validation", ("parts", "people"))
     for name in ("parts", "people"):
         st = Store(split, split.store([name]))
         ds, balls = load(name, "validation")
-        seen = light_field_balls(name, "validation", ds, balls, config)  # the product's packing
-        got = rankings(index_of(kernel_features(balls, Config())), config,
-                       light_fields(seen, config).astype(np.float64))  # fmt: skip
-        want = st.rankings(gate_weights(st, config.lf_fusion))
-        assert np.array_equal(got, want), name
+        lf = inside_fields.light_fields(name, "validation", ds, config.light_field)
+        got = rankings(index_of(kernel_features(balls, Config())), config, lf.astype(np.float64))
+        weights = gate_weights(st, config.lf_fusion)
+        want = shared_stores({name: st}, split, config.lf_fusion, "candidates")[name]
+        assert np.array_equal(got, want.rankings(weights)), name
+        # the term moves rigid parts; the people's gate is shut, so it moves none of them
+        moved = not np.array_equal(want.rankings(weights), st.rankings(weights))
+        assert moved == (name == "parts"), name
 
 
 def test_the_margin_is_the_least_jointed_over_the_largest_rigid() -> None:
@@ -79,3 +86,39 @@ def test_a_store_s_nearest_others_are_its_candidates_without_itself() -> None:
     best = np.median(np.sort(st.nearest(20)[1], 1)[:, :5], 1)
     want = spread**0.5 * (np.median(near_l[:, :5], 1) / best) ** 0.5
     assert np.allclose(local_spreads(st, 5, 2.0, 0.5, 20), want)
+
+
+def test_the_bench_s_shared_term_ranks_as_the_product() -> None:
+    from types import SimpleNamespace
+
+    from bench.gate_stores import shared_stores
+    from bench.lightfield_rerank import Arrays
+    from query import rerank
+    from query.index import FeatureIndex
+    from query.lightfield_spread import calibration
+    from shapedb.kernel import weights
+    from shapedb.lightfield import light_field_distance
+
+    rng = np.random.default_rng(5)
+    n = 40
+    lf = rng.random((4, 3, 10, 46))[np.arange(n) % 4] + 0.3 * rng.random((n, 3, 10, 46))
+    dl = light_field_distance(lf)
+    # every shape a candidate, the gate open: the light field's rank and the term decide
+    config = Config().with_options(
+        rerank="lightfield", rerank_candidates=n, fv_enabled=False, lf_power=0.0,
+        lf_ceiling=0.0, lf_contrast_floor=0.0, lf_pool=0, lf_shared_neighbours=3,
+        lf_shared_weight=0.8, lf_typical=float(np.median(dl)),
+    )  # fmt: skip
+    x = rng.random((n, config.dim)).astype(np.float32)
+    index = FeatureIndex(kind="flat").fit(np.arange(n), x, weights(config))
+    xs = np.asarray(index.features_, np.float64)
+    d4 = np.abs(xs[:, None, :] - xs[None, :, :]) @ index.weights_ / calibration(config)
+    split = SimpleNamespace(labels=np.arange(n) % 4, sets=np.zeros(n), d4=d4, dl=dl)
+    st = Store(split, np.arange(n), candidates=n)  # type: ignore[arg-type]
+    got, _ = rerank.search(index, xs, n, config=config, query_ids=np.arange(n),
+                           arrays=Arrays(lf, index, config))  # fmt: skip
+    w = gate_weights(st, config.lf_fusion)
+    want = shared_stores({"s": st}, split, config.lf_fusion)["s"].rankings(w)  # type: ignore[arg-type]
+    assert np.array_equal(got, want)
+    assert not np.array_equal(want, st.rankings(w))  # the term moved some rankings
+    assert np.array_equal(want[:, :2], st.rankings(w)[:, :2])  # never the first result

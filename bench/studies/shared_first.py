@@ -1,0 +1,108 @@
+"""The shared-neighbour term with and without keeping each query's first result.
+
+Usage (from the repository root)::
+
+    python -m bench.studies.shared_first                       # validation, the product's k, beta
+    python -m bench.studies.shared_first --split test --shared 4 1.6
+
+The gate bench's stores (:mod:`bench.lightfield_gate`: every set and mix of the split a
+store, the product's stage with the field vectors, its gate) are scored three ways: the
+stage without the shared-neighbour term, with it as the product ranks (the first result
+among the query's others is the one without the term:
+:meth:`query.rerank_lightfield.LightFieldFusion.fuse`), and with it unconstrained (the term
+may change the first result too, :attr:`bench.gate_stores.Store.keep_first` False). The
+rows show what the contract costs or saves on NN. Written to
+bench/results/studies/shared_first_<split>.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.common import format_table, write_json
+from bench.field_vectors import fuse, stage_of
+from bench.gate_stores import (
+    MEASURES,
+    MIXES,
+    SETS,
+    Split,
+    Store,
+    gate_weights,
+    score_row,
+    shared_stores,
+)
+from shapedb.config import Config
+
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
+
+
+def rows(split_name: str, k: int | None = None, beta: float | None = None) -> dict[str, Any]:
+    """The three rows on every store of the split (the product's k and beta unless given)."""
+    f = Config().lf_fusion
+    if k is not None and beta is not None:
+        f = dataclasses.replace(f, shared_neighbours=int(k), shared_weight=float(beta))
+    split = Split(split_name, SETS)
+    stage = stage_of(argparse.Namespace())
+    if stage is not None:
+        split = fuse(split, SETS, stage)
+    k2 = stage.candidates if stage is not None else 0
+    names: dict[str, tuple[str, ...]] = {s: (s,) for s in SETS}
+    names.update({n: v for n, v in MIXES.items() if set(v) <= set(SETS)})
+    stores = {n: Store(split, split.store(v), field_candidates=k2) for n, v in names.items()}
+    v4 = {n: Store(split, split.store(v)) for n, v in names.items()}
+    base = {n: st.per_set(st.measures(np.zeros(len(st.rows)))) for n, st in v4.items()}
+    gated = {n: gate_weights(st, f) for n, st in stores.items()}
+    kept = shared_stores(stores, split, f)
+    free = shared_stores(stores, split, f)
+    for st in free.values():
+        st.keep_first = False
+    out = {
+        "the stage without the term": score_row(stores, gated, base),
+        f"the term (k {f.shared_neighbours}, beta {f.shared_weight:g}), first kept": score_row(
+            kept, gated, base
+        ),
+        f"the term (k {f.shared_neighbours}, beta {f.shared_weight:g}), first free": score_row(
+            free, gated, base
+        ),
+    }
+    sets = [(n, s) for n, st in stores.items() for s in dict.fromkeys(st.sets)]
+    table = []
+    for label, e in out.items():
+        cells = [
+            "{nn:.3f} / {first_tier:.3f} / {dcg:.3f}".format(**e["stores"][n][s]) for n, s in sets
+        ]
+        worst = f"{e['worst_queries']:+.1f} ({e['worst_at']})" if e["worst_at"] else "0"
+        table.append([label, *cells, f"{e['objective']:.4f}", worst])
+    heads = [n if (n,) == (s,) else f"{s} in {n}" for n, s in sets]
+    print(format_table(
+        f"the shared-neighbour term, {split_name} splits (NN / 1-T / DCG)",
+        ("row", *heads, "objective", "worst (queries)"), table,
+    ))  # fmt: skip
+    return {"split": split_name, "measures": MEASURES, "rows": out,
+            "shared": [f.shared_neighbours, f.shared_weight]}  # fmt: skip
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point; returns the exit status."""
+    ap = argparse.ArgumentParser(prog="python -m bench.studies.shared_first")
+    ap.add_argument("--split", default="validation", choices=["validation", "test"])
+    ap.add_argument("--shared", nargs=2, default=None, metavar=("K", "BETA"))
+    ap.add_argument("--out", type=Path, default=None)
+    args = ap.parse_args(argv)
+    k, beta = (None, None) if args.shared is None else (int(args.shared[0]), float(args.shared[1]))
+    result = rows(args.split, k, beta)
+    out = args.out or RESULTS / f"shared_first_{args.split}.json"
+    write_json(out, result)
+    print(f"written {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
