@@ -205,7 +205,7 @@ def test_bad_values_name_the_option(options: dict[str, Any], match: str) -> None
 
 def test_the_product_turns_the_term_on_and_a_store_written_before_reads_it_off() -> None:
     new = Config()
-    assert (new.lf_fusion.shared_neighbours, new.lf_fusion.shared_weight) == (3, 0.8)
+    assert (new.lf_fusion.shared_neighbours, new.lf_fusion.shared_weight) == (3, 1.6)
     assert new.lf_fusion.shares_neighbours
     stored = new.to_dict()
     assert Config.from_dict(stored) == new
