@@ -44,8 +44,10 @@ from numpy.typing import NDArray
 
 from bench import inside_fields
 from bench.cached import CHOICES, SETS, load
-from bench.common import format_table, per_query, retrieval_scores, variant_geometry, write_json
+from bench.common import format_table, per_query, retrieval_scores, write_json
 from bench.datasets import CACHE_DIR, Dataset
+from bench.field_vector_cost import ingest_cpu
+from bench.field_vector_cost import models as first_models
 from bench.packings import light_field_balls
 from shapedb.config import Config, LightFieldConfig
 from shapedb.lightfield import light_field_distance, record_light_field
@@ -162,43 +164,14 @@ def alone(
             "configs": {k: dataclasses.asdict(v) for k, v in configs.items()}}  # fmt: skip
 
 
-def ingest_cpu(model: Any, config: Config) -> tuple[float, dict[str, float]]:
-    """CPU seconds of one model's ingest work under ``config`` and its stage timings."""
-    from shapedb.kernel import features
-    from shapedb.lightfield import decomposition_light_field
-    from shapedb.mdbd import decompose
-
-    c0 = time.process_time()
-    geometry = variant_geometry(model, "mesh", config.mdbd)
-    d = decompose(
-        geometry, config=config.mdbd, tail_balls=config.light_field_tail,
-        keep_inside=config.light_field_inside,
-    )  # fmt: skip
-    features(d, config)
-    t = time.process_time()
-    decomposition_light_field(d, config.light_field)
-    timings = dict(d.timings)
-    timings["light_field"] = time.process_time() - t
-    return time.process_time() - c0, timings
-
-
 def cost(k: int) -> dict[str, Any]:
     """Per-model ingest CPU of a store of the field's inside against the product's balls."""
-    ds, _ = load("web", "validation")
-    labels = list(ds.labels)
-    first = [i for i, lab in enumerate(labels) if labels.index(lab) == i]
-    order = first + [i for i in range(len(ds)) if i not in set(first)]
-    models = [ds.models[i] for i in order[: k + 1]]
+    models = first_models(k)
+    plain = Config().with_options(rerank="lightfield", fv_enabled=False)  # light fields only
     stores = {
-        "balls (product)": Config().with_options(
-            rerank="lightfield", lf_source="balls", lf_resolution=64
-        ),
-        "field's inside": Config().with_options(
-            rerank="lightfield", lf_source="field", lf_resolution=64
-        ),
-        "field's inside, 128 px": Config().with_options(
-            rerank="lightfield", lf_source="field", lf_resolution=128
-        ),
+        "balls (product)": plain.with_options(lf_source="balls", lf_resolution=64),
+        "field's inside": plain.with_options(lf_source="field", lf_resolution=64),
+        "field's inside, 128 px": plain.with_options(lf_source="field", lf_resolution=128),
     }
     for cfg in stores.values():  # compile and warm caches, untimed
         ingest_cpu(models[0], cfg)
