@@ -34,7 +34,6 @@ own stored distance (no learned metric).
 from __future__ import annotations
 
 import logging
-import os
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -43,9 +42,10 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from query._versioned import POINTER, current, save_version
+from query._versioned import POINTER
 from query.field_fusion import FieldFusion
 from query.rerank import Candidates, stage_batch
+from query.shape_table import ShapeTable, index_version, shared_table
 
 if TYPE_CHECKING:
     from query.rerank import ArrayReader
@@ -258,7 +258,7 @@ def _meta(config: Config, version: int) -> dict[str, Any]:
     }
 
 
-class NeighbourTable:
+class NeighbourTable(ShapeTable):
     """The lists ``N_k(x)`` of one store version, filled as they are asked for.
 
     Parameters
@@ -268,52 +268,26 @@ class NeighbourTable:
         The store's arrays by id (:func:`query.rerank_lightfield.stored_arrays`).
     scorer : StageRows
         The store's stage (``LightFieldFusion(db.config)``).
+    meta : dict, optional
+        The parameters (:func:`_meta` at the index's version by default).
     """
 
-    def __init__(self, db: Database, fields: ArrayReader, scorer: StageRows) -> None:
-        from query.index import open_index
+    directory = NEIGHBOUR_DIR
+    file = "neighbours.npy"
+    what = "shared-neighbour lists"
 
-        self.db, self.fields, self.scorer = db, fields, scorer
-        self.index = open_index(db)
-        v = self.index.version_
-        self.version = int(v if v is not None else db.store.version)
-        self.meta = _meta(db.config, self.version)
+    def __init__(self, db: Database, fields: ArrayReader, scorer: StageRows,
+                 meta: dict[str, Any] | None = None) -> None:  # fmt: skip
+        self.fields, self.scorer = fields, scorer
         self.k = int(db.config.lf_fusion.shared_neighbours)
-        self.values: dict[int, NDArray[np.int64]] = {}
-        self.n_alive = int(np.count_nonzero(self.index.alive_))
-        self.complete = False
-        self._lock = threading.Lock()
-        self._read()
+        super().__init__(db, meta if meta is not None else _meta(db.config, index_version(db)))
 
-    @property
-    def root(self) -> Path:
-        return Path(self.db.store.path) / NEIGHBOUR_DIR
+    def check(self, values: NDArray[Any]) -> None:
+        if values.ndim != 2 or values.shape[1] != self.k:
+            raise ValueError(f"lists of shape {values.shape} for k = {self.k}")
 
-    def _read(self) -> None:
-        if not (self.root / POINTER).exists():
-            return
-        try:
-            stored, sub = current(self.root)
-            if all(stored.get(key) == v for key, v in self.meta.items()):
-                ids, lists = np.load(sub / "ids.npy"), np.load(sub / "neighbours.npy")
-                if lists.shape != (len(ids), self.k):
-                    raise ValueError(f"lists of shape {lists.shape} for k = {self.k}")
-                self.values = {int(i): row for i, row in zip(ids, lists, strict=True)}
-                self.complete = True
-        except (OSError, ValueError, KeyError) as exc:
-            log.warning("recomputing the shared-neighbour lists of %s: %s", self.db.store.path, exc)
-
-    def _write(self) -> None:
-        ids = np.array(sorted(self.values), np.int64)
-        lists = np.stack([self.values[int(i)] for i in ids]) if len(ids) else np.zeros((0, self.k))
-        lists = np.asarray(lists, np.int64).reshape(len(ids), self.k)
-
-        def write(sub: Path) -> None:
-            np.save(sub / "ids.npy", ids)
-            np.save(sub / "neighbours.npy", lists)
-
-        save_version(self.root, write, self.meta, version=self.version)
-        log.info("shared-neighbour lists of %d shapes at store version %s", len(ids), self.version)
+    def compute(self, ids: NDArray[np.int64] | None) -> tuple[NDArray[np.int64], Any]:
+        return stage_lists(self.index, self.fields, self.db.config, self.scorer, ids)
 
     def get(self, ids: NDArray[np.int64] | None = None) -> NDArray[np.int64]:
         """(m, k) lists of ``ids`` (every alive shape's when None); -1 rows for ids without.
@@ -321,42 +295,18 @@ class NeighbourTable:
         Computes the ids not known yet; once every alive shape has its list, writes the
         table for later processes.
         """
-        with self._lock:
-            want = None if ids is None else np.asarray(ids, np.int64).ravel()
-            if not self.complete:
-                pending = want
-                if want is not None:
-                    pending = np.array(sorted({int(i) for i in want} - set(self.values)), np.int64)
-                if pending is None or len(pending):
-                    got_ids, got = stage_lists(
-                        self.index, self.fields, self.db.config, self.scorer, pending
-                    )
-                    self.values.update({int(i): row for i, row in zip(got_ids, got, strict=True)})
-                    # stage_lists answers alive ids only: a count tells completeness
-                    if len(self.values) >= self.n_alive:
-                        self.complete = True
-                        self._write()
-            if want is None:
-                want = np.array(sorted(self.values), np.int64)
-            none = np.full(self.k, -1, np.int64)
-            rows = [self.values.get(int(i), none) for i in want]
-            return np.stack(rows) if rows else np.zeros((0, self.k), np.int64)
+        _, values = self.known(ids)
+        none = np.full(self.k, -1, np.int64)
+        rows = [none if v is None else np.asarray(v, np.int64) for v in values]
+        return np.stack(rows) if rows else np.zeros((0, self.k), np.int64)
 
 
 def neighbour_table(db: Database, fields: ArrayReader, scorer: StageRows) -> NeighbourTable:
     """The shared :class:`NeighbourTable` of ``db``'s store at its index's current version."""
-    from query.index import open_index
-
-    index = open_index(db)
-    version = int(index.version_ if index.version_ is not None else db.store.version)
-    key = (os.fspath(db.store.path), version)
-    with _LOCK:
-        table = _CACHE.get(key)
-        if table is None or table.meta != _meta(db.config, version):  # new version or config
-            table = _CACHE[key] = NeighbourTable(db, fields, scorer)
-            for old in [c for c in _CACHE if c[0] == key[0] and c[1] != version]:
-                _CACHE.pop(old, None)
-    return table
+    return shared_table(  # type: ignore[no-any-return]
+        _CACHE, _LOCK, db, lambda v: _meta(db.config, v),
+        lambda m: NeighbourTable(db, fields, scorer, m),
+    )  # fmt: skip
 
 
 def store_neighbours(db: Database, fields: ArrayReader, scorer: StageRows) -> dict[int, Any]:

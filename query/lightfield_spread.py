@@ -38,7 +38,6 @@ fusion's weights and scales are among the parameters a stored table must match.
 from __future__ import annotations
 
 import logging
-import os
 import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -46,8 +45,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from query._versioned import POINTER, current, save_version
+from query._versioned import POINTER
 from query.field_fusion import FieldFusion
+from query.shape_table import ShapeTable, index_version, shared_table
 
 if TYPE_CHECKING:
     from query.rerank import ArrayReader
@@ -237,7 +237,7 @@ def _meta(config: Config, version: int) -> dict[str, Any]:
     }
 
 
-class SpreadTable:
+class SpreadTable(ShapeTable):
     """The local spreads of one store version, filled as they are asked for.
 
     Parameters
@@ -245,48 +245,22 @@ class SpreadTable:
     db : shapedb.Database
     fields : ArrayReader
         The store's light fields by id (:func:`query.rerank_lightfield.stored_arrays`).
+    meta : dict, optional
+        The parameters (:func:`_meta` at the index's version by default).
     """
 
-    def __init__(self, db: Database, fields: ArrayReader) -> None:
-        from query.index import open_index
+    directory = SPREAD_DIR
+    file = "spreads.npy"
+    what = "light field spreads"
 
-        self.db, self.fields = db, fields
-        self.index = open_index(db)
-        v = self.index.version_
-        self.version = int(v if v is not None else db.store.version)
-        self.meta = _meta(db.config, self.version)
-        self.values: dict[int, float] = {}
-        self.n_alive = int(np.count_nonzero(self.index.alive_))
-        self.complete = False
-        self._lock = threading.Lock()
-        self._read()
+    def __init__(
+        self, db: Database, fields: ArrayReader, meta: dict[str, Any] | None = None
+    ) -> None:
+        self.fields = fields
+        super().__init__(db, meta if meta is not None else _meta(db.config, index_version(db)))
 
-    @property
-    def root(self) -> Path:
-        return Path(self.db.store.path) / SPREAD_DIR
-
-    def _read(self) -> None:
-        if not (self.root / POINTER).exists():
-            return
-        try:
-            stored, sub = current(self.root)
-            if all(stored.get(k) == v for k, v in self.meta.items()):
-                ids, spreads = np.load(sub / "ids.npy"), np.load(sub / "spreads.npy")
-                self.values = {int(i): float(s) for i, s in zip(ids, spreads, strict=True)}
-                self.complete = True
-        except (OSError, ValueError, KeyError) as exc:
-            log.warning("recomputing the light field spreads of %s: %s", self.db.store.path, exc)
-
-    def _write(self) -> None:
-        ids = np.array(sorted(self.values), np.int64)
-        spreads = np.array([self.values[int(i)] for i in ids], np.float64)
-
-        def write(sub: Path) -> None:
-            np.save(sub / "ids.npy", ids)
-            np.save(sub / "spreads.npy", spreads)
-
-        save_version(self.root, write, self.meta, version=self.version)
-        log.info("light field spreads of %d shapes at store version %s", len(ids), self.version)
+    def compute(self, ids: NDArray[np.int64] | None) -> tuple[NDArray[np.int64], Any]:
+        return local_spreads(self.index, self.fields, self.db.config, ids)
 
     def get(self, ids: NDArray[np.int64] | None = None) -> NDArray[np.float64]:
         """(k,) spreads of ``ids`` (every alive shape's when None); NaN for ids without.
@@ -294,40 +268,15 @@ class SpreadTable:
         Computes the ids not known yet; once every alive shape has its spread, writes
         the table for later processes.
         """
-        with self._lock:
-            want = None if ids is None else np.asarray(ids, np.int64).ravel()
-            if not self.complete:
-                pending = want
-                if want is not None:
-                    pending = np.array(sorted({int(i) for i in want} - set(self.values)), np.int64)
-                if pending is None or len(pending):
-                    got_ids, got = local_spreads(self.index, self.fields, self.db.config, pending)
-                    self.values.update(
-                        {int(i): float(s) for i, s in zip(got_ids, got, strict=True)}
-                    )
-                    # local_spreads answers alive ids only: a count tells completeness
-                    if len(self.values) >= self.n_alive:
-                        self.complete = True
-                        self._write()
-            if want is None:
-                want = np.array(sorted(self.values), np.int64)
-            return np.array([self.values.get(int(i), np.nan) for i in want])
+        _, values = self.known(ids)
+        return np.array([np.nan if v is None else float(v) for v in values], np.float64)
 
 
 def spread_table(db: Database, fields: ArrayReader) -> SpreadTable:
     """The shared :class:`SpreadTable` of ``db``'s store at its index's current version."""
-    from query.index import open_index
-
-    index = open_index(db)
-    version = int(index.version_ if index.version_ is not None else db.store.version)
-    key = (os.fspath(db.store.path), version)
-    with _LOCK:
-        table = _CACHE.get(key)
-        if table is None or table.meta != _meta(db.config, version):  # new version or config
-            table = _CACHE[key] = SpreadTable(db, fields)
-            for old in [k for k in _CACHE if k[0] == key[0] and k[1] != version]:
-                _CACHE.pop(old, None)
-    return table
+    return shared_table(  # type: ignore[no-any-return]
+        _CACHE, _LOCK, db, lambda v: _meta(db.config, v), lambda m: SpreadTable(db, fields, m)
+    )
 
 
 def store_spreads(db: Database, fields: ArrayReader) -> dict[int, float]:
