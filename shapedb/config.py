@@ -116,7 +116,14 @@ class MDBDConfig:
         Triangle meshes in which no ball fits (sheets, flat or thinner than the grid
         models), and open meshes made largely of sheets, are decomposed dilated by
         this many grid cells (:mod:`shapedb.sheet`); 0 turns it off (such models then
-        fail). Closed meshes in which a ball fits are never dilated.
+        fail). Closed meshes in which a ball fits are never dilated whole.
+    sheet_rule : {"local", "whole"}
+        ``"local"``: a triangle mesh not dilated whole whose sheet cells (surface cells
+        with no inside nearby: sheets and parts thinner than the grid) are at least 1 %
+        of its surface cells is dilated by ``sheet_cells`` near them only
+        (:func:`shapedb.sheet.sheet_region`), so the wings of an airplane with a closed
+        fuselage get a solid. ``"whole"``: only the whole-model rule (stores written
+        before the field, whose sheets in such models had no inside).
     """
 
     resolution: int = 128
@@ -130,6 +137,7 @@ class MDBDConfig:
     tie_cells: float = 1.5
     tie_rule: str = "middle"
     sheet_cells: float = 1.0
+    sheet_rule: str = "local"
 
     def __post_init__(self) -> None:
         _check(
@@ -170,6 +178,12 @@ class MDBDConfig:
         )
         _check(0.0 <= self.tie_cells <= 4, "tie_cells", self.tie_cells, "must be in [0, 4]")
         _check(0.0 <= self.sheet_cells <= 8, "sheet_cells", self.sheet_cells, "must be in [0, 8]")
+        _check(
+            self.sheet_rule in ("local", "whole"),
+            "sheet_rule",
+            self.sheet_rule,
+            "must be 'local' or 'whole'",
+        )
         _check(
             self.tie_rule in ("first", "middle"),
             "tie_rule",

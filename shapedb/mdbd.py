@@ -46,7 +46,7 @@ from shapedb.errors import ConfigError, DegenerateGeometryError, InvalidShapeErr
 from shapedb.frame import canonical_frame, frame_grid
 from shapedb.geometry import Geometry, Grid
 from shapedb.packing import pack_balls
-from shapedb.sheet import Thickened, needs_thickening
+from shapedb.sheet import LocallyThickened, Thickened, needs_thickening, sheet_region
 
 if TYPE_CHECKING:
     from shapedb.graph import ContactGraph
@@ -218,12 +218,17 @@ def prepare_field(geometry: Geometry, cfg: MDBDConfig) -> PreparedField:
         raise InvalidShapeError(
             f"grid_sdf returned shape {F.shape}, expected {grid.shape}", source=repr(geometry)
         )
+    thickness = cfg.sheet_cells * grid.spacing
     if cfg.sheet_cells > 0 and needs_thickening(
         local, F, grid.spacing, cfg.min_radius_cells * grid.spacing
     ):
-        thickness = cfg.sheet_cells * grid.spacing
         local = Thickened(local, thickness)
         F += np.float32(thickness)
+    elif cfg.sheet_cells > 0 and cfg.sheet_rule == "local":
+        region = sheet_region(local, F, grid.spacing, thickness)
+        if region is not None:
+            local = LocallyThickened(local, thickness, grid, region)
+            F += np.float32(thickness) * region
     timings["sdf"] = time.perf_counter() - t0
     return PreparedField(local, grid, F, frame, timings, scale)
 

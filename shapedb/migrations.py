@@ -68,8 +68,9 @@ PART_LAYOUT = 2
 #: and the value a stored section without the field was built with.
 ADDED: dict[str, dict[str, Any]] = {
     # before tie_rule, the packing took the first tied cell (C order); before
-    # sheet_cells, sheets and flat meshes were never thickened (they failed)
-    "mdbd": {"tie_rule": "first", "sheet_cells": 0.0},
+    # sheet_cells, sheets and flat meshes were never thickened (they failed); before
+    # sheet_rule, only whole models were (sheets beside a solid had no inside)
+    "mdbd": {"tie_rule": "first", "sheet_cells": 0.0, "sheet_rule": "whole"},
     # before method, the only feature was the paper's Eq. 1 vector
     "kernel": {"method": "paper"},
     # before versions, the descriptor was version 1
@@ -138,7 +139,7 @@ SECTIONS_ADDED: dict[str, int] = {
 #: Decomposition fields added after ``Config.fingerprint`` was first stored, and the
 #: value at which the fingerprint leaves them out, so that stores written before each
 #: field keep the fingerprint their rows carry.
-MDBD_UNHASHED: dict[str, Any] = {"sheet_cells": 0.0}
+MDBD_UNHASHED: dict[str, Any] = {"sheet_cells": 0.0, "sheet_rule": "whole"}
 
 #: Part-index configuration fields added after part indexes were first written, and
 #: the values that reproduce what those indexes hold (the paper's Eq. 1 vector alone

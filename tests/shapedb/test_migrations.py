@@ -59,7 +59,9 @@ def test_the_oldest_layout_is_the_papers_kernel_and_the_first_tie_rule() -> None
     assert cfg.kernel == KernelConfig(method="paper")
     assert cfg.descriptor == DescriptorConfig(version=1)
     assert cfg.cloud == CloudConfig(view_cells=0.0, reconstruct=False, reconstruct_depth=8)
-    assert cfg.mdbd == MDBDConfig(contact_tol_cells=0.5, tie_rule="first", sheet_cells=0.0)
+    assert cfg.mdbd == MDBDConfig(
+        contact_tol_cells=0.5, tie_rule="first", sheet_cells=0.0, sheet_rule="whole"
+    )
 
 
 def test_each_later_field_takes_the_value_that_built_the_store() -> None:
@@ -68,7 +70,7 @@ def test_each_later_field_takes_the_value_that_built_the_store() -> None:
     assert cfg.mdbd == MDBDConfig()  # no mdbd section stored: today's defaults
     cfg = Config.from_json(VIEWS_ERA)
     assert cfg.descriptor.version == 2 and cfg.cloud == CloudConfig(4.0, False, 8)
-    assert cfg.mdbd == MDBDConfig(resolution=64, sheet_cells=0.0)
+    assert cfg.mdbd == MDBDConfig(resolution=64, sheet_cells=0.0, sheet_rule="whole")
     cfg = Config.from_json(RECONSTRUCT_ERA)
     assert cfg.descriptor.version == 4 and cfg.cloud == CloudConfig(0.0, True, 8)
     cfg = Config.from_json(LAST_FLAT)
@@ -131,7 +133,9 @@ def test_part_index_configurations_of_every_layout() -> None:
 
 def _layout1_store_config() -> Config:
     return Config(
-        mdbd=MDBDConfig(resolution=24, n_balls=32, tie_cells=1.0, sheet_cells=0.0),
+        mdbd=MDBDConfig(
+            resolution=24, n_balls=32, tie_cells=1.0, sheet_cells=0.0, sheet_rule="whole"
+        ),
         kernel=KernelConfig(),
         descriptor=DescriptorConfig(version=3),
         cloud=CloudConfig(view_cells=4.0, reconstruct=False, reconstruct_depth=7),
