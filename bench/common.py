@@ -468,12 +468,17 @@ def cache_path(
     ``contact_tol_cells``, which only the contact graph depends on) and
     :func:`engine_version` of the variant. ``engine_commit``: the key an older engine
     used (its code at that commit; ``sheet_cells`` left out of the config if it had
-    no ``sheet.py``), to read what it cached where the changes since cannot matter.
+    no ``sheet.py``, ``sheet_rule`` if its configuration had none), to read what it
+    cached where the changes since cannot matter.
     """
     params = asdict(config)
     del params["contact_tol_cells"]
     if engine_commit is not None and _source_at(engine_commit, "sheet") is None:
         del params["sheet_cells"]
+    if engine_commit is not None and "sheet_rule" not in (
+        _source_at(engine_commit, "config") or ""
+    ):
+        del params["sheet_rule"]
     version = engine_version(variant, commit=engine_commit)
     key = [_source_key(model), variant, params, version]
     if variant.startswith(("pointcloud_noisy", "pointcloud_partial")):

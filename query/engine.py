@@ -51,6 +51,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from query.catalog import catalog as store_catalog
 from shapedb.errors import ConfigError, NotFoundError, QueryError, ShapeDBError
 from shapedb.results import Hit  # defined there, re-exported here
 
@@ -149,7 +150,7 @@ def search_batch(
     if (
         db.config.cloud.view_cells
         or any(q.sparse for q in resolved)
-        or len(_catalog(db, index.version_).sparse)
+        or len(store_catalog(db, index.version_).sparse)
     ):
         ids, dist = _search_with_views(db, index, resolved, int(k), allowed, learned)
     else:
@@ -162,7 +163,7 @@ def search_batch(
             index, vectors, int(k), config=db.config, query_ids=qids, allowed=allowed,
             arrays=arrays, query_arrays=query_arrays, stored_distances=True,
         )  # fmt: skip
-    catalog = _catalog(db, index.version_)
+    catalog = store_catalog(db, index.version_)
     lam = float(db.config.kernel.lam)
     out: list[list[Hit]] = []
     for row_ids, row_d in zip(ids, dist, strict=True):
@@ -371,7 +372,7 @@ def _stored(db: Database, sid: int, index: Any) -> _Query:
 
     v = index.features_of(sid) if index is not None else None
     if v is not None:  # sparseness and the view from memory too
-        catalog = _catalog(db, index.version_)
+        catalog = store_catalog(db, index.version_)
         pos = min(int(np.searchsorted(catalog.sparse, sid)), max(len(catalog.sparse) - 1, 0))
         sparse = bool(len(catalog.sparse) and catalog.sparse[pos] == sid)
         if not (sparse or db.config.cloud.view_cells):
@@ -466,7 +467,7 @@ def _search_with_views(
 
     out_ids = np.full((len(queries), k), -1, np.int64)
     out_d = np.full((len(queries), k), np.inf)
-    sparse_ids = _catalog(db, index.version_).sparse
+    sparse_ids = store_catalog(db, index.version_).sparse
     views = None
     with_views = bool(db.config.cloud.view_cells)
     for row, q in enumerate(queries):
@@ -554,52 +555,3 @@ def _nearest(
     out_d = np.full(k, np.inf)
     out_i[: len(order)], out_d[: len(order)] = i[order], d[order]
     return out_i, out_d
-
-
-class _Catalog:
-    """id -> (name, label) for one store version, sorted by id for searchsorted.
-
-    ``sparse`` holds the ids of the shapes that are sparse samples
-    (:func:`shapedb.view.is_sparse`), sorted.
-    """
-
-    def __init__(
-        self,
-        ids: NDArray[np.int64],
-        names: list[str],
-        labels: list[str | None],
-        sparse: NDArray[np.int64],
-    ):
-        self.ids = ids
-        self.names = names
-        self.labels = labels
-        self.sparse = sparse
-
-    def lookup(self, ids: NDArray[np.int64]) -> list[tuple[str, str | None] | None]:
-        """(name, label) of each id; None for an id this catalog does not hold."""
-        pos = np.minimum(np.searchsorted(self.ids, ids), max(len(self.ids) - 1, 0))
-        found = (self.ids[pos] == ids) if len(self.ids) else np.zeros(len(ids), bool)
-        return [
-            (self.names[p], self.labels[p]) if ok else None
-            for p, ok in zip(pos.tolist(), found.tolist(), strict=True)
-        ]
-
-
-_CATALOGS: dict[str, tuple[int | None, _Catalog]] = {}
-
-
-def _catalog(db: Database, version: int | None) -> _Catalog:
-    key = os.fspath(db.store.path)
-    cached = _CATALOGS.get(key)
-    if cached is not None and cached[0] == version and version is not None:
-        return cached[1]
-    from shapedb.view import SPARSE_CELLS
-
-    t = db.store.shapes(["id", "name", "label", "sampling", "spacing"])
-    ids = t.column("id").to_numpy()
-    sampling = np.nan_to_num(t.column("sampling").to_numpy(zero_copy_only=False), nan=0.0)
-    spacing = t.column("spacing").to_numpy()
-    sparse = ids[(spacing > 0) & (sampling >= SPARSE_CELLS * spacing)]
-    cat = _Catalog(ids, t.column("name").to_pylist(), t.column("label").to_pylist(), sparse)
-    _CATALOGS[key] = (version, cat)
-    return cat

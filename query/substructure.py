@@ -45,6 +45,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from query.catalog import catalog
 from shapedb.config import PartConfig
 from shapedb.errors import ConfigError, InvalidShapeError, NotFoundError, QueryError
 from shapedb.graph import ContactGraph
@@ -510,10 +511,10 @@ def _corpus(
     sids, nodes, dists = index.search(
         feat, int(k), per_shape=per_shape, allowed=allowed, overlap=overlap
     )
-    names = _names(db, sids)
+    names = catalog(db, db.store.version).lookup(sids)
     out = []
-    for sid, u, d in zip(sids.tolist(), nodes.tolist(), dists.tolist(), strict=True):
-        name, label = names.get(sid, (None, None))
+    for sid, u, d, found in zip(sids.tolist(), nodes.tolist(), dists.tolist(), names, strict=True):
+        name, label = found if found is not None else (None, None)
         out.append(
             PartMatch(
                 sid,
@@ -528,28 +529,6 @@ def _corpus(
             )
         )
     return out
-
-
-_CATALOGS: dict[str, tuple[int, dict[int, tuple[str, str | None]]]] = {}
-
-
-def _names(db: Database, ids: NDArray[np.int64]) -> dict[int, tuple[str, str | None]]:
-    """id -> (name, label), read once per store version."""
-    key, version = os.fspath(db.store.path), db.store.version
-    cached = _CATALOGS.get(key)
-    if cached is None or cached[0] != version:
-        t = db.store.shapes(["id", "name", "label"])
-        table = {
-            int(i): (n, lab)
-            for i, n, lab in zip(
-                t.column("id").to_pylist(),
-                t.column("name").to_pylist(),
-                t.column("label").to_pylist(),
-                strict=True,
-            )
-        }
-        cached = _CATALOGS[key] = (version, table)
-    return cached[1]
 
 
 def match_brute_force(

@@ -357,9 +357,15 @@ class LocallyThickened(Geometry):
         """The base's grid field plus the thickness in the region, ``grid.shape`` float32."""
         f = np.asarray(self.base.grid_sdf(grid), dtype=np.float32)
         g = self.grid
-        if grid.shape == g.shape and grid.spacing == g.spacing and np.array_equal(grid.origin, g.origin):
+        if (
+            grid.shape == g.shape
+            and grid.spacing == g.spacing
+            and np.array_equal(grid.origin, g.origin)
+        ):
             return f + np.float32(self.thickness) * self.region
         return f + np.float32(self.thickness) * self.in_region(grid.points()).reshape(grid.shape)
 
     def __repr__(self) -> str:
-        return f"LocallyThickened({self.base!r}, {self.thickness:.4g}, {int(self.region.sum())} cells)"
+        return (
+            f"LocallyThickened({self.base!r}, {self.thickness:.4g}, {int(self.region.sum())} cells)"
+        )

@@ -32,11 +32,13 @@ def tmp_db(tmp_path: Path, example_records: list[ShapeRecord]) -> Iterator[Any]:
 def _forget(db: Any) -> None:
     import importlib
 
-    engine, index, sql = (importlib.import_module(f"query.{m}") for m in ("engine", "index", "sql"))
+    catalog, index, sql = (
+        importlib.import_module(f"query.{m}") for m in ("catalog", "index", "sql")
+    )
 
     index._forget(db)
     key = index._store_key(db)
-    engine._CATALOGS.pop(key, None)
+    catalog.forget(key)
     cached = sql._CONNECTIONS.pop(key, None)
     if cached is not None:
         cached[1].close()

@@ -147,7 +147,9 @@ def test_meshes_with_no_sheet_cells_are_not_thickened_locally() -> None:
     box = trimesh.creation.box([2.0, 1.0, 1.0])
     prep = prepare_field(TriangleMesh(box.vertices, box.faces), MDBDConfig(resolution=32))
     assert not isinstance(prep.local, (Thickened, LocallyThickened))
-    assert sheet_region(TriangleMesh(box.vertices, box.faces), prep.F, prep.grid.spacing, 1.0) is None
+    assert (
+        sheet_region(TriangleMesh(box.vertices, box.faces), prep.F, prep.grid.spacing, 1.0) is None
+    )
 
 
 def test_locally_thickened_distance_is_the_base_plus_the_thickness_in_the_region() -> None:
