@@ -4,6 +4,7 @@ Usage (from the repository root)::
 
     export SHAPEDB_BENCH_CACHE=/work/bench_cache
     nice -n 5 python -m bench.studies.sheet_rule --split validation --models 12
+    nice -n 5 python -m bench.studies.sheet_rule --sets generic --models 8   # quicker
 
 For each set of the split: how many models the local rule thickens locally (their field
 and decomposition change; the others are bit-identical). Then the CPU seconds of the
@@ -55,13 +56,13 @@ def changed(model: Any) -> bool:
     return isinstance(prep.local, LocallyThickened)
 
 
-def run(split: str, k: int) -> dict[str, Any]:
+def run(split: str, k: int, sets: Sequence[str] = SETS) -> dict[str, Any]:
     """Counts per set, then paired ingest CPU on ``k`` changed and ``k`` unchanged models."""
     from concurrent.futures import ProcessPoolExecutor
 
     counts: dict[str, Any] = {}
     pools: dict[bool, list[Any]] = {True: [], False: []}
-    for name in SETS:
+    for name in sets:
         ms = _models(name, split)
         with ProcessPoolExecutor(2) as ex:
             flags = list(ex.map(changed, ms, chunksize=2))
@@ -103,8 +104,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                                  description=__doc__.split("\n")[0])  # fmt: skip
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
     ap.add_argument("--models", type=int, default=12, help="models timed of each kind")
+    ap.add_argument("--sets", nargs="+", default=list(SETS), choices=SETS)
     args = ap.parse_args(argv)
-    got = run(args.split, args.models)
+    got = run(args.split, args.models, args.sets)
     out = RESULTS / f"sheet_rule_{args.split}.json"
     write_json(out, got)
     print(f"written {out}")
