@@ -18,7 +18,7 @@ from bench.datasets import articulated as figures
 from bench.representations import build
 from shapedb.config import MDBDConfig
 
-__all__ = ["ENGINE_COMMITS", "SETS", "HELD_OUT", "CHOICES", "load"]
+__all__ = ["ENGINE_COMMITS", "SETS", "HELD_OUT", "CHOICES", "load", "model_key"]
 
 #: Older engines whose cached decompositions are read where today's key has none
 #: (b95b2be: test splits, differs only in how flat quads are thickened; f031e22: the
@@ -60,3 +60,10 @@ def load(name: str, split: str, variants: Sequence[str] = ("mesh",)) -> tuple[Da
     if len(keep) < len(ds):
         print(f"  {name}: {len(ds) - len(keep)} of {len(ds)} models not cached, left out")
     return Dataset(ds.name, tuple(ds.models[i] for i in keep)), balls
+
+
+def model_key(model: Any) -> str:
+    """A key of what a model's cached decomposition, field and light fields depend on: its
+    name, source and today's decomposition cache key (model, MDBD configuration, engine
+    code), for caches of values derived from them (distance matrices, field vectors)."""
+    return f"{model.name}{model.source}|{cache_path(model, 'mesh', MDBDConfig()).stem}"

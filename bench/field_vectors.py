@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.cached import load
+from bench.cached import load, model_key
 from bench.datasets import CACHE_DIR
 from bench.field_shells import as_inside
 
@@ -137,7 +137,7 @@ def set_vectors(name: str, split: str) -> NDArray[np.float32]:
 
     ds, _ = load(name, split)
     fn, code = _describer()
-    keys = "\n".join(m.name + m.source for m in ds.models)
+    keys = "\n".join(model_key(m) for m in ds.models)
     key = hashlib.sha256(code + VERSION.encode() + keys.encode()).hexdigest()[:16]
     path = FOLDER / f"{name}_{split}_{key}.npy"
     if path.exists():

@@ -128,7 +128,7 @@ class Split:
             tag += (f"|inside-{inside_fields.VERSION}-{cfg.light_field.centre}"
                     if cfg.light_field_inside else "")  # fmt: skip
             tag += f"|{cfg.light_field}" if lf_set else ""
-            keys += [m.name + m.source + tag for m in ds.models]
+            keys += [cached.model_key(m) + tag for m in ds.models]
         self.split = split
         self.sets = np.asarray(sets)
         self.labels = np.asarray(labels)

@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench import inside_fields
-from bench.cached import CHOICES, SETS, load
+from bench.cached import CHOICES, SETS, load, model_key
 from bench.common import format_table, per_query, retrieval_scores, write_json
 from bench.datasets import CACHE_DIR, Dataset
 from bench.field_vector_cost import ingest_cpu
@@ -91,7 +91,7 @@ def matrices(
     from bench.rerank_select import lfd_matrix
 
     ds, balls = load(name, split)
-    keys = [m.name + m.source for m in ds.models]
+    keys = [model_key(m) for m in ds.models]
     out: dict[str, FloatArray] = {}
     if mesh and name != "people":
         out["mesh LFD (10 fields)"] = lfd_matrix(ds)
