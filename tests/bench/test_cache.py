@@ -162,3 +162,33 @@ def test_mesh_keys_leave_the_point_cloud_distance_out(monkeypatch: pytest.Monkey
     after = (common.engine_version("mesh"), common.engine_version("pointcloud"))
     assert after[0] == before[0]
     assert after[1] != before[1]
+
+
+def test_derived_caches_are_keyed_by_the_engine(
+    model: Model, cache: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Distance matrices and field vectors derived from a decomposition are re-computed when
+    the engine changes (bench.cached.model_key holds the decomposition's cache key)."""
+    from bench.cached import model_key
+
+    before = model_key(model)
+    assert before.startswith("capsule" + model.source)
+    real = common.engine_version
+    monkeypatch.setattr(common, "engine_version", lambda *a, **k: "another" + real(*a, **k))
+    assert model_key(model) != before
+
+
+def test_a_commit_before_the_sheet_rule_keys_without_it(model: Model) -> None:
+    # 32bb41a had no MDBDConfig.sheet_rule: its key is that of the config without the field
+    if common._source_at("32bb41a", "config") is None:
+        pytest.skip("the history before the sheet rule is not in this clone")
+    import hashlib
+    import json
+    from dataclasses import asdict
+
+    params = asdict(CONFIG)
+    del params["contact_tol_cells"], params["sheet_rule"]
+    version = common.engine_version("mesh", commit="32bb41a")
+    text = json.dumps([common._source_key(model), "mesh", params, version], sort_keys=True)
+    expected = common.CACHE_DIR / "dec" / f"{hashlib.sha256(text.encode()).hexdigest()[:20]}.npz"
+    assert common.cache_path(model, "mesh", CONFIG, engine_commit="32bb41a") == expected
