@@ -362,8 +362,10 @@ class LocallyThickened(Geometry):
             and grid.spacing == g.spacing
             and np.array_equal(grid.origin, g.origin)
         ):
-            return f + np.float32(self.thickness) * self.region
-        return f + np.float32(self.thickness) * self.in_region(grid.points()).reshape(grid.shape)
+            region = self.region
+        else:
+            region = self.in_region(grid.points()).reshape(grid.shape)
+        return np.asarray(f + np.float32(self.thickness) * region, dtype=np.float32)
 
     def __repr__(self) -> str:
         return (
