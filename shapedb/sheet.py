@@ -259,7 +259,7 @@ def needs_thickening(
     return frac > SHEET_FRACTION
 
 
-class LocallyThickened(Geometry):
+class LocallyThickened(Thickened):
     """A geometry dilated by ``thickness`` in a region of grid cells only.
 
     In the cells of ``region`` (nearest cell centre; points off the grid are outside
@@ -287,23 +287,12 @@ class LocallyThickened(Geometry):
     def __init__(
         self, base: Geometry, thickness: float, grid: Grid, region: NDArray[np.bool_]
     ) -> None:
-        if not (np.isfinite(thickness) and thickness > 0):
-            raise ValueError(f"thickness must be positive and finite, got {thickness!r}")
+        super().__init__(base, thickness)  # checks the thickness; bounds grow by it
         region = np.asarray(region, dtype=bool)
         if region.shape != tuple(grid.shape):
             raise ValueError(f"region has shape {region.shape}, the grid {tuple(grid.shape)}")
-        self.base = base
-        self.thickness = float(thickness)
         self.grid = grid
         self.region = region
-        self.representation = base.representation  # type: ignore[misc]
-        self.name = getattr(base, "name", None)
-
-    @property
-    def bounds(self) -> NDArray[np.float64]:
-        """(2, 3) float64: the base's bounds grown by the thickness."""
-        b = np.asarray(self.base.bounds, dtype=np.float64)
-        return np.stack([b[0] - self.thickness, b[1] + self.thickness])
 
     def in_region(self, points: ArrayLike) -> NDArray[np.bool_]:
         """(n,) bool: whether each point's nearest cell is in the region (never off the grid)."""
@@ -333,10 +322,6 @@ class LocallyThickened(Geometry):
         rest = ~out
         out[rest] = np.asarray(self.base.contains(p[rest]), dtype=bool)
         return out
-
-    def unsigned_distance(self, points: ArrayLike) -> NDArray[np.float64]:
-        """``|signed_distance|`` (n,), model units."""
-        return np.abs(self.signed_distance(points))
 
     def closest_points(self, points: ArrayLike) -> NDArray[np.float64]:
         """Closest points (n, 3) on the surface: in the region the base's moved out by the

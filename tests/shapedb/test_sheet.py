@@ -186,3 +186,16 @@ def test_sheet_rule_is_checked_and_old_stores_read_whole() -> None:
     assert old.mdbd.sheet_rule == "whole"
     # a store written before the rule keeps its fingerprint; today's differs
     assert old.fingerprint != Config().fingerprint
+
+
+def test_a_locally_thickened_solid_moves_as_a_whole() -> None:
+    from shapedb.geometry import Grid
+
+    base = TriangleMesh(QUAD_V, QUAD_F)
+    grid = Grid.fit(base.bounds + np.array([[0, 0, -0.5], [0, 0, 0.5]]), resolution=16)
+    g = LocallyThickened(base, 0.1, grid, np.ones(grid.shape, dtype=bool))
+    moved = g.transformed(np.eye(3), [0.0, 0.0, 5.0])
+    assert np.allclose(
+        moved.signed_distance([[0.5, 0.5, 5.05]]), g.signed_distance([[0.5, 0.5, 0.05]])
+    )
+    assert np.allclose(g.bounds[:, 2], [-0.1, 0.1])
