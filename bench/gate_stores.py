@@ -47,7 +47,9 @@ __all__ = [
     "shared_scale",
     "shared_stores",
     "shared_rows",
+    "contrast_rows",
     "SHARED_GRID",
+    "CONTRAST_GRID",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -65,6 +67,9 @@ CHOICES = tuple(getattr(cached, "CHOICES", SETS))
 MEASURES = ("nn", "first_tier", "dcg")
 #: The shared-neighbour grid of ``--shared-grid``: ``k`` x ``beta``.
 SHARED_GRID = ((2, 3, 4, 5), (0.4, 0.8, 1.6))
+#: The contrast grid of ``--contrast-grid``: ``contrast_floor`` x ``contrast_ramp`` x
+#: ``contrast_depth`` (floor 0, the contrast off, once).
+CONTRAST_GRID = ((0.0, 0.1, 0.2, 0.25, 0.3, 0.35), (0.05, 0.1, 0.2), (20, 30, 50))
 
 
 class Split:
@@ -499,4 +504,33 @@ def shared_rows(stores: dict[str, Store], split: Split, f: Any,
     rows["stage now (LightFieldFusionConfig defaults)"] = score_row(
         shared_stores(stores, split, f, within), gated, base
     )
+    return rows
+
+
+def contrast_rows(stores: dict[str, Store], split: Split, f: Any,
+                  base: dict[str, dict[str, dict[str, float]]],
+                  within: str = "store") -> dict[str, dict[str, Any]]:  # fmt: skip
+    """The stage at the fusion ``f`` with its contrast at every setting of :data:`CONTRAST_GRID`.
+
+    Every row keeps ``f``'s other gate fields and its shared-neighbour term (the gate is
+    chosen for the stage the product runs); labelled ``"contrast: {...}"`` with the
+    setting, and last ``"best of the contrast grid: {...}"``, the highest objective among
+    the rows that pass the rule (no set more than two queries below version 4).
+    """
+    import dataclasses
+    import itertools
+
+    term = shared_stores(stores, split, f, within)
+    rows: dict[str, dict[str, Any]] = {}
+    for floor, ramp, depth in itertools.product(*CONTRAST_GRID):
+        if floor == 0 and (ramp, depth) != (CONTRAST_GRID[1][0], CONTRAST_GRID[2][0]):
+            continue  # the contrast off: ramp and depth unused
+        s = {"contrast_floor": floor, "contrast_ramp": ramp, "contrast_depth": depth}
+        g = dataclasses.replace(f, **s)
+        rows[f"contrast: {s}"] = score_row(
+            term, {k: gate_weights(st, g) for k, st in stores.items()}, base)  # fmt: skip
+    passing = {k: r for k, r in rows.items() if r["passes"]}
+    if passing:
+        top = max(passing, key=lambda k: passing[k]["objective"])
+        rows["best of the contrast grid: " + top.split(": ", 1)[1]] = passing[top]
     return rows

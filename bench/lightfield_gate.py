@@ -57,6 +57,9 @@ light field descriptor (:func:`bench.rerank_select.lfd_split_matrix`, cached).
 The shared-neighbour term (:mod:`query.lightfield_neighbours`): "stage now" has the product's
 (``--shared K BETA``: another), beside the stage without it; ``--shared-grid`` adds every
 ``k`` x ``beta`` of :data:`bench.gate_stores.SHARED_GRID` (:func:`bench.gate_stores.shared_rows`).
+``--contrast-grid``: the stage now at every contrast floor x ramp x depth of
+:data:`bench.gate_stores.CONTRAST_GRID`, its term on, and the best of them by the rule
+(:func:`bench.gate_stores.contrast_rows`).
 """
 
 from __future__ import annotations
@@ -91,6 +94,7 @@ from bench.gate_stores import (
     SETS,
     Split,
     Store,
+    contrast_rows,
     gate_margin,
     gate_statistic,
     gate_weights,
@@ -128,7 +132,8 @@ def _short(setting: dict[str, Any]) -> str:
     """A grid setting in a few characters."""
     names = {"weight": "w", "spread_candidates": "m", "ratio_weight": "b",
              "ratio_candidates": "c", "pool": "pool", "pool_quantile": "q",
-             "contrast_ramp": "cramp", "ceiling": "ceil", "ramp": "ramp"}  # fmt: skip
+             "contrast_ramp": "cramp", "contrast_floor": "cfloor", "contrast_depth": "cdepth",
+             "ceiling": "ceil", "ramp": "ramp"}  # fmt: skip
     return " ".join(f"{names.get(k, k)} {v:g}" for k, v in setting.items())
 
 
@@ -308,6 +313,9 @@ def select(args: argparse.Namespace, split: Split | None = None,
             margins[f"best of the grid: {best[0]}"] = gate_margin(stores, f, memo)
     rows.update(shared_rows(stores, split, default, base, getattr(args, "shared_grid", False),
                             getattr(args, "shared_within", "store")))  # fmt: skip
+    if getattr(args, "contrast_grid", False):
+        rows.update(contrast_rows(stores, split, default, base,
+                                  getattr(args, "shared_within", "store")))  # fmt: skip
     if args.oracle:
         rows.update(oracle_rows(stores, base, default))
     if args.around:  # one field of the defaults moved at a time
@@ -496,6 +504,8 @@ def parser() -> argparse.ArgumentParser:
                     help="the shared-neighbour term of the 'stage now' row (default: the product's)")  # fmt: skip
     ap.add_argument("--shared-grid", action="store_true",
                     help="the 'stage now' row at every k x beta of SHARED_GRID")  # fmt: skip
+    ap.add_argument("--contrast-grid", action="store_true",
+                    help="the 'stage now' row at every contrast of CONTRAST_GRID, with its term")  # fmt: skip
     ap.add_argument("--shared-within", default="store", choices=["store", "candidates"],
                     help="where a shape's N_k is taken: the whole store, or its own candidates")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None)

@@ -122,3 +122,35 @@ def test_the_bench_s_shared_term_ranks_as_the_product() -> None:
     assert np.array_equal(got, want)
     assert not np.array_equal(want, st.rankings(w))  # the term moved some rankings
     assert np.array_equal(want[:, :2], st.rankings(w)[:, :2])  # never the first result
+
+
+def test_the_contrast_grid_scores_every_setting_with_the_term() -> None:
+    import dataclasses
+    from types import SimpleNamespace
+
+    from bench.gate_stores import CONTRAST_GRID, contrast_rows, score_row, shared_stores
+
+    rng = np.random.default_rng(7)
+    n = 48
+    x = rng.random((n, 5)) + (np.arange(n) % 4)[:, None] * 0.3
+    d4 = np.abs(x[:, None] - x[None]).sum(-1)
+    dl = np.abs(x[:, None, :2] - x[None, :, :2]).sum(-1) * 20.0 + rng.random((n, n))
+    dl = (dl + dl.T) / 2
+    np.fill_diagonal(dl, 0.0)
+    split = SimpleNamespace(labels=np.arange(n) % 4, sets=np.array(["web"] * n), d4=d4, dl=dl)
+    st = Store(split, np.arange(n), candidates=30)  # type: ignore[arg-type]
+    stores = {"web": st}
+    base = {"web": st.per_set(st.measures(np.zeros(n)))}
+    f = dataclasses.replace(Config().lf_fusion, ceiling=0.0, pool=0)
+    rows = contrast_rows(stores, split, f, base)  # type: ignore[arg-type]
+    floors, ramps, depths = CONTRAST_GRID
+    assert len(rows) == 1 + (len(floors) - 1) * len(ramps) * len(depths) + 1
+    off = dataclasses.replace(f, contrast_floor=0.0)
+    term = shared_stores(stores, split, f)  # type: ignore[arg-type]
+    want = score_row(term, {"web": gate_weights(st, off)}, base)
+    key = f"contrast: {{'contrast_floor': 0.0, 'contrast_ramp': {ramps[0]}, 'contrast_depth': {depths[0]}}}"
+    assert rows[key]["objective"] == want["objective"]
+    best = [k for k in rows if k.startswith("best of the contrast grid")]
+    assert len(best) == 1
+    passing = [r["objective"] for k, r in rows.items() if r["passes"] and k not in best]
+    assert rows[best[0]]["objective"] == max(passing)
