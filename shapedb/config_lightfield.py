@@ -355,11 +355,13 @@ def product_light_field_fusion() -> LightFieldFusionConfig:
     """The fusion a new store's ``"lightfield"`` scorer uses: the defaults of
     :class:`LightFieldFusionConfig` with the field vectors fused into the light field
     distance (weights 0.25 and 0.25, the scales :data:`PRODUCT_SCALES`), their index's 200
-    nearest added to the candidates, and the gate's contrast ramp at 0.05. Chosen on the
-    validation splits (docs/results.md, "The field vectors in the stage: the choice and the
-    rows"). The shared-neighbour term at ``k`` 3, ``beta`` 1.6, the highest objective of its
-    grid on the validation splits with the field seen about its surface (docs/results.md,
-    "The field seen about its surface, and shared neighbours")."""
+    nearest added to the candidates. Chosen on the validation splits (docs/results.md, "The
+    field vectors in the stage: the choice and the rows"). The shared-neighbour term at
+    ``k`` 3, ``beta`` 1.6, the highest objective of its grid on the validation splits with
+    the field seen about its surface (docs/results.md, "The field seen about its surface,
+    and shared neighbours"). The gate's contrast at floor 0.2, ramp 0.2, depth 20, the
+    highest objective of its grid with that term on (docs/results.md, "The gate's contrast
+    with the shared neighbours")."""
     return LightFieldFusionConfig(
         field_depth_weight=0.25,
         field_harmonic_weight=0.25,
@@ -367,7 +369,9 @@ def product_light_field_fusion() -> LightFieldFusionConfig:
         field_depth_scale=PRODUCT_SCALES[1],
         field_harmonic_scale=PRODUCT_SCALES[2],
         field_candidates=200,
-        contrast_ramp=0.05,
+        contrast_floor=0.2,
+        contrast_ramp=0.2,
+        contrast_depth=20,
         shared_neighbours=3,
         shared_weight=1.6,
     )

@@ -77,7 +77,7 @@ def test_the_pooled_gate_ranks_as_the_selection_bench(gate: dict[str, Any]) -> N
     f = config.lf_fusion
     s = local_spreads_of(probe, f.spread_candidates, 1.0, f.ratio_weight, f.ratio_candidates)
     dd = probe.others(probe.D)
-    t = np.median(dd[:, :5], 1) / dd[:, 29]
+    t = np.median(dd[:, : f.neighbours], 1) / dd[:, f.contrast_depth - 1]
     # a typical distance that puts the ceiling at the median statistic
     typical = (float(np.median(s)) / f.ceiling) ** (1.0 / (1.0 - f.ratio_weight))
     config = config.with_options(lf_typical=typical,

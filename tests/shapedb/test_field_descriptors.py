@@ -229,4 +229,4 @@ def test_new_stores_keep_field_vectors_only_beside_the_fields_light_fields() -> 
     fusion = Config().lf_fusion
     assert fusion.field_candidates == 200
     assert (fusion.field_depth_weight, fusion.field_harmonic_weight) == (0.25, 0.25)
-    assert fusion.contrast_ramp == 0.05
+    assert (fusion.contrast_floor, fusion.contrast_ramp, fusion.contrast_depth) == (0.2, 0.2, 20)
