@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from bench import cached, inside_fields
 from bench.cached import load
+from bench.common import format_table
 from bench.datasets import CACHE_DIR
 from bench.features import kernel_features
 from bench.gate_checks import margin
@@ -48,6 +49,8 @@ __all__ = [
     "shared_stores",
     "shared_rows",
     "contrast_rows",
+    "product_stores",
+    "rows_table",
     "SHARED_GRID",
     "CONTRAST_GRID",
 ]
@@ -534,3 +537,44 @@ def contrast_rows(stores: dict[str, Store], split: Split, f: Any,
         top = max(passing, key=lambda k: passing[k]["objective"])
         rows["best of the contrast grid: " + top.split(": ", 1)[1]] = passing[top]
     return rows
+
+
+def product_stores(split_name: str) -> tuple[Split, dict[str, Store], dict[str, Any]]:
+    """The gate bench's stores of a split at the product's stage, and the rule's base.
+
+    Every set of :data:`SETS` and every mix of :data:`MIXES` among them is a store of the
+    split fused with the product's field vectors (:func:`bench.field_vectors.fuse`), its
+    candidates their union; the base is version 4's scores per store and set (no stage).
+    """
+    import argparse
+
+    from bench.field_vectors import fuse, stage_of
+
+    split = Split(split_name, SETS)
+    stage = stage_of(argparse.Namespace())
+    if stage is not None:
+        split = fuse(split, SETS, stage)
+    k2 = stage.candidates if stage is not None else 0
+    names: dict[str, tuple[str, ...]] = {s: (s,) for s in SETS}
+    names.update({n: v for n, v in MIXES.items() if set(v) <= set(SETS)})
+    stores = {n: Store(split, split.store(v), field_candidates=k2) for n, v in names.items()}
+    v4 = {n: Store(split, split.store(v)) for n, v in names.items()}
+    base = {n: st.per_set(st.measures(np.zeros(len(st.rows)))) for n, st in v4.items()}
+    return split, stores, base
+
+
+def rows_table(title: str, rows: dict[str, dict[str, Any]], stores: dict[str, Store],
+               label: Any = str) -> str:  # fmt: skip
+    """The gate bench's table of ``rows`` (:func:`score_row` entries): NN / 1-T / DCG of
+    every set in every store, the objective and the worst loss; ``label`` shortens a row's
+    name."""
+    cols = [(k, s) for k, st in stores.items() for s in dict.fromkeys(st.sets)]
+    table = []
+    for name, e in rows.items():
+        cells = [
+            "{nn:.3f} / {first_tier:.3f} / {dcg:.3f}".format(**e["stores"][k][s]) for k, s in cols
+        ]
+        worst = f"{e['worst_queries']:+.1f} ({e['worst_at']})" if e["worst_at"] else "0"
+        table.append([label(name), *cells, f"{e['objective']:.4f}", worst])
+    heads = [k if (k,) == (s,) else f"{s} in {k}" for k, s in cols]
+    return format_table(title, ("row", *heads, "objective", "worst (queries)"), table)

@@ -99,6 +99,7 @@ from bench.gate_stores import (
     gate_statistic,
     gate_weights,
     local_spreads,
+    rows_table,
     score_row,
     shared_rows,
 )
@@ -444,20 +445,13 @@ def statistics(stores: dict[str, Store], f: Any) -> dict[str, dict[str, dict[str
 
 
 def _print(rows: dict[str, dict[str, Any]], stores: dict[str, Store], split: str) -> None:
-    cols = [(k, s) for k, st in stores.items() for s in dict.fromkeys(st.sets)]
-    table = []
-    for label, e in rows.items():
-        cells = [
-            "{nn:.3f} / {first_tier:.3f} / {dcg:.3f}".format(**e["stores"][k][s]) for k, s in cols
-        ]
-        worst = f"{e['worst_queries']:+.1f} ({e['worst_at']})" if e["worst_at"] else "0"
-        short = label if ": {" not in label else label[: label.index(": {")] + ": " + _short(
+    def short(label: str) -> str:
+        return label if ": {" not in label else label[: label.index(": {")] + ": " + _short(
             _setting(label))  # fmt: skip
-        table.append([short, *cells, f"{e['objective']:.4f}", worst])
-    heads = [k if (k,) == (s,) else f"{s} in {k}" for k, s in cols]
-    print(format_table(
+
+    print(rows_table(
         f"the lightfield stage's gate, {split} splits, each set and mix a store (NN / 1-T / DCG)",
-        ("row", *heads, "objective", "worst (queries)"), table,
+        rows, stores, short,
     ))  # fmt: skip
 
 

@@ -28,15 +28,13 @@ from typing import Any
 import numpy as np
 
 from bench.common import format_table, write_json
-from bench.field_vectors import fuse, stage_of
 from bench.gate_stores import (
     MEASURES,
-    MIXES,
-    SETS,
     FloatArray,
-    Split,
     Store,
     gate_weights,
+    product_stores,
+    rows_table,
     score_row,
     shared_stores,
 )
@@ -60,16 +58,7 @@ def contrasts(st: Store, f: Any) -> tuple[FloatArray, FloatArray]:
 def rows(split_name: str) -> dict[str, Any]:
     """The product's gate, the contrast off and the contrast opened at every ``rho``."""
     f = Config().lf_fusion
-    split = Split(split_name, SETS)
-    stage = stage_of(argparse.Namespace())
-    if stage is not None:
-        split = fuse(split, SETS, stage)
-    k2 = stage.candidates if stage is not None else 0
-    names: dict[str, tuple[str, ...]] = {s: (s,) for s in SETS}
-    names.update({n: v for n, v in MIXES.items() if set(v) <= set(SETS)})
-    stores = {n: Store(split, split.store(v), field_candidates=k2) for n, v in names.items()}
-    v4 = {n: Store(split, split.store(v)) for n, v in names.items()}
-    base = {n: st.per_set(st.measures(np.zeros(len(st.rows)))) for n, st in v4.items()}
+    split, stores, base = product_stores(split_name)
     term = shared_stores(stores, split, f)
     now = {n: gate_weights(st, f) for n, st in stores.items()}
     off = {
@@ -83,19 +72,10 @@ def rows(split_name: str) -> dict[str, Any]:
         w = {n: np.where(stats[n][1] < rho * stats[n][0], off[n], now[n]) for n in stores}
         opened[rho] = int(sum(np.count_nonzero(w[n] != now[n]) for n in stores))
         out[f"opened where t_l < {rho:g} t_v"] = score_row(term, w, base)
-    sets = [(n, s) for n, st in stores.items() for s in dict.fromkeys(st.sets)]
-    table = []
-    for label, e in out.items():
-        cells = [
-            "{nn:.3f} / {first_tier:.3f} / {dcg:.3f}".format(**e["stores"][n][s]) for n, s in sets
-        ]
-        worst = f"{e['worst_queries']:+.1f} ({e['worst_at']})" if e["worst_at"] else "0"
-        table.append([label, *cells, f"{e['objective']:.4f}", worst])
-    heads = [n if (n,) == (s,) else f"{s} in {n}" for n, s in sets]
-    print(format_table(
-        f"the contrast opened where the light field is surer, {split_name} splits (NN / 1-T / DCG)",
-        ("row", *heads, "objective", "worst (queries)"), table,
-    ))  # fmt: skip
+    title = (
+        f"the contrast opened where the light field is surer, {split_name} splits (NN / 1-T / DCG)"
+    )
+    print(rows_table(title, out, stores))
     quant = {n: {"t_v": np.quantile(tv, [0.1, 0.5, 0.9]).tolist(),
                  "t_l": np.quantile(tl, [0.1, 0.5, 0.9]).tolist()}
              for n, (tv, tl) in stats.items()}  # fmt: skip

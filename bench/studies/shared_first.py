@@ -24,17 +24,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from bench.common import format_table, write_json
-from bench.field_vectors import fuse, stage_of
+from bench.common import write_json
 from bench.gate_stores import (
     MEASURES,
-    MIXES,
-    SETS,
-    Split,
-    Store,
     gate_weights,
+    product_stores,
+    rows_table,
     score_row,
     shared_stores,
 )
@@ -48,16 +43,7 @@ def rows(split_name: str, k: int | None = None, beta: float | None = None) -> di
     f = Config().lf_fusion
     if k is not None and beta is not None:
         f = dataclasses.replace(f, shared_neighbours=int(k), shared_weight=float(beta))
-    split = Split(split_name, SETS)
-    stage = stage_of(argparse.Namespace())
-    if stage is not None:
-        split = fuse(split, SETS, stage)
-    k2 = stage.candidates if stage is not None else 0
-    names: dict[str, tuple[str, ...]] = {s: (s,) for s in SETS}
-    names.update({n: v for n, v in MIXES.items() if set(v) <= set(SETS)})
-    stores = {n: Store(split, split.store(v), field_candidates=k2) for n, v in names.items()}
-    v4 = {n: Store(split, split.store(v)) for n, v in names.items()}
-    base = {n: st.per_set(st.measures(np.zeros(len(st.rows)))) for n, st in v4.items()}
+    split, stores, base = product_stores(split_name)
     gated = {n: gate_weights(st, f) for n, st in stores.items()}
     kept = shared_stores(stores, split, f)
     free = shared_stores(stores, split, f)
@@ -72,19 +58,9 @@ def rows(split_name: str, k: int | None = None, beta: float | None = None) -> di
             free, gated, base
         ),
     }
-    sets = [(n, s) for n, st in stores.items() for s in dict.fromkeys(st.sets)]
-    table = []
-    for label, e in out.items():
-        cells = [
-            "{nn:.3f} / {first_tier:.3f} / {dcg:.3f}".format(**e["stores"][n][s]) for n, s in sets
-        ]
-        worst = f"{e['worst_queries']:+.1f} ({e['worst_at']})" if e["worst_at"] else "0"
-        table.append([label, *cells, f"{e['objective']:.4f}", worst])
-    heads = [n if (n,) == (s,) else f"{s} in {n}" for n, s in sets]
-    print(format_table(
-        f"the shared-neighbour term, {split_name} splits (NN / 1-T / DCG)",
-        ("row", *heads, "objective", "worst (queries)"), table,
-    ))  # fmt: skip
+    print(
+        rows_table(f"the shared-neighbour term, {split_name} splits (NN / 1-T / DCG)", out, stores)
+    )
     return {"split": split_name, "measures": MEASURES, "rows": out,
             "shared": [f.shared_neighbours, f.shared_weight]}  # fmt: skip
 
