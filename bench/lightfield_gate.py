@@ -57,9 +57,10 @@ light field descriptor (:func:`bench.rerank_select.lfd_split_matrix`, cached).
 The shared-neighbour term (:mod:`query.lightfield_neighbours`): "stage now" has the product's
 (``--shared K BETA``: another), beside the stage without it; ``--shared-grid`` adds every
 ``k`` x ``beta`` of :data:`bench.gate_stores.SHARED_GRID` (:func:`bench.gate_stores.shared_rows`).
-``--contrast-grid``: the stage now at every contrast floor x ramp x depth of
-:data:`bench.gate_stores.CONTRAST_GRID`, its term on, and the best of them by the rule
-(:func:`bench.gate_stores.contrast_rows`).
+``--grid-term``: the selection's grid scored with the product's shared-neighbour term on
+(the stage a store runs). ``--contrast-grid``: the stage now at every contrast floor x ramp
+x depth of :data:`bench.gate_stores.CONTRAST_GRID`, its term on, and the best of them by
+the rule (:func:`bench.gate_stores.contrast_rows`).
 """
 
 from __future__ import annotations
@@ -102,6 +103,7 @@ from bench.gate_stores import (
     rows_table,
     score_row,
     shared_rows,
+    shared_stores,
 )
 from shapedb.config import Config
 
@@ -273,9 +275,13 @@ def select(args: argparse.Namespace, split: Split | None = None,
     if args.split == "validation" and not args.no_grid:
         grid = []
         t0 = time.perf_counter()
+        # --grid-term: each setting scored with the product's shared-neighbour term on
+        scored = (
+            shared_stores(stores, split, default) if getattr(args, "grid_term", False) else stores
+        )
         for s in settings:
             f = dataclasses.replace(default, power=0.0, **s)  # type: ignore[arg-type]
-            grid.append((s, score_row(stores, {k: gate_weights(st, f, memo)
+            grid.append((s, score_row(scored, {k: gate_weights(st, f, memo)
                                           for k, st in stores.items()}, base)))  # fmt: skip
         passing = [g for g in grid if g[1]["passes"]]
         n_rule = len(passing)
@@ -498,6 +504,8 @@ def parser() -> argparse.ArgumentParser:
                     help="the shared-neighbour term of the 'stage now' row (default: the product's)")  # fmt: skip
     ap.add_argument("--shared-grid", action="store_true",
                     help="the 'stage now' row at every k x beta of SHARED_GRID")  # fmt: skip
+    ap.add_argument("--grid-term", action="store_true",
+                    help="score the selection's grid with the product's shared-neighbour term on")  # fmt: skip
     ap.add_argument("--contrast-grid", action="store_true",
                     help="the 'stage now' row at every contrast of CONTRAST_GRID, with its term")  # fmt: skip
     ap.add_argument("--shared-within", default="store", choices=["store", "candidates"],
