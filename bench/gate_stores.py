@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -564,7 +564,7 @@ def product_stores(split_name: str) -> tuple[Split, dict[str, Store], dict[str, 
 
 
 def rows_table(title: str, rows: dict[str, dict[str, Any]], stores: dict[str, Store],
-               label: Any = str) -> str:  # fmt: skip
+               label: Callable[[str], str] = str) -> str:  # fmt: skip
     """The gate bench's table of ``rows`` (:func:`score_row` entries): NN / 1-T / DCG of
     every set in every store, the objective and the worst loss; ``label`` shortens a row's
     name."""
