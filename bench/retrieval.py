@@ -78,6 +78,22 @@ def kernel_matrix(
     return np.exp(-lam * l1_matrix(fa, fb))
 
 
+def cloud_classes(
+    meshes: NDArray[np.float64], clouds: NDArray[np.float64], labels: NDArray[Any]
+) -> list[tuple[str, float, float]]:
+    """NN by class of mesh queries and of cloud queries against the meshes.
+
+    ``meshes`` and ``clouds`` are (n, n) similarities (row: the query; diagonal ignored,
+    so a cloud query leaves its own mesh out). Returns ``(class, NN of meshes, NN of
+    clouds)`` for every class of two or more, the clouds' largest loss first.
+    """
+    from query.evaluate import retrieval_scores as scores
+
+    a, b = scores(meshes, labels).per_class, scores(clouds, labels).per_class
+    rows = [(str(c), float(a[c]["nn"]), float(b[c]["nn"])) for c in a]
+    return sorted(rows, key=lambda r: (r[2] - r[1], r[0]))
+
+
 def _row(name: str, sim: NDArray[np.float64], labels: NDArray[Any], seconds: float) -> list[Any]:
     s = retrieval_scores(sim, labels)
     return [name, *(s[m] for m in MEASURES), seconds]
@@ -121,7 +137,8 @@ def run_tables(
         print("  no point-cloud decomposition succeeded: point-cloud rows left out")
         pc = mesh
     view = mesh
-    if view_cells and have_pc:
+    have_views = bool(view_cells) and have_pc
+    if have_views:
         view = decompose_all(ds.models, f"view_{view_cells:g}", mdbd, workers=workers)
     recon = reconstructions(ds.models, pc, mdbd, workers=workers) if have_pc else pc
     ds, (mesh, pc, view, recon) = complete(ds, mesh, pc, view, recon)
@@ -143,6 +160,7 @@ def run_tables(
         ("paper kernel", Config(kernel=dataclasses.replace(kcfg, method="paper"))),
     ]
     default_label = methods[0][0]
+    by_class: list[tuple[str, float, float]] = []
     for label, full in methods:
         cfg = full.kernel
         t = time.perf_counter()
@@ -161,11 +179,13 @@ def run_tables(
             k_rx = kernel_matrix(np.where(mix[:, None], fr, fm), fx, cfg.lam)
             k_xx = np.where(one, np.maximum(k_xx, np.maximum(k_rx, k_rx.T)), k_xx)
         rows.append(_row(f"{label}, meshes", k_mm, labels, feat_s[label]))
+        if have_pc and label == default_label:
+            by_class = cloud_classes(k_mm, k_pm, labels)
         if have_pc:
             rows.append(_row(f"{label}, point clouds", k_pp, labels, feat_s[label]))
             rows.append(_row(f"{label}, even mixture", k_xx, labels, feat_s[label]))
             rows.append(_row(f"{label}, pc query -> mesh db", k_pm, labels, feat_s[label]))
-            if view is not mesh and label == default_label:
+            if have_views and label == default_label:
                 fv = kernel_features(view, full)
                 k_pv = np.maximum(kernel_matrix(fp, fv, cfg.lam), k_pm)  # the nearest
                 fy = np.where(mix[:, None], fp, fv)  # clouds, and the meshes' views
@@ -193,9 +213,18 @@ def run_tables(
             baselines[name] = run.seconds
     rows += mesh_baselines(ds, d2)
 
+    if by_class:
+        print()
+        print(
+            format_table(
+                f"{ds.name}: NN by class, {default_label}, cloud queries against the meshes",
+                ["class", "meshes", "pc query -> mesh db"],
+                [list(r) for r in by_class],
+            )
+        )
     dec_mesh = float(np.mean([b.seconds for b in mesh]))
     dec_pc = float(np.mean([b.seconds for b in pc]))
-    dec_view = float(np.mean([b.seconds for b in view])) if view is not mesh else 0.0
+    dec_view = float(np.mean([b.seconds for b in view])) if have_views else 0.0
     title = (
         f"{ds.name}: {len(ds)} models, {len(set(labels))} classes, res {mdbd.resolution}, "
         f"{mdbd.n_balls} balls, n_r {kcfg.n_r}"
@@ -225,6 +254,7 @@ def run_tables(
         "config": {"mdbd": dataclasses.asdict(mdbd), "kernel": dataclasses.asdict(kcfg)},
         "table": [dict(zip(COLUMNS, r, strict=True)) for r in rows],
         "calibration": calib,
+        "cloud_nn_by_class": {c: {"meshes": a, "pc_query_mesh_db": b} for c, a, b in by_class},
         "seconds_per_model": {
             "decompose_mesh": dec_mesh,
             "decompose_pointcloud": dec_pc,

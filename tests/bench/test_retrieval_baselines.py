@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from bench.baselines import D2Config
 from bench.datasets import web
-from bench.retrieval import main, run_baselines
+from bench.retrieval import cloud_classes, main, run_baselines
 
 
 def test_baselines_only_rank_a_tiny_web_set(capsys: pytest.CaptureFixture[str]) -> None:
@@ -27,3 +28,15 @@ def test_the_flag_is_on_the_command_line(capsys: pytest.CaptureFixture[str]) -> 
     with pytest.raises(SystemExit):
         main(["--help"])
     assert "--baselines-only" in capsys.readouterr().out
+
+
+def test_cloud_classes_lists_the_clouds_largest_loss_first() -> None:
+    """Two classes of two: mesh queries all find their class; cloud queries of class
+    "b" find class "a" first, those of "a" still find "a"."""
+    labels = np.array(["a", "a", "b", "b"])
+    meshes = np.array(
+        [[0, 0.9, 0.1, 0.1], [0.9, 0, 0.1, 0.1], [0.1, 0.1, 0, 0.9], [0.1, 0.1, 0.9, 0]]
+    )
+    clouds = meshes.copy()
+    clouds[2:, :2] = 0.95  # b's clouds look like a's meshes
+    assert cloud_classes(meshes, clouds, labels) == [("b", 1.0, 0.0), ("a", 1.0, 1.0)]
