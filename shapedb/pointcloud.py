@@ -440,9 +440,11 @@ class PointCloud(Geometry):
         )
 
     def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
-        """Point-membership classification (n,) bool: ``|winding number| > 0.5``.
+        """Point-membership classification (n,) bool: ``winding number > 0.5``.
 
-        As for meshes: a part whose orientation is still inverted counts as inside.
+        Unlike a mesh's ``|winding number|``: the normals are oriented outwards, and the
+        magnitude would add specks of inside beside single sheets, whose samples' signs
+        are a coin toss (docs/studies.md, "Which way a point cloud's sheets face").
         """
         return self.winding_number(points) > 0.5
 
