@@ -82,9 +82,9 @@ def escaping(
 
 def visible_normals(
     cloud: PointCloud, *, rays: int = 32, margin: float = 0.15, layer: float = 0.15, seed: int = 0
-) -> tuple[NDArray[np.float64], float, float]:
+) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_]]:
     """The cloud's normals (n, 3), its two-sided single-layer points turned to the side
-    more rays escape from; and the fractions of points two-sided and turned that way."""
+    more rays escape from; and which points (n,) are two-sided and which were turned."""
     grid, wall, exterior = cloud._shell
     n = cloud._pca
     normals = np.array(cloud.normals)
@@ -106,8 +106,9 @@ def visible_normals(
     parallel = np.abs(np.einsum("nkj,nj->nk", n[nb], n)) > 0.9
     two &= ~np.any(parallel & (off_plane > layer * cloud.spacing[:, None]), axis=1)
     idx = np.flatnonzero(two)
+    turned = np.zeros(len(p), dtype=bool)
     if len(idx) == 0:
-        return normals, 0.0, 0.0
+        return normals, two, turned
     h_dirs = hemisphere(rays, np.random.default_rng(seed))
     t, b = tangents(n[idx])
     side = []
@@ -123,7 +124,8 @@ def visible_normals(
     turn = np.where(diff > margin, 1.0, np.where(diff < -margin, -1.0, 0.0))
     chosen = turn != 0
     normals[idx[chosen]] = n[idx[chosen]] * turn[chosen, None]
-    return normals, float(two.mean()), float(chosen.sum() / len(p))
+    turned[idx[chosen]] = True
+    return normals, two, turned
 
 
 def iou(a: NDArray[np.bool_], b: NDArray[np.bool_]) -> float:
@@ -148,15 +150,17 @@ def measure(model: Any, resolution: int = 64) -> dict[str, Any]:
     return {
         "model": model.name,
         "label": model.label,
-        "two_sided": two,
-        "turned": turned,
+        "two_sided": float(two.mean()),
+        "turned": float(turned.mean()),
         "iou_today": iou(inside, cloud.contains(cells)),
         "iou_visible": iou(inside, turned_cloud.contains(cells)),
     }
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.studies.cloud_orientation", description=__doc__.split("\n\n")[0]
+    )
     ap.add_argument("--split", default="validation", choices=("validation", "test"))
     ap.add_argument("--classes", nargs="+", default=list(CLASSES))
     ap.add_argument("--per-class", type=int, default=3)
