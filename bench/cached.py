@@ -16,7 +16,7 @@ from bench.common import cache_path, load_balls
 from bench.datasets import Dataset, capod, generic, parts, web, webplus
 from bench.datasets import articulated as figures
 from bench.representations import build
-from shapedb.config import MDBDConfig
+from shapedb.config.core import MDBDConfig
 
 __all__ = ["ENGINE_COMMITS", "SETS", "HELD_OUT", "CHOICES", "load", "model_key"]
 

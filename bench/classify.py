@@ -54,7 +54,7 @@ from numpy.typing import NDArray
 
 from bench.common import decompose_all, format_table, write_json
 from bench.datasets import Dataset, Model, capod, split_by_model
-from shapedb.config import Config, MDBDConfig
+from shapedb.config.core import Config, MDBDConfig
 
 RESULTS = Path(__file__).resolve().parent / "results"
 COLUMNS = (
@@ -148,7 +148,7 @@ def graphs_of(
 
 def folds_of(labels: Sequence[str], k: int, seed: int = 0) -> list[NDArray[np.int64]]:
     """``k`` disjoint test folds, stratified by class."""
-    from query.gnn import stratified_split
+    from query.learn.gnn import stratified_split
 
     return stratified_split(labels, [1.0 / k] * k, seed=seed)
 
@@ -164,7 +164,7 @@ def kfold_splits(labels: Sequence[str], k: int, seed: int = 0) -> list[Split]:
 
 def fixed_splits(labels: Sequence[str], seeds: int, seed: int = 0) -> list[Split]:
     """One stratified train / validation / test split, trained with ``seeds`` seeds."""
-    from query.gnn import stratified_split
+    from query.learn.gnn import stratified_split
 
     tr, va, te = stratified_split(labels, FIXED_SPLIT, seed=seed)
     return [{"train": tr, "val": va, "test": te, "seed": s} for s in range(seeds)]
@@ -198,7 +198,7 @@ def knn_baseline(data: dict[str, Any], splits: list[Split]) -> dict[str, Any]:
     The gallery is every non-test model (train and validation: the kernel has nothing
     to select); point-cloud queries are matched against the mesh gallery.
     """
-    from shapedb.kernel import features, kernel
+    from shapedb.signature.kernel import features, kernel
 
     cfg = Config()
     t0 = time.perf_counter()
@@ -262,8 +262,8 @@ def run_setting(
     """Train and test one convolution on every split (runs in a worker process)."""
     import torch
 
-    from query.classify import GraphClassifier
-    from query.gnn import import_torch, plot_history
+    from query.learn.classify import GraphClassifier
+    from query.learn.gnn import import_torch, plot_history
 
     import_torch()
     torch.set_num_threads(int(options.pop("threads", 0)) or torch.get_num_threads())

@@ -6,7 +6,7 @@ Usage (from the repository root)::
     python -m bench.classify_curves --sets heldout --per-class 14 --epochs 40
 
 For each training size (models per class) every candidate of
-:mod:`query.selection` (1/3/5-NN on the store's descriptor, logistic regression,
+:mod:`query.learn.selection` (1/3/5-NN on the store's descriptor, logistic regression,
 gradient boosting, the graph CNNs TAG / ARMA / Spline, and TAG reading the
 descriptor too) is (a) scored on validation data drawn from the training part only,
 with the protocol ``shapedb train`` uses (``select_classifier``: 5-fold
@@ -51,9 +51,9 @@ from numpy.typing import NDArray
 from bench.classify import generated, graphs_of
 from bench.common import format_table, write_json
 from bench.datasets import CAPOD_ROOT, capod
-from query.selection import CANDIDATES, make_candidate, select_classifier
-from query.training_data import stratified_folds, stratified_split
-from shapedb.config import Config, MDBDConfig
+from query.learn.selection import CANDIDATES, make_candidate, select_classifier
+from query.learn.training_data import stratified_folds, stratified_split
+from shapedb.config.core import Config, MDBDConfig
 
 RESULTS = Path(__file__).resolve().parent / "results"
 CONFIGS = {
@@ -119,7 +119,7 @@ def load_set(
         {k: np.asarray([new[i] for i in s[k] if i in new], dtype=np.int64) for k in s}
         for s in splits
     ]
-    from shapedb.kernel import features
+    from shapedb.signature.kernel import features
 
     cfg = Config()
     data["x_mesh"] = np.stack([features(b.decomposition(), cfg) for b in data["mesh"]])

@@ -9,7 +9,7 @@ falls on them alike; wall seconds, one thread (the Poisson solve too).
 
 :func:`profile_cloud_query` splits a cloud query into its stages (the cloud's own
 field, packing and refinement; the Poisson solve; the reconstruction's
-decomposition; their features), as ``query.engine`` runs them;
+decomposition; their features), as ``query.search.engine`` runs them;
 ``python -m bench.cloud_cost [--sets ...] [--n 4]`` prints its medians per set.
 """
 
@@ -30,8 +30,8 @@ __all__ = ["main", "measure", "profile_cloud_query"]
 
 def _geometries(model: Model) -> tuple[Any, Any]:
     """The model's mesh and its paper cloud (as the bench's ``pointcloud`` variant)."""
-    from shapedb.mesh import TriangleMesh
-    from shapedb.pointcloud import PointCloud
+    from shapedb.geometry.mesh import TriangleMesh
+    from shapedb.geometry.pointcloud import PointCloud
 
     v, f = mesh_arrays(model)
     points = point_cloud(
@@ -91,9 +91,9 @@ def profile_cloud_query(model: Model, *, depth: int = 8) -> dict[str, float]:
     ``cloud packing`` and ``cloud refine`` (its own decomposition), ``poisson``,
     ``recon decomposition``, ``features`` (the two features of the cloud).
     """
-    from shapedb.kernel import features
-    from shapedb.mdbd import decompose
-    from shapedb.reconstruct import reconstruct
+    from shapedb.mdbd.decomposition import decompose
+    from shapedb.mdbd.reconstruct import reconstruct
+    from shapedb.signature.kernel import features
 
     mesh, cloud = _geometries(model)
     t0 = time.perf_counter()

@@ -36,7 +36,7 @@ from bench.datasets import (
     point_cloud,
     stable_seed,
 )
-from shapedb.config import CloudConfig, MDBDConfig
+from shapedb.config.core import CloudConfig, MDBDConfig
 
 __all__ = [
     "format_table",
@@ -315,14 +315,14 @@ class Balls:
 
     def with_contact_tol(self, tol_cells: float) -> Balls:
         """The same balls with their contacts found again at ``tol_cells`` grid cells."""
-        from shapedb.graph import contact_edges
+        from shapedb.mdbd.graph import contact_edges
 
         edges = contact_edges(self.centers, self.radii, tol_cells * self.spacing)
         return replace(self, edges=edges.astype(np.int64).reshape(-1, 2))
 
     def decomposition(self) -> Any:
-        """A :class:`shapedb.mdbd.Decomposition` with these balls."""
-        from shapedb.mdbd import Decomposition
+        """A :class:`shapedb.mdbd.decomposition.Decomposition` with these balls."""
+        from shapedb.mdbd.decomposition import Decomposition
 
         lo = (self.centers - self.radii[:, None]).min(axis=0)
         hi = (self.centers + self.radii[:, None]).max(axis=0)
@@ -364,6 +364,17 @@ _ENGINE_MODULES = (
     "geometry", "mesh", "pointcloud", "voxels", "implicit", "complement", "_meshing",
     "frame", "refine", "packing", "mdbd", "graph", "sheet", "surface_fit",
 )  # fmt: skip
+#: Where each engine module lives under shapedb/ today (the keys are the flat names it had
+#: before the subpackages, which older commits' files are read by).
+_ENGINE_PATHS = {
+    "geometry": "geometry/base", "mdbd": "mdbd/decomposition", "frame": "mdbd/frame",
+    "refine": "mdbd/refine", "packing": "mdbd/packing", "graph": "mdbd/graph",
+    "reconstruct": "mdbd/reconstruct",
+}  # fmt: skip
+
+
+def _engine_path(name: str) -> str:
+    return _ENGINE_PATHS.get(name, f"geometry/{name}")
 
 
 def _code_only(source: str) -> str:
@@ -434,8 +445,9 @@ def engine_version(variant: str | None = None, *, commit: str | None = None) -> 
         if name in skip:
             continue
         if commit is None:
-            st = (root / f"{name}.py").stat()
-            code: str | None = _module_code(str(root / f"{name}.py"), st.st_size, st.st_mtime_ns)
+            path = root / f"{_engine_path(name)}.py"
+            st = path.stat()
+            code: str | None = _module_code(str(path), st.st_size, st.st_mtime_ns)
         else:
             code = _code_at(commit, name)
         if code is not None:
@@ -528,33 +540,33 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
     ``pointcloud_recon`` the screened Poisson surface (depth :data:`RECON_BASE_DEPTH`)
     of the paper's point cloud (``pointcloud_noisy_recon``, ``pointcloud_partial_recon``:
     of those clouds)
-    (:func:`shapedb.reconstruct.reconstruct`, decomposed as a mesh; whether it is kept
-    is decided against the cloud's own packing, :func:`shapedb.reconstruct.volumes_agree`),
+    (:func:`shapedb.mdbd.reconstruct.reconstruct`, decomposed as a mesh; whether it is kept
+    is decided against the cloud's own packing, :func:`shapedb.mdbd.reconstruct.volumes_agree`),
     ``pointcloud_recon_d<depth>`` the same at another octree depth;
     ``pointcloud_turn_<axis>`` the paper's point cloud in its canonical frame turned by
     :data:`CLOUD_TURN_DEGREES` about that frame axis (0-2) and decomposed without
     the canonical frame: another packing of the same cloud;
     ``mesh_subdivide`` every triangle split in four at its edge midpoints (the same
     solid, other triangles); ``view_<cells>`` the mesh's sparse view
-    (:func:`shapedb.view.view_geometry`, one sample per ``<cells>`` grid cells of its
+    (:func:`shapedb.geometry.view.view_geometry`, one sample per ``<cells>`` grid cells of its
     mesh decomposition); ``mesh_turn_<deg>`` rotated by ``<deg>`` degrees about
     :data:`TURN_AXIS` through the vertex centroid (decomposed without the canonical
     frame, this turns the grid against the solid by that angle).
     """
-    from shapedb.mesh import TriangleMesh
+    from shapedb.geometry.mesh import TriangleMesh
 
     v, f = mesh_arrays(model)
     if variant.startswith("view_"):
-        from shapedb.view import view_geometry
+        from shapedb.geometry.view import view_geometry
 
         spacing = _mesh_spacing(model, config)
         return view_geometry(TriangleMesh(v, f, name=model.name), spacing, float(variant[5:]))
     if "_recon" in variant and variant.startswith("pointcloud"):
-        from shapedb.reconstruct import reconstruct
+        from shapedb.mdbd.reconstruct import reconstruct
 
         base, _, rest = variant.partition("_recon")
         depth = int(rest.removeprefix("_d")) if rest.startswith("_d") else RECON_BASE_DEPTH
-        # in the cloud's frame, as shapedb.reconstruct.reconstructed does
+        # in the cloud's frame, as shapedb.mdbd.reconstruct.reconstructed does
         surface = reconstruct(_framed_cloud(model, v, f, config, base), depth=depth)
         if surface is None:
             raise ValueError(f"{model.name}: no reconstruction")
@@ -566,7 +578,7 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
         turn = Rotation.from_rotvec(np.deg2rad(CLOUD_TURN_DEGREES) * axis).as_matrix()
         return _framed_cloud(model, v, f, config).transformed(turn, np.zeros(3))
     if variant in ("pointcloud", "pointcloud_b", "pointcloud_sphere"):
-        from shapedb.pointcloud import PointCloud
+        from shapedb.geometry.pointcloud import PointCloud
 
         seed = stable_seed(model.name, "pointcloud" if variant.endswith("sphere") else variant)
         points = point_cloud(v, f, seed=seed, min_points=min_cloud_points(model))
@@ -575,7 +587,7 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
         return PointCloud(points)
     if variant in ("pointcloud_noisy", "pointcloud_partial"):
         from bench.people import noisy_cloud, partial_cloud
-        from shapedb.pointcloud import PointCloud
+        from shapedb.geometry.pointcloud import PointCloud
 
         paper = point_cloud(
             v, f, seed=stable_seed(model.name, "pointcloud"), min_points=min_cloud_points(model)
@@ -586,7 +598,7 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
         return PointCloud(partial_cloud(paper, v, f, seed=seed))
     if variant == "pointcloud_dense":
         from bench.baselines import sample_surface
-        from shapedb.pointcloud import PointCloud
+        from shapedb.geometry.pointcloud import PointCloud
 
         rng = np.random.default_rng(stable_seed(model.name, variant))
         return PointCloud(sample_surface(v, f, DENSE_SAMPLES, rng=rng))
@@ -625,8 +637,8 @@ def _framed_cloud(
     variant: str = "pointcloud",
 ) -> Any:
     """The cloud of ``model`` in a cloud ``variant``, moved into its canonical frame."""
-    from shapedb.frame import canonical_frame
-    from shapedb.pointcloud import PointCloud
+    from shapedb.geometry.pointcloud import PointCloud
+    from shapedb.mdbd.frame import canonical_frame
 
     if variant == "pointcloud":
         points = point_cloud(
@@ -644,15 +656,15 @@ def _mesh_spacing(model: Model, config: MDBDConfig) -> float:
     path = cache_path(model, "mesh", config)
     if path.exists():
         return load_balls(path).spacing
-    from shapedb.mdbd import decompose
-    from shapedb.mesh import TriangleMesh
+    from shapedb.geometry.mesh import TriangleMesh
+    from shapedb.mdbd.decomposition import decompose
 
     return float(decompose(TriangleMesh(*mesh_arrays(model)), config=config).spacing)
 
 
 def _work(model: Model, variant: str, config: MDBDConfig, path: str) -> tuple[str, str | None]:
     """Worker: decompose one model variant and write its npz (or return the error)."""
-    from shapedb.mdbd import decompose
+    from shapedb.mdbd.decomposition import decompose
 
     try:
         t0 = time.perf_counter()

@@ -65,8 +65,8 @@ def _models(folder: Path, n: int, seed: int) -> list[Path]:
 
 
 def _reader(path: str, stop: Any, start: Any, out: Any, seed: int) -> None:
-    import shapedb.database as database
-    from query.engine import search
+    import query.database as database
+    from query.search.engine import search
     from query.sql import sql
 
     rng = np.random.default_rng(seed)
@@ -101,7 +101,7 @@ def _reader(path: str, stop: Any, start: Any, out: Any, seed: int) -> None:
 def _writer(
     path: str, files: list[str], batch: int, timeout: float, out: Any, name: str, holding: Any
 ) -> None:
-    import shapedb.database as database
+    import query.database as database
 
     db = database.connect(path, create=False, lock_timeout=timeout)
     t0 = time.time()
@@ -162,8 +162,8 @@ def _stats(results: list[dict[str, Any]], t_from: float, t_to: float) -> dict[st
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
     """Build the store, run the baseline and the concurrent phase; return the figures."""
-    import shapedb.database as database
-    from shapedb.check import check
+    import query.database as database
+    from shapedb.store.integrity import check
 
     root = Path(tempfile.mkdtemp(prefix="shapedb-concurrency-"))
     path = str(root / "db")

@@ -16,8 +16,8 @@ from numpy.typing import NDArray
 from bench.common import Balls, decompose_all, recon_variant
 from bench.datasets import Dataset, stable_seed
 from shapedb import kernel
-from shapedb.config import Config, KernelConfig, MDBDConfig
-from shapedb.reconstruct import volumes_agree
+from shapedb.config.core import Config, KernelConfig, MDBDConfig
+from shapedb.mdbd.reconstruct import volumes_agree
 
 __all__ = ["complete", "kernel_features", "l1_matrix", "mixture_mask", "reconstructions"]
 
@@ -35,7 +35,7 @@ def l1_matrix(a: FloatArray, b: FloatArray) -> FloatArray:
 def kernel_features(balls: Sequence[Balls], config: KernelConfig | Config) -> FloatArray:
     """Feature vectors pre-multiplied by their weights, so that plain L1 is the distance.
 
-    :func:`shapedb.kernel.features` times :func:`shapedb.kernel.weights` of ``config``
+    :func:`shapedb.signature.kernel.features` times :func:`shapedb.signature.kernel.weights` of ``config``
     (the paper's Eq. 1 and 2, or shapedb's descriptor): (n, d).
     """
     w = np.asarray(kernel.weights(config))
@@ -58,12 +58,12 @@ def reconstructions(
     workers: int = 2,
     variant: str | None = None,
 ) -> list[Balls | None]:
-    """Each cloud's kept reconstruction (:mod:`shapedb.reconstruct`), else the cloud itself.
+    """Each cloud's kept reconstruction (:mod:`shapedb.mdbd.reconstruct`), else the cloud itself.
 
     ``variant``: the reconstructions' decomposition variant (default: the paper
     cloud's at a default store's Poisson depth, :func:`bench.common.recon_variant`).
 
-    The cloud itself adds no comparison to the nearest-of rule (``query.engine``).
+    The cloud itself adds no comparison to the nearest-of rule (``query.search.engine``).
     """
     found = decompose_all(models, variant or recon_variant(), mdbd, workers=workers)
     return [

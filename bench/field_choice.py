@@ -41,7 +41,7 @@ from bench.gate_stores import (
     gate_weights,
     score_row,
 )
-from shapedb.config import Config
+from shapedb.config.core import Config
 
 FloatArray = NDArray[np.float64]
 RESULTS = Path(__file__).resolve().parent / "results"

@@ -2,8 +2,8 @@
 
 :func:`shells` gives a split's models (those :func:`bench.cached.load` has, in its order)
 the shell cells of the inside of their MDBD field (:func:`model_inside`: the field of
-:func:`shapedb.mdbd.prepare_field`, its inside by :func:`shapedb.inside.field_inside`), with the cell edge, the volume centroid, the inside
-cell count and the field's CPU seconds: what :func:`shapedb.field_descriptors.field_vector`
+:func:`shapedb.mdbd.decomposition.prepare_field`, its inside by :func:`shapedb.geometry.inside.field_inside`), with the cell edge, the volume centroid, the inside
+cell count and the field's CPU seconds: what :func:`shapedb.signature.field_vector.field_vector`
 reads. Cached under ``$SHAPEDB_BENCH_CACHE/field_depth`` keyed by the model's cache key of
 :func:`bench.common.cache_path` (the older engines of :data:`bench.cached.ENGINE_COMMITS`
 are read too) and :data:`VERSION`; :func:`fill` computes what the cache lacks.
@@ -21,8 +21,8 @@ import numpy as np
 from bench.cached import ENGINE_COMMITS
 from bench.common import cache_path
 from bench.datasets import CACHE_DIR, Dataset
-from shapedb.config import MDBDConfig
-from shapedb.inside import Inside
+from shapedb.config.core import MDBDConfig
+from shapedb.geometry.inside import Inside
 
 __all__ = ["VERSION", "FOLDER", "fill", "shells", "model_inside", "as_inside"]
 
@@ -35,8 +35,8 @@ def model_inside(model: Any) -> tuple[Inside, float]:
     """A bench model's field inside (as ``decompose(keep_inside=True)`` keeps it) and the
     CPU seconds of its field, at the default :class:`MDBDConfig`."""
     from bench.common import variant_geometry
-    from shapedb.inside import field_inside
-    from shapedb.mdbd import prepare_field
+    from shapedb.geometry.inside import field_inside
+    from shapedb.mdbd.decomposition import prepare_field
 
     cfg = MDBDConfig()
     c0 = time.process_time()
@@ -46,7 +46,7 @@ def model_inside(model: Any) -> tuple[Inside, float]:
 
 
 def as_inside(z: Any) -> Inside:
-    """The :class:`shapedb.inside.Inside` of a cached shell (:func:`shells`' dicts)."""
+    """The :class:`shapedb.geometry.inside.Inside` of a cached shell (:func:`shells`' dicts)."""
     return Inside(shell=np.asarray(z["shell"], np.float64), cell=float(z["cell"]),
                   centroid=np.asarray(z["centroid"], np.float64), count=int(z["count"]))  # fmt: skip
 

@@ -31,7 +31,7 @@ import numpy as np
 
 from bench.cached import load
 from bench.common import format_table, variant_geometry, write_json
-from shapedb.config import Config
+from shapedb.config.core import Config
 
 RESULTS = Path(__file__).resolve().parent / "results"
 STORES = {
@@ -43,10 +43,10 @@ BASE = "today (fv_enabled=false)"
 
 def ingest_cpu(model: Any, config: Config) -> tuple[float, dict[str, float]]:
     """CPU seconds of one model's ingest work under ``config``, and each stage's."""
-    from shapedb.field_descriptors import decomposition_field_vector
-    from shapedb.kernel import features
-    from shapedb.lightfield import decomposition_light_field
-    from shapedb.mdbd import decompose
+    from shapedb.mdbd.decomposition import decompose
+    from shapedb.signature.field_vector import decomposition_field_vector
+    from shapedb.signature.kernel import features
+    from shapedb.signature.lightfield import decomposition_light_field
 
     c0 = time.process_time()
     geometry = variant_geometry(model, "mesh", config.mdbd)

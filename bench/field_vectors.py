@@ -17,7 +17,7 @@ spherical-harmonic energies of the same inside (Kazhdan, on an angle grid: 32 sh
 harmonic parts, ``m_*`` fixed scales, ``a`` and ``c`` the weights: the fields
 ``field_depth_weight``, ``field_harmonic_weight``, ``light_field_scale``,
 ``field_depth_scale``, ``field_harmonic_scale`` of
-:class:`shapedb.config.LightFieldFusionConfig`), and its candidates are version 4's ``K``
+:class:`shapedb.config.core.LightFieldFusionConfig`), and its candidates are version 4's ``K``
 nearest followed by those of the ``K2`` nearest by the L1 distance of the scaled vectors
 ``[depth / m_b, harmonic / m_h]`` (``field_candidates``) that are not among them, in the
 stored distance's order.
@@ -25,7 +25,7 @@ stored distance's order.
 :func:`fuse` turns a :class:`bench.gate_stores.Split` into that stage's split (its
 light field distance replaced by the fused one, the scaled vectors' distance kept for
 the candidates); :class:`bench.gate_stores.Store` takes the union. The vectors of
-the bench models (:func:`shapedb.field_descriptors.field_vector`) come from the field
+the bench models (:func:`shapedb.signature.field_vector.field_vector`) come from the field
 shells cached by :mod:`bench.field_shells`
 (``$SHAPEDB_BENCH_CACHE/field_depth``, computed by :func:`bench.field_shells.fill` when missing) and are cached under
 ``$SHAPEDB_BENCH_CACHE/field_vectors``. :func:`analytic_distance` gives the analytic
@@ -115,9 +115,9 @@ class FieldStage:
 
 def _describer() -> tuple[Callable[[dict[str, Any]], NDArray[np.float32]], bytes]:
     """The product's field vector of a cached shell
-    (:func:`shapedb.field_descriptors.field_vector`) and its code (for the cache key)."""
-    from shapedb import field_descriptors as fd
-    from shapedb.config_field import FieldVectorConfig
+    (:func:`shapedb.signature.field_vector.field_vector`) and its code (for the cache key)."""
+    from shapedb.config.field_vector import FieldVectorConfig
+    from shapedb.signature import field_vector as fd
 
     cfg = FieldVectorConfig(enabled=True)
 
@@ -252,7 +252,7 @@ def union_order(order: NDArray[np.int64], dv: FloatArray, k: int, k2: int) -> tu
 
 def analytic_vectors(shapes: Sequence[tuple[str, Any]], config: Any) -> NDArray[np.float32]:
     """(n, 950) field vectors of analytic shapes decomposed under ``config`` (their inside)."""
-    from shapedb.mdbd import decompose
+    from shapedb.mdbd.decomposition import decompose
 
     fn, _ = _describer()
     out = []
@@ -302,7 +302,7 @@ def stage_of(args: argparse.Namespace) -> FieldStage | None:
     fields, None while it has none). ``--field-vectors`` or any ``--fv-*``: the
     product's stage (:data:`CHOSEN` while it is off) with those values replaced.
     """
-    from shapedb.config import Config
+    from shapedb.config.core import Config
 
     product = FieldStage.of(Config().lf_fusion)
     on = getattr(args, "field_vectors", None)

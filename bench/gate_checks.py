@@ -7,7 +7,7 @@ Used by the gate's selection (:mod:`bench.lightfield_gate`) and by the tests of 
   light field finds another pose and the gate must stay shut;
 * :func:`analytic_stores` and :func:`analytic_gates`: two small analytic stores (rigid
   boxes and rods; one chain in eight poses) and the product scorer's gate on them, at
-  any :class:`shapedb.config.LightFieldFusionConfig`;
+  any :class:`shapedb.config.core.LightFieldFusionConfig`;
 * :func:`margin`: how far apart a gate statistic puts the jointed sets and the rigid ones;
 * :data:`RATIO_GRID`, :data:`CEILINGS`, :func:`ratio_settings`: the ratio gate's grid.
 """
@@ -22,9 +22,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from query.lightfield_spread import pooled
-from shapedb.config import Config
-from shapedb.lightfield import light_field_distance
+from query.search.lightfield_spread import pooled
+from shapedb.config.core import Config
+from shapedb.signature.lightfield import light_field_distance
 
 __all__ = [
     "JOINTED",
@@ -96,7 +96,7 @@ def ratio_settings() -> list[dict[str, Any]]:
 
 def chain(angle: float, bend: float) -> Any:
     """Four balls joined by rods, its two joints bent by ``angle`` and ``bend`` (radians)."""
-    from shapedb.implicit import Capsule, Sphere
+    from shapedb.geometry.implicit import Capsule, Sphere
 
     pts = [np.zeros(3)]
     heading = 0.0
@@ -115,7 +115,7 @@ ANALYTIC = {"rerank": "lightfield", "resolution": 48, "n_balls": 128}
 
 def analytic_shapes() -> dict[str, list[tuple[str, Any]]]:
     """The analytic stores' shapes by name: ``rigid`` (4 boxes, 4 rods), ``chain`` (8 poses)."""
-    from shapedb.implicit import Box, Capsule
+    from shapedb.geometry.implicit import Box, Capsule
 
     poses = [(a, b) for a in (0.0, 0.5, 1.0, 1.5) for b in (-0.8, 0.8)]
     return {
@@ -133,7 +133,7 @@ def analytic_stores(root: Path) -> dict[str, Any]:
     in a store, none of the people's other subjects in the same pose to betray it).
     The shapes are :func:`analytic_shapes`'.
     """
-    from shapedb.database import connect
+    from query.database import connect
 
     # no stored field vectors: the stage sees the light field alone, and a field-vector
     # run passes its fused distance to analytic_gates (bench.field_vectors.analytic_distance)
@@ -150,20 +150,20 @@ def analytic_gates(
 ) -> tuple[FloatArray, FloatArray]:
     """(n,) ``g(q)`` and (n,) ``s_q`` of every shape of ``db`` querying it, at ``f``.
 
-    The product's scorer (:class:`query.rerank_lightfield.LightFieldFusion`); ``s_q``
+    The product's scorer (:class:`query.search.rerank_lightfield.LightFieldFusion`); ``s_q``
     NaN with ``f.pool`` 0.
 
-    ``f``: a :class:`shapedb.config.LightFieldFusionConfig` (the store's own light fields
+    ``f``: a :class:`shapedb.config.core.LightFieldFusionConfig` (the store's own light fields
     and descriptor); the local statistics computed by
-    :func:`query.lightfield_spread.local_spreads` under ``f``, every shape a candidate.
+    :func:`query.search.lightfield_spread.local_spreads` under ``f``, every shape a candidate.
     ``distance``: the stage's distance in place of the light field's,
     ``distance(query id, candidate ids, light field distances)`` (the field vectors'
     fusion, :func:`bench.field_vectors.analytic_distance`), in the statistics and the
     gate alike; ``memo`` keys it by its identity.
     """
-    from query.index import open_index
-    from query.lightfield_spread import calibration, local_spreads
-    from query.rerank_lightfield import COLUMN, LightFieldFusion, stored_arrays
+    from query.search.index import open_index
+    from query.search.lightfield_spread import calibration, local_spreads
+    from query.search.rerank_lightfield import COLUMN, LightFieldFusion, stored_arrays
 
     config = dataclasses.replace(db.config, lf_fusion=f)
     index, reader = open_index(db), stored_arrays(db)
@@ -201,9 +201,9 @@ def analytic_gates(
 
 def _fused_spreads(index: Any, reader: Any, config: Any,
                    distance: Distance) -> tuple[NDArray[np.int64], FloatArray]:  # fmt: skip
-    """:func:`query.lightfield_spread.local_spreads` of every alive shape on ``distance``."""
-    from query.lightfield_spread import calibration, local_statistic
-    from query.rerank_lightfield import COLUMN
+    """:func:`query.search.lightfield_spread.local_spreads` of every alive shape on ``distance``."""
+    from query.search.lightfield_spread import calibration, local_statistic
+    from query.search.rerank_lightfield import COLUMN
 
     f = config.lf_fusion
     ids = np.sort(np.asarray(index.ids_, np.int64)[np.asarray(index.alive_, bool)])

@@ -29,7 +29,7 @@ from bench.gate_stores import Split, Store, gate_weights, shared_stores
 from bench.lightfield_gate import RESULTS
 from bench.lightfield_gate import parser as gate_parser
 from bench.rerank_select import lfd_split_matrix
-from shapedb.config import Config
+from shapedb.config.core import Config
 
 __all__ = ["per_class", "main"]
 

@@ -5,7 +5,7 @@ stage's distance (the light fields', or its fusion with the field vectors:
 :func:`bench.field_vectors.fuse`); :class:`Store` one store's candidate lists (version 4's
 K, and with the field vectors the union with their K2 nearest) and its rankings at
 per-query weights; :func:`gate_weights` the product's gate
-(:class:`shapedb.config.LightFieldFusionConfig`) on a store, :func:`score_row` a row of
+(:class:`shapedb.config.core.LightFieldFusionConfig`) on a store, :func:`score_row` a row of
 scores against version 4 with the two-queries rule. Used by :mod:`bench.lightfield_gate`
 (which re-exports these names) and :mod:`bench.field_choice`.
 """
@@ -28,10 +28,10 @@ from bench.datasets import CACHE_DIR
 from bench.features import kernel_features
 from bench.gate_checks import margin
 from bench.packings import light_field_balls
-from query.lightfield_spread import pooled
-from shapedb.config import Config
-from shapedb.descriptor import LAYOUTS
-from shapedb.lightfield import light_field_distance, record_light_field
+from query.search.lightfield_spread import pooled
+from shapedb.config.core import Config
+from shapedb.signature.descriptor import LAYOUTS
+from shapedb.signature.lightfield import light_field_distance, record_light_field
 
 __all__ = [
     "SETS",
@@ -238,7 +238,7 @@ class Store:
         """This store with the shared-neighbour term in the light field's rank (a copy).
 
         ``rank_l`` of the copy's fused rankings ranks by ``dl / scale - beta * S(q, x)``
-        over each query's candidates (:mod:`query.lightfield_neighbours`: ``S = |({q} ∪
+        over each query's candidates (:mod:`query.search.lightfield_neighbours`: ``S = |({q} ∪
         N_k(q)) ∩ ({x} ∪ N_k(x))| / (k + 1)``, every query a stored shape), and the first
         result among the query's others stays the one without the term (:meth:`rankings`).
 
@@ -288,7 +288,7 @@ class Store:
         """(n, c) stored and light field distances of each shape's ``c`` nearest others.
 
         In the stored distance's order (ties by id), the shape left out, as the index
-        hands them to :func:`query.lightfield_spread.local_spreads`.
+        hands them to :func:`query.search.lightfield_spread.local_spreads`.
         """
         n = len(self.rows)
         c = min(c, n - 1)
@@ -386,7 +386,7 @@ class Store:
 
 def local_spreads(st: Store, candidates: int, typical: float, ratio_weight: float = 0.0,
                   ratio_candidates: int = 100) -> FloatArray:  # fmt: skip
-    """(n,) each stored shape's local statistic (:func:`query.lightfield_spread.local_statistic`).
+    """(n,) each stored shape's local statistic (:func:`query.search.lightfield_spread.local_statistic`).
 
     The local spread over its ``candidates`` nearest others, times the ratio to the
     power ``ratio_weight`` (the spread's power ``1 - ratio_weight``).
@@ -405,7 +405,7 @@ def local_spreads(st: Store, candidates: int, typical: float, ratio_weight: floa
 
 
 def gate_statistic(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
-    """(n,) ``s_q`` of :class:`shapedb.config.LightFieldFusionConfig` ``f`` for every query.
+    """(n,) ``s_q`` of :class:`shapedb.config.core.LightFieldFusionConfig` ``f`` for every query.
 
     ``memo``: results kept by store and the fields they read (a grid reuses them).
     """
@@ -429,7 +429,7 @@ def gate_margin(stores: dict[str, Store], f: Any,
 
 
 def gate_weights(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
-    """(n,) ``weight * g(q)`` of :class:`shapedb.config.LightFieldFusionConfig` ``f``.
+    """(n,) ``weight * g(q)`` of :class:`shapedb.config.core.LightFieldFusionConfig` ``f``.
 
     ``memo``: the pooled statistics already computed, by store and the fields they read.
     """
@@ -469,7 +469,7 @@ def score_row(stores: dict[str, Store], weights: dict[str, FloatArray],
 def shared_scale(split: Split, f: Any) -> float:
     """``m_l`` of the shared-neighbour term on ``split`` under the fusion ``f``: its
     ``light_field_scale`` when the split's distance fuses the field vectors, else
-    ``typical`` (as :attr:`query.rerank_lightfield.LightFieldFusion.scale`)."""
+    ``typical`` (as :attr:`query.search.rerank_lightfield.LightFieldFusion.scale`)."""
     stage = getattr(split, "stage", None)
     return float(stage.light_field_scale if stage is not None and stage.fuses else f.typical)
 

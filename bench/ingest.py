@@ -44,7 +44,7 @@ def _files(data: Path, limit: int | None) -> list[Path]:
 def _run(
     files: list[Path], options: dict[str, Any], *, workers: int | None = None, scheduler: Any = None
 ) -> dict[str, Any]:
-    import shapedb.database as database
+    import query.database as database
 
     root = Path(tempfile.mkdtemp(prefix="shapedb-bench-"))
     try:
@@ -141,7 +141,7 @@ def _print_table(rows: list[dict[str, Any]]) -> None:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
 
-    from shapedb.config import Config
+    from shapedb.config.core import Config
 
     options: dict[str, Any] = {}
     if args.resolution:

@@ -2,12 +2,12 @@
 
 :func:`light_fields` gives a split's models (those :func:`bench.cached.load` has, in its
 order) their light fields as a store with ``source="field"`` keeps them: the field of
-:func:`shapedb.mdbd.prepare_field` (as ``decompose`` computes it), its inside
-(:func:`shapedb.inside.field_inside`) rendered by :func:`shapedb.inside.inside_light_field`.
+:func:`shapedb.mdbd.decomposition.prepare_field` (as ``decompose`` computes it), its inside
+(:func:`shapedb.geometry.inside.field_inside`) rendered by :func:`shapedb.geometry.inside.inside_light_field`.
 Each model is computed once, at two renderings from which every configuration the
 benches ask for is cut: 10 light fields at 64 px with the depth images (depth weight 1)
 and 10 light fields at 128 px, silhouettes only. Fewer light fields are the first ones
-(:func:`shapedb.lightfield.field_rotations` draws the same turns first), and another
+(:func:`shapedb.signature.lightfield.field_rotations` draws the same turns first), and another
 depth weight rescales the depth block. Other Zernike orders, Fourier settings, seeds
 or fills are not cached (a ``ValueError``). The renderings about the volume centroid
 (``LightFieldConfig.centre="volume"``) are computed from the model's field; those about
@@ -40,7 +40,7 @@ from bench.cached import CHOICES, ENGINE_COMMITS, load
 from bench.common import cache_path
 from bench.datasets import CACHE_DIR, Dataset
 from bench.field_shells import as_inside, model_inside, shells
-from shapedb.config import LightFieldConfig, MDBDConfig
+from shapedb.config.core import LightFieldConfig, MDBDConfig
 
 __all__ = ["VERSION", "light_fields", "fill", "cut"]
 
@@ -62,7 +62,7 @@ def _paths(model: Any, centre: str = "volume") -> list[Path]:
 
 def _render(inside: Any, centre: str, path: str, **extra: Any) -> None:
     """Both renderings of an inside about ``centre``, written to ``path`` atomically."""
-    from shapedb.lightfield import inside_light_field
+    from shapedb.signature.lightfield import inside_light_field
 
     base = replace(_BASE, centre=centre)
     c1 = time.process_time()

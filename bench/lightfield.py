@@ -21,7 +21,7 @@ connectivity and watertightness of the mesh do not matter. Chen et al. render at
 and the coefficients stay floats.
 
 Only the mesh splatting lives here; the dodecahedron, the silhouette features, the
-descriptor's layout and the distance are :mod:`shapedb.lightfield`'s, which also
+descriptor's layout and the distance are :mod:`shapedb.signature.lightfield`'s, which also
 renders the light fields of a decomposition's balls.
 """
 
@@ -33,8 +33,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from bench.baselines import sample_surface
-from shapedb.config import LightFieldConfig
-from shapedb.lightfield import (
+from shapedb.config.core import LightFieldConfig
+from shapedb.signature.lightfield import (
     dodecahedron_rotations,
     dodecahedron_views,
     field_directions,
@@ -56,13 +56,13 @@ __all__ = [
     "lfd_similarity",
 ]
 
-#: The distance of :mod:`shapedb.lightfield` under the baseline's name.
+#: The distance of :mod:`shapedb.signature.lightfield` under the baseline's name.
 lfd_distance = light_field_distance
 
 
 @dataclass(frozen=True)
 class LFDConfig(LightFieldConfig):
-    """Parameters of the mesh light field descriptor: :class:`~shapedb.config.LightFieldConfig`
+    """Parameters of the mesh light field descriptor: :class:`~shapedb.config.core.LightFieldConfig`
     plus the surface sampling.
 
     Attributes

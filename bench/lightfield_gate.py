@@ -10,8 +10,8 @@ Every bench set's split (meshes; the cached balls of :func:`bench.cached.load`, 
 decomposed) is a store of its own, and so are the mixed stores of :data:`MIXES` (web +
 figures, web + people, generic + parts, all six). In each store every shape queries the
 others: its ``K = 100`` nearest by version 4's stored distance (ties by ascending id, the
-query among them, as ``query.rerank.search`` hands them over) are re-ranked by the gated
-reciprocal rank fusion of :class:`query.rerank_lightfield.LightFieldFusion`,
+query among them, as ``query.search.rerank.search`` hands them over) are re-ranked by the gated
+reciprocal rank fusion of :class:`query.search.rerank_lightfield.LightFieldFusion`,
 ``1 / (o + rank_d) + w g(q) / (o + rank_l)``, and scored (NN / 1-T / DCG) per set inside
 the store. Rows, in the same run: version 4 (no stage), the balls' light fields alone,
 the gates before (:data:`LEGACY`, :data:`SPREAD_GATE`), the product's stage at its
@@ -28,9 +28,9 @@ is chosen. ``--grid spread``: the grid of the spread gate (:data:`GRID`), by the
 alone.
 
 The light field distances (the store's float32 light fields,
-:func:`shapedb.lightfield.record_light_field`, every pair of the split's six sets) are
+:func:`shapedb.signature.lightfield.record_light_field`, every pair of the split's six sets) are
 cached under ``$SHAPEDB_BENCH_CACHE/lightfield_gate`` keyed by the models and the code of
-``shapedb/lightfield.py`` and ``shapedb/lightfield_descriptor.py``, so a changed silhouette
+``shapedb/signature/lightfield.py`` and ``shapedb/signature/lightfield_descriptor.py``, so a changed silhouette
 re-computes them and the selection re-runs in one command. Written to
 bench/results/lightfield_gate_<split>.json. A held-out set that :mod:`bench.cached` knows
 (``webplus``) is run with ``--split test --no-grid --datasets webplus figures people`` (it
@@ -54,7 +54,7 @@ same run. ``--mesh-lfd``: the peer's row, every shape of each store ranked by th
 light field descriptor (:func:`bench.rerank_select.lfd_split_matrix`, cached).
 ``--no-rigid-margin``: the ratio grid keeps the jointed margin alone.
 
-The shared-neighbour term (:mod:`query.lightfield_neighbours`): "stage now" has the product's
+The shared-neighbour term (:mod:`query.search.lightfield_neighbours`): "stage now" has the product's
 (``--shared K BETA``: another), beside the stage without it; ``--shared-grid`` adds every
 ``k`` x ``beta`` of :data:`bench.gate_stores.SHARED_GRID` (:func:`bench.gate_stores.shared_rows`).
 ``--grid-term``: the selection's grid scored with the product's shared-neighbour term on
@@ -105,7 +105,7 @@ from bench.gate_stores import (
     shared_rows,
     shared_stores,
 )
-from shapedb.config import Config
+from shapedb.config.core import Config
 
 __all__ = [
     "SETS",

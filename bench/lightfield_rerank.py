@@ -9,29 +9,29 @@ Usage (from the repository root)::
 
 For each set's split (meshes; the cached decompositions the light field study reads,
 :func:`bench.cached.load`; nothing is decomposed), every shape queries a
-flat :class:`query.index.FeatureIndex` through :func:`query.rerank.search` with ``k =
+flat :class:`query.search.index.FeatureIndex` through :func:`query.search.rerank.search` with ``k =
 n`` (the product's search path), its own id given, as ``db.search(id)`` does. Rows, in
 the same run:
 
 * ``v4``: the default store (version 4's vector, no stage);
 * ``adaptive (v7)``: version 7's vector with the adaptive views stage at
-  :class:`shapedb.config.RerankConfig`'s defaults (``rerank="adaptive"``);
+  :class:`shapedb.config.core.RerankConfig`'s defaults (``rerank="adaptive"``);
 * ``lightfield``: version 4's vector with ``rerank="lightfield"`` at its defaults
-  (:class:`shapedb.config.LightFieldFusionConfig`, K = 100), the candidates' light
+  (:class:`shapedb.config.core.LightFieldFusionConfig`, K = 100), the candidates' light
   fields read by id as a store keeps them (float32,
-  :func:`shapedb.lightfield.record_light_field` of the balls), and the stored local
+  :func:`shapedb.signature.lightfield.record_light_field` of the balls), and the stored local
   spreads computed over the set as a store computes them
-  (:func:`query.lightfield_spread.local_spreads`); with the field's light fields and the
+  (:func:`query.search.lightfield_spread.local_spreads`); with the field's light fields and the
   field vectors on (the default), the field vectors too (:func:`field_vectors`, of the
   shells cached by :mod:`bench.field_shells`): the fused distance and the union
-  candidates (:mod:`query.field_fusion`, :mod:`query.field_index`);
+  candidates (:mod:`query.search.field_fusion`, :mod:`query.search.field_index`);
 * ``lightfield (spread gate)``: the same with the gate before the ratio (the pooled
   local spread alone, :data:`SPREAD_GATE`), without the field vectors;
 * ``lightfield (before)``: the same with the stage's settings before the pooled spread
   and the contrast floor (what a store written then reads), without the field vectors.
 
 With ``--baselines``, in the same run: the balls' light fields alone (``light fields
-(balls)``, :func:`shapedb.lightfield.light_field_distance` of the stored light fields),
+(balls)``, :func:`shapedb.signature.lightfield.light_field_distance` of the stored light fields),
 and on the meshes the light field descriptor (:mod:`bench.lightfield`) and D2
 (:mod:`bench.baselines`, 2^18 pairs). ``--per-kind`` adds every row's NN per class.
 
@@ -69,15 +69,15 @@ from bench.cached import CHOICES, load
 from bench.common import class_nn, format_table, retrieval_scores, write_json
 from bench.features import kernel_features
 from bench.packings import light_field_balls
-from query import rerank
-from query.field_fusion import FIELD, FieldFusion
-from query.field_index import FieldIndex
-from query.index import FeatureIndex
-from query.lightfield_neighbours import NEIGHBOURS, stage_lists
-from query.lightfield_spread import local_spreads
-from query.rerank_lightfield import COLUMN, SPREAD, LightFieldFusion
-from shapedb.config import Config
-from shapedb.lightfield import light_field_distance, record_light_field
+from query.search import rerank
+from query.search.field_fusion import FIELD, FieldFusion
+from query.search.field_index import FieldIndex
+from query.search.index import FeatureIndex
+from query.search.lightfield_neighbours import NEIGHBOURS, stage_lists
+from query.search.lightfield_spread import local_spreads
+from query.search.rerank_lightfield import COLUMN, SPREAD, LightFieldFusion
+from shapedb.config.core import Config
+from shapedb.signature.lightfield import light_field_distance, record_light_field
 
 RESULTS = Path(__file__).resolve().parent / "results"
 SETS = ("web", "generic", "capod", "figures", "parts", "people")
@@ -147,11 +147,11 @@ class Arrays:
 
 def field_vectors(ds: Any, config: Config) -> np.ndarray:
     """(n, d) float32 field vectors of ``ds``'s models as a store keeps them:
-    :func:`shapedb.field_descriptors.field_vector` of the field's inside cached by
+    :func:`shapedb.signature.field_vector.field_vector` of the field's inside cached by
     :func:`bench.field_shells.shells`."""
     from bench.field_shells import shells
-    from shapedb.field_descriptors import field_vector
-    from shapedb.inside import Inside
+    from shapedb.geometry.inside import Inside
+    from shapedb.signature.field_vector import field_vector
 
     rows = []
     for z in shells(ds):
@@ -271,7 +271,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         rows.append([row, *cells, f"{obj:.4f}"])
     print()
     print(format_table(
-        f"re-ranking stages through query.rerank.search, {args.split} splits (NN / 1-T / DCG)",
+        f"re-ranking stages through query.search.rerank.search, {args.split} splits (NN / 1-T / DCG)",
         ("row", *sets, "objective"), rows,
     ))  # fmt: skip
     for name, got in per_kind.items():
@@ -293,12 +293,12 @@ def cost(args: argparse.Namespace, repeats: int = 3, cold: int = 8) -> dict[str,
     import shutil
 
     import shapedb
-    from query.index import open_index
-    from query.lightfield_neighbours import neighbour_table, store_neighbours
-    from query.lightfield_spread import store_spreads
-    from query.rerank_lightfield import stored_arrays
-    from shapedb.kernel import features
-    from shapedb.schema import ShapeRecord
+    from query.search.index import open_index
+    from query.search.lightfield_neighbours import neighbour_table, store_neighbours
+    from query.search.lightfield_spread import store_spreads
+    from query.search.rerank_lightfield import stored_arrays
+    from shapedb.signature.kernel import features
+    from shapedb.store.schema import ShapeRecord
 
     ds, balls = load("web", "validation")
     product = Config().with_options(rerank="lightfield", fv_enabled=True)

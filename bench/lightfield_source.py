@@ -49,8 +49,8 @@ from bench.datasets import CACHE_DIR, Dataset
 from bench.field_vector_cost import ingest_cpu
 from bench.field_vector_cost import models as first_models
 from bench.packings import light_field_balls
-from shapedb.config import Config, LightFieldConfig
-from shapedb.lightfield import light_field_distance, record_light_field
+from shapedb.config.core import Config, LightFieldConfig
+from shapedb.signature.lightfield import light_field_distance, record_light_field
 
 FloatArray = NDArray[np.float64]
 #: The product's balls are the first by radius of the packing continued to this many

@@ -41,11 +41,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from shapedb import examples  # noqa: E402
-from shapedb.config import MDBDConfig  # noqa: E402
-from shapedb.geometry import Geometry  # noqa: E402
-from shapedb.graph import contact_edges  # noqa: E402
-from shapedb.kernel import features  # noqa: E402
-from shapedb.mdbd import decompose, pack_balls, prepare_field  # noqa: E402
+from shapedb.config.core import MDBDConfig  # noqa: E402
+from shapedb.geometry.base import Geometry  # noqa: E402
+from shapedb.mdbd.decomposition import decompose, pack_balls, prepare_field  # noqa: E402
+from shapedb.mdbd.graph import contact_edges  # noqa: E402
+from shapedb.signature.kernel import features  # noqa: E402
 
 logger = logging.getLogger("bench.mdbd")
 CAPOD = Path("/work/shared/data/capod")
@@ -53,7 +53,7 @@ OUT = ROOT / "bench" / "results" / "mdbd.json"
 
 
 def _mesh(vertices: np.ndarray, faces: np.ndarray, name: str) -> Geometry:
-    from shapedb.mesh import TriangleMesh
+    from shapedb.geometry.mesh import TriangleMesh
 
     return TriangleMesh(vertices, faces, name=name)
 
@@ -103,7 +103,7 @@ def run_one(name: str, g: Geometry, res: int, n_balls: int, naive_limit: int) ->
     t0 = time.perf_counter()
     edges = contact_edges(c[order], r[order], cfg.contact_tol_cells * grid.spacing)
     row["graph"] = time.perf_counter() - t0
-    from shapedb.graph import ContactGraph
+    from shapedb.mdbd.graph import ContactGraph
 
     graph = ContactGraph(c[order], r[order], edges)
     t0 = time.perf_counter()
@@ -134,8 +134,8 @@ STAGES = ["load", "frame", "sdf", "grid_loop", "refine", "graph", "features", "t
 def profile_one(path: Path) -> dict[str, Any]:
     """CPU seconds per stage of the per-model ingest job on one file (default config)."""
     from ingest.loaders import load
-    from shapedb.frame import canonical_frame, frame_grid
-    from shapedb.graph import ContactGraph
+    from shapedb.mdbd.frame import canonical_frame, frame_grid
+    from shapedb.mdbd.graph import ContactGraph
 
     cfg = MDBDConfig()
     cpu = time.process_time

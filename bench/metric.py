@@ -1,10 +1,10 @@
-"""Issue 6: a similarity learned on a labelled store (:mod:`query.metric`), held out.
+"""Issue 6: a similarity learned on a labelled store (:mod:`query.learn.metric`), held out.
 
 Usage (from the repository root)::
 
     python -m bench.metric [--sets capod articulated parts] [--quick]
 
-For each set a :class:`~query.metric.LearnedMetric` is fitted on the *validation*
+For each set a :class:`~query.learn.metric.LearnedMetric` is fitted on the *validation*
 split exactly as ``db.fit_metric`` fits a store (block weights, regularisation
 cross-validated inside the split) and scored on the *test* split against the
 unlearned default; then the other way round (fitted on the larger test split, scored
@@ -42,8 +42,8 @@ from bench.common import (
 from bench.datasets import Dataset
 from bench.features import complete, kernel_features, l1_matrix, mixture_mask, reconstructions
 from bench.retrieval import build_sets
-from query.metric import LearnedMetric, block_layout, fit_metric
-from shapedb.config import Config, KernelConfig, MDBDConfig
+from query.learn.metric import LearnedMetric, block_layout, fit_metric
+from shapedb.config.core import Config, KernelConfig, MDBDConfig
 
 RESULTS = Path(__file__).resolve().parent / "results"
 VIEW_CELLS = 4.0
@@ -73,7 +73,7 @@ def _scores(f: dict[str, Any], w: NDArray[np.float64], views: bool) -> dict[str,
     m, p, v, lab = f["mesh"] * w, f["pc"] * w, f["view"] * w, f["labels"]
     r, mix = f["recon"] * w, f["mix"]
     d_mm = l1_matrix(m, m)
-    # cloud-mesh pairs: the nearest of the store's comparisons (query.engine)
+    # cloud-mesh pairs: the nearest of the store's comparisons (query.search.engine)
     d_pm = np.minimum(l1_matrix(p, m), l1_matrix(r, m))
     x = np.where(mix[:, None], p, m)
     d_xx = l1_matrix(x, x)

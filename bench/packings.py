@@ -2,7 +2,7 @@
 
 :func:`longer` gives a split's models (those :func:`bench.cached.load` has) decomposed as
 ingest does in a store whose ``LightFieldConfig.n_balls`` exceeds ``MDBDConfig.n_balls``:
-``shapedb.mdbd.decompose(tail_balls=...)``, the decomposition's balls then the tail (each
+``shapedb.mdbd.decomposition.decompose(tail_balls=...)``, the decomposition's balls then the tail (each
 part by decreasing radius). Cached under ``$SHAPEDB_BENCH_CACHE/lightfield_pack`` (keyed by
 the model, the default MDBD configuration, the engine's code and the tail; the older
 engines of :data:`bench.cached.ENGINE_COMMITS` are read too).
@@ -20,14 +20,14 @@ import numpy as np
 from bench.cached import ENGINE_COMMITS, load
 from bench.common import Balls, cache_path, variant_geometry
 from bench.datasets import CACHE_DIR, Dataset
-from shapedb.config import MDBDConfig
+from shapedb.config.core import MDBDConfig
 
 __all__ = ["longer"]
 
 
 def _decompose_longer(args: tuple[Any, int, str]) -> str | None:
     """Worker: decompose ``model`` with ``tail`` tail balls; write its balls and tail."""
-    from shapedb.mdbd import decompose
+    from shapedb.mdbd.decomposition import decompose
 
     model, tail, path = args
     try:

@@ -24,7 +24,7 @@ at all, so it cannot be queried there.
 **Before / after, and how "after" was chosen.** Every table is computed three times
 in the same run: *before* is the paper's part vector alone (Eq. 1 of the subgraph,
 K = 2, n_r = 10, ``PartConfig(size=0, centre=0)``), *after* the default
-``PartConfig()`` (plus the size and centre blocks, see :mod:`shapedb.subgraph`), and
+``PartConfig()`` (plus the size and centre blocks, see :mod:`shapedb.signature.subgraph`), and
 a reference that ignores the neighbourhood: the best match is the ball whose radius
 relative to its shape's largest ball, r / R, is nearest the query ball's. The
 settings were chosen by a sweep (run first, in the same invocation) over a grid of
@@ -57,11 +57,11 @@ from numpy.typing import NDArray
 from bench.common import Balls, decompose_all, format_table, write_json
 from bench.datasets import Model
 from shapedb import examples
-from shapedb.complement import Complement
-from shapedb.config import MDBDConfig, PartConfig
-from shapedb.implicit import Box, Cylinder
-from shapedb.mdbd import decompose
-from shapedb.subgraph import neighbourhood_features, neighbourhoods, part_weights
+from shapedb.config.core import MDBDConfig, PartConfig
+from shapedb.geometry.complement import Complement
+from shapedb.geometry.implicit import Box, Cylinder
+from shapedb.mdbd.decomposition import decompose
+from shapedb.signature.subgraph import neighbourhood_features, neighbourhoods, part_weights
 
 logger = logging.getLogger(__name__)
 

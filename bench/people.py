@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from shapedb.implicit import Implicit
+from shapedb.geometry.implicit import Implicit
 
 __all__ = [
     "MESH_RESOLUTION",

@@ -1,7 +1,7 @@
 """Retrieval at scale: the faiss index + exact re-rank against numpy brute force.
 
 For each size (default 1e4, 1e5, 1e6 stored vectors) this builds a
-:class:`query.index.FeatureIndex` (``kind="auto"``: flat below 50 000 vectors, HNSW
+:class:`query.search.index.FeatureIndex` (``kind="auto"``: flat below 50 000 vectors, HNSW
 above) over synthetic Eq. 1 vectors shaped like real ones (sorted, decreasing
 radius ratios in (0, 1] followed by walk averages; d = 2 * n_r with the default
 KernelConfig), and measures, with a numpy brute-force baseline in the same run:
@@ -11,7 +11,7 @@ KernelConfig), and measures, with a numpy brute-force baseline in the same run:
 * p50 / p99 latency of single k=10 queries (one query per call);
 * build time and memory (resident-set growth and size on disk).
 
-With ``--store-sizes`` it also times ``query.engine.search`` end to end on a real
+With ``--store-sizes`` it also times ``query.search.engine.search`` end to end on a real
 store (synthetic records committed through ``Store.commit``), i.e. including the
 version check, id lookup and Hit construction; and in a store with sparse views
 (``view_cells=4``, a tenth of the shapes sparse), where a sparse query searches two
@@ -39,9 +39,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from query.index import FeatureIndex
-from shapedb.config import CloudConfig, Config, KernelConfig
-from shapedb.kernel import weights
+from query.search.index import FeatureIndex
+from shapedb.config.core import CloudConfig, Config, KernelConfig
+from shapedb.signature.kernel import weights
 
 log = logging.getLogger("bench.query")
 
@@ -71,7 +71,7 @@ def synthetic_features(n: int, n_r: int, seed: int, *, chunk: int = 100_000) -> 
 def synthetic_descriptors(
     n: int, version: int, seed: int, *, chunk: int = 100_000
 ) -> NDArray[np.float32]:
-    """(n, dim(version)) float32 vectors shaped like :func:`shapedb.descriptor.describe`'s.
+    """(n, dim(version)) float32 vectors shaped like :func:`shapedb.signature.descriptor.describe`'s.
 
     Each distribution block is the cumulative histogram of a random two-bump density
     over its bins (smooth and of few parameters, as real ones are), ``inertia`` three
@@ -79,7 +79,7 @@ def synthetic_descriptors(
     scaled, as ``describe`` scales it, so that its median pairwise L1 is its weight
     times the calibration (unrelated shapes at about ln 10 in all).
     """
-    from shapedb.descriptor import LAYOUTS
+    from shapedb.signature.descriptor import LAYOUTS
 
     layout = LAYOUTS[version]
     calibration = np.log(10.0) / sum(b[3] for b in layout)
@@ -238,8 +238,8 @@ def run_size(
 def synthetic_records(n: int, config: Config) -> list[Any]:
     """``n`` ShapeRecords of one ball each with realistic feature vectors (ids s0..s{n-1},
     labels c0..c49), for stores whose search cost, not decomposition, is measured."""
-    from shapedb.mdbd import Decomposition
-    from shapedb.schema import ShapeRecord
+    from shapedb.mdbd.decomposition import Decomposition
+    from shapedb.store.schema import ShapeRecord
 
     x = synthetic_vectors(n, config, 7)
     one = Decomposition(
@@ -260,11 +260,11 @@ def synthetic_records(n: int, config: Config) -> list[Any]:
 def run_store(
     n: int, *, n_latency: int = 300, kernel: KernelConfig | None = None
 ) -> dict[str, Any]:
-    """End-to-end ``query.engine.search`` latency on a real store of n synthetic shapes."""
-    import shapedb.database as database
-    from query.engine import search
-    from query.index import open_index
-    from query.metric import LearnedMetric, block_layout
+    """End-to-end ``query.search.engine.search`` latency on a real store of n synthetic shapes."""
+    import query.database as database
+    from query.learn.metric import LearnedMetric, block_layout
+    from query.search.engine import search
+    from query.search.index import open_index
 
     config = Config(kernel=kernel or KernelConfig())
     with tempfile.TemporaryDirectory() as tmp:
@@ -288,7 +288,7 @@ def run_store(
             t0 = time.perf_counter()
             search(db, int(sid), k=10, where="label = 'c7'")
             lat_where.append(time.perf_counter() - t0)
-        # a learned metric (query.metric): the fit on the store's labels, then search
+        # a learned metric (query.learn.metric): the fit on the store's labels, then search
         # under a fixed non-identity weighting (its own index, built at first use)
         t0 = time.perf_counter()
         fitted = db.fit_metric(label="label")
@@ -336,13 +336,13 @@ def _views_store(
 
     Each dense shape's view feature is its feature perturbed; a sparse query searches
     both indexes (own features and views) and merges them, a dense one also reaches
-    the sparse shapes through its view (``query.engine``).
+    the sparse shapes through its view (``query.search.engine``).
     """
-    import shapedb.database as database
-    from query.engine import search
-    from query.index import open_index
-    from shapedb.mdbd import Decomposition
-    from shapedb.schema import ShapeRecord
+    import query.database as database
+    from query.search.engine import search
+    from query.search.index import open_index
+    from shapedb.mdbd.decomposition import Decomposition
+    from shapedb.store.schema import ShapeRecord
 
     config = Config(kernel=kernel, cloud=CloudConfig(view_cells=4.0))
     rng = np.random.default_rng(3)

@@ -21,9 +21,9 @@ included, is their own (meaningful on sets without duplicates: people, figures,
 parts; CAPOD holds re-posed copies and exact duplicates). Methods:
 
 ``default``
-    today's default store: the descriptor of :mod:`shapedb.descriptor`; a sparse
+    today's default store: the descriptor of :mod:`shapedb.signature.descriptor`; a sparse
     cloud and a mesh are as far apart as the nearer of the cloud's own feature and
-    its kept reconstruction's (:mod:`shapedb.reconstruct`, :mod:`query.engine`);
+    its kept reconstruction's (:mod:`shapedb.mdbd.reconstruct`, :mod:`query.search.engine`);
 ``paper``
     the paper's kernel (Eq. 1-3, ``KernelConfig(method="paper")``), own features;
 ``D2``
@@ -92,7 +92,7 @@ from bench.datasets import (
     people,
 )
 from bench.features import kernel_features, l1_matrix, mixture_mask
-from shapedb.config import Config, KernelConfig, MDBDConfig
+from shapedb.config.core import Config, KernelConfig, MDBDConfig
 
 OUT = Path(__file__).resolve().parent / "results" / "representations.json"
 
@@ -162,8 +162,8 @@ def load_set(
     cloud decomposition failed (``cached``: is not in the cache) are left out of
     every row; with ``cached`` a reconstruction not in the cache counts as not kept.
     """
-    from shapedb.reconstruct import volumes_agree
-    from shapedb.view import is_sparse
+    from shapedb.geometry.view import is_sparse
+    from shapedb.mdbd.reconstruct import volumes_agree
 
     def get(models: Sequence[Model], variant: str) -> list[Balls | None]:
         if cached:
@@ -235,7 +235,7 @@ def cost(balls: Balls) -> float:
 
 def pose_free_mask(config: KernelConfig) -> NDArray[np.float64]:
     """Column mask of the default descriptor without its pose blocks (``d2c_mean``, ``inertia``)."""
-    from shapedb.descriptor import LAYOUTS
+    from shapedb.signature.descriptor import LAYOUTS
 
     cols: list[float] = []
     for name, size, _typical, _weight in LAYOUTS[4]:

@@ -1,4 +1,4 @@
-"""Choose and measure the adaptive re-ranking stage (:mod:`query.rerank`) through the index.
+"""Choose and measure the adaptive re-ranking stage (:mod:`query.search.rerank`) through the index.
 
 Usage (from the repository root)::
 
@@ -9,9 +9,9 @@ Usage (from the repository root)::
 
 For each set's split (meshes, decompositions at the defaults from the bench cache), the
 descriptors of versions 4 and 7 are computed from the balls (cached on disk by
-decomposition and descriptor code), a flat :class:`query.index.FeatureIndex` is built
+decomposition and descriptor code), a flat :class:`query.search.index.FeatureIndex` is built
 over the stored vectors (ids 0..n-1), and every shape queries it through
-:func:`query.rerank.search` with ``k = n`` (the product's search path: faiss
+:func:`query.search.rerank.search` with ``k = n`` (the product's search path: faiss
 candidates, exact re-ranking, the stage). Rows: version 4 (the index over v4
 vectors), version 7 (over v7 vectors, no stage), the views block alone (an index over
 that block), and the adaptive stage over version 7's vectors for each setting of the
@@ -43,9 +43,9 @@ import numpy as np
 
 from bench.common import decompose_all, format_table, retrieval_scores, write_json
 from bench.datasets import CACHE_DIR, Dataset, articulated, capod, generic, parts, people, web
-from query import rerank
-from query.index import FeatureIndex
-from shapedb.config import Config, MDBDConfig
+from query.search import rerank
+from query.search.index import FeatureIndex
+from shapedb.config.core import Config, MDBDConfig
 
 RESULTS = Path(__file__).resolve().parent / "results"
 SETS = ("web", "generic", "capod", "articulated", "parts", "people")
@@ -84,7 +84,11 @@ def descriptors(
 
     balls = decompose_all(ds.models, "mesh", MDBDConfig(), workers=workers)
     keep = np.array([i for i, b in enumerate(balls) if b is not None], np.int64)
-    code = _digest("shapedb/descriptor.py", "shapedb/union_views.py", "shapedb/union.py")
+    code = _digest(
+        "shapedb/signature/descriptor.py",
+        "shapedb/signature/union_views.py",
+        "shapedb/signature/union.py",
+    )
     path = CACHE_DIR / "descriptors" / f"{ds.name}_{split}_{version}_{code}.npz"
     names = np.array([ds.models[i].name for i in keep])
     if path.exists():
@@ -137,7 +141,7 @@ def lfd_split_matrix(models: Sequence[Any]) -> np.ndarray:
 def ranking_scores(
     index: FeatureIndex, x: np.ndarray, labels: np.ndarray, config: Config
 ) -> dict[str, float]:
-    """PSB measures of every shape querying ``index`` through :func:`query.rerank.search`."""
+    """PSB measures of every shape querying ``index`` through :func:`query.search.rerank.search`."""
     n = len(x)
     ids = np.arange(n)
     ranks = np.empty((n, n))
@@ -242,7 +246,7 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
     ]  # fmt: skip
     print()
     print(format_table(
-        f"re-ranking stage, {args.split} splits (NN / 1-T / DCG), through query.rerank.search",
+        f"re-ranking stage, {args.split} splits (NN / 1-T / DCG), through query.search.rerank.search",
         ("row", *data, "objective", "2-query rule"), rows,
     ))  # fmt: skip
     print(f"passing settings: {len(passing)} of {len(candidates)}; chosen: "
@@ -257,7 +261,7 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
     import tempfile
 
     import shapedb
-    from shapedb.schema import ShapeRecord
+    from shapedb.store.schema import ShapeRecord
 
     ds = web().split("validation")
     balls = decompose_all(ds.models, "mesh", MDBDConfig(), workers=args.workers)

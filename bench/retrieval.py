@@ -22,7 +22,7 @@ validation split; ``--stability`` runs :mod:`bench.stability`; :mod:`bench.studi
 chooses one descriptor combination for all sets on their validation splits.
 
 Decompositions are cached (bench/results/cache/, git-ignored) by source, representation
-variant and :class:`~shapedb.config.MDBDConfig`; ``--no-refine`` turns off off-grid
+variant and :class:`~shapedb.config.core.MDBDConfig`; ``--no-refine`` turns off off-grid
 refinement, which costs ~100 s per model on point clouds with the current PointCloud.
 """
 
@@ -60,7 +60,7 @@ from bench.common import (
 from bench.datasets import Dataset, build_sets, mesh_arrays
 from bench.features import complete, kernel_features, l1_matrix, mixture_mask, reconstructions
 from bench.lightfield import LFDConfig, lfd_descriptor, lfd_similarity
-from shapedb.config import Config, DescriptorConfig, KernelConfig, MDBDConfig
+from shapedb.config.core import Config, DescriptorConfig, KernelConfig, MDBDConfig
 
 RESULTS = Path(__file__).resolve().parent / "results"
 COLUMNS = ("method", "NN", "1-T", "2-T", "E", "DCG", "seconds")
@@ -117,12 +117,12 @@ def run_tables(
 ) -> dict[str, Any]:
     """One data set's table: MDBD kernel on every representation, and baselines.
 
-    With ``view_cells`` the meshes' sparse views (:mod:`shapedb.view`) are decomposed
+    With ``view_cells`` the meshes' sparse views (:mod:`shapedb.geometry.view`) are decomposed
     too, and the cloud-query and mixture rows are repeated as a store with
     ``CloudConfig(view_cells=...)`` compares. Cloud-mesh pairs of shapedb's rows
-    follow the store's rule (``query.engine``): the nearest of the own features, the
+    follow the store's rule (``query.search.engine``): the nearest of the own features, the
     cloud against the mesh's view (views rows) and the cloud's reconstruction against
-    the mesh (``shapedb.reconstruct``, variant ``pointcloud_recon``). The paper
+    the mesh (``shapedb.mdbd.reconstruct``, variant ``pointcloud_recon``). The paper
     kernel's rows compare own features only, as the paper does. Without ``clouds``
     only the meshes are decomposed (no point-cloud rows). Beside shapedb's default
     descriptor the other of versions 4 and 5 is scored on the same balls.
@@ -173,7 +173,7 @@ def run_tables(
         fx = np.where(mix[:, None], fp, fm)
         k_xx = kernel_matrix(fx, fx, cfg.lam)
         one = mix[:, None] != mix[None, :]  # cloud-mesh pairs of the mixture
-        if have_pc and label == default_label:  # the store's rule (query.engine)
+        if have_pc and label == default_label:  # the store's rule (query.search.engine)
             fr = kernel_features(recon, full)
             k_pm = np.maximum(k_pm, kernel_matrix(fr, fm, cfg.lam))
             k_rx = kernel_matrix(np.where(mix[:, None], fr, fm), fx, cfg.lam)

@@ -6,7 +6,7 @@ server in a child process bound to 127.0.0.1 and measures:
 
 * **stored-id search**: ``GET /api/search?id=ID&k=10`` one request at a time on a
   keep-alive connection, p50 / p99; baselines: ``db.search(id)`` in this process (the
-  library's floor) and ``python -m shapedb.cli search ID`` (a new process per query);
+  library's floor) and ``python -m query.cli search ID`` (a new process per query);
 * **file query**: ``POST /api/search`` with a model file against ``db.search(file)`` in
   this process (load, decomposition, descriptor and search: the floor), the load and
   decomposition alone, and the CLI with the file; medians of ``--file-repeats`` runs;
@@ -58,9 +58,9 @@ CAPOD = Path("/work/shared/data/capod")
 def synthetic_store(root: Path, n: int) -> Any:
     """A store of ``n`` synthetic shapes (one ball each, realistic feature vectors)."""
     from bench.query import synthetic_records
-    from query.index import open_index
-    from shapedb.config import Config
-    from shapedb.database import connect
+    from query.database import connect
+    from query.search.index import open_index
+    from shapedb.config.core import Config
 
     config = Config()
     db = connect(root, config=config)
@@ -90,12 +90,12 @@ def _free_port() -> int:
 
 
 class Server:
-    """``query.server.serve`` in a child process on a loopback port."""
+    """``query.serve.server.serve`` in a child process on a loopback port."""
 
     def __init__(self, store: Path) -> None:
         self.port = _free_port()
         code = (
-            "import logging, shapedb; from query.server import serve; "
+            "import logging, shapedb; from query.serve.server import serve; "
             "logging.basicConfig(level=logging.WARNING); "
             f"serve(shapedb.connect({str(store)!r}, create=False), port={self.port})"
         )
@@ -174,7 +174,7 @@ def _ms(seconds: list[float]) -> tuple[float, float]:
 def _cli(*argv: str) -> float:
     t0 = time.perf_counter()
     subprocess.run(
-        [sys.executable, "-m", "shapedb.cli", *argv], check=True, capture_output=True, text=True
+        [sys.executable, "-m", "query.cli", *argv], check=True, capture_output=True, text=True
     )
     return time.perf_counter() - t0
 
@@ -216,7 +216,7 @@ def stored_search(server: Server, db: Any, n: int, requests: int, cli_runs: int)
 
 
 def file_query(server: Server, db: Any, model: Path, repeats: int) -> dict[str, Any]:
-    from shapedb.mdbd import decompose
+    from shapedb.mdbd.decomposition import decompose
 
     dec_s, lib_s, http_s, cli_s = [], [], [], []
     db.search(model, k=10)  # warm-up of both processes (JIT, caches)

@@ -32,7 +32,7 @@ from bench.baselines import D2Config, d2_descriptor, l1_similarity
 from bench.common import decompose_all, format_table, mdbd_config, variant_geometry
 from bench.datasets import Dataset, build_sets, families, mesh_arrays
 from bench.features import kernel_features, l1_matrix, reconstructions
-from shapedb.config import KernelConfig, MDBDConfig
+from shapedb.config.core import KernelConfig, MDBDConfig
 
 __all__ = ["VARIANTS", "main", "run_stability"]
 
@@ -56,7 +56,7 @@ def run_stability(
 
     Returns ``{variant: {"copies": n, "shapedb": f, "shapedb, own or re-posed": f,
     "D2": f}}`` (D2 for the mesh variants). With ``view_cells``, a last entry asks it
-    of the point clouds against the meshes' sparse views (:mod:`shapedb.view`), as a
+    of the point clouds against the meshes' sparse views (:mod:`shapedb.geometry.view`), as a
     store with ``view_cells`` compares them.
     """
     test = ds.split("test")
@@ -94,7 +94,7 @@ def run_stability(
             views = decompose_all(test.models, f"view_{view_cells:g}", mdbd, workers=workers)
             if all(v is not None for v in views):
                 d_view = l1_matrix(fq, kernel_features(views, kcfg))  # type: ignore[arg-type]
-                hit = np.argmin(np.minimum(d, d_view), axis=1)  # the nearer, as query.engine
+                hit = np.argmin(np.minimum(d, d_view), axis=1)  # the nearer, as query.search.engine
                 out[f"pointcloud -> views {view_cells:g}"] = {
                     "copies": len(ok),
                     "shapedb": float(np.mean(hit == target)),

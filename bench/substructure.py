@@ -6,11 +6,11 @@ geometric ball graphs of 512 balls (centres in a randomly stretched box, radii
 decreasing as a power law with a random exponent, each ball touching its 3 nearest
 neighbours), so 512 neighbourhood subgraphs per shape. Then:
 
-* the part index is built (:func:`query.parts_index.open_parts_index`: features of
+* the part index is built (:func:`query.parts.index.open_parts_index`: features of
   every node, faiss IVF above 5e5 vectors) and its build time reported;
 * queries are parts of *noisy copies* of stored shapes (radii x (1 + 2% noise), not
   stored), so the exact answer is not trivially a distance-0 hit;
-* ``query.substructure.match(db, graph, node=v, k=10)`` is timed end to end (part
+* ``query.parts.match.match(db, graph, node=v, k=10)`` is timed end to end (part
   feature, index search with exact re-rank, names and node sets);
 * the baseline, timed in the same run, is brute force: the exact Eq. 2 scan of the
   query against every stored neighbourhood feature (numpy, ``PartIndex.exact_search``),
@@ -45,11 +45,11 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from bench.common import format_table, write_json
-from shapedb.config import Config, PartConfig
-from shapedb.graph import ContactGraph
-from shapedb.kernel import features
-from shapedb.mdbd import Decomposition
-from shapedb.schema import ShapeRecord
+from shapedb.config.core import Config, PartConfig
+from shapedb.mdbd.decomposition import Decomposition
+from shapedb.mdbd.graph import ContactGraph
+from shapedb.signature.kernel import features
+from shapedb.store.schema import ShapeRecord
 
 logger = logging.getLogger(__name__)
 
@@ -94,7 +94,7 @@ def record(seed: int, n: int) -> ShapeRecord:
 
 
 def build_store(path: Path, n_shapes: int, n_balls: int) -> Any:
-    import shapedb.database as database
+    import query.database as database
 
     db = database.connect(path, config=CONFIG)
     batch = 500
@@ -125,8 +125,8 @@ def run(
 def run_config(
     db: Any, n_shapes: int, n_queries: int, n_balls: int, t_store: float, part: str
 ) -> dict[str, Any]:
-    from query.parts_index import open_parts_index
-    from query.substructure import match, part_feature
+    from query.parts.index import open_parts_index
+    from query.parts.match import match, part_feature
 
     cfg = PARTS[part]
     t0 = time.perf_counter()

@@ -1,8 +1,8 @@
 """Choose the weight of a block added to descriptor version 4, on validation splits.
 
-Blocks: ``union`` (spherical-harmonic energies of the ball union, :mod:`shapedb.union`:
+Blocks: ``union`` (spherical-harmonic energies of the ball union, :mod:`shapedb.signature.union`:
 descriptor version 5) and ``views`` (silhouettes and depth images of the ball union,
-:mod:`shapedb.union_views`: version 7).
+:mod:`shapedb.signature.union_views`: version 7).
 
 Usage (from the repository root)::
 
@@ -11,7 +11,7 @@ Usage (from the repository root)::
     python -m bench.union_select --split test --weights 0 8   # report two weights on test
     python -m bench.union_select --cost 8      # CPU per model: decomposition, v4, v5, v7
 
-For each set's split (meshes), the version-4 descriptor of :mod:`shapedb.descriptor`
+For each set's split (meshes), the version-4 descriptor of :mod:`shapedb.signature.descriptor`
 and the block are computed from the cached decompositions; the block's typical L1
 distance is the geometric mean over the sets of its median pairwise distance (as
 ``bench/select_descriptors.py`` measures the others'), and the combined distance is
@@ -37,10 +37,10 @@ import numpy as np
 
 from bench.common import decompose_all, format_table, retrieval_scores, write_json
 from bench.datasets import Dataset, articulated, capod, generic, parts, web
-from shapedb.config import Config, DescriptorConfig, MDBDConfig
-from shapedb.descriptor import LAYOUTS, UNION_TYPICAL, UNION_WEIGHT
-from shapedb.union import union_features
-from shapedb.union_views import view_features
+from shapedb.config.core import Config, DescriptorConfig, MDBDConfig
+from shapedb.signature.descriptor import LAYOUTS, UNION_TYPICAL, UNION_WEIGHT
+from shapedb.signature.union import union_features
+from shapedb.signature.union_views import view_features
 
 RESULTS = Path(__file__).resolve().parent / "results"
 WEIGHTS = (0.0, 1.0, 2.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0)
@@ -86,10 +86,10 @@ def set_matrices(
 def cost(per_set: int = 8) -> dict[str, dict[str, float]]:
     """Median CPU seconds per model: decomposition, descriptor v4, v5 and v7 (CAPOD, generic)."""
     from bench.datasets import mesh_arrays
-    from shapedb.descriptor import describe
-    from shapedb.graph import ContactGraph
-    from shapedb.mdbd import decompose
-    from shapedb.mesh import TriangleMesh
+    from shapedb.geometry.mesh import TriangleMesh
+    from shapedb.mdbd.decomposition import decompose
+    from shapedb.mdbd.graph import ContactGraph
+    from shapedb.signature.descriptor import describe
 
     out = {}
     for ds in (capod().split("validation"), generic().split("validation")):

@@ -19,17 +19,17 @@ def warm() -> None:
     try:
         import numpy as np
 
-        from shapedb.config import Config
-        from shapedb.geometry import Geometry
-        from shapedb.kernel import features
-        from shapedb.mdbd import decompose
-        from shapedb.mesh import TriangleMesh
+        from shapedb.config.core import Config
+        from shapedb.geometry.base import Geometry
+        from shapedb.geometry.mesh import TriangleMesh
+        from shapedb.mdbd.decomposition import decompose
+        from shapedb.signature.kernel import features
 
         v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=np.float64)
         f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
         shapes: list[Geometry] = [TriangleMesh(v, f)]
         try:
-            from shapedb.pointcloud import PointCloud
+            from shapedb.geometry.pointcloud import PointCloud
 
             rng = np.random.default_rng(0)
             p = rng.normal(size=(200, 3))
@@ -38,7 +38,7 @@ def warm() -> None:
         except Exception:  # pragma: no cover - optional warm-up only
             log.debug("point-cloud warm-up skipped", exc_info=True)
         try:
-            from shapedb.voxels import VoxelGrid
+            from shapedb.geometry.voxels import VoxelGrid
 
             occ = np.zeros((6, 6, 6), dtype=bool)
             occ[1:5, 1:5, 1:5] = True

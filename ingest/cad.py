@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from shapedb.errors import EmptyGeometryError, LoadError, require
-from shapedb.mesh import TriangleMesh
+from shapedb.geometry.mesh import TriangleMesh
 
 __all__ = ["load_cad", "TessellatedSolid"]
 

@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from shapedb.geometry import Geometry
-from shapedb.schema import safe_text
+from shapedb.geometry.base import Geometry
+from shapedb.store.schema import safe_text
 
 __all__ = ["expand", "content_hash", "geometry_hash", "COMPANION_SUFFIXES"]
 
@@ -68,7 +68,7 @@ def content_hash(path: str | os.PathLike[str], *, as_: str | None = None) -> str
 
 def geometry_hash(geometry: Geometry) -> str:
     """sha256 of an in-memory shape: its arrays, or its distance on a fixed lattice."""
-    from shapedb.pointcloud import PointCloud
+    from shapedb.geometry.pointcloud import PointCloud
 
     h = hashlib.sha256(type(geometry).__qualname__.encode())
     # a cloud's given normals only: asking for ``normals`` would estimate them here, in

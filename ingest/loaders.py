@@ -1,4 +1,4 @@
-"""Read model files of any supported format into a :class:`~shapedb.geometry.Geometry`.
+"""Read model files of any supported format into a :class:`~shapedb.geometry.base.Geometry`.
 
 The format is decided by the file's content when it announces itself (PLY, OFF,
 glTF binary, NPY, NPZ, STEP headers) and by its extension otherwise:
@@ -45,8 +45,8 @@ from shapedb.errors import (
     ShapeDBError,
     UnsupportedFormatError,
 )
-from shapedb.geometry import Geometry
-from shapedb.schema import safe_text
+from shapedb.geometry.base import Geometry
+from shapedb.store.schema import safe_text
 
 __all__ = [
     "load",
@@ -143,7 +143,7 @@ def load(
         point cloud (the paper's Table 3 setting); ``"mesh"`` refuses point clouds;
         ``"smooth_voxels"`` reads an occupancy grid with ``surface="smooth"`` (its
         marching-cubes boundary, for grids that sample a smooth solid; see
-        :mod:`shapedb.voxels`) and refuses other files.
+        :mod:`shapedb.geometry.voxels`) and refuses other files.
     max_bytes : int, optional
         Refuse files larger than this (checked before reading).
     max_faces : int, optional
@@ -296,19 +296,19 @@ def _check_obj(fh: Any, max_faces: int | None) -> None:
 
 # ---------------------------------------------------------------- constructors
 def _mesh(vertices: Any, faces: Any, src: str) -> Geometry:
-    from shapedb.mesh import TriangleMesh
+    from shapedb.geometry.mesh import TriangleMesh
 
     return TriangleMesh(vertices, faces, name=src)
 
 
 def _cloud(points: Any, normals: Any, src: str) -> Geometry:
-    from shapedb.pointcloud import PointCloud
+    from shapedb.geometry.pointcloud import PointCloud
 
     return _construct(PointCloud, np.asarray(points, dtype=np.float64), normals=normals, name=src)
 
 
 def _voxels(occupancy: Any, origin: Any, pitch: Any, src: str, surface: str = "cubes") -> Geometry:
-    from shapedb.voxels import VoxelGrid
+    from shapedb.geometry.voxels import VoxelGrid
 
     return _construct(VoxelGrid, occupancy, origin=origin, pitch=pitch, surface=surface, name=src)
 

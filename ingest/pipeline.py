@@ -25,14 +25,14 @@ from ingest.inputs import COMPANION_SUFFIXES, content_hash, expand, geometry_has
 from ingest.labels import LabelEntry, LabelTable, folder_label, read_labels
 from ingest.loaders import AS_OPTIONS, SUPPORTED, load
 from ingest.workers import executor, result, wait_any
-from shapedb.config import Config
+from shapedb.config.core import Config
 from shapedb.errors import ConfigError, LoadError, ShapeDBError
-from shapedb.geometry import Geometry
+from shapedb.geometry.base import Geometry
 from shapedb.results import IngestReport  # defined there, re-exported here
-from shapedb.schema import Failure, ShapeRecord, safe_text
+from shapedb.store.schema import Failure, ShapeRecord, safe_text
 
 if TYPE_CHECKING:
-    from shapedb.database import Database
+    from query.database import Database
 
 __all__ = [
     "ingest",
@@ -70,8 +70,8 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
 
     Never raises for a bad input: returns a :class:`Failure` instead.
     """
-    from shapedb.kernel import features
-    from shapedb.mdbd import decompose
+    from shapedb.mdbd.decomposition import decompose
+    from shapedb.signature.kernel import features
 
     t0, c0 = time.perf_counter(), time.process_time()
     try:
@@ -105,14 +105,14 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
             timings["view"] = time.perf_counter() - t2
         light_field = None
         if config.stores_light_fields:
-            from shapedb.lightfield import decomposition_light_field
+            from shapedb.signature.lightfield import decomposition_light_field
 
             t3 = time.perf_counter()
             light_field = decomposition_light_field(decomposition, config.light_field)
             timings["light_field"] = time.perf_counter() - t3
         field_vector = None
         if config.stores_field_vectors:
-            from shapedb.field_descriptors import decomposition_field_vector
+            from shapedb.signature.field_vector import decomposition_field_vector
 
             t4 = time.perf_counter()
             field_vector = decomposition_field_vector(decomposition, config.field_vector)
@@ -146,13 +146,13 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
 def _view_feature(geometry: Any, decomposition: Any, config: Config) -> NDArray[np.float32] | None:
     """The shape's second feature, or None.
 
-    A sparse point cloud's reconstruction (:mod:`shapedb.reconstruct`, when kept); a
-    dense shape's sparse view (:mod:`shapedb.view`), when the store keeps views.
+    A sparse point cloud's reconstruction (:mod:`shapedb.mdbd.reconstruct`, when kept); a
+    dense shape's sparse view (:mod:`shapedb.geometry.view`), when the store keeps views.
     """
-    from shapedb.kernel import features
-    from shapedb.mdbd import decompose
-    from shapedb.reconstruct import reconstructed
-    from shapedb.view import is_sparse, view_geometry
+    from shapedb.geometry.view import is_sparse, view_geometry
+    from shapedb.mdbd.decomposition import decompose
+    from shapedb.mdbd.reconstruct import reconstructed
+    from shapedb.signature.kernel import features
 
     cells = config.cloud.view_cells
     sparse = is_sparse(decomposition.sampling, decomposition.spacing)

@@ -14,7 +14,7 @@ from collections.abc import Callable, Iterable
 from typing import Any
 
 from shapedb.errors import MissingDependencyError, ShapeDBError
-from shapedb.schema import Failure, ShapeRecord
+from shapedb.store.schema import Failure, ShapeRecord
 
 __all__ = ["executor", "wait_any", "result"]
 

@@ -31,12 +31,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from query.labelled import stored_labels
+from query.learn.labels import stored_labels
 from shapedb.errors import QueryError
 from shapedb.results import MEASURES, RetrievalScores  # defined there, re-exported here
 
 if TYPE_CHECKING:
-    from shapedb.database import Database
+    from query.database import Database
 
 __all__ = ["RetrievalScores", "retrieval_scores", "evaluate", "MEASURES", "E_MEASURE_K"]
 
@@ -203,12 +203,12 @@ def evaluate(
         None / "kernel": the Eq. 3 kernel of the stored features (ranked by the
         equivalent Eq. 2 distance, so no precision is lost to ``exp``); a pair of a
         sparse cloud and a dense shape compares as the search compares it
-        (:mod:`query.engine`: the nearest of own features, views and reconstructions). A callable receives the (n, d) features of the labelled shapes and
+        (:mod:`query.search.engine`: the nearest of own features, views and reconstructions). A callable receives the (n, d) features of the labelled shapes and
         returns an (n, n) similarity matrix.
     plot : path, optional
         Also save the precision-recall curve there (PNG).
     metric : LearnedMetric or path, optional
-        Rank by a similarity fitted on labels (``db.fit_metric``, :mod:`query.metric`)
+        Rank by a similarity fitted on labels (``db.fit_metric``, :mod:`query.learn.metric`)
         instead of the default kernel (with ``method`` None or "kernel" only). Scoring a
         metric on the shapes it was fitted on flatters it: fit on one store (or split)
         and evaluate on another.
@@ -246,7 +246,7 @@ def _checked_metric(db: Database, metric: Any, method: Any) -> Any:
 
     Raises :class:`QueryError` when a metric comes with a callable ``method``.
     """
-    from query.metric import as_metric
+    from query.learn.metric import as_metric
 
     learned = as_metric(metric)
     if learned is not None:
@@ -285,15 +285,15 @@ def _kernel_distance_rows(
     The features ``x`` (n, d) are weighed by the kernel's weights (times the learned
     metric's); a pair of a sparse cloud and a dense shape is as far apart as the
     nearest of own-own and either side's second feature (its view or reconstruction;
-    its own feature where it has none) against the other's own (:mod:`query.engine`).
-    A store with a re-ranking stage (``RerankConfig``, :mod:`query.rerank`) and neither
+    its own feature where it has none) against the other's own (:mod:`query.search.engine`).
+    A store with a re-ranking stage (``RerankConfig``, :mod:`query.search.rerank`) and neither
     sparse clouds nor views ranks as its search does: each row holds the ranks of
-    :func:`query.rerank.rerank_candidates` over the stored-distance order. Each call of the returned function yields ``(row indices, (rows, n) distances)``.
+    :func:`query.search.rerank.rerank_candidates` over the stored-distance order. Each call of the returned function yields ``(row indices, (rows, n) distances)``.
     """
     from scipy.spatial.distance import cdist
 
-    from query.rerank import scorer_for
-    from shapedb.kernel import weights
+    from query.search.rerank import scorer_for
+    from shapedb.signature.kernel import weights
 
     n = len(ids)
     w = weights(db.config)
@@ -313,7 +313,7 @@ def _kernel_distance_rows(
         if stage is not None:
             arrays = None
             if db.config.stores_light_fields:
-                from query.rerank_lightfield import stored_arrays
+                from query.search.rerank_lightfield import stored_arrays
 
                 arrays = stored_arrays(db, preload=True)
             yield from _reranked_rows(
@@ -346,12 +346,12 @@ def _reranked_rows(
 
     Stored distances are computed as the index re-ranks them (``|x - q| @ w`` in
     float64), ordered with ties by ascending id, and handed to
-    :func:`query.rerank.rerank_candidates` whole, the query among them, as a search
+    :func:`query.search.rerank.rerank_candidates` whole, the query among them, as a search
     for every shape would see them; a scorer's extra candidates (the field vectors'
-    nearest, :mod:`query.field_index`) are taken among the shapes ``ids`` and placed
-    after the first ``K`` as a search places them (:func:`query.rerank.with_extras`).
+    nearest, :mod:`query.search.field_index`) are taken among the shapes ``ids`` and placed
+    after the first ``K`` as a search places them (:func:`query.search.rerank.with_extras`).
     """
-    from query.rerank import Candidates, extra_candidates, rerank_candidates, with_extras
+    from query.search.rerank import Candidates, extra_candidates, rerank_candidates, with_extras
 
     n, dim = x.shape
     sorter = np.argsort(ids)

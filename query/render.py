@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 from shapedb.errors import QueryError, require
 
 if TYPE_CHECKING:
-    from shapedb.database import Database
+    from query.database import Database
 
 __all__ = ["render_model", "render_matches", "render_part_matches", "draw_model"]
 
@@ -281,7 +281,7 @@ def render_part_matches(
     out: str | os.PathLike[str],
     **options: Any,
 ) -> Path:
-    """:func:`render_matches` for the result of ``query.substructure.match``.
+    """:func:`render_matches` for the result of ``query.parts.match.match``.
 
     Parameters
     ----------
@@ -295,7 +295,7 @@ def render_part_matches(
         Passed to :func:`render_matches` (``title``, ``view``, ``target_geometries``).
         For a pairwise match give ``targets=[decomposition of b]``.
     """
-    from query.substructure import Model, resolve
+    from query.parts.match import Model, resolve
 
     complement = bool(options.pop("complement", False))
     q = query if isinstance(query, Model) else resolve(db, query, complement=complement)
@@ -327,7 +327,7 @@ def show(db: Database | None, model: Any, out: str | os.PathLike[str], **options
         ``complement=True`` draws the decomposition of the model's complement;
         the rest goes to :func:`render_model`.
     """
-    from query.substructure import resolve
+    from query.parts.match import resolve
 
     m = resolve(db, model, complement=bool(options.pop("complement", False)))
     geometry = m.geometry

@@ -9,7 +9,7 @@ Each call opens an in-memory DuckDB connection with
   ``mdbd_kernel(a, b)`` (Eq. 3, ``exp(-lam * d)``) on feature vectors, with the
   weights ``[la^1..la^nr, lb^1..lb^nr]`` and ``lam`` of the store's KernelConfig
   written in as constants; ``mdbd_weights()`` returns the weight list. Given a learned
-  metric (``db.sql(statement, metric=m)``, :mod:`query.metric`), the macros weigh by it,
+  metric (``db.sql(statement, metric=m)``, :mod:`query.learn.metric`), the macros weigh by it,
   as ``db.search(..., metric=m)`` does.
 
 The connection is a sandbox built with DuckDB's own controls, not string matching:
@@ -39,10 +39,10 @@ import pyarrow as pa
 from numpy.typing import NDArray
 
 from shapedb.errors import QueryError, ShapeDBError, StoreError, require
-from shapedb.manifest import repair_hint
+from shapedb.store.manifest import repair_hint
 
 if TYPE_CHECKING:
-    from shapedb.database import Database
+    from query.database import Database
 
 __all__ = ["sql", "connect", "script", "allowed_ids", "macros"]
 
@@ -56,17 +56,17 @@ def macros(config: Any, metric: Any = None) -> list[str]:
 
     Parameters
     ----------
-    config : shapedb.config.Config
+    config : shapedb.config.core.Config
         The store's: its kernel supplies n_r, la, lb and lam, its descriptor the length.
     metric : LearnedMetric, optional
-        Multiplies the weights by the metric's (:mod:`query.metric`).
+        Multiplies the weights by the metric's (:mod:`query.learn.metric`).
 
     Returns
     -------
     list of str
         SQL statements, runnable in any DuckDB >= 1.3 session.
     """
-    from shapedb.kernel import weights
+    from shapedb.signature.kernel import weights
 
     w = np.asarray(weights(config), dtype=np.float64)
     if metric is not None:
@@ -119,7 +119,7 @@ def connect(db: Database, metric: Any = None) -> Any:
     -------
     duckdb.DuckDBPyConnection
     """
-    from shapedb.schema import schema_for
+    from shapedb.store.schema import schema_for
 
     duckdb = require("duckdb", extra="sql", feature="SQL queries")
     store = db.store
@@ -178,7 +178,7 @@ def _one_select(statement: str, source: str) -> None:
 
 
 def _metric(db: Database, metric: Any) -> Any:
-    from query.metric import as_metric
+    from query.learn.metric import as_metric
 
     learned = as_metric(metric)
     if learned is not None:

@@ -1,21 +1,20 @@
 """shapedb: representation-agnostic 3D shape retrieval on the Maximal Disjoint Ball Decomposition.
 
-Pipeline: representation -> SDF -> MDBD (:func:`decompose`) -> contact graph
-(:class:`ContactGraph`) -> features (:func:`features`, the paper's Eq. 1) -> store
--> index -> query (``shapedb.connect(path)``).
+Pipeline: representation (:mod:`shapedb.geometry`) -> SDF -> MDBD and contact graph
+(:mod:`shapedb.mdbd`) -> signatures (:mod:`shapedb.signature`) -> store
+(:mod:`shapedb.store`) -> index and query (:mod:`query`, ``shapedb.connect(path)``).
 
-``import shapedb`` stays light: only numpy/scipy-backed modules load eagerly; the
-decomposition (numba), the representations (trimesh/open3d/igl), the store
-(pyarrow) and the examples load on first use of one of their names.
+``import shapedb`` stays light: the configuration and the errors load eagerly; every other
+name (the representations, the decomposition with numba, the store with pyarrow, the
+database facade) loads from its subpackage on first use.
 """
 
 from __future__ import annotations
 
-import importlib
+from types import ModuleType
 from typing import Any
 
-from shapedb import kernel  # the module: shapedb.kernel.kernel is Eq. 3
-from shapedb.config import (
+from shapedb.config.core import (
     CloudConfig,
     Config,
     DescriptorConfig,
@@ -39,44 +38,20 @@ from shapedb.errors import (
     StoreLockedError,
     UnsupportedFormatError,
 )
-from shapedb.geometry import Geometry, Grid
-from shapedb.graph import ContactGraph, contact_edges
-from shapedb.implicit import (
-    Box,
-    Capsule,
-    Cylinder,
-    Difference,
-    Implicit,
-    Intersection,
-    Sphere,
-    Torus,
-    Union,
-)
-from shapedb.kernel import distance, features, features_batch, weights
-from shapedb.results import (
-    Classification,
-    Classifier,
-    Hit,
-    IngestReport,
-    Metric,
-    PartMatch,
-    RetrievalScores,
-    StoreInfo,
-)
 
 __version__ = "0.1.0"
 
-# name -> module that defines it, imported on first attribute access
-_LAZY = {
-    "decompose": "shapedb.mdbd",
-    "Decomposition": "shapedb.mdbd",
-    "TriangleMesh": "shapedb.mesh",
-    "PointCloud": "shapedb.pointcloud",
-    "VoxelGrid": "shapedb.voxels",
-    "connect": "shapedb.database",
-    "Database": "shapedb.database",
-    "examples": "shapedb.examples",
-}
+_GEOMETRY = frozenset(
+    {"Geometry", "Grid", "Implicit", "Sphere", "Box", "Capsule", "Cylinder", "Torus", "Union"}
+    | {"Intersection", "Difference", "TriangleMesh", "PointCloud", "VoxelGrid"}
+)
+_MDBD = frozenset({"decompose", "Decomposition", "ContactGraph", "contact_edges"})
+_SIGNATURE = frozenset({"features", "features_batch", "weights", "distance"})
+_RESULTS = frozenset(
+    {"IngestReport", "StoreInfo", "Hit", "PartMatch", "RetrievalScores", "Classification"}
+    | {"Metric", "Classifier"}
+)
+_FACADE = frozenset({"connect", "Database"})
 
 __all__ = [
     # configuration and errors
@@ -124,7 +99,7 @@ __all__ = [
     "features_batch",
     "weights",
     "distance",
-    "kernel",  # the module shapedb.kernel (Eq. 1-3); the function is shapedb.kernel.kernel
+    "kernel",  # the module shapedb.signature.kernel (Eq. 1-3); the function is kernel.kernel
     # database, its results, and examples
     "connect",
     "Database",
@@ -142,14 +117,46 @@ __all__ = [
 
 
 def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
+    """Every name but the configuration and the errors, imported on first use.
+
+    ``import a.b as m`` rather than ``from a import b``: the latter asks this function first.
+    """
+    module: ModuleType
+    if name in _GEOMETRY:
+        import shapedb.geometry as geometry
+
+        module = geometry
+    elif name in _MDBD:
+        import shapedb.mdbd as mdbd
+
+        module = mdbd
+    elif name in _SIGNATURE:
+        import shapedb.signature as signature
+
+        module = signature
+    elif name == "kernel":
+        import shapedb.signature.kernel as kernel
+
+        return kernel
+    elif name in _RESULTS:
+        import shapedb.results as results
+
+        module = results
+    elif name in _FACADE:
+        # the facade sits on the top floor, beside the query engine it calls
+        import query.database as database
+
+        module = database
+    elif name == "examples":
+        import shapedb.examples as examples
+
+        return examples
+    else:
         raise AttributeError(f"module 'shapedb' has no attribute {name!r}")
-    mod = importlib.import_module(module)
-    value = mod if module.endswith("." + name) else getattr(mod, name)
+    value = getattr(module, name)
     globals()[name] = value
     return value
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+    return sorted(set(globals()) | set(__all__))

@@ -13,7 +13,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from shapedb.implicit import Box, Capsule, Cylinder, Implicit, Union
+from shapedb.geometry.implicit import Box, Capsule, Cylinder, Implicit, Union
 
 __all__ = ["BUILDERS", "rotation"]
 

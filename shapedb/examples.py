@@ -24,8 +24,8 @@ from numpy.typing import NDArray
 from shapedb._parts import BUILDERS
 from shapedb._parts import rotation as _rotation
 from shapedb.errors import ConfigError, require
-from shapedb.geometry import Geometry, Grid
-from shapedb.implicit import Capsule, Implicit, Sphere, Union
+from shapedb.geometry.base import Geometry, Grid
+from shapedb.geometry.implicit import Capsule, Implicit, Sphere, Union
 
 if TYPE_CHECKING:
     import trimesh

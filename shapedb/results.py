@@ -1,4 +1,4 @@
-"""The public result types of the :class:`~shapedb.database.Database` facade, in one place.
+"""The public result types of the :class:`~query.database.Database` facade, in one place.
 
 Every operation of the facade returns one of these (or an Arrow table): small frozen
 dataclasses with ``to_dict()`` for JSON. They are defined here, in the core, so that the
@@ -15,9 +15,9 @@ here and re-export them where they were defined before.
 Two results carry behaviour that lives downstream (a learned similarity, a trained
 network); the facade types them by what a caller may rely on:
 
-* :class:`Metric`: what ``db.fit_metric`` returns (``query.metric.LearnedMetric``).
+* :class:`Metric`: what ``db.fit_metric`` returns (``query.learn.metric.LearnedMetric``).
 * :class:`Classifier`: what ``db.train_classifier`` returns
-  (``query.classify.ShapeClassifier``).
+  (``query.learn.classify.ShapeClassifier``).
 
 The type aliases :data:`ShapeRef`, :data:`SearchQuery`, :data:`PartQuery`,
 :data:`ModelInput` and :data:`IngestInputs` name what the facade's methods accept.
@@ -38,10 +38,10 @@ from numpy.typing import NDArray
 from shapedb.errors import require
 
 if TYPE_CHECKING:
-    from shapedb.geometry import Geometry
-    from shapedb.graph import ContactGraph
-    from shapedb.mdbd import Decomposition
-    from shapedb.schema import ShapeRecord
+    from shapedb.geometry.base import Geometry
+    from shapedb.mdbd.decomposition import Decomposition
+    from shapedb.mdbd.graph import ContactGraph
+    from shapedb.store.schema import ShapeRecord
 
 __all__ = [
     "jsonable",
@@ -320,7 +320,7 @@ class Classification:
 
 @runtime_checkable
 class Metric(Protocol):
-    """A similarity learned on a store's labels (``query.metric.LearnedMetric``).
+    """A similarity learned on a store's labels (``query.learn.metric.LearnedMetric``).
 
     Block weights on the store's L1 feature distance; ``db.search``, ``db.sql`` and
     ``db.evaluate`` take it (or the path it was saved to) as ``metric=``.
@@ -367,7 +367,7 @@ class Metric(Protocol):
 
 @runtime_checkable
 class Classifier(Protocol):
-    """A trained classifier (``query.classify.ShapeClassifier``: k-NN, linear, boosting or a
+    """A trained classifier (``query.learn.classify.ShapeClassifier``: k-NN, linear, boosting or a
     graph CNN, chosen on validation)."""
 
     classes_: list[str]

@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:  # run the tests without installing the package
     sys.path.insert(0, str(ROOT))
 
-from shapedb.implicit import Box, Capsule, Cylinder, Implicit, Sphere, Torus  # noqa: E402
+from shapedb.geometry.implicit import Box, Capsule, Cylinder, Implicit, Sphere, Torus  # noqa: E402
 
 
 def rotation(angles: tuple[float, float, float]) -> np.ndarray:

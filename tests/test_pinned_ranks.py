@@ -55,7 +55,7 @@ def test_reingest_gives_the_stored_records(tmp_path: Path, pinned_db: shapedb.Da
         f"SELECT {columns} FROM shapes WHERE name IN ({listed}) ORDER BY name"
     ).to_pylist()
     assert [r["name"] for r in fresh] == [r["name"] for r in stored]
-    for a, b in zip(fresh, stored):
+    for a, b in zip(fresh, stored, strict=True):
         assert a["n_balls"] == b["n_balls"]
         for column in ("feature", "light_field", "field_vector"):
             np.testing.assert_allclose(a[column], b[column], rtol=1e-9, atol=1e-12)

@@ -1,7 +1,7 @@
 """Mesh vs point-cloud agreement of the solid: IoU of inside cells and volume ratio.
 
 For each CAPOD model (``--per-class`` models of every class), the mesh
-(:class:`shapedb.mesh.TriangleMesh`) and its point-cloud version
+(:class:`shapedb.geometry.mesh.TriangleMesh`) and its point-cloud version
 (:func:`bench.datasets.point_cloud`: a random 20 % of the vertices, or 2,000
 area-weighted surface samples for coarse meshes) are evaluated with ``grid_sdf`` on
 the same grid (``Grid.fit(mesh.bounds, resolution)``). Reported per model and per
@@ -33,16 +33,16 @@ OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "agreement.j
 
 
 def _watertight(vertices: np.ndarray, faces: np.ndarray) -> bool:
-    from shapedb.mesh import TriangleMesh
+    from shapedb.geometry.mesh import TriangleMesh
 
     return TriangleMesh(vertices, faces).closed
 
 
 def measure(model, resolution: int) -> dict:
     """Agreement of one model's mesh and point cloud on a shared grid."""
-    from shapedb.geometry import Grid
-    from shapedb.mesh import TriangleMesh
-    from shapedb.pointcloud import PointCloud
+    from shapedb.geometry.base import Grid
+    from shapedb.geometry.mesh import TriangleMesh
+    from shapedb.geometry.pointcloud import PointCloud
 
     v, f = mesh_arrays(model)
     mesh = TriangleMesh(v, f, name=model.name)

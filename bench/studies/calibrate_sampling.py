@@ -41,8 +41,8 @@ from numpy.typing import NDArray
 from bench.common import Balls, decompose_all, format_table, retrieval_scores, write_json
 from bench.features import l1_matrix, mixture_mask
 from bench.retrieval import build_sets
-from shapedb.config import MDBDConfig
-from shapedb.descriptor import describe
+from shapedb.config.core import MDBDConfig
+from shapedb.signature.descriptor import describe
 
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 X0 = 2.0  # clouds sampled at most this many cells apart are not corrected

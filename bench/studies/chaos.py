@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 
 from bench.common import Balls, decompose_all, format_table, mdbd_config, write_json
 from bench.datasets import articulated, capod, parts
-from shapedb.descriptor import LAYOUTS, VERSION, describe
+from shapedb.signature.descriptor import LAYOUTS, VERSION, describe
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "chaos.json"
 SETS = {"capod": capod, "articulated": articulated, "parts": parts}

@@ -3,16 +3,16 @@
 For every model of a set's split: the paper's cloud (20 % of the vertices), the centres
 of its cached MDBD balls (``pointcloud`` variant; ``--centres mesh``: of the mesh's,
 for sets whose clouds are not cached), the exact distance to the mesh
-there (:meth:`shapedb.mesh.TriangleMesh.unsigned_distance`) and each estimator's
+there (:meth:`shapedb.geometry.mesh.TriangleMesh.unsigned_distance`) and each estimator's
 distance. Printed: quantiles (q10 / median / q90) of estimate / exact over all
 centres and over the 32 largest balls of each model, and the median absolute error
-in grid cells. Estimators (:meth:`shapedb.pointcloud.PointCloud.unsigned_distance`
+in grid cells. Estimators (:meth:`shapedb.geometry.pointcloud.PointCloud.unsigned_distance`
 with ``distance=``):
 
 ``nearest``  distance to the nearest sample;
 ``splat``    the nearest splat (the default before this study);
 ``sphere``   the nearer of the splat and the algebraic sphere fitted to the samples
-             around the splat's closest point (:mod:`shapedb.surface_fit`).
+             around the splat's closest point (:mod:`shapedb.geometry.surface_fit`).
 
 Usage: ``python -m bench.studies.cloud_distance --sets people --split validation``;
 writes ``bench/results/studies/cloud_distance_<split>_<centres>.json``. Decomposes nothing.
@@ -30,7 +30,7 @@ from bench.common import format_table, load_balls, mdbd_config, variant_geometry
 from bench.datasets import mesh_arrays
 from bench.representations import build
 from bench.studies.cloud_twins import cached_path
-from shapedb.mesh import TriangleMesh
+from shapedb.geometry.mesh import TriangleMesh
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies"
 ESTIMATORS = ("nearest", "splat", "sphere")

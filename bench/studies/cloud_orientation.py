@@ -6,7 +6,7 @@ Usage (from the repository root)::
     nice -n 5 python -m bench.studies.cloud_orientation --classes sink bookshelf --per-class 7
 
 A point cloud's normals are oriented towards the nearest exterior cell of an adaptive
-shell (:class:`shapedb.pointcloud.PointCloud`). On a single sheet that the exterior
+shell (:class:`shapedb.geometry.pointcloud.PointCloud`). On a single sheet that the exterior
 reaches from both sides (a sink's basin, a house's walls of quads, a shelf) that vote is
 a coin toss, and the cloud's winding number finds less inside than the mesh's, whose
 sheets keep the orientation they were built with. This study re-orients the points
@@ -33,9 +33,9 @@ from numpy.typing import NDArray
 
 from bench.common import format_table, write_json
 from bench.datasets import generic, mesh_arrays, min_cloud_points, point_cloud, stable_seed
-from shapedb.geometry import Grid
-from shapedb.mesh import TriangleMesh
-from shapedb.pointcloud import PointCloud
+from shapedb.geometry.base import Grid
+from shapedb.geometry.mesh import TriangleMesh
+from shapedb.geometry.pointcloud import PointCloud
 
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 #: The kinds whose clouds find their meshes least often (docs/results.md, "Across

@@ -5,7 +5,7 @@ Usage (from the repository root)::
     python -m bench.studies.cloud_pairs [--splits validation test] [--workers 2]
 
 A store compares a sparse cloud and a mesh by the nearer of the cloud's own feature
-and its reconstruction's (:mod:`shapedb.reconstruct`, :mod:`query.engine`). Each
+and its reconstruction's (:mod:`shapedb.mdbd.reconstruct`, :mod:`query.search.engine`). Each
 row below changes one thing and reports, per set, NN / first tier of cloud queries
 (the paper's 20 % clouds) against the mesh database, the mean log margin
 ``log(d(nearest same class) / d(nearest other class))`` of those queries (lower is
@@ -49,8 +49,8 @@ from bench.common import (
 )
 from bench.features import complete, kernel_features, l1_matrix, mixture_mask, reconstructions
 from bench.retrieval import build_sets
-from shapedb.config import KernelConfig, MDBDConfig
-from shapedb.descriptor import LAYOUTS, VERSION
+from shapedb.config.core import KernelConfig, MDBDConfig
+from shapedb.signature.descriptor import LAYOUTS, VERSION
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "cloud_pairs.json"
 TURNS = ("pointcloud_turn_0", "pointcloud_turn_1", "pointcloud_turn_2")

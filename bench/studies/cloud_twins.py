@@ -23,7 +23,7 @@ Rules (a cloud row against a stored shape):
 ``both means``  the query mean vs the mean of the mesh's and the twin's.
 
 ``--query pointcloud_sphere`` takes the queries with the sphere-fit distance
-(:mod:`shapedb.surface_fit`); their reconstructions are the paper cloud's (the same
+(:mod:`shapedb.geometry.surface_fit`); their reconstructions are the paper cloud's (the same
 points and normals), kept by the store's volume check against the new packing.
 
 Usage: ``python -m bench.studies.cloud_twins --sets people --split validation
@@ -53,8 +53,8 @@ from bench.common import (
 )
 from bench.features import kernel_features, l1_matrix
 from bench.representations import build, load_set
-from shapedb.config import Config, MDBDConfig
-from shapedb.descriptor import LAYOUTS
+from shapedb.config.core import Config, MDBDConfig
+from shapedb.signature.descriptor import LAYOUTS
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies"
 FloatArray = NDArray[np.float64]

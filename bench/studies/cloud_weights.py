@@ -59,10 +59,10 @@ from bench.common import Balls, format_table, log_margin, mdbd_config, retrieval
 from bench.datasets import Dataset, Model
 from bench.representations import build
 from bench.studies.people_blocks import PRE_SHEET, block_features, l1
-from shapedb.config import MDBDConfig
-from shapedb.descriptor import LAYOUTS
-from shapedb.reconstruct import volumes_agree
-from shapedb.view import is_sparse
+from shapedb.config.core import MDBDConfig
+from shapedb.geometry.view import is_sparse
+from shapedb.mdbd.reconstruct import volumes_agree
+from shapedb.signature.descriptor import LAYOUTS
 
 #: Engine commit whose cache keys still hold (the code since: renames and docstrings).
 RENAMES = "b95b2be"
@@ -133,10 +133,12 @@ def _features(balls: list[Balls], paths: Sequence[Path]) -> dict[str, FloatArray
     import hashlib
     import inspect
 
-    import shapedb.descriptor
-    import shapedb.union
+    import shapedb.signature.descriptor
+    import shapedb.signature.union
 
-    code = inspect.getsource(shapedb.descriptor) + inspect.getsource(shapedb.union)
+    code = inspect.getsource(shapedb.signature.descriptor) + inspect.getsource(
+        shapedb.signature.union
+    )
     tag = hashlib.sha256(code.encode()).hexdigest()[:12]
     folder = common.CACHE_DIR / "block_features"
     out: list[dict[str, FloatArray] | None] = []

@@ -45,8 +45,8 @@ from bench.common import Balls, decompose_all, format_table, retrieval_scores, w
 from bench.datasets import Dataset
 from bench.features import l1_matrix
 from bench.retrieval import build_sets
-from shapedb.config import MDBDConfig
-from shapedb.descriptor import describe
+from shapedb.config.core import MDBDConfig
+from shapedb.signature.descriptor import describe
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "contact_tol.json"
 

@@ -5,7 +5,7 @@ Usage (from the repository root)::
     python -m bench.studies.contrast_surer                  # validation
     python -m bench.studies.contrast_surer --split test
 
-The contrast (:class:`shapedb.config.LightFieldFusionConfig`) keeps the light field out of
+The contrast (:class:`shapedb.config.core.LightFieldFusionConfig`) keeps the light field out of
 a query whose stored distance sets its nearest apart: ``t_v``, the median stored distance
 of its ``neighbours`` nearest others over that of its ``contrast_depth``-th, below the floor.
 The light field's own contrast ``t_l`` (the same over the query's candidates ranked by the
@@ -38,7 +38,7 @@ from bench.gate_stores import (
     score_row,
     shared_stores,
 )
-from shapedb.config import Config
+from shapedb.config.core import Config
 
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 #: The ratios ``rho`` tried.

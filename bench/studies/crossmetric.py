@@ -45,7 +45,7 @@ from bench.common import (
 from bench.features import kernel_features as weighted_features
 from bench.features import l1_matrix as l1
 from bench.representations import build, load_set
-from shapedb.config import KernelConfig
+from shapedb.config.core import KernelConfig
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "crossmetric.json"
 
@@ -152,7 +152,7 @@ def main(argv: list[str] | None = None) -> None:
     args = ap.parse_args(argv)
     cfg = KernelConfig()
     mdbd = mdbd_config()
-    from shapedb.descriptor import LAYOUTS, VERSION
+    from shapedb.signature.descriptor import LAYOUTS, VERSION
 
     blocks = [int(s) for _, s, _, _ in LAYOUTS[VERSION]]
     results: dict[str, Any] = {}

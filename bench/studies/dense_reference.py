@@ -44,13 +44,13 @@ from numpy.typing import NDArray
 
 from bench.common import Balls, decompose_all, format_table, mdbd_config, write_json
 from bench.datasets import capod, families
-from shapedb.config import KernelConfig
+from shapedb.config.core import KernelConfig
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "representations_h5_capod.json"
 
 
 def _features(balls: list[Balls], config: KernelConfig) -> NDArray[np.float64]:
-    from shapedb.kernel import features, weights
+    from shapedb.signature.kernel import features, weights
 
     w = np.asarray(weights(config))
     return np.stack([np.asarray(features(b.decomposition(), config)) * w for b in balls])

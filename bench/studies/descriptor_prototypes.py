@@ -29,7 +29,7 @@ from bench.baselines import D2Config, d2_descriptor, l1_similarity
 from bench.common import Balls, decompose_all, format_table, retrieval_scores
 from bench.datasets import Dataset, mesh_arrays
 from bench.studies import descriptors as desc
-from shapedb.config import KernelConfig, MDBDConfig
+from shapedb.config.core import KernelConfig, MDBDConfig
 
 __all__ = ["CANDIDATES", "main", "run_descriptors", "run_refine_shift"]
 

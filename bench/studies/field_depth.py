@@ -9,9 +9,9 @@ Usage (from the repository root)::
         --only "DBD 64 px, k 8" "SHD 32 x 16, grid" --triple 0.5 0.5   # the chosen fusion
 
 For each model of a split (those :func:`bench.cached.load` has): the field of
-:func:`shapedb.mdbd.prepare_field` and its inside (:func:`shapedb.inside.field_inside`,
+:func:`shapedb.mdbd.decomposition.prepare_field` and its inside (:func:`shapedb.geometry.inside.field_inside`,
 its shell cells), cached by :mod:`bench.field_shells`. From the shell (the
-descriptors the product stores, :mod:`shapedb.field_descriptors`):
+descriptors the product stores, :mod:`shapedb.signature.field_vector`):
 
 - :func:`depth_buffer_descriptor` (Vranic's DBD): the cells in their principal frame,
   six orthographic depth images (+-x, +-y, +-z), low-frequency 2D Fourier magnitudes,
@@ -21,7 +21,7 @@ descriptors the product stores, :mod:`shapedb.field_descriptors`):
   cells on concentric spheres about the volume centroid (rotation invariant);
   :func:`harmonic_descriptor_grid` the same with directions snapped to an angle grid and
   the harmonics evaluated once (a twentieth of the cost; the product's
-  :func:`shapedb.field_descriptors.harmonic_energies`).
+  :func:`shapedb.signature.field_vector.harmonic_energies`).
 
 Both are compared by L1 (indexable). Measured alone and fused with the cached field
 light fields (:func:`bench.inside_fields.light_fields`, 3 x 128 px) and the mesh light
@@ -47,9 +47,9 @@ from numpy.typing import ArrayLike, NDArray
 from bench.cached import CHOICES, load
 from bench.common import format_table, retrieval_scores, write_json
 from bench.field_shells import FOLDER, fill, shells
-from shapedb import field_descriptors
-from shapedb.config import FieldVectorConfig
-from shapedb.field_descriptors import spherical_coordinates
+from shapedb.config.core import FieldVectorConfig
+from shapedb.signature import field_vector
+from shapedb.signature.field_vector import spherical_coordinates
 
 FloatArray = NDArray[np.float64]
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
@@ -79,19 +79,19 @@ class DepthConfig:
 def depth_buffer_descriptor(
     shell: ArrayLike, centroid: ArrayLike, cell: float, config: DepthConfig | None = None
 ) -> FloatArray:
-    """:func:`shapedb.field_descriptors.depth_buffer_descriptor` at ``config``'s settings."""
+    """:func:`shapedb.signature.field_vector.depth_buffer_descriptor` at ``config``'s settings."""
     cfg = config or DepthConfig()
     fv = FieldVectorConfig(depth_resolution=cfg.resolution, depth_frequencies=cfg.frequencies)
-    return field_descriptors.depth_buffer_descriptor(shell, centroid, cell, fv)
+    return field_vector.depth_buffer_descriptor(shell, centroid, cell, fv)
 
 
 def harmonic_descriptor_grid(
     shell: ArrayLike, centroid: ArrayLike, *, shells: int = 32, bands: int = 16, n_theta: int = 64
 ) -> FloatArray:
-    """:func:`shapedb.field_descriptors.harmonic_energies` (the harmonics on an angle grid,
+    """:func:`shapedb.signature.field_vector.harmonic_energies` (the harmonics on an angle grid,
     the product's) at these settings: (shells * bands,) float64."""
     fv = FieldVectorConfig(harmonic_shells=shells, harmonic_bands=bands, harmonic_angles=n_theta)
-    return field_descriptors.harmonic_energies(shell, centroid, fv)
+    return field_vector.harmonic_energies(shell, centroid, fv)
 
 
 def harmonic_descriptor(
@@ -170,7 +170,7 @@ def descriptor_matrix(
     fn, metric = DESCRIPTORS[name]
     text = Path(__file__).read_text()
     code = text[text.index("# Descriptors of a shell") : text.index("# The study")].encode()
-    code += inspect.getsource(field_descriptors).encode()
+    code += inspect.getsource(field_vector).encode()
     key = hashlib.sha256(code + name.encode() + "\n".join(keys).encode()).hexdigest()[:16]
     path = FOLDER / "matrices" / f"{key}.npz"
     if path.exists():
@@ -207,7 +207,7 @@ def run(
 ) -> dict[str, Any]:
     """Scores per set: mesh LFD, field light fields, each descriptor alone and fused."""
     from bench.lightfield_source import matrices
-    from shapedb.config import Config
+    from shapedb.config.core import Config
 
     lf = dataclasses.replace(Config().light_field, source="field", resolution=128)
     table: dict[str, dict[str, dict[str, float]]] = {}

@@ -5,9 +5,9 @@ a decomposition missing under today's engine key is read under the keys of the
 engines in :data:`bench.cached.ENGINE_COMMITS`, which differ only where the sets are unaffected):
 
 * ``v4``: shapedb's default descriptor, L1 in version 4's calibrated units;
-* ``lfb <config>``: :func:`shapedb.lightfield.ball_light_field` of the balls under
+* ``lfb <config>``: :func:`shapedb.signature.lightfield.ball_light_field` of the balls under
   each configuration of ``--configs`` (``res/fields/depth weight``), distance
-  :func:`shapedb.lightfield.light_field_distance`;
+  :func:`shapedb.signature.lightfield.light_field_distance`;
 * fusions of v4 with one light field configuration (``--fuse``):
 
   - ``sum w``: ``d4 + w * dl / typical`` (``typical``: the geometric mean over the sets
@@ -41,7 +41,7 @@ v4. Usage::
 ``--cost N`` times the decomposition, version 4 and the light fields of N models per
 set (CAPOD, generic, web) in one process, and the re-ranking of 100 candidates.
 Light field distance matrices are cached under ``$SHAPEDB_BENCH_CACHE/lightfield_balls``
-(keyed by the set's models, the configuration and the code of shapedb/lightfield.py).
+(keyed by the set's models, the configuration and the code of shapedb/signature/lightfield.py).
 Results go to bench/results/studies/lightfield_balls_<split>.json.
 """
 
@@ -66,9 +66,9 @@ from bench.common import (
     write_json,
 )
 from bench.datasets import CACHE_DIR, Dataset, capod, generic, mesh_arrays, web
-from shapedb.config import Config, DescriptorConfig, LightFieldConfig
-from shapedb.descriptor import LAYOUTS
-from shapedb.lightfield import ball_light_field, light_field_distance
+from shapedb.config.core import Config, DescriptorConfig, LightFieldConfig
+from shapedb.signature.descriptor import LAYOUTS
+from shapedb.signature.lightfield import ball_light_field, light_field_distance
 
 FloatArray = NDArray[np.float64]
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies"
@@ -245,11 +245,11 @@ def cost(per_set: int, text: str, candidates: int = 100) -> dict[str, dict[str, 
     generic and web in this process; the re-ranking time is one query's
     :func:`light_field_distance` against ``candidates`` light fields.
     """
-    from shapedb.descriptor import describe
-    from shapedb.graph import ContactGraph
-    from shapedb.lightfield import light_field_dim
-    from shapedb.mdbd import decompose
-    from shapedb.mesh import TriangleMesh
+    from shapedb.geometry.mesh import TriangleMesh
+    from shapedb.mdbd.decomposition import decompose
+    from shapedb.mdbd.graph import ContactGraph
+    from shapedb.signature.descriptor import describe
+    from shapedb.signature.lightfield import light_field_dim
 
     cfg = parse_config(text)
     out = {}
@@ -289,7 +289,7 @@ def check_product(datasets: Sequence[str], split: str) -> dict[str, Any]:
     """
     from bench.features import kernel_features
     from bench.lightfield_rerank import LEGACY, index_of, rankings
-    from shapedb.lightfield import ball_light_field
+    from shapedb.signature.lightfield import ball_light_field
 
     out: dict[str, Any] = {}
     for name in datasets:

@@ -22,7 +22,7 @@ Three parts, each from the cached decompositions (:func:`bench.cached.load`):
   with ``--n-balls N`` the split is decomposed with N balls (cached) instead;
 * ``--fused --n-balls N``: version 4 of today's balls fused with the light fields of
   today's balls and of the N-ball packing (the product's gated rank fusion, at
-  :class:`shapedb.config.LightFieldFusionConfig`'s defaults).
+  :class:`shapedb.config.core.LightFieldFusionConfig`'s defaults).
 
 Fills are ``plain``, ``edges`` (each contact edge fills the convex hull of its two
 balls), ``dilate<p>`` (discs grow by p pixels), ``close<p>`` (closing by a disc of p
@@ -35,7 +35,7 @@ Usage::
     python -m bench.studies.lightfield_fill --fills plain edges dilate1 close1 edges+close1
 
 Distance matrices are cached under ``$SHAPEDB_BENCH_CACHE/lightfield_fill`` (keyed by the
-set's models, the fill and the code of shapedb/lightfield.py). Results go to
+set's models, the fill and the code of shapedb/signature/lightfield.py). Results go to
 bench/results/studies/lightfield_fill_<part>_<split>.json.
 """
 
@@ -56,9 +56,9 @@ from bench.common import Balls, format_table, per_query, retrieval_scores, write
 from bench.datasets import CACHE_DIR, Dataset, mesh_arrays
 from bench.packings import longer
 from bench.studies.lightfield_balls import fill_config
-from shapedb.config import MDBDConfig
-from shapedb.config_lightfield import product_light_field
-from shapedb.lightfield import (
+from shapedb.config.core import MDBDConfig
+from shapedb.config.lightfield import product_light_field
+from shapedb.signature.lightfield import (
     ball_light_field,
     field_directions,
     light_field_distance,
@@ -103,8 +103,8 @@ def mesh_in_frame(
 
 def inside_cells(m: Any, cfg: MDBDConfig | None = None) -> tuple[FloatArray, float]:
     """Centres (model units) of the grid cells inside the solid the MDBD packs, and the cell."""
-    from shapedb.mdbd import prepare_field
-    from shapedb.mesh import TriangleMesh
+    from shapedb.geometry.mesh import TriangleMesh
+    from shapedb.mdbd.decomposition import prepare_field
 
     prep = prepare_field(TriangleMesh(*mesh_arrays(m)), cfg or MDBDConfig())
     idx = np.argwhere(prep.F >= 0)
@@ -427,7 +427,7 @@ def fused_longer(split: str, datasets: Sequence[str], n_balls: int) -> dict[str,
     """Version 4 of today's balls fused (``adrank 8``, the product's gate) with the light
     fields of a longer packing (``n_balls``), against the same fusion with today's."""
     from bench.studies.lightfield_balls import fuse, v4_distances
-    from shapedb.config import LightFieldFusionConfig
+    from shapedb.config.core import LightFieldFusionConfig
 
     f = LightFieldFusionConfig()
     table: dict[str, dict[str, Any]] = {"v4": {}, "fused, 512 balls": {},

@@ -2,8 +2,8 @@
 
 The decomposition keeps its ``MDBDConfig.n_balls`` balls; with ``LightFieldConfig.n_balls``
 above that, ingest continues the packing on the same field (no off-grid refinement for
-the tail, :func:`shapedb.mdbd.decompose`'s ``tail_balls``) and renders the light fields
-of all the balls (:func:`shapedb.lightfield.decomposition_light_field`).
+the tail, :func:`shapedb.mdbd.decomposition.decompose`'s ``tail_balls``) and renders the light fields
+of all the balls (:func:`shapedb.signature.lightfield.decomposition_light_field`).
 
 ``--cost K``: for K web validation models (one per class first), in one process, the
 CPU seconds of what ingest does per model in a store that keeps light fields (load,
@@ -55,8 +55,8 @@ from bench.common import (
 )
 from bench.datasets import CACHE_DIR, Dataset, web
 from bench.packings import longer
-from shapedb.config import Config, MDBDConfig, RerankConfig
-from shapedb.config_lightfield import product_light_field
+from shapedb.config.core import Config, MDBDConfig, RerankConfig
+from shapedb.config.lightfield import product_light_field
 
 FloatArray = NDArray[np.float64]
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies"
@@ -73,9 +73,9 @@ def store_config(n_balls: int) -> Config:
 def ingest_cpu(model: Any, config: Config) -> tuple[float, dict[str, float], Any, Any]:
     """CPU seconds of one model's ingest work under ``config``, its stage timings,
     light fields and decomposition."""
-    from shapedb.kernel import features
-    from shapedb.lightfield import decomposition_light_field
-    from shapedb.mdbd import decompose
+    from shapedb.mdbd.decomposition import decompose
+    from shapedb.signature.kernel import features
+    from shapedb.signature.lightfield import decomposition_light_field
 
     c0 = time.process_time()
     geometry = variant_geometry(model, "mesh", config.mdbd)
@@ -99,7 +99,7 @@ def _pick(k: int) -> list[Any]:
 def cost(k: int, n_balls: Sequence[int]) -> dict[str, Any]:
     """Per-model ingest CPU with longer packings against today's, and their light fields'
     distance to the refined packing's (where cached)."""
-    from shapedb.lightfield import light_field_distance, record_light_field
+    from shapedb.signature.lightfield import light_field_distance, record_light_field
 
     models = _pick(k + 1)
     ingest_cpu(models[0], store_config(max(n_balls)))  # compile and warm caches, untimed
@@ -167,7 +167,7 @@ def _prefix(b: Balls, main: int, n: int) -> Balls:
 
 def lf_matrix(name: str, split: str, ds: Dataset, balls: list[Balls], tag: str) -> FloatArray:
     """Light field distances (product light fields) of ``balls``, cached by ``tag``."""
-    from shapedb.lightfield import light_field_distance, record_light_field
+    from shapedb.signature.lightfield import light_field_distance, record_light_field
 
     code = (Path(__file__).resolve().parents[2] / "shapedb" / "lightfield.py").read_bytes()
     names = "\n".join(m.name + m.source for m in ds.models).encode()

@@ -21,7 +21,7 @@ split. Usage: ``python -m bench.studies.people_blocks --split validation`` (then
 Results go to bench/results/studies/people_blocks_<split>.json.
 
 The shared cache holds the people set decomposed before the sheet rule
-(``shapedb.sheet``, ``MDBDConfig.sheet_cells``) joined the engine; the rule leaves
+(``shapedb.geometry.sheet``, ``MDBDConfig.sheet_cells``) joined the engine; the rule leaves
 closed solids unchanged (every person mesh, cloud and reconstruction is one), so a
 decomposition missing under today's key is read under that earlier key
 (:func:`pre_sheet_path`: the engine of commit :data:`PRE_SHEET`; since then the
@@ -42,8 +42,8 @@ import bench.representations as representations
 from bench.common import Balls, format_table, log_margin, mdbd_config, retrieval_scores, write_json
 from bench.features import kernel_features
 from bench.representations import build, load_set
-from shapedb.config import Config, MDBDConfig
-from shapedb.descriptor import LAYOUTS
+from shapedb.config.core import Config, MDBDConfig
+from shapedb.signature.descriptor import LAYOUTS
 
 #: The last commit before the sheet rule (the people set's decompositions are cached with it).
 PRE_SHEET = "f031e22"

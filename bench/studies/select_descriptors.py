@@ -13,7 +13,7 @@ next to the paper's kernel with its published weights and with flat weights
 the winner plus that flat-weight kernel. Results go to
 bench/results/studies/descriptor_selection.json.
 
-``--geodesic`` instead re-weighs the library's own blocks (:mod:`shapedb.descriptor`,
+``--geodesic`` instead re-weighs the library's own blocks (:mod:`shapedb.signature.descriptor`,
 version 3 layout): version 2's blocks and weights fixed, the two inner-distance
 blocks ``geodesic`` and ``geodesic_mean`` at every weight pair of {0, 1, 2, 4}, the
 same objective on the validation splits; the grid and the test-split figures of the
@@ -36,7 +36,7 @@ from bench.common import decompose_all, format_table, log_margin, retrieval_scor
 from bench.datasets import Dataset
 from bench.retrieval import build_sets
 from bench.studies import descriptors as desc
-from shapedb.config import MDBDConfig
+from shapedb.config.core import MDBDConfig
 
 POOL = ("radius", "d2c", "d2c_mean", "d1c", "inertia", "degree", "wwl", "walk")
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
@@ -121,7 +121,7 @@ def _library_blocks(
 ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], np.ndarray]:
     """Per-block vectors of the library's descriptor ``version``, each divided by its
     typical distance (unit weight, before the overall calibration)."""
-    from shapedb.descriptor import LAYOUTS, describe
+    from shapedb.signature.descriptor import LAYOUTS, describe
 
     sub = ds.split(split)
     m = decompose_all(sub.models, "mesh", mdbd, workers=workers)
@@ -160,7 +160,7 @@ def _weighted_score(data: Any, weights: dict[str, float]) -> dict[str, float]:
 
 def select_geodesic(sets: Sequence[Dataset], mdbd: MDBDConfig, workers: int) -> dict[str, Any]:
     """Weights of the two inner-distance blocks on top of version 2, on validation."""
-    from shapedb.descriptor import LAYOUTS
+    from shapedb.signature.descriptor import LAYOUTS
 
     base = {name: weight for name, _, _, weight in LAYOUTS[2]}
     val = {ds.name: _library_blocks(ds, "validation", mdbd, workers) for ds in sets}
@@ -203,7 +203,7 @@ def select_sorted(sets: Sequence[Dataset], mdbd: MDBDConfig, workers: int) -> di
     """Version 4: version 3 with the Eq. 1 block's walk averages sorted; its weight.
 
     Walk averages are sorted within groups of balls of near-equal radius
-    (``shapedb.descriptor.WALK_TIE``: each within that fraction of the previous one's
+    (``shapedb.signature.descriptor.WALK_TIE``: each within that fraction of the previous one's
     radius; 1 sorts them all), tried at 0.02, 0.05, 0.1 and 1. The ``paper_sorted``
     block's typical distance is measured for each as every block's was (geometric
     mean over the validation sets of its median pairwise distance); its weight is
@@ -212,7 +212,7 @@ def select_sorted(sets: Sequence[Dataset], mdbd: MDBDConfig, workers: int) -> di
     also reports the mean log margin of mesh and cloud queries
     (``log(d(nearest same class) / d(nearest other class))``, lower is better).
     """
-    import shapedb.descriptor as sd
+    import shapedb.signature.descriptor as sd
 
     val3 = {ds.name: _library_blocks(ds, "validation", mdbd, workers, 3) for ds in sets}
     base = {name: weight for name, _, _, weight in sd.LAYOUTS[3]}

@@ -9,7 +9,7 @@ The gate bench's stores (:mod:`bench.lightfield_gate`: every set and mix of the 
 store, the product's stage with the field vectors, its gate) are scored three ways: the
 stage without the shared-neighbour term, with it as the product ranks (the first result
 among the query's others is the one without the term:
-:meth:`query.rerank_lightfield.LightFieldFusion.fuse`), and with it unconstrained (the term
+:meth:`query.search.rerank_lightfield.LightFieldFusion.fuse`), and with it unconstrained (the term
 may change the first result too, :attr:`bench.gate_stores.Store.keep_first` False). The
 rows show what the contract costs or saves on NN. Written to
 bench/results/studies/shared_first_<split>.json.
@@ -33,7 +33,7 @@ from bench.gate_stores import (
     score_row,
     shared_stores,
 )
-from shapedb.config import Config
+from shapedb.config.core import Config
 
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 

@@ -31,9 +31,9 @@ from bench.common import format_table, variant_geometry, write_json
 from bench.datasets import articulated as figures
 from bench.datasets import capod, generic, parts, web
 from bench.field_vector_cost import ingest_cpu
-from shapedb.config import Config, MDBDConfig
-from shapedb.mdbd import prepare_field
-from shapedb.sheet import LocallyThickened
+from shapedb.config.core import Config, MDBDConfig
+from shapedb.geometry.sheet import LocallyThickened
+from shapedb.mdbd.decomposition import prepare_field
 
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 STORES = {"whole": Config().with_options(sheet_rule="whole"), "local": Config()}

@@ -5,7 +5,7 @@ Usage (from the repository root)::
     python -m bench.studies.thickness --split validation
 
 For every model of the people set's split, the interior values of the field the
-decomposition packs (:func:`shapedb.mdbd.prepare_field`, default configuration) of its
+decomposition packs (:func:`shapedb.mdbd.decomposition.prepare_field`, default configuration) of its
 mesh, of its paper cloud (20 % of the vertices) and of a second draw of that cloud (a
 "twin", as a store could keep for each mesh) are reduced to 40 quantiles (2-98 %) of
 ``depth / volume^(1/3)`` (both in grid cells; ``deep`` variants keep depths over 0.5 or
@@ -29,8 +29,8 @@ from numpy.typing import NDArray
 
 from bench.common import variant_geometry
 from bench.datasets import Model, people
-from shapedb.config import MDBDConfig
-from shapedb.mdbd import prepare_field
+from shapedb.config.core import MDBDConfig
+from shapedb.mdbd.decomposition import prepare_field
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies"
 VARIANTS = ("mesh", "pointcloud", "pointcloud_b")

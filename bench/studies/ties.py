@@ -29,7 +29,7 @@ import numpy as np
 
 from bench.common import Balls, decompose_all, format_table, retrieval_scores, write_json
 from bench.datasets import articulated, capod, parts, stable_seed
-from shapedb.config import KernelConfig, MDBDConfig
+from shapedb.config.core import KernelConfig, MDBDConfig
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "ties.json"
 COLUMNS = (
@@ -39,7 +39,7 @@ COLUMNS = (
 
 
 def _features(balls: list[Balls], config: KernelConfig) -> np.ndarray:
-    from shapedb.kernel import features, weights
+    from shapedb.signature.kernel import features, weights
 
     w = np.asarray(weights(config))
     return np.stack([np.asarray(features(b.decomposition(), config)) * w for b in balls])

@@ -5,7 +5,7 @@ Usage (from the repository root)::
     python -m bench.studies.views [--cells 3 4 5] [--split validation] [--workers 2]
 
 For each spacing (grid cells between view samples) the meshes of the split are
-decomposed as sparse views (:func:`shapedb.view.view_geometry`, cached like every
+decomposed as sparse views (:func:`shapedb.geometry.view.view_geometry`, cached like every
 bench decomposition) and the paper's 20 % point clouds are compared with them as a
 store with views compares them. Reported per set: NN of cloud queries against the
 mesh database, with the meshes' own features (no views) and with views; the mean
@@ -36,8 +36,8 @@ from bench.common import (
 )
 from bench.features import l1_matrix, mixture_mask, reconstructions
 from bench.retrieval import build_sets
-from shapedb.config import MDBDConfig
-from shapedb.descriptor import describe
+from shapedb.config.core import MDBDConfig
+from shapedb.signature.descriptor import describe
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "views.json"
 
@@ -87,7 +87,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         settings: list[tuple[str, NDArray[np.float64]]] = [("none", fm)]
         settings += [(f"{c:g}", _features([views[c][i] for i in keep])) for c in args.cells]  # type: ignore[misc]
         for name, fv in settings:
-            # the nearest of the store's comparisons (query.engine)
+            # the nearest of the store's comparisons (query.search.engine)
             d_pv = np.minimum(np.minimum(l1_matrix(fp, fv), l1_matrix(fp, fm)), l1_matrix(fr, fm))
             fx = np.where(mix[:, None], fp, fm)
             d_xy = l1_matrix(fx, np.where(mix[:, None], fp, fv))

@@ -13,8 +13,8 @@ import trimesh
 
 import bench.common as common
 from bench.datasets import Model
-from shapedb.config import MDBDConfig
-from shapedb.graph import contact_edges
+from shapedb.config.core import MDBDConfig
+from shapedb.mdbd.graph import contact_edges
 
 CONFIG = MDBDConfig(resolution=24, n_balls=48, contact_tol_cells=0.5)
 
@@ -87,9 +87,9 @@ def test_engine_digest_ignores_docstrings_and_comments() -> None:
 
 
 def test_view_variant_is_the_library_view_of_the_cached_mesh(model: Model, cache: Path) -> None:
-    from shapedb.mesh import TriangleMesh
-    from shapedb.pointcloud import PointCloud
-    from shapedb.view import view_geometry
+    from shapedb.geometry.mesh import TriangleMesh
+    from shapedb.geometry.pointcloud import PointCloud
+    from shapedb.geometry.view import view_geometry
 
     (mesh,) = common.decompose_all([model], "mesh", CONFIG, workers=1, progress=None)
     assert mesh is not None
@@ -99,7 +99,7 @@ def test_view_variant_is_the_library_view_of_the_cached_mesh(model: Model, cache
     want = view_geometry(TriangleMesh(v, f), mesh.spacing, 4.0)
     assert want is not None
     np.testing.assert_array_equal(got.points, want.points)
-    # views depend on shapedb/view.py and the point-cloud code; meshes on neither
+    # views depend on shapedb/geometry/view.py and the point-cloud code; meshes on neither
     assert common.engine_version("view_4") != common.engine_version("mesh")
     assert common.cache_path(model, "view_4", CONFIG) != common.cache_path(model, "view_5", CONFIG)
 
@@ -134,7 +134,7 @@ def test_an_older_engines_key_reads_its_code_at_that_commit(model: Model) -> Non
     assert common.cache_path(model, "mesh", CONFIG, engine_commit="HEAD") == common.cache_path(
         model, "mesh", CONFIG
     )
-    # a commit before shapedb/sheet.py existed: another engine, and no sheet_cells in the key
+    # a commit before shapedb/geometry/sheet.py existed: another engine, and no sheet_cells in the key
     before = common.cache_path(model, "mesh", CONFIG, engine_commit="f031e22")
     assert before != common.cache_path(model, "mesh", CONFIG)
 
@@ -150,7 +150,7 @@ def test_sphere_variant_is_the_paper_cloud_with_the_sphere_distance(model: Model
 
 
 def test_mesh_keys_leave_the_point_cloud_distance_out(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Editing shapedb/surface_fit.py (or pointcloud.py) changes cloud keys, not mesh keys."""
+    """Editing shapedb/geometry/surface_fit.py (or pointcloud.py) changes cloud keys, not mesh keys."""
     real = common._module_code.__wrapped__
 
     def edited(path: str, size: int, mtime_ns: int) -> str:

@@ -8,7 +8,7 @@ import numpy as np
 
 from bench.classify import generated
 from bench.classify_curves import heldout50
-from query.training_data import stratified_split
+from query.learn.training_data import stratified_split
 
 
 def test_heldout50_tests_on_the_heldout_test_models() -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from bench.studies.cloud_orientation import iou, visible_normals
-from shapedb.pointcloud import PointCloud
+from shapedb.geometry.pointcloud import PointCloud
 
 
 def open_box(n: int = 24) -> np.ndarray:

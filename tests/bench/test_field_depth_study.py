@@ -1,6 +1,6 @@
 """The study of the field's depth buffer and harmonic descriptors (bench/studies/field_depth.py).
 
-The descriptors themselves are the product's (:mod:`shapedb.field_descriptors`, tested in
+The descriptors themselves are the product's (:mod:`shapedb.signature.field_vector`, tested in
 tests/shapedb/test_field_descriptors.py); the study keeps its settings' names, the exact
 (off-grid) harmonics and the fusion.
 """
@@ -19,10 +19,10 @@ from bench.studies.field_depth import (
     harmonic_descriptor,
     harmonic_descriptor_grid,
 )
-from shapedb import field_descriptors
-from shapedb.config import FieldVectorConfig
-from shapedb.geometry import Grid
-from shapedb.inside import Inside, field_inside
+from shapedb.config.core import FieldVectorConfig
+from shapedb.geometry.base import Grid
+from shapedb.geometry.inside import Inside, field_inside
+from shapedb.signature import field_vector
 
 
 def _cylinder(q: NDArray[np.float64]) -> NDArray[np.bool_]:
@@ -49,11 +49,11 @@ def test_the_studys_descriptors_are_the_products_at_its_settings() -> None:
     small = FieldVectorConfig(depth_resolution=32, depth_frequencies=6)
     np.testing.assert_array_equal(
         depth_buffer_descriptor(s.shell, s.centroid, s.cell, DepthConfig(32, 6)),
-        field_descriptors.depth_buffer_descriptor(s.shell, s.centroid, s.cell, small),
+        field_vector.depth_buffer_descriptor(s.shell, s.centroid, s.cell, small),
     )
     np.testing.assert_array_equal(
         harmonic_descriptor_grid(s.shell, s.centroid),
-        field_descriptors.harmonic_energies(s.shell, s.centroid),
+        field_vector.harmonic_energies(s.shell, s.centroid),
     )
 
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from bench.field_vectors import FieldStage, union_order
 from bench.lightfield_gate import Store, gate_weights
-from shapedb.config import Config
+from shapedb.config.core import Config
 
 
 def _split(n: int = 40, seed: int = 5) -> SimpleNamespace:

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from bench.inside_fields import cut
-from shapedb.config import LightFieldConfig, MDBDConfig
-from shapedb.implicit import Box
-from shapedb.inside import field_inside
-from shapedb.lightfield import inside_light_field
-from shapedb.mdbd import prepare_field
+from shapedb.config.core import LightFieldConfig, MDBDConfig
+from shapedb.geometry.implicit import Box
+from shapedb.geometry.inside import field_inside
+from shapedb.mdbd.decomposition import prepare_field
+from shapedb.signature.lightfield import inside_light_field
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ import pytest
 from bench.features import kernel_features
 from bench.lightfield_gate import Split, Store, gate_weights
 from bench.lightfield_rerank import index_of, rankings
-from shapedb.config import Config
+from shapedb.config.core import Config
 
 
 @pytest.mark.slow
@@ -93,11 +93,11 @@ def test_the_bench_s_shared_term_ranks_as_the_product() -> None:
 
     from bench.gate_stores import shared_stores
     from bench.lightfield_rerank import Arrays
-    from query import rerank
-    from query.index import FeatureIndex
-    from query.lightfield_spread import calibration
-    from shapedb.kernel import weights
-    from shapedb.lightfield import light_field_distance
+    from query.search import rerank
+    from query.search.index import FeatureIndex
+    from query.search.lightfield_spread import calibration
+    from shapedb.signature.kernel import weights
+    from shapedb.signature.lightfield import light_field_distance
 
     rng = np.random.default_rng(5)
     n = 40

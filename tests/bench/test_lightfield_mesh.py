@@ -83,7 +83,7 @@ def test_shape_mismatch_is_refused() -> None:
 
 
 def test_numbers_are_those_of_the_baseline_before_its_core_moved_to_shapedb() -> None:
-    # values of bench/lightfield.py at commit 2abcda4, before shapedb.lightfield existed
+    # values of bench/lightfield.py at commit 2abcda4, before shapedb.signature.lightfield existed
     bar = trimesh.creation.box(extents=(3.0, 1.0, 0.5))
     cyl = trimesh.creation.cylinder(radius=0.5, height=2.0)
     d = np.stack([lfd_descriptor(m.vertices, m.faces, SMALL) for m in (bar, cyl)])

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bench.query import run_size, synthetic_vectors
-from shapedb.config import Config, KernelConfig
+from shapedb.config.core import Config, KernelConfig
 
 
 @pytest.mark.parametrize("config", [KernelConfig(), KernelConfig(method="paper", n_r=10)])

@@ -68,7 +68,7 @@ def test_store_rule_mean_averages_a_cloud_and_its_reconstruction() -> None:
     from bench.datasets import Dataset, Model
     from bench.features import kernel_features
     from bench.representations import SetData, pose_free_mask, store_rule
-    from shapedb.config import KernelConfig
+    from shapedb.config.core import KernelConfig
 
     models = tuple(Model(f"m{i}", "a", f"toy:{i}") for i in range(2))
     mesh = [_balls(1.0, 0.0), _balls(0.8, 0.0)]

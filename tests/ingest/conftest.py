@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from ingest_helpers import SMALL, make_bad, make_good
 
-import shapedb.database as database
+import query.database as database
 
 
 @pytest.fixture(scope="session")

@@ -115,7 +115,7 @@ def make_bad(folder: Path) -> dict[str, str]:
     (folder / "nan.obj").write_text(
         "v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n"
     )
-    # every vertex on one line: no surface at all (a flat sheet is a model: shapedb.sheet)
+    # every vertex on one line: no surface at all (a flat sheet is a model: shapedb.geometry.sheet)
     (folder / "line.obj").write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n")
     (folder / "model.fbx").write_bytes(b"Kaydara FBX Binary  \x00" + rng.bytes(64))
     (folder / "text.obj").write_text("this is not a mesh\njust words\n")

@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 import trimesh
 
-import shapedb.database as database
-from shapedb.store import MANIFEST, Store
+import query.database as database
+from shapedb.store.store import MANIFEST, Store
 
 OPTIONS = {"resolution": 24, "n_balls": 32}
 N_FILES = 12
@@ -28,8 +28,8 @@ N_FILES = 12
 SCRIPT = r"""
 import os, signal, sys
 import pyarrow.parquet as pq
-import shapedb.database as database
-from shapedb.store import Store
+import query.database as database
+from shapedb.store.store import Store
 
 db_path, folder, batch, kill_at = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
 

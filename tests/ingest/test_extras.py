@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-import shapedb.database as database
+import query.database as database
 from shapedb.errors import MissingDependencyError
 
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 from ingest_helpers import SMALL
 
-import shapedb.database as database
-from shapedb.field_descriptors import decomposition_field_vector, field_vector_dim
-from shapedb.implicit import Box, Capsule, Sphere
-from shapedb.mdbd import decompose
+import query.database as database
+from shapedb.geometry.implicit import Box, Capsule, Sphere
+from shapedb.mdbd.decomposition import decompose
+from shapedb.signature.field_vector import decomposition_field_vector, field_vector_dim
 
 SHAPES = {
     "ball": Sphere([0, 0, 0], 1.0),

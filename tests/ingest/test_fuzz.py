@@ -17,8 +17,8 @@ import trimesh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import shapedb.database as database
-from shapedb.check import check
+import query.database as database
+from shapedb.store.integrity import check
 
 OPTIONS = {"resolution": 24, "n_balls": 32}
 CAPOD = Path("/work/shared/data/capod/class1/m6.obj")

@@ -14,10 +14,10 @@ import pytest
 import trimesh
 from ingest_helpers import SMALL
 
-import shapedb.database as database
+import query.database as database
 from ingest import IngestReport
 from shapedb.errors import ConfigError, NotFoundError
-from shapedb.implicit import Box, Sphere
+from shapedb.geometry.implicit import Box, Sphere
 
 EXPECTED_REPR = {
     "box": "mesh",

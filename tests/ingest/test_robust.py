@@ -9,10 +9,10 @@ from pathlib import Path
 import pytest
 import trimesh
 
-import shapedb.database as database
+import query.database as database
 from ingest import load
-from shapedb.check import check
 from shapedb.errors import ConfigError, LoadError
+from shapedb.store.integrity import check
 
 BOX = trimesh.creation.box(extents=(1.0, 0.8, 0.6))
 

@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 from query_helpers import CONFIG, _shapes, make_record, synthetic_features  # noqa: F401
 
-from shapedb.schema import ShapeRecord
+from shapedb.store.schema import ShapeRecord
 
 
 @pytest.fixture(scope="session")
@@ -21,7 +21,7 @@ def example_records() -> list[ShapeRecord]:
 @pytest.fixture()
 def tmp_db(tmp_path: Path, example_records: list[ShapeRecord]) -> Iterator[Any]:
     """A real Database holding the example records."""
-    import shapedb.database as database
+    import query.database as database
 
     db = database.connect(tmp_path / "store", config=CONFIG)
     db.commit(example_records)
@@ -30,11 +30,8 @@ def tmp_db(tmp_path: Path, example_records: list[ShapeRecord]) -> Iterator[Any]:
 
 
 def _forget(db: Any) -> None:
-    import importlib
-
-    catalog, index, sql = (
-        importlib.import_module(f"query.{m}") for m in ("catalog", "index", "sql")
-    )
+    from query import sql
+    from query.search import catalog, index
 
     index._forget(db)
     key = index._store_key(db)

@@ -7,11 +7,11 @@ from typing import Any
 
 import numpy as np
 
-from shapedb.config import Config
-from shapedb.implicit import Box, Capsule, Cylinder, Torus
-from shapedb.kernel import features
-from shapedb.mdbd import decompose
-from shapedb.schema import ShapeRecord
+from shapedb.config.core import Config
+from shapedb.geometry.implicit import Box, Capsule, Cylinder, Torus
+from shapedb.mdbd.decomposition import decompose
+from shapedb.signature.kernel import features
+from shapedb.store.schema import ShapeRecord
 
 CONFIG = Config().with_options(resolution=32, n_balls=64)
 

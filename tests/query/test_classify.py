@@ -1,5 +1,5 @@
-"""Shape classification: graph CNNs (query.graphcnn, query.gnn), the chosen classifier
-and its file (query.classify, query.model_file).
+"""Shape classification: graph CNNs (query.learn.graphcnn, query.learn.gnn), the chosen classifier
+and its file (query.learn.classify, query.learn.model_file).
 
 The tests that train a graph CNN need the ``learn`` extra (torch + torch_geometric)
 and are skipped cleanly without it; those of the linear model and boosting need
@@ -15,18 +15,18 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from query.classify import GraphClassifier, ShapeClassifier, classify, train_classifier
-from query.gnn import edge_arrays, node_features, stratified_split
-from query.selection import make_candidate
-from shapedb.config import Config, MDBDConfig
+from query.learn.classify import GraphClassifier, ShapeClassifier, classify, train_classifier
+from query.learn.gnn import edge_arrays, node_features, stratified_split
+from query.learn.selection import make_candidate
+from shapedb.config.core import Config, MDBDConfig
 from shapedb.errors import ConfigError, LoadError, MissingDependencyError, NotFittedError
-from shapedb.kernel import features
-from shapedb.mdbd import Decomposition
+from shapedb.mdbd.decomposition import Decomposition
+from shapedb.signature.kernel import features
 
 
 @pytest.fixture(scope="module")
 def pyg() -> None:
-    from query.gnn import import_torch
+    from query.learn.gnn import import_torch
 
     try:
         torch, _ = import_torch()
@@ -83,7 +83,7 @@ def fitted(pyg: None, tiny: tuple[list[Decomposition], list[str]]) -> GraphClass
 
 
 def test_import_stays_light() -> None:
-    code = "import query.classify, query.gnn, sys; print('torch' in sys.modules)"
+    code = "import query.learn.classify, query.learn.gnn, sys; print('torch' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 
@@ -196,8 +196,8 @@ def test_mixed_configs_are_refused_in_training(pyg: None, tiny: tuple[list, list
 
 
 def _store_db(tmp_path, graphs: list[Decomposition], labels: list[str], config: Config):
-    import shapedb.database as database
-    from shapedb.schema import ShapeRecord
+    import query.database as database
+    from shapedb.store.schema import ShapeRecord
 
     db = database.connect(tmp_path / "db", config=config)
     records = [
@@ -245,7 +245,7 @@ def _skip_without(kind: str) -> None:
     if kind in ("linear", "boosting"):
         pytest.importorskip("sklearn", reason="needs the learn extra")
     if kind in ("tag", "arma", "spline", "tag+descriptor"):
-        from query.gnn import import_torch
+        from query.learn.gnn import import_torch
 
         try:
             import_torch()[0].set_num_threads(1)
@@ -284,7 +284,7 @@ def test_a_model_file_of_the_first_format_still_loads(
 
     params = {k: v for k, v in fitted.get_params().items() if k != "descriptor"}
     state = {
-        "format": "shapedb.graph-classifier/1",
+        "format": "shapedb.mdbd.graph-classifier/1",
         "params": {**params, "device": None},
         "classes": fitted.classes_,
         "fingerprint": fitted.fingerprint_,

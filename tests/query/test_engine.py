@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from query_helpers import CONFIG, make_record
 
-from query.engine import Hit, query_features, search, search_batch
-from query.index import INDEX_DIR, open_index
+from query.search.engine import Hit, query_features, search, search_batch
+from query.search.index import INDEX_DIR, open_index
 from shapedb.errors import ConfigError, NotFoundError, QueryError, StoreError
-from shapedb.implicit import Box, Capsule
-from shapedb.kernel import distance, kernel
-from shapedb.mdbd import decompose
+from shapedb.geometry.implicit import Box, Capsule
+from shapedb.mdbd.decomposition import decompose
+from shapedb.signature.kernel import distance, kernel
 
 
 def brute_force(db, vector, k):
@@ -121,7 +121,7 @@ def test_errors(tmp_db, tmp_path):
         search(tmp_db, "box0", k=0)
     with pytest.raises(QueryError):
         search(tmp_db, object())
-    import shapedb.database as database
+    import query.database as database
 
     with pytest.raises(StoreError, match="no shapedb store"):
         database.connect(tmp_path / "missing", create=False)
@@ -136,7 +136,7 @@ def test_k_out_of_range_is_a_query_error(tmp_db, k):
 
 def test_k_is_capped_at_the_store_size(tmp_db):
     """A k far above the store's size allocates (and returns) only what is stored."""
-    from query.engine import MAX_K, search_batch
+    from query.search.engine import MAX_K, search_batch
 
     n = len(tmp_db.store)
     hits = search(tmp_db, "box0", k=MAX_K)
@@ -174,7 +174,7 @@ def test_index_is_rebuilt_when_damaged(tmp_db):
     open_index(tmp_db)
     sub = Path(tmp_db.store.path) / INDEX_DIR
     (sub / index_dir_name(sub) / "faiss.index").write_bytes(b"garbage")
-    from query.index import _forget
+    from query.search.index import _forget
 
     _forget(tmp_db)
     assert search(tmp_db, "box0", k=1)[0].name == "box0"

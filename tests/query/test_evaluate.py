@@ -7,7 +7,7 @@ import pytest
 
 from query.evaluate import RetrievalScores, evaluate, retrieval_scores
 from shapedb.errors import QueryError
-from shapedb.kernel import kernel
+from shapedb.signature.kernel import kernel
 
 # Six shapes, ids 0..5, labels A A A B B C. Row i ranks the others by distance;
 # the diagonal (0, the best value) must be ignored, and C (one shape) is no query.

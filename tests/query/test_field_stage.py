@@ -1,7 +1,7 @@
 """The field vectors in the light field stage: the fused distance and the union candidates.
 
 Hand-made arrays: stored vectors, light fields whose distances are a given matrix (each
-light field is its shape's id; :func:`shapedb.lightfield.light_field_distance` patched to
+light field is its shape's id; :func:`shapedb.signature.lightfield.light_field_distance` patched to
 read the matrix), and field vectors.
 """
 
@@ -13,14 +13,14 @@ from typing import Any
 import numpy as np
 import pytest
 
-import shapedb.lightfield
-from query import rerank
-from query.field_fusion import FIELD, FieldFusion
-from query.field_index import FieldIndex
-from query.index import FeatureIndex
-from query.rerank_lightfield import COLUMN, LightFieldFusion
-from shapedb.config import Config
-from shapedb.kernel import weights
+import shapedb.signature.lightfield
+from query.search import rerank
+from query.search.field_fusion import FIELD, FieldFusion
+from query.search.field_index import FieldIndex
+from query.search.index import FeatureIndex
+from query.search.rerank_lightfield import COLUMN, LightFieldFusion
+from shapedb.config.core import Config
+from shapedb.signature.kernel import weights
 
 DEPTH, HARMONIC = slice(0, 4), slice(4, 7)
 #: The stage with its gate wide open (g = 1): the light field's rank always counts.
@@ -64,7 +64,7 @@ def matrix_distance(monkeypatch: pytest.MonkeyPatch) -> Any:
         cb = np.asarray(b).reshape(len(b), -1)[:, 0].astype(int)
         return state["L"][np.ix_(qa, cb)]
 
-    monkeypatch.setattr(shapedb.lightfield, "light_field_distance", distance)
+    monkeypatch.setattr(shapedb.signature.lightfield, "light_field_distance", distance)
     return state
 
 
@@ -124,7 +124,7 @@ def test_a_row_without_field_vectors_keeps_the_light_field_distance(
     light = np.array([0.3, 0.1, 0.2])
     c = np.ones((3, 7))
     c[1, 5] = np.nan
-    with caplog.at_level(logging.WARNING, logger="query.field_fusion"):
+    with caplog.at_level(logging.WARNING, logger="query.search.field_fusion"):
         assert np.array_equal(fusion.distance(light, np.zeros(7), c), light)
         assert np.array_equal(fusion.distance(light, np.full(7, np.nan), np.ones((3, 7))), light)
         assert np.array_equal(fusion.distance(light, None, None), light)
@@ -232,7 +232,7 @@ class _Stored:
 def test_the_field_index_is_exact_with_ties_by_id_and_filters(
     scan_max: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr("query.field_index.SCAN_MAX", scan_max)
+    monkeypatch.setattr("query.search.field_index.SCAN_MAX", scan_max)
     rng = np.random.default_rng(5)
     v = rng.random((50, 6)).astype(np.float32)
     v[17] = v[3]  # a tie

@@ -13,12 +13,12 @@ import pytest
 from query_helpers import CONFIG
 
 from query.evaluate import evaluate, retrieval_scores
-from query.field_fusion import FIELD, FieldFusion, query_field_vectors
-from query.field_index import field_index
-from query.lightfield_spread import SPREAD_DIR, spread_table, store_spreads
-from query.rerank_lightfield import stored_arrays
-from shapedb.implicit import Box, Capsule, Cylinder, Sphere, Torus
-from shapedb.mdbd import decompose
+from query.search.field_fusion import FIELD, FieldFusion, query_field_vectors
+from query.search.field_index import field_index
+from query.search.lightfield_spread import SPREAD_DIR, spread_table, store_spreads
+from query.search.rerank_lightfield import stored_arrays
+from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus
+from shapedb.mdbd.decomposition import decompose
 
 #: The stage with field vectors: K = 3 of version 4 and K2 = 2 by the field vectors, the
 #: gate open (g = 1) so that the fused distance always counts.
@@ -44,7 +44,7 @@ def _shapes() -> dict[str, Any]:
 @pytest.fixture(scope="module")
 def fv_db(tmp_path_factory: pytest.TempPathFactory, forget: Callable[[Any], None]) -> Iterator[Any]:
     """Seven analytic shapes in a store whose stage reads field vectors."""
-    import shapedb.database as database
+    import query.database as database
 
     db = database.connect(tmp_path_factory.mktemp("fv") / "store", config=FIELD_STAGE)
     shapes = _shapes()
@@ -97,7 +97,7 @@ def test_a_file_query_computes_its_field_vector(
 ) -> None:
     import trimesh
 
-    import query.field_fusion as field_fusion
+    import query.search.field_fusion as field_fusion
 
     seen: list[np.ndarray] = []
 
@@ -119,7 +119,7 @@ def test_a_file_query_computes_its_field_vector(
 def test_a_where_filter_and_a_deletion_keep_the_union_within_the_store(
     tmp_path: Path, forget: Callable[[Any], None]
 ) -> None:
-    import shapedb.database as database
+    import query.database as database
 
     db = database.connect(tmp_path / "s", config=FIELD_STAGE)
     db.ingest([(n, n.split("_")[0], g) for n, g in _shapes().items()], workers=1)

@@ -6,17 +6,17 @@ import numpy as np
 import pytest
 from query_helpers import synthetic_features
 
-from query.index import FeatureIndex
-from shapedb.config import KernelConfig
+from query.search.index import FeatureIndex
+from shapedb.config.core import KernelConfig
 from shapedb.errors import ConfigError, NotFittedError, QueryError, StoreError
-from shapedb.kernel import distance, weights
+from shapedb.signature.kernel import distance, weights
 
 PAPER = KernelConfig(method="paper")  # synthetic vectors are shaped like Eq. 1
 W = weights(PAPER)
 
 
 def brute_force(x: np.ndarray, ids: np.ndarray, q: np.ndarray, k: int):
-    """Exact Eq. 2 ranking with shapedb.kernel.distance, ties by ascending id."""
+    """Exact Eq. 2 ranking with shapedb.signature.kernel.distance, ties by ascending id."""
     out_i, out_d = [], []
     for row in np.atleast_2d(q):
         d = distance(row, x.astype(np.float64), PAPER)

@@ -1,7 +1,7 @@
 """The shared-neighbour term of the light field stage on hand-made distances.
 
 Seven shapes whose light field distances are a given matrix (each light field is its
-shape's id; :func:`shapedb.lightfield.light_field_distance` patched to read the matrix),
+shape's id; :func:`shapedb.signature.lightfield.light_field_distance` patched to read the matrix),
 every shape a candidate of every query (K = 7), the gate wide open (g = 1) and the light
 field's rank weighted so much that it decides the order; ``typical`` 1, so the term ranks
 by ``dl - beta * S``. With ``k = 2`` the lists ``N_2`` of the matrix :data:`L` are
@@ -21,10 +21,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-import shapedb.lightfield
-from query import rerank
-from query.index import FeatureIndex
-from query.lightfield_neighbours import (
+import shapedb.signature.lightfield
+from query.search import rerank
+from query.search.index import FeatureIndex
+from query.search.lightfield_neighbours import (
     FULL_AT_COMMIT,
     NEIGHBOURS,
     commit_distances,
@@ -33,10 +33,10 @@ from query.lightfield_neighbours import (
     shared_scores,
     stage_lists,
 )
-from query.rerank_lightfield import COLUMN, LightFieldFusion
-from shapedb.config import Config
+from query.search.rerank_lightfield import COLUMN, LightFieldFusion
+from shapedb.config.core import Config
 from shapedb.errors import ConfigError
-from shapedb.kernel import weights
+from shapedb.signature.kernel import weights
 
 L = np.array(
     [
@@ -86,7 +86,7 @@ def matrix(monkeypatch: pytest.MonkeyPatch) -> None:
         cb = np.asarray(b).reshape(len(b), -1)[:, 0].astype(int)
         return L[np.ix_(qa, cb)]
 
-    monkeypatch.setattr(shapedb.lightfield, "light_field_distance", distance)
+    monkeypatch.setattr(shapedb.signature.lightfield, "light_field_distance", distance)
 
 
 def _store(beta: float, **options: Any) -> tuple[Config, FeatureIndex, Reader]:

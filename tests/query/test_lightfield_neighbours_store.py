@@ -23,12 +23,12 @@ import numpy as np
 import pytest
 from query_helpers import CONFIG
 
-import query.lightfield_neighbours as neighbours
-from query import rerank
+import query.search.lightfield_neighbours as neighbours
 from query.evaluate import evaluate, retrieval_scores
-from query.field_fusion import FIELD
-from query.index import open_index
-from query.lightfield_neighbours import (
+from query.search import rerank
+from query.search.field_fusion import FIELD
+from query.search.index import open_index
+from query.search.lightfield_neighbours import (
     NEIGHBOUR_DIR,
     NEIGHBOURS,
     nearest_others,
@@ -36,9 +36,9 @@ from query.lightfield_neighbours import (
     shared_scores,
     store_neighbours,
 )
-from query.rerank import stage_batch
-from query.rerank_lightfield import COLUMN, LightFieldFusion, stored_arrays
-from shapedb.implicit import Box, Capsule, Cylinder, Sphere, Torus
+from query.search.rerank import stage_batch
+from query.search.rerank_lightfield import COLUMN, LightFieldFusion, stored_arrays
+from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus
 
 STAGE = CONFIG.with_options(
     rerank="lightfield", rerank_candidates=5, fv_enabled=True, lf_field_depth_weight=0.5,
@@ -65,7 +65,7 @@ def _shapes() -> dict[str, Any]:
 
 
 def _connect(root: Path, **options: Any) -> Any:
-    import shapedb.database as database
+    import query.database as database
 
     db = database.connect(root, config=STAGE.with_options(**options))
     db.ingest([(n, n.split("_")[0], g) for n, g in _shapes().items()], workers=1)
@@ -174,7 +174,7 @@ def test_a_closed_gate_leaves_the_term_out_and_reads_no_lists(dbs: dict[str, Any
 def test_the_table_is_kept_per_version_and_read_back_by_a_new_connection(
     tmp_path: Path, forget: Callable[[Any], None], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import shapedb.database as database
+    import query.database as database
 
     db = _connect(tmp_path / "s")
     root = Path(db.store.path) / NEIGHBOUR_DIR

@@ -14,10 +14,10 @@ import pytest
 from bench.gate_checks import ANALYTIC, chain
 from bench.lightfield_gate import Store, gate_weights
 from bench.lightfield_gate import local_spreads as local_spreads_of
-from query import rerank
-from query.field_fusion import FIELD
-from query.index import FeatureIndex
-from query.lightfield_spread import (
+from query.search import rerank
+from query.search.field_fusion import FIELD
+from query.search.index import FeatureIndex
+from query.search.lightfield_spread import (
     FULL_AT_COMMIT,
     SPREAD_DIR,
     calibration,
@@ -27,11 +27,11 @@ from query.lightfield_spread import (
     pooled,
     store_spreads,
 )
-from query.rerank_lightfield import COLUMN, SPREAD, LightFieldFusion, stored_arrays
-from shapedb.config import Config
-from shapedb.implicit import Box, Capsule
-from shapedb.kernel import weights
-from shapedb.lightfield import light_field_distance
+from query.search.rerank_lightfield import COLUMN, SPREAD, LightFieldFusion, stored_arrays
+from shapedb.config.core import Config
+from shapedb.geometry.implicit import Box, Capsule
+from shapedb.signature.kernel import weights
+from shapedb.signature.lightfield import light_field_distance
 
 
 def _case(n: int = 40, seed: int = 1) -> tuple[Config, FeatureIndex, np.ndarray, np.ndarray]:
@@ -107,7 +107,7 @@ def _gates(db: Any) -> np.ndarray:
     """g(q) of every stored shape querying the store, from the product's scorer."""
     scorer = LightFieldFusion(db.config)
     ids, x = db.store.features()
-    index = __import__("query.index").index.open_index(db)
+    index = __import__("query.search.index").search.index.open_index(db)
     reader = stored_arrays(db)
     out = []
     for sid in ids:
@@ -126,7 +126,7 @@ def _gates(db: Any) -> np.ndarray:
 
 def _analytic(root: Path, **options: Any) -> dict[str, Any]:
     """Two stores: rigid boxes and rods, and one chain in 8 poses (the bench's analytic stores)."""
-    import shapedb.database as database
+    import query.database as database
 
     config = Config().with_options(**ANALYTIC, **options)
     rigid = database.connect(root / "rigid", config=config)
@@ -218,7 +218,7 @@ def test_spreads_asked_for_a_few_shapes_equal_the_whole_store_s(gate: dict[str, 
 def test_a_search_computes_only_the_spreads_it_pools(
     stores: dict[str, Any], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import query.lightfield_spread as spread_module
+    import query.search.lightfield_spread as spread_module
 
     db = stores["rigid"]
     whole = store_spreads(db, stored_arrays(db))

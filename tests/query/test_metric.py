@@ -1,4 +1,4 @@
-"""query.metric: block weights learned on labels, and search / evaluate with them."""
+"""query.learn.metric: block weights learned on labels, and search / evaluate with them."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from query.evaluate import evaluate, retrieval_scores
-from query.metric import LearnedMetric, as_metric, block_layout, fit_metric
+from query.learn.metric import LearnedMetric, as_metric, block_layout, fit_metric
 from shapedb.errors import ConfigError, LoadError, QueryError
 
 BLOCKS = (("signal", 6), ("noise", 6))
@@ -193,7 +193,7 @@ def test_store_metric_search_and_evaluate(tmp_db: Any) -> None:
 def test_metric_index_is_kept_on_disk_and_follows_commits(
     tmp_db: Any, example_records: list[Any]
 ) -> None:
-    from query.index import _forget, open_index
+    from query.search.index import _forget, open_index
 
     m = _handmade(tmp_db)
     sid = int(tmp_db.store.features()[0][0])
@@ -233,7 +233,7 @@ def test_a_metric_of_another_store_is_refused(tmp_db: Any) -> None:
 
 
 def test_block_layouts_cover_the_feature_vector() -> None:
-    from shapedb.config import Config
+    from shapedb.config.core import Config
 
     paper = Config().with_options(method="paper", n_r=10)
     for cfg in (Config(), Config().with_options(descriptor=3), paper):

@@ -20,21 +20,18 @@ def test_public_all():
         "build_index",
         "fit_metric",
         "match_pairs",
-        "on_commit",
         "open_index",
         "open_parts_index",
         "part_geometry",
         "query_features",
         "retrieval_scores",
-        "search",
-        "search_batch",
     ]
     assert all(hasattr(query, name) for name in query.__all__)
 
 
 def test_import_is_light():
     code = (
-        "import sys, query, query.index, query.engine, query.sql, query.evaluate, query.metric; "
+        "import sys, query, query.search.index, query.search.engine, query.sql, query.evaluate, query.learn.metric; "
         "print(sorted(m for m in ('faiss', 'duckdb', 'matplotlib', 'torch') if m in sys.modules))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -42,10 +39,17 @@ def test_import_is_light():
 
 
 def test_modules_are_not_shadowed():
+    """No package re-exports a name that is also one of its modules (``import a.b as m``
+    would bind the name, not the module)."""
     import importlib
+    import pkgutil
 
-    for name in ("index", "engine", "sql", "evaluate"):
-        assert (
-            getattr(query, name, importlib.import_module(f"query.{name}")).__name__
-            == f"query.{name}"
-        )
+    import shapedb
+
+    for package in (shapedb, query):
+        for info in pkgutil.walk_packages(package.__path__, package.__name__ + "."):
+            if info.name.endswith("__main__"):
+                continue
+            parent, _, leaf = info.name.rpartition(".")
+            module = importlib.import_module(info.name)
+            assert getattr(importlib.import_module(parent), leaf) is module, info.name

@@ -1,4 +1,4 @@
-"""The exact re-ranking stage (query.rerank): scorers, the adaptive fusion, search and eval."""
+"""The exact re-ranking stage (query.search.rerank): scorers, the adaptive fusion, search and eval."""
 
 from __future__ import annotations
 
@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 from query_helpers import CONFIG
 
-from query import rerank
 from query.evaluate import evaluate, retrieval_scores
-from query.index import FeatureIndex
-from shapedb.config import Config
-from shapedb.descriptor import LAYOUTS, dim
+from query.search import rerank
+from query.search.index import FeatureIndex
+from shapedb.config.core import Config
 from shapedb.errors import ConfigError
-from shapedb.kernel import features
-from shapedb.schema import ShapeRecord
+from shapedb.signature.descriptor import LAYOUTS, dim
+from shapedb.signature.kernel import features
+from shapedb.store.schema import ShapeRecord
 
 
 class _Stored:
@@ -149,7 +149,7 @@ def stage_db(
     tmp_path: Path, example_records: list[ShapeRecord], forget: Callable[[Any], None]
 ) -> Iterator[Any]:
     """The 14 example shapes in a store of version 7 with the adaptive stage (K = 6)."""
-    import shapedb.database as database
+    import query.database as database
 
     db = database.connect(tmp_path / "stage", config=STAGE)
     db.commit(
@@ -190,7 +190,7 @@ def test_evaluation_ranks_as_search_does(stage_db: Any) -> None:
 def test_a_reopened_store_searches_the_same_way(
     stage_db: Any, forget: Callable[[Any], None]
 ) -> None:
-    import shapedb.database as database
+    import query.database as database
 
     some = [int(i) for i in stage_db.store.features()[0][[0, 3, 9]]]
     before = [[(h.id, h.distance) for h in row] for row in stage_db.search_batch(some, k=8)]
@@ -207,7 +207,7 @@ def test_a_scorer_of_its_own_module_is_imported_on_first_use(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     (tmp_path / "my_scorer.py").write_text(
-        "from query.rerank import register_scorer\n"
+        "from query.search.rerank import register_scorer\n"
         "class Far:\n"
         "    def __init__(self, config):\n"
         "        pass\n"

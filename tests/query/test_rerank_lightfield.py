@@ -15,15 +15,15 @@ import pytest
 from query_helpers import CONFIG
 
 from bench.studies.lightfield_balls import fuse
-from query import rerank
 from query.evaluate import evaluate, retrieval_scores
-from query.index import FeatureIndex
-from query.rerank_lightfield import COLUMN, LightFieldFusion, stored_arrays
-from shapedb.config import Config, parse_options
+from query.search import rerank
+from query.search.index import FeatureIndex
+from query.search.rerank_lightfield import COLUMN, LightFieldFusion, stored_arrays
+from shapedb.config.core import Config, parse_options
 from shapedb.errors import ConfigError
-from shapedb.implicit import Box, Capsule, Cylinder, Sphere, Torus
-from shapedb.kernel import weights
-from shapedb.lightfield import light_field_distance
+from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus
+from shapedb.signature.kernel import weights
+from shapedb.signature.lightfield import light_field_distance
 
 STAGE = CONFIG.with_options(rerank="lightfield", rerank_candidates=6)
 #: The stage on the balls' light fields (the fills and the longer packing are theirs).
@@ -41,7 +41,7 @@ def _study_case(n: int = 40, seed: int = 0) -> tuple[Config, np.ndarray, np.ndar
 
 
 #: The stage's settings before the pooled spread and the contrast floor (issue 25's
-#: first product): what a store written then reads (shapedb.migrations).
+#: first product): what a store written then reads (shapedb.config.migrations).
 LEGACY = {"lf_weight": 8.0, "lf_power": 3.0, "lf_ceiling": 0.09, "lf_spread_candidates": 100,
           "lf_pool": 0, "lf_contrast_floor": 0.0, "lf_ramp": 0.02, "lf_ratio_weight": 0.0}  # fmt: skip
 
@@ -74,7 +74,9 @@ def test_with_every_shape_a_candidate_the_legacy_gate_ranks_as_the_study() -> No
     config = config.with_options(**LEGACY)
     w = weights(config)
     d = np.abs(x[:, None, :] - x[None, :, :]) @ w
-    cal = np.log(10.0) / sum(b[3] for b in __import__("shapedb.descriptor").descriptor.LAYOUTS[4])
+    cal = np.log(10.0) / sum(
+        b[3] for b in __import__("shapedb.signature.descriptor").signature.descriptor.LAYOUTS[4]
+    )
     d4 = d / cal
     # a typical distance that puts the queries' spreads about the ceiling: some gates open
     near = np.argsort(d4 + np.eye(len(x)) * 1e300, axis=1)[:, :-1]
@@ -106,7 +108,7 @@ def test_without_light_fields_the_stored_order_is_kept_with_a_warning(
     config, x, _, _ = _study_case(12)
     index = FeatureIndex(kind="flat").fit(np.arange(12), x.astype(np.float32), weights(config))
     q = index.features_.astype(np.float64)
-    with caplog.at_level(logging.WARNING, logger="query.rerank_lightfield"):
+    with caplog.at_level(logging.WARNING, logger="query.search.rerank_lightfield"):
         got, _ = rerank.search(index, q, 12, config=config, query_ids=np.arange(12))
     assert np.array_equal(got, index.search(q, 12)[0])
     assert "keeps no light fields" in caplog.text
@@ -144,7 +146,7 @@ def _shapes() -> dict[str, Any]:
 @pytest.fixture(scope="module")
 def lf_db(tmp_path_factory: pytest.TempPathFactory, forget: Callable[[Any], None]) -> Iterator[Any]:
     """Seven analytic shapes ingested by a store with the "lightfield" scorer (K = 6)."""
-    import shapedb.database as database
+    import query.database as database
 
     db = database.connect(tmp_path_factory.mktemp("lf") / "store", config=STAGE)
     shapes = _shapes()
@@ -157,7 +159,7 @@ def lf_db(tmp_path_factory: pytest.TempPathFactory, forget: Callable[[Any], None
 def test_ingest_stores_the_light_fields_and_a_reopened_store_searches_the_same(
     lf_db: Any,
 ) -> None:
-    import shapedb.database as database
+    import query.database as database
 
     t = lf_db.store.shapes(["name", COLUMN])
     assert t.num_rows == 7
@@ -181,7 +183,7 @@ def test_a_stored_query_and_the_same_shape_from_outside_rank_alike(lf_db: Any) -
 
 
 def test_hits_are_in_the_stage_s_order_with_the_stored_distance(lf_db: Any) -> None:
-    from query.index import open_index
+    from query.search.index import open_index
 
     index = open_index(lf_db)
     ids, x = lf_db.store.features()
@@ -211,7 +213,7 @@ def test_evaluation_ranks_as_search_does(lf_db: Any) -> None:
 def test_a_store_written_before_the_column_searches_in_the_stored_order(
     tmp_path: Path, caplog: pytest.LogCaptureFixture, forget: Callable[[Any], None]
 ) -> None:
-    import shapedb.database as database
+    import query.database as database
 
     db = database.connect(tmp_path / "old", config=STAGE)
     db.ingest([(n, g) for n, g in list(_shapes().items())[:4]], workers=1)
@@ -227,11 +229,11 @@ def test_a_store_written_before_the_column_searches_in_the_stored_order(
     (tmp_path / "old" / "manifest.json").write_text(json.dumps(manifest))
     old = database.connect(tmp_path / "old")
     assert old.get("box_a").light_field is None
-    with caplog.at_level(logging.WARNING, logger="query.rerank_lightfield"):
+    with caplog.at_level(logging.WARNING, logger="query.search.rerank_lightfield"):
         hits = old.search("box_a", k=4)
     assert "keeps no light fields" in caplog.text
     plain = old.config.with_options(rerank="none")
-    index = __import__("query.index").index.open_index(old)
+    index = __import__("query.search.index").search.index.open_index(old)
     want, _ = index.search(index.features_of(hits[0].id)[None], 4)
     assert [h.id for h in hits] == want[0].tolist() and plain.rerank.scorer == "none"
     forget(old)
@@ -245,9 +247,9 @@ def test_the_scorer_is_registered_by_its_module() -> None:
 def test_a_store_with_filled_silhouettes_fills_its_records_and_its_queries(
     tmp_path: Path, forget: Callable[[Any], None]
 ) -> None:
-    import shapedb.database as database
-    from shapedb.lightfield import record_light_field
-    from shapedb.mdbd import decompose
+    import query.database as database
+    from shapedb.mdbd.decomposition import decompose
+    from shapedb.signature.lightfield import record_light_field
 
     filled = BALLS.with_options(lf_edges=True, lf_n_balls=0)  # the decomposition's balls
     db = database.connect(tmp_path / "store", config=filled)
@@ -270,9 +272,9 @@ def test_a_store_with_filled_silhouettes_fills_its_records_and_its_queries(
 def test_a_store_with_a_longer_packing_renders_records_and_queries_from_it(
     tmp_path: Path, forget: Callable[[Any], None]
 ) -> None:
-    import shapedb.database as database
-    from shapedb.lightfield import decomposition_light_field, record_light_field
-    from shapedb.mdbd import decompose
+    import query.database as database
+    from shapedb.mdbd.decomposition import decompose
+    from shapedb.signature.lightfield import decomposition_light_field, record_light_field
 
     longer = BALLS.with_options(lf_n_balls=STAGE.mdbd.n_balls + 200)
     db = database.connect(tmp_path / "store", config=longer)
@@ -300,8 +302,8 @@ def test_a_store_with_a_longer_packing_renders_records_and_queries_from_it(
 def test_a_decomposition_query_without_the_store_s_tail_is_warned_about(
     tmp_path: Path, forget: Callable[[Any], None], caplog: pytest.LogCaptureFixture
 ) -> None:
-    import shapedb.database as database
-    from shapedb.mdbd import decompose
+    import query.database as database
+    from shapedb.mdbd.decomposition import decompose
 
     db = database.connect(tmp_path / "store", config=BALLS)
     shapes = {n: g for n, g in _shapes().items() if n in ("box_a", "rod_a", "ring_a")}
@@ -309,10 +311,10 @@ def test_a_decomposition_query_without_the_store_s_tail_is_warned_about(
     cfg = db.config
     assert cfg.light_field_tail > 0
     shape = shapes["box_a"]
-    with caplog.at_level(logging.WARNING, logger="query.engine"):
+    with caplog.at_level(logging.WARNING, logger="query.search.engine"):
         db.search(decompose(shape, config=cfg.mdbd, tail_balls=cfg.light_field_tail), k=2)
     assert "tail" not in caplog.text
-    with caplog.at_level(logging.WARNING, logger="query.engine"):
+    with caplog.at_level(logging.WARNING, logger="query.search.engine"):
         db.search(decompose(shape, config=cfg.mdbd), k=2)
     assert "no tail balls" in caplog.text
     forget(db)
@@ -321,9 +323,9 @@ def test_a_decomposition_query_without_the_store_s_tail_is_warned_about(
 def test_a_store_of_the_field_s_light_fields_renders_records_and_queries_from_the_inside(
     tmp_path: Path, forget: Callable[[Any], None], caplog: pytest.LogCaptureFixture
 ) -> None:
-    import shapedb.database as database
-    from shapedb.lightfield import inside_light_field
-    from shapedb.mdbd import decompose
+    import query.database as database
+    from shapedb.mdbd.decomposition import decompose
+    from shapedb.signature.lightfield import inside_light_field
 
     field = STAGE.with_options(lf_source="field")
     db = database.connect(tmp_path / "store", config=field)
@@ -347,7 +349,7 @@ def test_a_store_of_the_field_s_light_fields_renders_records_and_queries_from_th
     assert [h.id for h in again.search(rec, k=3)] == [h.id for h in again.search("box_a", k=3)]
     plain = database.connect(tmp_path / "plain", config=field.with_options(rerank="none"))
     plain.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
-    with caplog.at_level(logging.WARNING, logger="query.engine"):  # no inside: stored order
+    with caplog.at_level(logging.WARNING, logger="query.search.engine"):  # no inside: stored order
         hits = again.search(decompose(shapes["box_a"], config=field.mdbd), k=3)
     assert "no inside" in caplog.text
     assert [h.name for h in hits] == [h.name for h in plain.search(shapes["box_a"], k=3)]

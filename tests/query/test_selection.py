@@ -1,4 +1,4 @@
-"""Choosing a classifier on validation data (query.selection, query.descriptor_classifiers).
+"""Choosing a classifier on validation data (query.learn.selection, query.learn.descriptor_classifiers).
 
 Synthetic descriptors with known structure: a case only neighbours can solve (XOR
 clusters), one only a linear model can (an oblique boundary among noise), and the
@@ -14,8 +14,12 @@ import sys
 import numpy as np
 import pytest
 
-from query.descriptor_classifiers import BoostedDescriptor, LinearDescriptor, NearestNeighbours
-from query.selection import CANDIDATES, Selection, make_candidate, select_classifier
+from query.learn.descriptor_classifiers import (
+    BoostedDescriptor,
+    LinearDescriptor,
+    NearestNeighbours,
+)
+from query.learn.selection import CANDIDATES, Selection, make_candidate, select_classifier
 from shapedb.errors import ConfigError, MissingDependencyError, NotFittedError
 
 DESCRIPTOR = ["1-nn", "3-nn", "5-nn", "linear", "boosting"]

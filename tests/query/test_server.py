@@ -1,4 +1,4 @@
-"""The JSON API of ``shapedb serve`` (query.server), through FastAPI's TestClient."""
+"""The JSON API of ``shapedb serve`` (query.serve.server), through FastAPI's TestClient."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ pytest.importorskip("httpx", reason="TestClient needs httpx (dev extra)")
 
 from server_helpers import build_store, client  # noqa: E402
 
-from query.server import create_app, is_loopback, serve  # noqa: E402
+from query.serve.server import create_app, is_loopback, serve  # noqa: E402
 from shapedb.errors import ConfigError  # noqa: E402
 
 HIT_KEYS = {"id", "name", "label", "similarity"}
@@ -292,7 +292,7 @@ def test_ingest_by_upload_and_a_new_version_from_another_process(tmp_path, priva
 def test_stored_record_is_db_get_without_features(store):
     import numpy as np
 
-    from query.viewer import stored_record
+    from query.serve.viewer import stored_record
 
     db, _ = store
     sid = int(db.store.resolve("cylinder0"))

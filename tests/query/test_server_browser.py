@@ -21,7 +21,7 @@ pytest.importorskip("fastapi", reason="the serve extra is not installed")
 
 from server_helpers import build_store, live_server  # noqa: E402
 
-from query.server import create_app  # noqa: E402
+from query.serve.server import create_app  # noqa: E402
 
 log = logging.getLogger(__name__)
 

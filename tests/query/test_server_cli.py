@@ -17,7 +17,7 @@ pytest.importorskip("uvicorn", reason="the serve extra is not installed")
 
 from server_helpers import build_store  # noqa: E402
 
-from shapedb.cli import main  # noqa: E402
+from query.cli import main  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -28,7 +28,7 @@ def store(tmp_path_factory: pytest.TempPathFactory) -> Any:
 
 
 def test_serve_prints_its_url_and_answers(store: Any) -> None:
-    argv = [sys.executable, "-m", "shapedb.cli", "serve", "--db", str(store.path), "--port", "0"]
+    argv = [sys.executable, "-m", "query.cli", "serve", "--db", str(store.path), "--port", "0"]
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     proc = subprocess.Popen(argv, cwd=ROOT, stdout=subprocess.PIPE, text=True, env=env)
     try:

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from query_helpers import CONFIG
 
-from query.engine import search
+from query.search.engine import search
 from query.sql import connect, sql
 from shapedb.errors import ConfigError, QueryError
-from shapedb.kernel import distance, weights
+from shapedb.signature.kernel import distance, weights
 
 
 def test_issue_example_agrees_with_search(tmp_db):
@@ -65,7 +65,7 @@ def test_deleted_shapes_are_gone(tmp_db):
 
 
 def test_empty_store(tmp_path):
-    import shapedb.database as database
+    import query.database as database
 
     db = database.connect(tmp_path / "empty", config=CONFIG)
     for table in ("shapes", "balls", "edges", "failures"):
@@ -118,7 +118,7 @@ def test_script_sets_up_a_plain_duckdb_session(tmp_db):
 def test_macros_weigh_by_a_learned_metric(tmp_db, tmp_path):
     import duckdb
 
-    from query.metric import LearnedMetric, block_layout
+    from query.learn.metric import LearnedMetric, block_layout
     from query.sql import script
 
     blocks = block_layout(tmp_db.config)

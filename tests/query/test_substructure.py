@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from query_helpers import make_record
 
-from query.parts_index import PARTS_DIR, PartIndex, open_parts_index, read_part_config
-from query.substructure import (
+from query.parts.index import PARTS_DIR, PartIndex, open_parts_index, read_part_config
+from query.parts.match import (
     PartMatch,
     match,
     match_brute_force,
@@ -15,11 +15,16 @@ from query.substructure import (
     nearest_ball,
     part_geometry,
 )
-from shapedb.config import PartConfig
+from shapedb.config.core import PartConfig
 from shapedb.errors import NotFoundError, QueryError
-from shapedb.graph import ContactGraph
-from shapedb.implicit import Capsule
-from shapedb.subgraph import neighbourhood_features, neighbourhoods, part_graph, part_weights
+from shapedb.geometry.implicit import Capsule
+from shapedb.mdbd.graph import ContactGraph
+from shapedb.signature.subgraph import (
+    neighbourhood_features,
+    neighbourhoods,
+    part_graph,
+    part_weights,
+)
 
 #: The paper's part vector alone (Eq. 1 of the subgraph), as before the size block.
 PAPER = PartConfig(size=0.0, centre=0.0)
@@ -296,7 +301,7 @@ def test_ivf_index_recall() -> None:
 
 def test_part_geometry_on_mesh_and_points() -> None:
     trimesh = pytest.importorskip("trimesh")
-    from shapedb.mdbd import decompose
+    from shapedb.mdbd.decomposition import decompose
 
     cap = Capsule([0, 0, 0], [2.0, 0, 0], 0.3)
     d = decompose(cap, resolution=48, n_balls=60)

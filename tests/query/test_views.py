@@ -1,10 +1,10 @@
 """Stores with sparse views (CloudConfig.view_cells): ingest, search routing, evaluate.
 
 Expected results are computed here from the stored features with the rule of
-``query.engine``: two exact shapes, and two sparse clouds, compare their own features;
+``query.search.engine``: two exact shapes, and two sparse clouds, compare their own features;
 a pair of a sparse cloud and a dense shape is as far apart as the nearest of own-own,
 the cloud's own feature against the dense shape's view, and the cloud's
-reconstruction (:mod:`shapedb.reconstruct`, stored as its view) against the dense
+reconstruction (:mod:`shapedb.mdbd.reconstruct`, stored as its view) against the dense
 shape's own feature.
 """
 
@@ -20,14 +20,14 @@ import trimesh
 
 import shapedb
 from query.evaluate import retrieval_scores
-from shapedb.config import Config
+from shapedb.config.core import Config
 from shapedb.errors import ConfigError
-from shapedb.kernel import features
-from shapedb.mdbd import decompose
-from shapedb.mesh import TriangleMesh
-from shapedb.pointcloud import PointCloud
-from shapedb.reconstruct import reconstructed
-from shapedb.view import view_geometry
+from shapedb.geometry.mesh import TriangleMesh
+from shapedb.geometry.pointcloud import PointCloud
+from shapedb.geometry.view import view_geometry
+from shapedb.mdbd.decomposition import decompose
+from shapedb.mdbd.reconstruct import reconstructed
+from shapedb.signature.kernel import features
 
 CONFIG = Config().with_options(resolution=40, n_balls=96, view_cells=4.0)
 
@@ -173,7 +173,7 @@ def test_evaluate_follows_the_view_rule(view_db: Any) -> None:
 
 
 def test_a_learned_metric_weighs_views_too(view_db: Any) -> None:
-    from query.metric import LearnedMetric, block_layout
+    from query.learn.metric import LearnedMetric, block_layout
 
     blocks = block_layout(CONFIG)
     metric = LearnedMetric(
@@ -275,7 +275,7 @@ def test_rows_written_before_the_view_column_read_as_null(
 def test_a_shape_whose_view_fails_is_stored_without_one(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, forget: Callable[[Any], None]
 ) -> None:
-    import shapedb.view as view_module
+    import shapedb.geometry.view as view_module
     from shapedb.errors import DegenerateGeometryError
 
     def broken(*args: Any, **kwargs: Any) -> None:
@@ -295,8 +295,8 @@ def test_a_shape_whose_view_fails_is_stored_without_one(
 def test_implicit_and_voxel_shapes_get_views_too(
     tmp_path: Path, forget: Callable[[Any], None]
 ) -> None:
-    from shapedb.implicit import Capsule
-    from shapedb.voxels import VoxelGrid
+    from shapedb.geometry.implicit import Capsule
+    from shapedb.geometry.voxels import VoxelGrid
 
     cfg = Config().with_options(resolution=32, n_balls=48, view_cells=4.0)
     db = shapedb.connect(tmp_path / "implicit", config=cfg)
@@ -317,7 +317,7 @@ def test_implicit_and_voxel_shapes_get_views_too(
 
 
 def test_merged_lists_keep_each_shape_once_at_its_smallest_distance() -> None:
-    from query.engine import _nearest
+    from query.search.engine import _nearest
 
     ids, dist = _nearest(
         [
@@ -367,7 +367,7 @@ def test_asking_for_a_clouds_normals_first_changes_nothing() -> None:
 def test_a_failed_reconstruction_leaves_the_cloud_with_one_feature(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, forget: Callable[[Any], None]
 ) -> None:
-    import shapedb.reconstruct as rec
+    import shapedb.mdbd.reconstruct as rec
 
     def boom(cloud: Any, **_: Any) -> None:
         raise RuntimeError("solver failed")
@@ -410,7 +410,7 @@ def test_reconstructions_can_be_turned_off_and_old_stores_read_without(
 def test_the_stores_poisson_depth_reaches_ingest_and_search(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, forget: Callable[[Any], None]
 ) -> None:
-    import shapedb.reconstruct as rec
+    import shapedb.mdbd.reconstruct as rec
 
     depths: list[int] = []
     solve = rec.reconstruct
@@ -455,7 +455,7 @@ def test_a_store_of_meshes_never_builds_a_second_index(
 def test_filtered_and_scanned_searches_agree(
     view_db: Any, query: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import query.engine as engine
+    import query.search.engine as engine
 
     n = len(view_db.store.features()[0])
     scanned = [(h.id, h.distance) for h in view_db.search(query, k=n)]

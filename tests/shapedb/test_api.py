@@ -9,8 +9,8 @@ import typing
 import pytest
 
 import shapedb
+from query.database import Database
 from shapedb import results
-from shapedb.database import Database
 
 PUBLIC = {
     # configuration
@@ -37,29 +37,31 @@ def test_all_is_pinned_exactly_and_every_name_resolves() -> None:
     assert set(shapedb.__all__) == PUBLIC
     for name in shapedb.__all__:
         assert getattr(shapedb, name) is not None, name
-    assert callable(shapedb.kernel.kernel)  # shapedb.kernel is the module (Eq. 1-3)
+    assert callable(
+        shapedb.signature.kernel.kernel
+    )  # shapedb.signature.kernel is the module (Eq. 1-3)
 
 
 def test_result_types_live_in_one_module_and_are_re_exported_where_they_were() -> None:
     import ingest.pipeline
     import query
-    import query.classify
-    import query.engine
     import query.evaluate
-    import query.substructure
+    import query.learn.classify
+    import query.parts.match
+    import query.search.engine
 
     assert ingest.pipeline.IngestReport is results.IngestReport is shapedb.IngestReport
-    assert query.engine.Hit is query.Hit is results.Hit
-    assert query.substructure.PartMatch is query.PartMatch is results.PartMatch
+    assert query.search.engine.Hit is query.Hit is results.Hit
+    assert query.parts.match.PartMatch is query.PartMatch is results.PartMatch
     assert query.evaluate.RetrievalScores is query.RetrievalScores is results.RetrievalScores
     assert query.evaluate.MEASURES is results.MEASURES
-    assert query.classify.Classification is results.Classification
+    assert query.learn.classify.Classification is results.Classification
     for cls in (results.IngestReport, results.Hit, results.PartMatch, results.Classification):
         assert dataclasses.is_dataclass(cls) and cls.__module__ == "shapedb.results"
 
 
 def test_the_learned_metric_is_a_metric() -> None:
-    from query.metric import LearnedMetric
+    from query.learn.metric import LearnedMetric
 
     metric = LearnedMetric(blocks=(("a", 2),), weights=(1.0,), fingerprint="x")
     assert isinstance(metric, results.Metric)

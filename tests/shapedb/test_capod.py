@@ -28,7 +28,7 @@ pytestmark = [
 def _mesh(name: str):  # type: ignore[no-untyped-def]
     import trimesh
 
-    from shapedb.mesh import TriangleMesh
+    from shapedb.geometry.mesh import TriangleMesh
 
     tm = trimesh.load(CAPOD / name, force="mesh", process=False)
     return TriangleMesh(np.asarray(tm.vertices), np.asarray(tm.faces))
@@ -36,7 +36,7 @@ def _mesh(name: str):  # type: ignore[no-untyped-def]
 
 def _cloud(mesh, seed: int):  # type: ignore[no-untyped-def]
     """The paper's cloud: a random 20 % of the vertices, or 2,000 surface samples."""
-    from shapedb.pointcloud import PointCloud
+    from shapedb.geometry.pointcloud import PointCloud
 
     rng = np.random.default_rng(seed)
     v = np.asarray(mesh.vertices)
@@ -47,7 +47,7 @@ def _cloud(mesh, seed: int):  # type: ignore[no-untyped-def]
 
 @pytest.mark.parametrize("name", MODELS)
 def test_balls_are_sorted_disjoint_and_inside(name: str) -> None:
-    from shapedb.mdbd import decompose
+    from shapedb.mdbd.decomposition import decompose
 
     mesh = _mesh(name)
     d = decompose(mesh, **OPTIONS)
@@ -70,9 +70,9 @@ def test_similarity_transform_keeps_the_kernel() -> None:
     sampled frame, which followed a rotation to 0.01-5 degrees only)."""
     from scipy.spatial.transform import Rotation
 
-    from shapedb.kernel import features, kernel
-    from shapedb.mdbd import decompose
-    from shapedb.mesh import TriangleMesh
+    from shapedb.geometry.mesh import TriangleMesh
+    from shapedb.mdbd.decomposition import decompose
+    from shapedb.signature.kernel import features, kernel
 
     sims = []
     for name in MODELS:
@@ -99,8 +99,8 @@ def test_similarity_transform_keeps_the_kernel() -> None:
     "own mesh (34 % against 32 %, --against dense)",
 )
 def test_point_cloud_finds_its_own_mesh_first() -> None:
-    from shapedb.kernel import distance, features
-    from shapedb.mdbd import decompose
+    from shapedb.mdbd.decomposition import decompose
+    from shapedb.signature.kernel import distance, features
 
     meshes = [_mesh(n) for n in MODELS]
     fm = np.stack([features(decompose(m, **OPTIONS)) for m in meshes])

@@ -8,15 +8,15 @@ from pathlib import Path
 import pytest
 from test_store import CONFIG, forget_checksums, make_record
 
-from shapedb.check import LOST_AND_FOUND, check, repair
 from shapedb.errors import StoreError
-from shapedb.store import MANIFEST, Store
+from shapedb.store.integrity import LOST_AND_FOUND, check, repair
+from shapedb.store.store import MANIFEST, Store
 
 
 @pytest.fixture()
 def three(tmp_path: Path) -> Store:
     """A store of three shapes in two commits, with one deletion and one failure."""
-    from shapedb.schema import Failure
+    from shapedb.store.schema import Failure
 
     store = Store.create(tmp_path / "base", CONFIG)
     store.add([make_record("a"), make_record("b")], failures=[Failure("x.obj", "LoadError", "bad")])

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import trimesh
 
-from shapedb.cli import main
+from query.cli import main
 
 
 @pytest.fixture()
@@ -235,7 +235,7 @@ def test_show_and_match(tmp_path: Path, models: Path, capsys: pytest.CaptureFixt
 def test_train_and_classify(
     tmp_path: Path, models: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from query.gnn import import_torch
+    from query.learn.gnn import import_torch
 
     try:
         import_torch()

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-import shapedb.database
-from shapedb.cli import GROUPS, build_parser, main
+import query.database
+from query.cli import GROUPS, build_parser, main
 from shapedb.errors import StoreError
 
 #: Subcommands that must stay (groups may add more).
@@ -64,7 +64,7 @@ def _fail_on_connect(monkeypatch: pytest.MonkeyPatch, exc: Exception) -> None:
     def connect(*args: object, **kwargs: object) -> None:
         raise exc
 
-    monkeypatch.setattr(shapedb.database, "connect", connect)
+    monkeypatch.setattr(query.database, "connect", connect)
 
 
 def test_unexpected_error_is_one_line_naming_it(
@@ -105,7 +105,7 @@ def test_console_script_is_main() -> None:
 
 
 def test_help_lists_every_subcommand() -> None:
-    code = "import sys; from shapedb.cli import main; sys.exit(main(['--help']))"
+    code = "import sys; from query.cli import main; sys.exit(main(['--help']))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     for name in COMMANDS:

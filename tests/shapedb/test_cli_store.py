@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 import trimesh
 
-from shapedb.cli import main
+from query.cli import main
 
 
 @pytest.fixture()

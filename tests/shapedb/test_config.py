@@ -6,7 +6,7 @@ import dataclasses
 
 import pytest
 
-from shapedb.config import (
+from shapedb.config.core import (
     OPTIONS,
     CloudConfig,
     Config,
@@ -127,7 +127,7 @@ def test_bad_values_are_refused(cls: type, options: dict, match: str) -> None:
 
 
 def test_dimension_follows_the_method_and_the_descriptor() -> None:
-    from shapedb.descriptor import DIM, dim
+    from shapedb.signature.descriptor import DIM, dim
 
     assert Config().dim == DIM == dim(4)
     assert Config().with_options(descriptor=1).dim == dim(1) == 247
@@ -137,7 +137,7 @@ def test_dimension_follows_the_method_and_the_descriptor() -> None:
 
 
 def test_options_parse_from_text_by_field_type() -> None:
-    from shapedb.config import parse_options
+    from shapedb.config.core import parse_options
 
     got = parse_options(
         ["tie_cells=0", "descriptor=1", "refine=false", "method=paper", "view_cells=4"]

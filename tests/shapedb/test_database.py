@@ -8,11 +8,11 @@ from typing import Any
 import pytest
 from test_store import CONFIG, make_record  # noqa: I001 - sibling test module
 
-import shapedb.database as database
-from shapedb.config import Config
-from shapedb.errors import ConfigError, MissingDependencyError, NotFoundError, StoreError
-from shapedb.schema import Failure
-from shapedb.store import CommitResult
+import query.database as database
+from shapedb.config.core import Config
+from shapedb.errors import ConfigError, NotFoundError, StoreError
+from shapedb.store.schema import Failure
+from shapedb.store.store import CommitResult
 
 
 @pytest.fixture()
@@ -71,50 +71,40 @@ def test_delete_by_id_and_name(tmp_db: database.Database) -> None:
         tmp_db.delete("a")
 
 
-def test_on_commit_hook_is_called(
+def test_every_commit_that_changes_shapes_updates_the_derived_state(
     tmp_db: database.Database, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    from query.search import index
+
     calls: list[CommitResult] = []
-
-    def fake(name: str) -> Any:
-        if name == "on_commit":
-            return lambda db, result: calls.append(result)
-        raise MissingDependencyError("nope")
-
-    monkeypatch.setattr(database, "_extension", fake)
+    monkeypatch.setattr(index, "on_commit", lambda db, result: calls.append(result))
     tmp_db.commit([make_record("a")])
     tmp_db.delete("a")
     tmp_db.commit(failures=[Failure("x", "LoadError", "junk")])  # no shape changed
     assert [(c.added, c.deleted) for c in calls] == [((1,), ()), ((), (1,))]
 
 
-def test_failing_hook_does_not_undo_the_commit(
+def test_a_failing_index_update_does_not_undo_the_commit(
     tmp_db: database.Database, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    from query.search import index
+
     def boom(db: Any, result: Any) -> None:
         raise RuntimeError("index broke")
 
-    monkeypatch.setattr(database, "_extension", lambda name: boom)
+    monkeypatch.setattr(index, "on_commit", boom)
     tmp_db.commit([make_record("a")])
     assert len(tmp_db) == 1
 
 
-def test_extension_lookup(monkeypatch: pytest.MonkeyPatch) -> None:
-    database._extension.cache_clear()
-    try:
-        assert callable(database._extension("ingest"))
-        with pytest.raises(MissingDependencyError, match="no 'teleport' extension"):
-            database._extension("teleport")
-    finally:
-        database._extension.cache_clear()
-
-
-def test_core_does_not_import_downstream_packages() -> None:
+def test_the_core_loads_no_downstream_package() -> None:
+    """The store, the engine and ``import shapedb`` load nothing of ``ingest`` or ``query``;
+    only the facade (``shapedb.connect``, a lazy re-export) does."""
     import subprocess
     import sys
 
     code = (
-        "import sys, shapedb.database, shapedb.store, shapedb.cli;"
+        "import sys, shapedb, shapedb.store, shapedb.mdbd, shapedb.signature, shapedb.geometry;"
         "bad = [m for m in sys.modules if m.split('.')[0] in ('ingest', 'query')];"
         "print(bad); sys.exit(1 if bad else 0)"
     )

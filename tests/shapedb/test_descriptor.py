@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import shapedb
-from shapedb.config import DescriptorConfig, KernelConfig
-from shapedb.descriptor import LAYOUTS, VERSION, describe, dim
-from shapedb.graph import ContactGraph, contact_edges
+from shapedb.config.core import DescriptorConfig, KernelConfig
+from shapedb.mdbd.graph import ContactGraph, contact_edges
+from shapedb.signature.descriptor import LAYOUTS, VERSION, describe, dim
 
 
 def _chain(n: int, bend: float, seed: int = 0) -> ContactGraph:
@@ -118,7 +118,7 @@ def test_geodesic_blocks_do_not_see_a_bent_chain() -> None:
 
 
 def test_geodesic_distances_between_components_are_finite_and_long() -> None:
-    from shapedb.descriptor import _geodesics
+    from shapedb.signature.descriptor import _geodesics
 
     a = _chain(10, 0.0)
     shifted = a.centers + [0.0, 50.0, 0.0]
@@ -164,7 +164,7 @@ def test_a_store_keeps_the_descriptor_version_it_was_built_with(tmp_path: Path) 
 
 
 def test_walk_averages_sort_within_groups_of_near_equal_radii() -> None:
-    from shapedb.descriptor import _sorted_walks
+    from shapedb.signature.descriptor import _sorted_walks
 
     p0 = np.array([1.0, 0.99, 0.5, 0.49, 0.2, 0.0])
     walks = np.array([3.0, 5.0, 1.0, 2.0, 7.0, 0.0])
@@ -177,7 +177,7 @@ def test_walk_averages_sort_within_groups_of_near_equal_radii() -> None:
 
 
 def test_version_6_is_version_4_without_the_pose_blocks() -> None:
-    from shapedb.descriptor import POSE_BLOCKS
+    from shapedb.signature.descriptor import POSE_BLOCKS
 
     g = _chain(40, 1.0)
     f4, f6 = describe(g, 4), describe(g, 6)
@@ -198,3 +198,10 @@ def test_a_store_can_be_built_with_version_6(tmp_path: Path) -> None:
     assert again.config.descriptor.version == 6
     assert again.get("plate").feature.shape == (dim(6),)
     assert again.search(examples.part("plate", 0), k=1)[0].name == "plate"
+
+
+def test_the_configuration_knows_every_descriptor_version() -> None:
+    from shapedb.config.core import DESCRIPTOR_DIMS
+    from shapedb.signature.descriptor import LAYOUTS, dim
+
+    assert {v: dim(v) for v in sorted(LAYOUTS)} == DESCRIPTOR_DIMS

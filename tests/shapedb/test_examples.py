@@ -7,9 +7,9 @@ import pytest
 
 from shapedb import examples
 from shapedb.errors import ConfigError
-from shapedb.geometry import Grid
-from shapedb.implicit import Implicit
-from shapedb.mdbd import decompose
+from shapedb.geometry.base import Grid
+from shapedb.geometry.implicit import Implicit
+from shapedb.mdbd.decomposition import decompose
 
 
 def test_figures_are_deterministic_and_distinct() -> None:

@@ -9,9 +9,13 @@ import pytest
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from shapedb.config import Config, FieldVectorConfig
+from shapedb.config.core import Config, FieldVectorConfig
 from shapedb.errors import ConfigError
-from shapedb.field_descriptors import (
+from shapedb.geometry.base import Grid
+from shapedb.geometry.implicit import Box, Sphere
+from shapedb.geometry.inside import Inside, field_inside
+from shapedb.mdbd.decomposition import decompose
+from shapedb.signature.field_vector import (
     decomposition_field_vector,
     depth_buffer_descriptor,
     depth_images,
@@ -21,10 +25,6 @@ from shapedb.field_descriptors import (
     harmonic_energies,
     principal_coordinates,
 )
-from shapedb.geometry import Grid
-from shapedb.implicit import Box, Sphere
-from shapedb.inside import Inside, field_inside
-from shapedb.mdbd import decompose
 
 Body = Callable[[NDArray[np.float64]], NDArray[np.bool_]]
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from shapedb.errors import InvalidShapeError, NotFoundError
-from shapedb.graph import ContactGraph, contact_edges
-from shapedb.mdbd import decompose
+from shapedb.mdbd.decomposition import decompose
+from shapedb.mdbd.graph import ContactGraph, contact_edges
 
 
 def path_graph(n: int) -> ContactGraph:
@@ -29,7 +29,7 @@ def test_contact_edges_threshold_and_order() -> None:
 
 
 def test_contact_edges_kdtree_path_matches_dense(monkeypatch: pytest.MonkeyPatch) -> None:
-    import shapedb.graph as graph
+    import shapedb.mdbd.graph as graph
 
     rng = np.random.default_rng(1)
     c, r = rng.random((300, 3)), rng.uniform(0.01, 0.06, 300)

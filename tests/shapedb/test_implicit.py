@@ -11,8 +11,8 @@ from shapedb.errors import (
     InvalidShapeError,
     NonFiniteGeometryError,
 )
-from shapedb.geometry import Geometry, Grid
-from shapedb.implicit import (
+from shapedb.geometry.base import Geometry, Grid
+from shapedb.geometry.implicit import (
     Box,
     Capsule,
     Cylinder,

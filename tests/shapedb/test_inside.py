@@ -1,23 +1,23 @@
-"""The inside of a decomposition's field and its light fields (shapedb.inside)."""
+"""The inside of a decomposition's field and its light fields (shapedb.geometry.inside)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from shapedb.config import LightFieldConfig
+from shapedb.config.core import LightFieldConfig
 from shapedb.errors import ConfigError
-from shapedb.geometry import Grid
-from shapedb.implicit import Box, Sphere
-from shapedb.inside import field_inside
-from shapedb.lightfield import (
+from shapedb.geometry.base import Grid
+from shapedb.geometry.implicit import Box, Sphere
+from shapedb.geometry.inside import field_inside
+from shapedb.mdbd.decomposition import decompose
+from shapedb.signature.lightfield import (
     decomposition_light_field,
     image_axes,
     inside_light_field,
     record_light_field,
     render_discs,
 )
-from shapedb.mdbd import decompose
 
 RES = 64
 

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from shapedb.config import KernelConfig
+from shapedb.config.core import KernelConfig
 from shapedb.errors import ConfigError, InvalidShapeError
-from shapedb.graph import ContactGraph
-from shapedb.implicit import Implicit
-from shapedb.kernel import distance, features, features_batch, kernel, weights
-from shapedb.mdbd import decompose
+from shapedb.geometry.implicit import Implicit
+from shapedb.mdbd.decomposition import decompose
+from shapedb.mdbd.graph import ContactGraph
+from shapedb.signature.kernel import distance, features, features_batch, kernel, weights
 
 CFG = KernelConfig(n_r=2, t=2, w=0.9, la=0.75, lb=0.75, lam=1.0, method="paper")
 

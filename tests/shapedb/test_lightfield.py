@@ -1,13 +1,13 @@
-"""The light field descriptor of shapedb.lightfield on analytic ball sets."""
+"""The light field descriptor of shapedb.signature.lightfield on analytic ball sets."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from shapedb.config import LightFieldConfig
+from shapedb.config.core import LightFieldConfig
 from shapedb.errors import ConfigError
-from shapedb.lightfield import (
+from shapedb.signature.lightfield import (
     ball_light_field,
     dodecahedron_rotations,
     dodecahedron_views,
@@ -216,9 +216,9 @@ def test_dilation_and_closing_only_add_pixels() -> None:
 
 
 def test_the_light_fields_of_a_longer_packing_are_those_of_the_balls_and_the_tail() -> None:
-    from shapedb.implicit import Box, Capsule
-    from shapedb.lightfield import decomposition_light_field, record_light_field
-    from shapedb.mdbd import decompose
+    from shapedb.geometry.implicit import Box, Capsule
+    from shapedb.mdbd.decomposition import decompose
+    from shapedb.signature.lightfield import decomposition_light_field, record_light_field
 
     g = Box([0, 0, 0], [2.0, 2.0, 2.0]) | Capsule([0.9, 0, 0], [2.8, 0, 0], 0.1)
     today = decompose(g, resolution=48, n_balls=16)

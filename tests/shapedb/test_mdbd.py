@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from shapedb.config import MDBDConfig
+from shapedb.config.core import MDBDConfig
 from shapedb.errors import ConfigError, DegenerateGeometryError, InvalidShapeError
-from shapedb.implicit import Implicit, Sphere
-from shapedb.mdbd import Decomposition, _decompose_naive, decompose
+from shapedb.geometry.implicit import Implicit, Sphere
+from shapedb.mdbd.decomposition import Decomposition, _decompose_naive, decompose
 
 
 def assert_valid(d: Decomposition, geometry: Implicit, tol: float = 1e-6) -> None:
@@ -112,7 +112,7 @@ def test_ties_make_the_choice_along_a_ridge_robust_to_noise() -> None:
     crest, far from the clean cylinder's; with ``tie_cells`` above the noise both start
     at the same end of the ridge.
     """
-    from shapedb.implicit import Cylinder
+    from shapedb.geometry.implicit import Cylinder
 
     cyl = Cylinder([-1.0, 0, 0], [1.0, 0, 0], 0.3)
     bumpy = Implicit(
@@ -128,7 +128,7 @@ def test_ties_make_the_choice_along_a_ridge_robust_to_noise() -> None:
 def test_the_middle_tie_rule_starts_a_ridge_at_its_middle_whatever_the_frame() -> None:
     """tie_rule="middle" (the default): a cylinder's first ball sits at the middle of its axis, for a
     clean and a bumpy copy, and for the copy turned end over end (axis sign flipped)."""
-    from shapedb.implicit import Cylinder
+    from shapedb.geometry.implicit import Cylinder
 
     cyl = Cylinder([-1.0, 0, 0], [1.0, 0, 0], 0.3)
     bumpy = Implicit(
@@ -222,8 +222,8 @@ def test_canonical_frame_is_recorded_and_degenerate_inertia_does_not_crash(
 
 
 def test_other_representations_decompose_in_the_frame() -> None:
-    from shapedb.geometry import Transformed
-    from shapedb.voxels import VoxelGrid
+    from shapedb.geometry.base import Transformed
+    from shapedb.geometry.voxels import VoxelGrid
 
     occ = np.zeros((20, 14, 10), dtype=bool)
     occ[2:18, 2:12, 2:8] = True
@@ -241,7 +241,7 @@ def test_other_representations_decompose_in_the_frame() -> None:
 
 def _box_with_rod() -> Implicit:
     """A cube of side 2 with a rod of radius 0.1 sticking out along x to x = 2.8."""
-    from shapedb.implicit import Box, Capsule
+    from shapedb.geometry.implicit import Box, Capsule
 
     return Box([0, 0, 0], [2.0, 2.0, 2.0]) | Capsule([0.9, 0, 0], [2.8, 0, 0], 0.1)
 

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 import shapedb
-from shapedb import migrations
-from shapedb.config import (
+from shapedb.config import migrations
+from shapedb.config.core import (
     CloudConfig,
     Config,
     DescriptorConfig,

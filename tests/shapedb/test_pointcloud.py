@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from shapedb.geometry import Grid
-from shapedb.mesh import TriangleMesh
-from shapedb.pointcloud import UNEXPLAINED_SWITCH, PointCloud
+from shapedb.geometry.base import Grid
+from shapedb.geometry.mesh import TriangleMesh
+from shapedb.geometry.pointcloud import UNEXPLAINED_SWITCH, PointCloud
 
 
 def _open_cup() -> TriangleMesh:
@@ -127,7 +127,7 @@ def test_surface_sampling_is_the_median_sample_spacing() -> None:
     assert step < cloud.surface_sampling <= 2.0 * step + 1e-9
     assert cloud.surface_sampling == float(np.median(cloud.spacing))
     assert _plate().surface_sampling == 0.0
-    from shapedb.mdbd import decompose
+    from shapedb.mdbd.decomposition import decompose
 
     d = decompose(cloud, resolution=24, n_balls=16)
     assert d.representation == "pointcloud" and d.sampling == cloud.surface_sampling

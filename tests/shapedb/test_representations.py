@@ -16,11 +16,11 @@ import pytest
 import trimesh
 
 from shapedb import decompose, features
-from shapedb.geometry import Grid
-from shapedb.implicit import Box, Capsule, Cylinder, Implicit, Sphere, Torus
-from shapedb.mesh import TriangleMesh
-from shapedb.pointcloud import PointCloud
-from shapedb.voxels import VoxelGrid
+from shapedb.geometry.base import Grid
+from shapedb.geometry.implicit import Box, Capsule, Cylinder, Implicit, Sphere, Torus
+from shapedb.geometry.mesh import TriangleMesh
+from shapedb.geometry.pointcloud import PointCloud
+from shapedb.geometry.voxels import VoxelGrid
 
 OPTS = {"resolution": 48, "n_balls": 128}
 
@@ -86,7 +86,7 @@ def descriptors(versions: dict[str, dict[str, object]]) -> dict[str, np.ndarray]
 def test_each_representation_finds_its_own_mesh_first(
     descriptors: dict[str, np.ndarray], kind: str
 ) -> None:
-    from shapedb.kernel import distance
+    from shapedb.signature.kernel import distance
 
     meshes, queries = descriptors["mesh"], descriptors[kind]
     d = np.array([[distance(q, m) for m in meshes] for q in queries])

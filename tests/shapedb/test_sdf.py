@@ -14,10 +14,10 @@ from shapedb.errors import (
     InvalidShapeError,
     NonFiniteGeometryError,
 )
-from shapedb.geometry import Grid
-from shapedb.mesh import TriangleMesh
-from shapedb.pointcloud import PointCloud
-from shapedb.voxels import VoxelGrid
+from shapedb.geometry.base import Grid
+from shapedb.geometry.mesh import TriangleMesh
+from shapedb.geometry.pointcloud import PointCloud
+from shapedb.geometry.voxels import VoxelGrid
 
 CAPOD = Path("/work/shared/data/capod")
 
@@ -423,7 +423,7 @@ def _point_triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
 def test_triangle_band_covers_slivers(step: float, dilate: int) -> None:
     """The band holds every cell within ``dilate - 0.5 - step / sqrt(3)`` cells of the
     triangles (slivers, large and tiny ones)."""
-    from shapedb._meshing import triangle_band
+    from shapedb.geometry._meshing import triangle_band
 
     rng = np.random.default_rng(3)
     shape = (24, 20, 22)

@@ -1,4 +1,4 @@
-"""Thin sheets, open and flat meshes get a solid (shapedb.sheet); closed solids do not change."""
+"""Thin sheets, open and flat meshes get a solid (shapedb.geometry.sheet); closed solids do not change."""
 
 from __future__ import annotations
 
@@ -8,15 +8,15 @@ import numpy as np
 import pytest
 import trimesh
 
-from shapedb.mdbd import decompose
-from shapedb.mesh import TriangleMesh
-from shapedb.sheet import (
+from shapedb.geometry.mesh import TriangleMesh
+from shapedb.geometry.sheet import (
     LocallyThickened,
     Thickened,
     needs_thickening,
     sheet_fraction,
     sheet_region,
 )
+from shapedb.mdbd.decomposition import decompose
 
 QUAD_V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=float)
 QUAD_F = np.array([[0, 1, 2], [0, 2, 3]])
@@ -112,8 +112,8 @@ def _winged_box() -> TriangleMesh:
 
 
 def test_a_sheet_beside_a_solid_gets_a_slab_only_with_the_local_rule() -> None:
-    from shapedb.config import MDBDConfig
-    from shapedb.mdbd import prepare_field
+    from shapedb.config.core import MDBDConfig
+    from shapedb.mdbd.decomposition import prepare_field
 
     mesh = _winged_box()
     assert not mesh.closed
@@ -141,8 +141,8 @@ def test_a_sheet_beside_a_solid_gets_a_slab_only_with_the_local_rule() -> None:
 
 
 def test_meshes_with_no_sheet_cells_are_not_thickened_locally() -> None:
-    from shapedb.config import MDBDConfig
-    from shapedb.mdbd import prepare_field
+    from shapedb.config.core import MDBDConfig
+    from shapedb.mdbd.decomposition import prepare_field
 
     box = trimesh.creation.box([2.0, 1.0, 1.0])
     prep = prepare_field(TriangleMesh(box.vertices, box.faces), MDBDConfig(resolution=32))
@@ -153,7 +153,7 @@ def test_meshes_with_no_sheet_cells_are_not_thickened_locally() -> None:
 
 
 def test_locally_thickened_distance_is_the_base_plus_the_thickness_in_the_region() -> None:
-    from shapedb.geometry import Grid
+    from shapedb.geometry.base import Grid
 
     base = TriangleMesh(QUAD_V, QUAD_F)
     grid = Grid.fit(base.bounds + np.array([[0, 0, -0.5], [0, 0, 0.5]]), resolution=16)
@@ -174,7 +174,7 @@ def test_locally_thickened_distance_is_the_base_plus_the_thickness_in_the_region
 
 
 def test_sheet_rule_is_checked_and_old_stores_read_whole() -> None:
-    from shapedb.config import Config, MDBDConfig
+    from shapedb.config.core import Config, MDBDConfig
     from shapedb.errors import ConfigError
 
     with pytest.raises(ConfigError, match="sheet_rule"):
@@ -189,7 +189,7 @@ def test_sheet_rule_is_checked_and_old_stores_read_whole() -> None:
 
 
 def test_a_locally_thickened_solid_moves_as_a_whole() -> None:
-    from shapedb.geometry import Grid
+    from shapedb.geometry.base import Grid
 
     base = TriangleMesh(QUAD_V, QUAD_F)
     grid = Grid.fit(base.bounds + np.array([[0, 0, -0.5], [0, 0, 0.5]]), resolution=16)

@@ -22,9 +22,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from shapedb.implicit import Implicit
-from shapedb.kernel import features, kernel
-from shapedb.mdbd import decompose
+from shapedb.geometry.implicit import Implicit
+from shapedb.mdbd.decomposition import decompose
+from shapedb.signature.kernel import features, kernel
 
 OPTS = {"resolution": 64, "n_balls": 128}
 
@@ -126,7 +126,7 @@ def figure_mesh() -> tuple[np.ndarray, np.ndarray]:
 
 def test_mesh_rotated_moved_and_scaled_keeps_the_kernel_at_one(figure_mesh: tuple) -> None:
     """Issue 2 on a mesh: a new mesh on transformed vertices, not a moved copy."""
-    from shapedb.mesh import TriangleMesh
+    from shapedb.geometry.mesh import TriangleMesh
 
     v, f = figure_mesh
     opts = {"resolution": 48, "n_balls": 64}
@@ -143,7 +143,7 @@ def test_mesh_rotated_moved_and_scaled_keeps_the_kernel_at_one(figure_mesh: tupl
 
 
 def test_point_cloud_rotated_keeps_the_kernel_at_one(figure_mesh: tuple) -> None:
-    from shapedb.pointcloud import PointCloud
+    from shapedb.geometry.pointcloud import PointCloud
 
     v, _ = figure_mesh
     opts = {"resolution": 40, "n_balls": 48, "refine": False}
@@ -157,9 +157,9 @@ def test_point_cloud_rotated_keeps_the_kernel_at_one(figure_mesh: tuple) -> None
 def test_frame_without_exact_moments_is_not_claimed_exact() -> None:
     """The data frame only serves meshes, clouds and moved copies; a solid of its own
     goes through the coarse passes (whose frame is measured above)."""
-    from shapedb.config import MDBDConfig
-    from shapedb.frame import _data_frame, _moved_frame
-    from shapedb.implicit import Sphere
+    from shapedb.config.core import MDBDConfig
+    from shapedb.geometry.implicit import Sphere
+    from shapedb.mdbd.frame import _data_frame, _moved_frame
 
     s = Sphere([0.1, 0.2, 0.3], 1.0)
     assert _data_frame(s, MDBDConfig()) is None

@@ -14,10 +14,10 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from shapedb.config import Config
+from shapedb.config.core import Config
 from shapedb.errors import ConfigError, NotFoundError, QueryError, StoreError, StoreLockedError
-from shapedb.mdbd import Decomposition
-from shapedb.schema import (
+from shapedb.mdbd.decomposition import Decomposition
+from shapedb.store.schema import (
     SCHEMA_VERSION,
     Failure,
     ShapeRecord,
@@ -25,7 +25,7 @@ from shapedb.schema import (
     shapes_schema,
     shapes_table,
 )
-from shapedb.store import MANIFEST, Store
+from shapedb.store.store import MANIFEST, Store
 
 CONFIG = Config().with_options(resolution=32, n_balls=64, n_r=4, method="paper")
 
@@ -165,7 +165,7 @@ def test_sampling_round_trips_and_old_rows_read_as_exact(tmp_store: Store) -> No
 
 
 def test_field_vector_round_trips_and_old_rows_read_as_none(tmp_store: Store) -> None:
-    from shapedb.field_descriptors import field_vector_dim
+    from shapedb.signature.field_vector import field_vector_dim
 
     vector = np.linspace(0.0, 1.0, field_vector_dim(CONFIG), dtype=np.float32)
     tmp_store.add([replace(make_record("fv"), field_vector=vector), make_record("plain")])
@@ -490,8 +490,8 @@ def test_plain_duckdb_reads_through_the_manifest(
 
 def test_two_creators_never_mix_configurations(tmp_path: Path) -> None:
     """Issue 24, case 3: connect(p, resolution=a) and (p, resolution=b) at the same moment."""
-    import shapedb.database as database
-    from shapedb.implicit import Sphere
+    import query.database as database
+    from shapedb.geometry.implicit import Sphere
 
     def create(path: Path, resolution: int, start: threading.Barrier, outcome: dict) -> None:
         start.wait()

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from shapedb.complement import Complement
-from shapedb.config import PartConfig
+from shapedb.config.core import PartConfig
 from shapedb.errors import ConfigError, InvalidShapeError
-from shapedb.graph import ContactGraph
-from shapedb.implicit import Box, Cylinder
-from shapedb.kernel import features
-from shapedb.mdbd import decompose
-from shapedb.subgraph import (
+from shapedb.geometry.complement import Complement
+from shapedb.geometry.implicit import Box, Cylinder
+from shapedb.mdbd.decomposition import decompose
+from shapedb.mdbd.graph import ContactGraph
+from shapedb.signature.kernel import features
+from shapedb.signature.subgraph import (
     neighbourhood_features,
     neighbourhood_features_many,
     neighbourhood_features_naive,
@@ -170,7 +170,7 @@ def test_complement_sign_and_grid() -> None:
     assert s[1] < 0  # in the plate
     assert s[2] > 0  # above the plate, inside the box
     assert s[3] < 0  # outside the box
-    from shapedb.geometry import Grid
+    from shapedb.geometry.base import Grid
 
     grid = Grid.fit(c.bounds, resolution=20)
     np.testing.assert_allclose(
@@ -212,9 +212,9 @@ def test_complement_in_the_exact_box_isolates_through_holes() -> None:
 
 def test_part_graph_rebuilds_contacts_at_the_part_tolerance() -> None:
     """Two spheres one cell apart touch at 1.5 cells, not at 0.5; 0 keeps the stored graph."""
-    from shapedb.config import PartConfig
-    from shapedb.mdbd import Decomposition
-    from shapedb.subgraph import part_graph
+    from shapedb.config.core import PartConfig
+    from shapedb.mdbd.decomposition import Decomposition
+    from shapedb.signature.subgraph import part_graph
 
     h = 0.1  # grid cell
     centers = np.array([[0.0, 0, 0], [2.0 + h, 0, 0], [0, 3.0, 0]])

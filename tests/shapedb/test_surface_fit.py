@@ -1,4 +1,4 @@
-"""Local sphere fits (shapedb.surface_fit) and the cloud distance built on them."""
+"""Local sphere fits (shapedb.geometry.surface_fit) and the cloud distance built on them."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import pytest
 from scipy.spatial import cKDTree
 
 from shapedb.errors import InvalidShapeError
-from shapedb.pointcloud import PointCloud
-from shapedb.surface_fit import fit_spheres, sphere_distance
+from shapedb.geometry.pointcloud import PointCloud
+from shapedb.geometry.surface_fit import fit_spheres, sphere_distance
 
 
 def _sphere_samples(n: int, radius: float, seed: int) -> np.ndarray:
@@ -67,7 +67,7 @@ def test_sparse_sphere_cloud_distance_is_within_two_percent() -> None:
 
 def test_sphere_distance_signs_and_grid() -> None:
     """The estimator carries into signed distances and the grid SDF (positive inside)."""
-    from shapedb.geometry import Grid
+    from shapedb.geometry.base import Grid
 
     pc = PointCloud(_sphere_samples(800, 1.0, seed=4), distance="sphere")
     p = np.array([[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [0.0, 0.0, 1.5]])

@@ -1,11 +1,11 @@
-"""The ball-union block (shapedb.union): invariances and exact values on analytic balls."""
+"""The ball-union block (shapedb.signature.union): invariances and exact values on analytic balls."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from shapedb.union import BANDS, SHELLS, shell_energies, sphere_grid, union_features
+from shapedb.signature.union import BANDS, SHELLS, shell_energies, sphere_grid, union_features
 
 
 def _balls(seed: int = 0) -> tuple[np.ndarray, np.ndarray]:

@@ -1,11 +1,11 @@
-"""Views of the ball union (shapedb.union_views): exact images of a ball, invariances."""
+"""Views of the ball union (shapedb.signature.union_views): exact images of a ball, invariances."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from shapedb.union_views import (
+from shapedb.signature.union_views import (
     DIRECTIONS,
     HARMONICS,
     RINGS,

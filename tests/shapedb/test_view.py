@@ -1,4 +1,4 @@
-"""Sparse views (shapedb.view): sparsity test, view sampling, configuration, records."""
+"""Sparse views (shapedb.geometry.view): sparsity test, view sampling, configuration, records."""
 
 from __future__ import annotations
 
@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from shapedb.config import CloudConfig, Config
+from shapedb.config.core import CloudConfig, Config
 from shapedb.errors import ConfigError
-from shapedb.implicit import Sphere
-from shapedb.mesh import TriangleMesh
-from shapedb.pointcloud import PointCloud
-from shapedb.view import (
+from shapedb.geometry.implicit import Sphere
+from shapedb.geometry.mesh import TriangleMesh
+from shapedb.geometry.pointcloud import PointCloud
+from shapedb.geometry.view import (
     AREA_PER_SAMPLE,
     MIN_VIEW_SAMPLES,
     SPARSE_CELLS,

@@ -35,7 +35,15 @@ MODELS = [
 ]
 #: Models small enough to commit (a few kB each); the test re-ingests them.
 KEPT = ("generic:", "web:")
-DERIVED = ("index", "index_lightfield", "index_neighbours", "index_field", "journal", "staging", ".lock")
+DERIVED = (
+    "index",
+    "index_lightfield",
+    "index_neighbours",
+    "index_field",
+    "journal",
+    "staging",
+    ".lock",
+)
 
 
 def _label(source: str) -> str:

@@ -1,0 +1,646 @@
+"""A faiss index over the neighbourhood-subgraph features of every node of every shape.
+
+Corpus part search asks: which neighbourhood subgraph ``G[N(u, K)]`` of which stored
+shape is most like the query part? Each stored shape of n balls contributes n vectors
+(:func:`shapedb.signature.subgraph.neighbourhood_features`: Eq. 1 plus the size and centre
+blocks, d = 3 n_r + 2 = 32 by default, :func:`shapedb.signature.subgraph.part_dim`), so a
+store of 1e4 shapes of 512 balls holds five million. As in :mod:`query.search.index`, the
+part distance (Eq. 2 extended) is a weighted L1 distance, so faiss holds
+``f * weights`` under ``METRIC_L1``:
+
+* below ``ivf_threshold`` vectors, ``IndexFlat(d, METRIC_L1)`` (exact);
+* above, ``IndexIVFFlat`` with an L2 coarse quantizer (k-means, BLAS-fast to train
+  and assign) and L1 inverted lists, probing ``nprobe`` lists (approximate).
+
+faiss only proposes candidates; they are re-ranked exactly in float64 on the raw
+features and grouped by shape (at most ``per_shape`` results per shape, default 1:
+neighbouring nodes of one shape have nearly identical neighbourhoods; with
+``per_shape > 1`` the matches kept within a shape are chosen greedily so that their
+node sets overlap by at most ``overlap``, Jaccard, default 0.0: disjoint). When the
+candidates hold fewer than k distinct shapes the search widens (more candidates,
+more lists) and finally falls back to the exact scan.
+
+Per shape the index also keeps the contact edges of its part graph (the contacts
+found again from the balls at ``PartConfig.contact_tol_cells``,
+:func:`shapedb.signature.subgraph.part_graph`), so that a hit's node set ``N(u, K)`` is known
+without reading the store.
+
+On disk, beside the store: ``<store>/parts/<PartConfig fingerprint>/current.json``
+(replaced atomically) names ``v<version>-<token>/`` holding ``features.npy``,
+``shapes.npy``, ``node_ptr.npy``, ``edge_ptr.npy``, ``edges.npy``, ``alive.npy`` and,
+for IVF, ``faiss.index``. When the store version has moved, new shapes are
+featurised from the store's balls and added, deleted ones tombstoned (the index is
+compacted once a fifth of it is dead). The configuration of an index written by an
+older version is read through :mod:`shapedb.config.migrations` (:func:`read_part_config`).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import threading
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from query.search.versioned import POINTER, current, save_version
+from shapedb.config.core import PartConfig
+from shapedb.errors import NotFittedError, QueryError, StoreError, require
+from shapedb.signature.subgraph import neighbourhood_features_many, part_dim, part_weights
+
+if TYPE_CHECKING:
+    from query.database import Database
+
+__all__ = ["PartIndex", "open_parts_index", "on_commit", "read_part_config", "PARTS_DIR"]
+
+log = logging.getLogger(__name__)
+
+PARTS_DIR = "parts"
+_FORMAT = 1
+_DEAD_FRACTION = 0.2
+_SCAN_BLOCK = 262_144
+
+
+def read_part_config(data: dict[str, Any]) -> PartConfig:
+    """The :class:`PartConfig` of a stored part index of any version (:mod:`shapedb.config.migrations`)."""
+    return PartConfig.from_dict(data)
+
+
+def _faiss() -> Any:
+    return require("faiss", extra="faiss", feature="the part index")
+
+
+class PartIndex:
+    """Nearest neighbourhood subgraphs under Eq. 2, grouped by shape.
+
+    Parameters
+    ----------
+    config : PartConfig
+        Neighbourhood range and kernel of the stored features.
+    ivf_threshold : int
+        From this many vectors an IVF index is built instead of a flat one.
+    nlist : int, optional
+        IVF lists; default ``2 * sqrt(n)`` rounded to a power of two.
+    nprobe : int
+        IVF lists probed per query (doubled on each widening).
+    oversample : int
+        Candidates asked from faiss per wanted result, before grouping by shape.
+    min_candidates : int
+        Lower bound on the number of candidates.
+
+    Attributes
+    ----------
+    features_ : (N, d) float32
+        Raw features, one row per (shape, node).
+    shapes_ : (S,) int64
+        Shape ids, in the order their rows appear.
+    node_ptr_ : (S + 1,) int64
+        Rows of shape s are ``node_ptr_[s]:node_ptr_[s + 1]``; row - ``node_ptr_[s]``
+        is the node.
+    edge_ptr_ : (S + 1,) int64, edges_ : (E, 2) int32
+        Contact edges of shape s (local node numbers) are ``edges_[edge_ptr_[s]:...]``.
+    alive_ : (S,) bool
+        False for shapes deleted from the store (tombstones).
+    version_ : int or None
+        Store version the index reflects.
+    """
+
+    def __init__(
+        self,
+        config: PartConfig | None = None,
+        *,
+        ivf_threshold: int = 500_000,
+        nlist: int | None = None,
+        nprobe: int = 32,
+        oversample: int = 16,
+        min_candidates: int = 256,
+    ) -> None:
+        self.config = config if config is not None else PartConfig()
+        self.ivf_threshold = int(ivf_threshold)
+        self.nlist = nlist
+        self.nprobe = int(nprobe)
+        self.oversample = int(oversample)
+        self.min_candidates = int(min_candidates)
+        self.version_: int | None = None
+        self._order: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
+
+    # ------------------------------------------------------------------ building
+    @property
+    def params(self) -> dict[str, Any]:
+        """Constructor settings (without ``config``), JSON-serialisable."""
+        keys = ("ivf_threshold", "nlist", "nprobe", "oversample", "min_candidates")
+        return {k: getattr(self, k) for k in keys}
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "features_"):
+            raise NotFittedError("PartIndex used before fit()", source="PartIndex")
+
+    @property
+    def weights(self) -> NDArray[np.float64]:
+        """(d,) weights of the part distance (:func:`shapedb.signature.subgraph.part_weights`)."""
+        return part_weights(self.config)
+
+    def fit(self, ids: ArrayLike, graphs: list[Any]) -> PartIndex:
+        """Index the neighbourhoods of every node of ``graphs``.
+
+        Parameters
+        ----------
+        ids : (S,) int
+            Shape ids, unique.
+        graphs : list of ContactGraph, Decomposition or (radii (n,), edges (m, 2))
+            One graph per id.
+
+        Returns
+        -------
+        PartIndex
+            ``self``.
+        """
+        self.shapes_ = np.zeros(0, np.int64)
+        self.node_ptr_ = np.zeros(1, np.int64)
+        self.edge_ptr_ = np.zeros(1, np.int64)
+        self.edges_ = np.zeros((0, 2), np.int32)
+        self.alive_ = np.zeros(0, bool)
+        self.features_: NDArray[np.float32] = np.zeros((0, part_dim(self.config)), np.float32)
+        self._append(ids, graphs)
+        self._build_faiss()
+        return self
+
+    def _append(self, ids: ArrayLike, graphs: list[Any]) -> None:
+        ids_a = np.asarray(ids, dtype=np.int64).ravel()
+        if len(ids_a) != len(graphs):
+            raise QueryError(f"{len(ids_a)} ids for {len(graphs)} graphs", source="PartIndex")
+        if len(np.unique(np.concatenate([self.shapes_[self.alive_], ids_a]))) != (
+            int(self.alive_.sum()) + len(ids_a)
+        ):
+            raise QueryError("shape ids are not unique", source="PartIndex")
+        feats, offsets = neighbourhood_features_many(graphs, self.config)
+        from shapedb.signature.subgraph import graph_arrays
+
+        edges = [graph_arrays(g)[1] for g in graphs]
+        n_edges = np.array([len(e) for e in edges], np.int64)
+        self.features_ = np.concatenate([np.asarray(self.features_), feats.astype(np.float32)])
+        self.shapes_ = np.concatenate([self.shapes_, ids_a])
+        self.node_ptr_ = np.concatenate([self.node_ptr_, self.node_ptr_[-1] + offsets[1:]])
+        self.edge_ptr_ = np.concatenate([self.edge_ptr_, self.edge_ptr_[-1] + np.cumsum(n_edges)])
+        all_e = [np.asarray(self.edges_)] + [e.astype(np.int32).reshape(-1, 2) for e in edges]
+        self.edges_ = np.concatenate(all_e)
+        self.alive_ = np.concatenate([self.alive_, np.ones(len(ids_a), bool)])
+        self._order = None
+
+    def _weighted(self, x: ArrayLike) -> NDArray[np.float32]:
+        return np.ascontiguousarray(np.asarray(x, np.float64) * self.weights, np.float32)
+
+    def _build_faiss(self) -> None:
+        faiss = _faiss()
+        n, d = self.features_.shape
+        self.kind_ = "ivf" if n >= self.ivf_threshold else "flat"
+        if self.kind_ == "flat":
+            self.faiss_ = faiss.IndexFlat(d, faiss.METRIC_L1)
+        else:
+            nlist = self.nlist or int(2 ** np.round(np.log2(2 * np.sqrt(n))))
+            self.faiss_ = faiss.IndexIVFFlat(faiss.IndexFlatL2(d), d, nlist, faiss.METRIC_L1)
+            sample = np.random.default_rng(0).choice(n, min(n, 64 * nlist), replace=False)
+            self.faiss_.train(self._weighted(self.features_[np.sort(sample)]))
+        for s in range(0, n, _SCAN_BLOCK * 4):
+            self.faiss_.add(self._weighted(self.features_[s : s + _SCAN_BLOCK * 4]))
+        log.info("built %s part index: %d vectors of %d shapes", self.kind_, n, len(self.shapes_))
+
+    def add(self, ids: ArrayLike, graphs: list[Any]) -> PartIndex:
+        """Add shapes (their graphs) to a fitted index."""
+        self._check_fitted()
+        start = len(self.features_)
+        self._append(ids, graphs)
+        new = self.features_[start:]
+        for s in range(0, len(new), _SCAN_BLOCK * 4):
+            self.faiss_.add(self._weighted(new[s : s + _SCAN_BLOCK * 4]))
+        return self
+
+    def remove(self, ids: ArrayLike) -> PartIndex:
+        """Tombstone shapes by id; compact once a fifth of the vectors is dead."""
+        self._check_fitted()
+        gone = np.isin(self.shapes_, np.asarray(ids, np.int64))
+        self.alive_[gone] = False
+        sizes = np.diff(self.node_ptr_)
+        if sizes[~self.alive_].sum() > _DEAD_FRACTION * max(sizes.sum(), 1):
+            self._compact()
+        return self
+
+    def _compact(self) -> None:
+        keep = np.flatnonzero(self.alive_)
+        rows = _concat_ranges(self.node_ptr_, keep)
+        erows = _concat_ranges(self.edge_ptr_, keep)
+        sizes, esizes = np.diff(self.node_ptr_)[keep], np.diff(self.edge_ptr_)[keep]
+        self.features_ = np.asarray(self.features_)[rows]
+        self.edges_ = np.asarray(self.edges_)[erows]
+        self.shapes_ = self.shapes_[keep]
+        self.node_ptr_ = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        self.edge_ptr_ = np.concatenate([[0], np.cumsum(esizes)]).astype(np.int64)
+        self.alive_ = np.ones(len(keep), bool)
+        self._order = None
+        self._build_faiss()
+
+    # ------------------------------------------------------------------ lookups
+    @property
+    def n_vectors(self) -> int:
+        """Live vectors."""
+        self._check_fitted()
+        return int(np.diff(self.node_ptr_)[self.alive_].sum())
+
+    def _slot(self, shape_id: int) -> int:
+        if self._order is None:
+            live = np.flatnonzero(self.alive_)
+            o = np.argsort(self.shapes_[live], kind="stable")
+            self._order = (self.shapes_[live][o], live[o])
+        keys, pos = self._order
+        i = int(np.searchsorted(keys, shape_id))
+        if i >= len(keys) or keys[i] != shape_id:
+            raise QueryError("shape is not in the part index", source=shape_id)
+        return int(pos[i])
+
+    def features_of(self, shape_id: int) -> NDArray[np.float64]:
+        """(n, d) float64: the part features of every node of a stored shape."""
+        s = self._slot(int(shape_id))
+        return np.asarray(self.features_[self.node_ptr_[s] : self.node_ptr_[s + 1]], np.float64)
+
+    def graph_of(self, shape_id: int) -> tuple[int, NDArray[np.int32]]:
+        """(number of nodes, edges (m, 2) int32) of a stored shape."""
+        s = self._slot(int(shape_id))
+        n = int(self.node_ptr_[s + 1] - self.node_ptr_[s])
+        return n, np.asarray(self.edges_[self.edge_ptr_[s] : self.edge_ptr_[s + 1]])
+
+    def node_set(self, shape_id: int, node: int) -> NDArray[np.int64]:
+        """N(node, K) in a stored shape, sorted."""
+        n, e = self.graph_of(shape_id)
+        if not 0 <= node < n:
+            raise QueryError(f"node {node} is not in a graph of {n} nodes", source=shape_id)
+        seen = np.array([node], np.int64)
+        for _ in range(self.config.hops):  # BFS on the edge list: m is small
+            touch = np.isin(e, seen)
+            grown = np.union1d(seen, e[touch[:, ::-1]])
+            if len(grown) == len(seen):
+                break
+            seen = grown
+        return seen
+
+    # ------------------------------------------------------------------ search
+    def _group(
+        self,
+        pos: NDArray[np.int64],
+        d: NDArray[np.float64],
+        k: int,
+        per_shape: int,
+        overlap: float | None = 0.0,
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+        """Best ``per_shape`` rows per shape, top k overall: (shape ids, nodes, distances).
+
+        With ``overlap`` (not None) and ``per_shape > 1``, the rows kept within a shape
+        are taken greedily in distance order, skipping a row whose N(u, K) overlaps
+        (Jaccard) a kept one of the same shape by more than ``overlap``.
+        """
+        slot = np.searchsorted(self.node_ptr_, pos, side="right") - 1
+        ok = self.alive_[slot] & np.isfinite(d)
+        pos, d, slot = pos[ok], d[ok], slot[ok]
+        sid = self.shapes_[slot]
+        node = pos - self.node_ptr_[slot]
+        order = np.lexsort((node, sid, d))
+        if overlap is not None and per_shape > 1:
+            sel = self._suppress(sid, node, order, k, per_shape, overlap)
+            return sid[sel], node[sel], d[sel]
+        sid_o = sid[order]
+        # rank of each row within its shape, in distance order
+        srt = np.argsort(sid_o, kind="stable")
+        starts = np.r_[0, np.flatnonzero(np.diff(sid_o[srt])) + 1]
+        rank = np.empty(len(order), np.int64)
+        rank[srt] = np.arange(len(srt)) - np.repeat(starts, np.diff(np.r_[starts, len(srt)]))
+        first = rank < per_shape
+        sel = order[first][:k]
+        return sid[sel], node[sel], d[sel]
+
+    def _suppress(
+        self,
+        sid: NDArray[np.int64],
+        node: NDArray[np.int64],
+        order: NDArray[np.int64],
+        k: int,
+        per_shape: int,
+        overlap: float,
+    ) -> NDArray[np.int64]:
+        """Greedy per-shape NMS over rows in ``order``: positions kept (<= k)."""
+        kept: dict[int, list[NDArray[np.int64]]] = {}
+        out: list[int] = []
+        for i in order.tolist():
+            s = int(sid[i])
+            have = kept.setdefault(s, [])
+            if len(have) >= per_shape:
+                continue
+            ns = self.node_set(s, int(node[i]))
+            if any(_jaccard(ns, h) > overlap for h in have):
+                continue
+            have.append(ns)
+            out.append(i)
+            if len(out) == k:
+                break
+        return np.asarray(out, np.int64)
+
+    def search(
+        self,
+        query: ArrayLike,
+        k: int = 10,
+        *,
+        per_shape: int = 1,
+        allowed: ArrayLike | None = None,
+        overlap: float | None = 0.0,
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+        """The k stored neighbourhoods nearest to one query feature, exact distance order.
+
+        Parameters
+        ----------
+        query : (d,) float
+            Raw part feature of the query.
+        k : int
+            Results wanted.
+        per_shape : int
+            At most this many results per shape.
+        allowed : (m,) int, optional
+            Only these shape ids (exact scan over their nodes).
+        overlap : float or None
+            Within a shape, skip matches whose node sets overlap a better one's by
+            more than this (Jaccard; only matters for ``per_shape > 1``); None: off.
+
+        Returns
+        -------
+        shape_ids : (<= k,) int64
+        nodes : (<= k,) int64
+            Centre node u of each matching neighbourhood N(u, K).
+        distances : (<= k,) float64
+            Eq. 2 distances, ascending; ties by shape id, then node.
+        """
+        self._check_fitted()
+        q = self._query(query)
+        k, per_shape = int(k), int(per_shape)
+        if k < 1 or per_shape < 1:
+            raise QueryError("k and per_shape must be >= 1", source=f"k={k}, per_shape={per_shape}")
+        if allowed is not None:
+            slots = np.flatnonzero(
+                np.isin(self.shapes_, np.asarray(allowed, np.int64)) & self.alive_
+            )
+            return self._scan(q, _concat_ranges(self.node_ptr_, slots), k, per_shape, overlap)
+        total = len(self.features_)
+        n_cand = max(self.oversample * k * per_shape, self.min_candidates)
+        nprobe = self.nprobe
+        faiss = _faiss()
+        while n_cand < total:
+            params = None
+            if self.kind_ == "ivf":
+                params = faiss.SearchParametersIVF(nprobe=min(nprobe, self.faiss_.nlist))
+            before = faiss.omp_get_max_threads()
+            faiss.omp_set_num_threads(1)
+            try:
+                cand = self.faiss_.search(self._weighted(q[None]), n_cand, params=params)[1][0]
+            finally:
+                faiss.omp_set_num_threads(before)
+            cand = cand[cand >= 0]
+            x = np.asarray(self.features_[np.sort(cand)], np.float64)
+            d = np.abs(x - q) @ self.weights
+            out = self._group(np.sort(cand), d, k, per_shape, overlap)
+            if len(out[0]) >= k:
+                return out
+            n_cand, nprobe = 4 * n_cand, 4 * nprobe
+        return self._scan(q, np.arange(total, dtype=np.int64), k, per_shape, overlap)
+
+    def exact_search(
+        self, query: ArrayLike, k: int = 10, *, per_shape: int = 1, overlap: float | None = 0.0
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+        """Brute force over every live vector (the reference for recall)."""
+        self._check_fitted()
+        pos = np.arange(len(self.features_))
+        return self._scan(self._query(query), pos, int(k), per_shape, overlap)
+
+    def _query(self, query: ArrayLike) -> NDArray[np.float64]:
+        q = np.asarray(query, np.float64).ravel()
+        dim = part_dim(self.config)
+        if q.shape != (dim,) or not np.all(np.isfinite(q)):
+            raise QueryError(f"part feature must be {dim} finite values", source=f"shape {q.shape}")
+        # the stored features are float32: quantise the query the same way, so that an
+        # identical stored subgraph is at distance exactly 0 (similarity 1.0)
+        return q.astype(np.float32).astype(np.float64)
+
+    def _scan(
+        self,
+        q: NDArray[np.float64],
+        pos: NDArray[np.int64],
+        k: int,
+        per_shape: int,
+        overlap: float | None = 0.0,
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+        w = self.weights
+        best: list[tuple[NDArray[np.int64], NDArray[np.float64]]] = []
+        for s in range(0, len(pos), _SCAN_BLOCK):
+            p = pos[s : s + _SCAN_BLOCK]
+            d = np.abs(np.asarray(self.features_[p], np.float64) - q) @ w
+            if len(d) > 64 * k * per_shape:  # keep a generous prefix for grouping
+                thr = np.partition(d, 64 * k * per_shape)[64 * k * per_shape]
+                keep = d <= thr
+                p, d = p[keep], d[keep]
+            best.append((p, d))
+        if not best:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+        p = np.concatenate([b[0] for b in best])
+        d = np.concatenate([b[1] for b in best])
+        out = self._group(p, d, k, per_shape, overlap)
+        if len(out[0]) < k and len(p) < len(pos):  # prefix too short to hold k shapes
+            d = np.abs(np.asarray(self.features_[pos], np.float64) - q) @ w
+            out = self._group(pos, d, k, per_shape, overlap)
+        return out
+
+    # ------------------------------------------------------------------ persistence
+    _ARRAYS = ("features", "shapes", "node_ptr", "edge_ptr", "edges", "alive")
+
+    def save(self, directory: str | os.PathLike[str], *, version: int | None = None) -> Path:
+        """Write the index atomically under ``directory`` (pointer file + fresh sub-dir)."""
+        self._check_fitted()
+
+        def write(sub: Path) -> None:
+            for a in self._ARRAYS:
+                np.save(sub / f"{a}.npy", np.asarray(getattr(self, f"{a}_")))
+            if self.kind_ == "ivf":
+                _faiss().write_index(self.faiss_, str(sub / "faiss.index"))
+
+        meta = {
+            "format": _FORMAT,
+            "version": version,
+            "kind": self.kind_,
+            "config": self.config.to_dict(),
+            "params": self.params,
+            "n": int(len(self.features_)),
+        }
+        path = save_version(directory, write, meta, version=version)
+        self.version_ = version
+        return path
+
+    @classmethod
+    def load(cls, directory: str | os.PathLike[str]) -> PartIndex:
+        """Read the index ``<directory>/current.json`` points to (:class:`StoreError` if bad)."""
+        root = Path(directory)
+        try:
+            meta, sub = current(root)
+            if meta.get("format") != _FORMAT:
+                raise StoreError(f"unknown part index format {meta.get('format')!r}", source=root)
+            index = cls(read_part_config(meta["config"]), **meta["params"])
+            for a in cls._ARRAYS:
+                f = sub / f"{a}.npy"
+                setattr(
+                    index, f"{a}_", np.load(f, mmap_mode="r") if a == "features" else np.load(f)
+                )
+            index.alive_ = np.array(index.alive_)
+            index.kind_ = meta["kind"]
+            if index.kind_ == "ivf":
+                index.faiss_ = _faiss().read_index(str(sub / "faiss.index"))
+        except (OSError, ValueError, KeyError, TypeError, RuntimeError) as exc:
+            raise StoreError(f"cannot read the part index: {exc}", source=root) from exc
+        if index.kind_ == "flat":
+            index._build_faiss()
+        index.version_, index._order = meta["version"], None
+        if index.faiss_.ntotal != len(index.features_):
+            raise StoreError("part index files disagree on the number of vectors", source=root)
+        return index
+
+    def __repr__(self) -> str:
+        if not hasattr(self, "features_"):
+            return "PartIndex(unfitted)"
+        return (
+            f"PartIndex(kind={self.kind_!r}, shapes={int(self.alive_.sum())}, "
+            f"vectors={self.n_vectors}, hops={self.config.hops}, version={self.version_})"
+        )
+
+
+def _jaccard(a: NDArray[np.int64], b: NDArray[np.int64]) -> float:
+    """|a & b| / |a | b| of two sorted node sets."""
+    inter = len(np.intersect1d(a, b, assume_unique=True))
+    return inter / max(len(a) + len(b) - inter, 1)
+
+
+def _concat_ranges(ptr: NDArray[np.int64], slots: NDArray[np.int64]) -> NDArray[np.int64]:
+    from shapedb.signature.subgraph import concat_aranges
+
+    return concat_aranges(
+        ptr[slots].astype(np.int64), (ptr[slots + 1] - ptr[slots]).astype(np.int64)
+    )
+
+
+# ------------------------------------------------------------------ store glue
+_CACHE: dict[tuple[str, str], PartIndex] = {}
+_LOCK = threading.Lock()
+
+
+def _graphs_from_store(
+    db: Database, ids: NDArray[np.int64], cfg: PartConfig
+) -> list[tuple[Any, Any]]:
+    """(radii, edges) of each stored shape ``ids`` (ascending), read in one go.
+
+    The edges are the stored contact graph's when ``cfg.contact_tol_cells`` is 0, and
+    otherwise found again from the balls at that tolerance (:func:`part_graph`).
+    """
+    from shapedb.mdbd.graph import contact_edges
+
+    if not len(ids):
+        return []
+    balls = db.store.balls(ids.tolist())
+    bs, r = balls.column("shape_id").to_numpy(), balls.column("r").to_numpy()
+    ends = np.r_[ids, np.iinfo(np.int64).max]
+    b_ptr = np.asarray(np.searchsorted(bs, ends), np.int64)
+    if cfg.contact_tol_cells > 0:
+        c = np.stack([balls.column(a).to_numpy() for a in ("x", "y", "z")], 1)
+        spacing = db.store.shapes(["spacing"], ids=ids.tolist()).column("spacing").to_numpy()
+        out = []
+        for g in range(len(ids)):
+            lo, hi = b_ptr[g], b_ptr[g + 1]
+            tol = cfg.contact_tol_cells * float(spacing[g])
+            out.append((r[lo:hi], contact_edges(c[lo:hi], r[lo:hi], tol).astype(np.int64)))
+        return out
+    edges = db.store.edges(ids.tolist())
+    es = edges.column("shape_id").to_numpy()
+    e = np.stack([edges.column("i").to_numpy(), edges.column("j").to_numpy()], 1)
+    e_ptr = np.asarray(np.searchsorted(es, ends), np.int64)
+    return [(r[b_ptr[g] : b_ptr[g + 1]], e[e_ptr[g] : e_ptr[g + 1]]) for g in range(len(ids))]
+
+
+def open_parts_index(
+    db: Database, config: PartConfig | None = None, *, rebuild: bool = False, **params: Any
+) -> PartIndex:
+    """The store's part index for ``config``, loaded, brought up to date, or built.
+
+    Parameters
+    ----------
+    db : shapedb.Database
+        Uses ``db.store`` (``path``, ``version``, ``ids()``, ``balls()``, ``edges()``).
+    config : PartConfig, optional
+        Neighbourhood range and kernel; one index per distinct config.
+    rebuild : bool
+        Build from scratch.
+    **params
+        :class:`PartIndex` settings for a (re)build.
+
+    Returns
+    -------
+    PartIndex
+        Reflecting ``db.store.version``; cached in-process.
+    """
+    cfg = config if config is not None else PartConfig()
+    store = db.store
+    root = Path(os.fspath(store.path)) / PARTS_DIR / cfg.fingerprint
+    key = (os.fspath(store.path), cfg.fingerprint)
+    with _LOCK:
+        version = store.version
+        index = None if rebuild else _CACHE.get(key)
+        if index is not None and index.version_ == version:
+            return index
+        if index is None and not rebuild and (root / POINTER).exists():
+            try:
+                index = PartIndex.load(root)
+            except StoreError as exc:
+                log.warning("rebuilding the part index: %s", exc)
+        if index is not None and index.version_ == version:
+            _CACHE[key] = index
+            return index
+        ids = np.asarray(store.ids(), np.int64)
+        if index is None:
+            index = PartIndex(cfg, **params).fit(ids, _graphs_from_store(db, ids, cfg))
+            action = "built"
+        else:
+            have = index.shapes_[index.alive_]
+            gone = np.setdiff1d(have, ids)
+            new = np.setdiff1d(ids, have)
+            if len(gone):
+                index.remove(gone)
+            if len(new):
+                index.add(new, _graphs_from_store(db, new, cfg))
+            action = f"updated (+{len(new)}, -{len(gone)})"
+        index.save(root, version=version)
+        log.info("part index %s at store version %s: %r", action, version, index)
+        _CACHE[key] = index
+        return index
+
+
+def on_commit(db: Database, *args: Any, **kwargs: Any) -> None:
+    """Commit hook: bring every part index already built for this store up to date."""
+    base = Path(os.fspath(db.store.path)) / PARTS_DIR
+    if not base.is_dir():
+        return
+    for sub in base.iterdir():
+        if (sub / POINTER).exists():
+            try:
+                cfg = read_part_config(json.loads((sub / POINTER).read_text())["config"])
+            except (OSError, ValueError, KeyError, TypeError) as exc:
+                log.warning("skipping part index %s: %s", sub, exc)
+                continue
+            open_parts_index(db, cfg)
+
+
+def _forget(db: Database) -> None:  # drop a store's in-process cache entries (tests)
+    path = os.fspath(db.store.path)
+    for key in [k for k in _CACHE if k[0] == path]:
+        _CACHE.pop(key, None)

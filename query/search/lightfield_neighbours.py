@@ -1,0 +1,338 @@
+"""The shared-neighbour term of the ``"lightfield"`` stage and its per-store-version table.
+
+The term (``LightFieldFusionConfig.shared_neighbours`` ``k`` and ``shared_weight``
+``beta``, :mod:`query.search.rerank_lightfield`): for a query ``q`` with candidates ``C`` (in
+list order) and stage distances ``dl(q, x)``,
+
+* ``N_k(q)``: the query's ``k`` nearest other candidates by ``dl`` (ties in list order;
+  the query itself left out, and for an outside query a stored copy with ``dl == 0``:
+  the scorer's ``own`` mask), :func:`nearest_others`;
+* ``N_k(x)`` of a stored shape ``x``: its ``k`` nearest other stored shapes by the
+  stage distance among its own stage candidates, what a search for the stored id ``x``
+  re-ranks (version 4's ``K`` nearest, then the field vectors' ``K2`` extras:
+  :func:`query.search.rerank.stage_batch`), ties in list order, ``x`` left out;
+* ``S(q, x) = |({q} ∪ N_k(q)) ∩ ({x} ∪ N_k(x))| / (k + 1)`` (:func:`shared_scores`):
+  a stored query is its id, so ``q ∈ N_k(x)`` counts (the reciprocal case); an outside
+  query matches no stored id, so only ``x ∈ N_k(q)`` and common neighbours count. For
+  every candidate ``x``, the stored query's ``S`` is the outside copy's plus ``1 / (k +
+  1)`` exactly where ``q ∈ {x} ∪ N_k(x)``, and nothing else differs.
+
+The lists ``N_k(x)`` depend on the whole store (a new shape changes its neighbours'
+lists), so, like the spreads (:mod:`query.search.lightfield_spread`), they belong to a store
+version: computed on demand for the candidates a search needs (only queries whose gate
+is open read them), kept in process per store version (:class:`NeighbourTable`), and
+written to ``<store>/index_neighbours/`` (a versioned directory like the index's:
+``ids.npy``, ``neighbours.npy``, and the store version and the parameters in
+``current.json``) once every stored shape has one (an evaluation, or the commit hook of a
+store whose table costs at most :data:`FULL_AT_COMMIT` stage distances); read back while
+they match. A list computed for one shape or for all is the same (deterministic, from the
+stored vectors, light fields and field vectors). Cost: one stage per shape (``K + K2``
+stage distances at most, and a search of each index). The lists are those of the store's
+own stored distance (no learned metric).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from query.search.field_fusion import FieldFusion
+from query.search.rerank import Candidates, stage_batch
+from query.search.shape_table import ShapeTable, index_version, shared_table
+from query.search.versioned import POINTER
+
+if TYPE_CHECKING:
+    from query.database import Database
+    from query.search.rerank import ArrayReader
+    from shapedb.config.core import Config
+
+__all__ = [
+    "NEIGHBOURS",
+    "NEIGHBOUR_DIR",
+    "FULL_AT_COMMIT",
+    "StageRows",
+    "nearest_others",
+    "shared_scores",
+    "keep_first",
+    "stage_lists",
+    "commit_distances",
+    "NeighbourTable",
+    "neighbour_table",
+    "store_neighbours",
+    "on_commit",
+]
+
+log = logging.getLogger(__name__)
+
+#: The pseudo-column of the stored shapes' lists, read through ``Candidates.arrays``:
+#: (m, k) float64 ids, -1 pads.
+NEIGHBOURS = "light_field_neighbours"
+NEIGHBOUR_DIR = "index_neighbours"
+_FORMAT = 1
+_CHUNK = 16
+#: A commit recomputes every shape's list only when that costs at most this many stage
+#: distances (:func:`commit_distances`; 100 shapes each reaching the whole store).
+FULL_AT_COMMIT = 10_000
+_CACHE: dict[tuple[str, int], NeighbourTable] = {}
+_LOCK = threading.Lock()
+
+
+class StageRows(Protocol):
+    """The scorer's side the table needs (:class:`query.search.rerank_lightfield.LightFieldFusion`)."""
+
+    def stage_rows(
+        self, batch: Candidates
+    ) -> Iterator[tuple[int, NDArray[np.intp], NDArray[np.float64], NDArray[np.bool_]]]: ...
+
+    def extra_candidates(
+        self, batch: Candidates, allowed: Any = None
+    ) -> NDArray[np.int64] | None: ...
+
+    def score(self, batch: Candidates) -> NDArray[np.float64]: ...
+
+
+def nearest_others(
+    dl: NDArray[np.float64], own: NDArray[np.bool_], ids: NDArray[np.int64], k: int
+) -> NDArray[np.int64]:
+    """(k,) ids of the ``k`` nearest candidates by ``dl`` that are not ``own``; -1 pads.
+
+    ``dl``, ``own`` and ``ids`` are (c,) in list order; ties keep it.
+    """
+    others = np.flatnonzero(~np.asarray(own, bool))
+    near = others[np.argsort(np.asarray(dl)[others], kind="stable")[:k]]
+    out = np.full(k, -1, np.int64)
+    out[: len(near)] = np.asarray(ids, np.int64)[near]
+    return out
+
+
+def shared_scores(
+    query_list: NDArray[np.int64],
+    query_id: int,
+    ids: NDArray[np.int64],
+    lists: NDArray[np.int64],
+    k: int,
+) -> NDArray[np.float64]:
+    """(c,) ``S(q, x)`` of a query's candidates (see the module docstring).
+
+    Parameters
+    ----------
+    query_list : (k,) int64
+        ``N_k(q)`` (:func:`nearest_others`), -1 pads.
+    query_id : int
+        The query's stored id; -1 for an outside query (it matches no stored id).
+    ids : (c,) int64
+        The candidates ``x``.
+    lists : (c, k) int64
+        Their stored lists ``N_k(x)``, -1 pads (an unknown list: all -1).
+    k : int
+        ``k`` (the denominator is ``k + 1``).
+    """
+    a = np.asarray(query_list, np.int64)
+    a = a[a >= 0]
+    if query_id >= 0:
+        a = np.append(a, np.int64(query_id))
+    b = np.concatenate([np.asarray(ids, np.int64)[:, None], np.asarray(lists, np.int64)], 1)
+    hit = np.isin(b, a) & (b >= 0)
+    return np.asarray(hit.sum(axis=1) / (k + 1.0), np.float64)
+
+
+def keep_first(
+    plain: NDArray[np.float64],
+    shared: NDArray[np.float64],
+    own: NDArray[np.bool_],
+    ids: NDArray[np.int64],
+) -> NDArray[np.float64]:
+    """``shared`` with the first other candidate of ``plain`` first among the others again.
+
+    ``plain`` and ``shared`` are one query's fused distances (c,) without and with the
+    term, ordered by (distance, id) as :func:`query.search.rerank.rerank_candidates` orders
+    them; the candidate first among those not ``own`` by ``plain`` takes the least
+    distance of the others by ``shared`` (others tied with it and of a smaller id are
+    moved one ulp up), so it stays first and the rest keep the term's order.
+    """
+    out = np.array(shared, np.float64, copy=True)
+    others = np.flatnonzero(~np.asarray(own, bool))
+    if len(others) < 2:
+        return out
+    ids = np.asarray(ids, np.int64)
+    first = others[np.lexsort((ids[others], plain[others]))[0]]
+    now = others[np.lexsort((ids[others], out[others]))[0]]
+    if first == now:
+        return out
+    value = out[now]
+    out[first] = value
+    tied = others[(out[others] == value) & (ids[others] < ids[first]) & (others != first)]
+    out[tied] = np.nextafter(value, np.inf)
+    return out
+
+
+def stage_lists(
+    index: Any,
+    fields: ArrayReader,
+    config: Config,
+    scorer: StageRows,
+    ids: NDArray[np.int64] | None = None,
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Indexed shapes' lists ``N_k(x)`` (every alive shape's by default).
+
+    Parameters
+    ----------
+    index : FeatureIndex
+        Fitted over the stored vectors (the store's own, no learned metric); its alive
+        ids are the shapes.
+    fields : ArrayReader
+        The store's per-record arrays (light fields, field vectors and their index), as
+        a search reads them.
+    config : Config
+        ``rerank.candidates`` (K), ``lf_fusion.shared_neighbours`` (k) and the stage's.
+    scorer : StageRows
+        The stage (``LightFieldFusion(config)``): its extra candidates and distances.
+    ids : (m,) int64, optional
+        The shapes wanted; ids not alive in the index are left out.
+
+    Returns
+    -------
+    ids : (n,) int64
+        Ascending, alive.
+    lists : (n, k) int64
+        Each shape's ``k`` nearest others, nearest first; -1 pads (fewer candidates, or a
+        shape whose row the stage cannot score: no light fields).
+    """
+    k = int(config.lf_fusion.shared_neighbours)
+    alive = np.sort(np.asarray(index.ids_, np.int64)[np.asarray(index.alive_, bool)])
+    ids = alive if ids is None else np.intersect1d(alive, np.asarray(ids, np.int64))
+    out = np.full((len(ids), k), -1, np.int64)
+    if len(ids) == 0 or k == 0:
+        return ids, out
+    x = np.asarray(index.features_, np.float64)[index.lookup(ids)]
+    wanted = int(config.rerank.candidates)
+    for lo in range(0, len(ids), _CHUNK):
+        q = ids[lo : lo + _CHUNK]
+        cand, dist = index.search(x[lo : lo + _CHUNK], wanted)
+        batch = stage_batch(
+            index, x[lo : lo + _CHUNK], cand, dist, config=config, scorer=scorer,
+            query_ids=q, arrays=fields,
+        )  # fmt: skip
+        n_k = int(batch.head if batch.head is not None else wanted)
+        head = Candidates(
+            batch.query_ids, batch.queries, batch.ids[:, :n_k], batch.features[:, :n_k],
+            batch.weights, batch.distances[:, :n_k], config, fields, None, n_k,
+        )  # fmt: skip
+        for row, cols, dl, own in scorer.stage_rows(head):
+            out[lo + row] = nearest_others(dl, own, head.ids[row, cols], k)
+    return ids, out
+
+
+def commit_distances(n: int, config: Config) -> int:
+    """Stage distances the lists of a store of ``n`` shapes cost (each reaches ``K + K2``)."""
+    f = config.lf_fusion
+    reach = int(config.rerank.candidates)
+    if FieldFusion.from_config(config).proposes:
+        reach += int(f.field_candidates)
+    return int(n) * min(reach, int(n))
+
+
+def _meta(config: Config, version: int) -> dict[str, Any]:
+    f = config.lf_fusion
+    fusion = FieldFusion.from_config(config)
+    return {
+        "format": _FORMAT,
+        "version": version,
+        "shared_neighbours": int(f.shared_neighbours),
+        "candidates": int(config.rerank.candidates),
+        "light_field": repr(config.light_field),
+        "descriptor": int(config.descriptor.version),
+        "method": config.kernel.method,
+        "field_fusion": fusion.key(),
+        "field_candidates": int(f.field_candidates) if fusion.proposes else 0,
+        "field_scales": [float(f.field_depth_scale), float(f.field_harmonic_scale)]
+        if fusion.proposes
+        else None,
+        "field_vector": repr(config.field_vector) if config.stores_field_vectors else None,
+    }
+
+
+class NeighbourTable(ShapeTable):
+    """The lists ``N_k(x)`` of one store version, filled as they are asked for.
+
+    Parameters
+    ----------
+    db : shapedb.Database
+    fields : ArrayReader
+        The store's arrays by id (:func:`query.search.rerank_lightfield.stored_arrays`).
+    scorer : StageRows
+        The store's stage (``LightFieldFusion(db.config)``).
+    meta : dict, optional
+        The parameters (:func:`_meta` at the index's version by default).
+    """
+
+    directory = NEIGHBOUR_DIR
+    file = "neighbours.npy"
+    what = "shared-neighbour lists"
+
+    def __init__(self, db: Database, fields: ArrayReader, scorer: StageRows,
+                 meta: dict[str, Any] | None = None) -> None:  # fmt: skip
+        self.fields, self.scorer = fields, scorer
+        self.k = int(db.config.lf_fusion.shared_neighbours)
+        super().__init__(db, meta if meta is not None else _meta(db.config, index_version(db)))
+
+    def check(self, values: NDArray[Any]) -> None:
+        if values.ndim != 2 or values.shape[1] != self.k:
+            raise ValueError(f"lists of shape {values.shape} for k = {self.k}")
+
+    def compute(self, ids: NDArray[np.int64] | None) -> tuple[NDArray[np.int64], Any]:
+        return stage_lists(self.index, self.fields, self.db.config, self.scorer, ids)
+
+    def get(self, ids: NDArray[np.int64] | None = None) -> NDArray[np.int64]:
+        """(m, k) lists of ``ids`` (every alive shape's when None); -1 rows for ids without.
+
+        Computes the ids not known yet; once every alive shape has its list, writes the
+        table for later processes.
+        """
+        _, values = self.known(ids)
+        none = np.full(self.k, -1, np.int64)
+        rows = [none if v is None else np.asarray(v, np.int64) for v in values]
+        return np.stack(rows) if rows else np.zeros((0, self.k), np.int64)
+
+
+def neighbour_table(db: Database, fields: ArrayReader, scorer: StageRows) -> NeighbourTable:
+    """The shared :class:`NeighbourTable` of ``db``'s store at its index's current version."""
+    return shared_table(  # type: ignore[no-any-return]
+        _CACHE, _LOCK, db, lambda v: _meta(db.config, v),
+        lambda m: NeighbourTable(db, fields, scorer, m),
+    )  # fmt: skip
+
+
+def store_neighbours(db: Database, fields: ArrayReader, scorer: StageRows) -> dict[int, Any]:
+    """Every stored shape's list at the store's current version, by id ((k,) int64 each).
+
+    Read from ``<store>/index_neighbours/`` when it holds this version's lists under the
+    store's parameters; else computed (:func:`stage_lists`) and written there.
+    """
+    table = neighbour_table(db, fields, scorer)
+    table.get(None)
+    return dict(table.values)
+
+
+def on_commit(db: Database, fields: ArrayReader, scorer: StageRows) -> None:
+    """Bring the lists up to date after a commit, for a store whose stage reads them.
+
+    Only a store with the ``"lightfield"`` scorer and the term on
+    (``LightFieldFusionConfig.shares_neighbours``), whose lists were written before, and
+    whose lists cost at most :data:`FULL_AT_COMMIT` stage distances
+    (:func:`commit_distances`); a larger store's searches compute the lists they read.
+    """
+    cfg = db.config
+    if cfg.rerank.scorer != "lightfield" or not cfg.lf_fusion.shares_neighbours:
+        return
+    if not (Path(db.store.path) / NEIGHBOUR_DIR / POINTER).exists():
+        return
+    table = neighbour_table(db, fields, scorer)
+    if commit_distances(table.n_alive, cfg) <= FULL_AT_COMMIT:
+        table.get(None)

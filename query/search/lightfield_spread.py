@@ -1,0 +1,308 @@
+"""The store's local light field spreads: an index-time statistic of the ``"lightfield"`` stage.
+
+A stored shape's *local spread* is the median light field distance (over
+``LightFieldFusionConfig.typical``) over the median stored distance (in version 4's
+calibrated units, :func:`calibration`) among its ``spread_candidates`` nearest other
+stored shapes by the stored distance (the index's exact order, ties by ascending id). It
+is high where near neighbours by the stored vector look unlike each other: jointed
+subjects in other poses, whose silhouettes change with the pose. The scorer
+(:mod:`query.search.rerank_lightfield`) pools the spreads of a query's first candidates into
+its gate (``LightFieldFusionConfig.pool``), so a query is judged by the region of the
+store it falls in, not by itself alone, and a mixed store judges each region apart.
+
+With ``LightFieldFusionConfig.ratio_weight`` ``b > 0`` the stored statistic is
+``spread ** (1 - b) * ratio ** b`` (:func:`local_statistic`): the *ratio* is the median
+light field distance of the shape's nearest others by the stored distance over that of
+its nearest by the light field among its ``ratio_candidates`` nearest by the stored
+distance. It is scale-free and high where the light field finds other shapes nearer
+than the stored distance's neighbours (the same subject's other poses against other
+subjects in the same pose). The pool takes the statistics' ``pool_quantile``.
+
+The spreads depend on the whole store (a new shape changes its neighbours' lists), so
+they belong to a store version. They are computed on demand, for the shapes a search
+pools (a search costs the same whatever the store's size, and a commit costs nothing),
+kept in-process per store version, and written to ``<store>/index_lightfield/`` (a
+versioned directory like the index's: ``ids.npy``, ``spreads.npy``, and the store
+version and the parameters they were computed with in ``current.json``) once every
+stored shape has one (an evaluation, :func:`store_spreads`, or the commit hook of a
+store whose statistics cost at most :data:`FULL_AT_COMMIT` light field distances); read back while they match. A spread
+computed for one shape or for all is the same number (deterministic, from the stored
+vectors and light fields). Cost: ``spread_candidates`` light field distances per shape
+(``max(spread_candidates, ratio_candidates)`` with the ratio).
+
+In a store whose stage fuses the field vectors into the light field distance
+(:mod:`query.search.field_fusion`), every light field distance above is the fused one, and the
+fusion's weights and scales are among the parameters a stored table must match.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from query.search.field_fusion import FieldFusion
+from query.search.shape_table import ShapeTable, index_version, shared_table
+from query.search.versioned import POINTER
+
+if TYPE_CHECKING:
+    from query.database import Database
+    from query.search.rerank import ArrayReader
+    from shapedb.config.core import Config
+
+__all__ = [
+    "SPREAD_DIR",
+    "FULL_AT_COMMIT",
+    "commit_distances",
+    "SpreadTable",
+    "calibration",
+    "local_statistic",
+    "pooled",
+    "local_spreads",
+    "spread_table",
+    "store_spreads",
+    "on_commit",
+]
+
+log = logging.getLogger(__name__)
+
+SPREAD_DIR = "index_lightfield"
+_FORMAT = 1
+_CHUNK = 256
+#: A commit recomputes every shape's statistic only when that costs at most this many
+#: light field distances (:func:`commit_distances`; 2,000 shapes of the spread over 5);
+#: larger stores compute them as searches ask for them.
+FULL_AT_COMMIT = 10_000
+_CACHE: dict[tuple[str, int], SpreadTable] = {}
+_LOCK = threading.Lock()
+
+
+def calibration(config: Config) -> float:
+    """``c``: stored distances over ``c`` are in version 4's calibrated units."""
+    if config.kernel.method != "mdbd":
+        return 1.0
+    from shapedb.signature.descriptor import LAYOUTS
+
+    return float(np.log(10.0) / sum(b[3] for b in LAYOUTS[config.descriptor.version]))
+
+
+def local_statistic(d: NDArray[np.float64], dl: NDArray[np.float64], config: Config) -> float:
+    """One shape's local statistic from its nearest others by the stored distance.
+
+    ``spread ** (1 - b) * ratio ** b`` of :class:`shapedb.config.core.LightFieldFusionConfig`
+    (``b = ratio_weight``; ``m = spread_candidates``): the spread is the median of ``dl``
+    over the first ``m`` (over ``typical``) over the median of ``d`` over them; the ratio
+    the median of ``dl`` over the first ``m`` over the median of the ``m`` smallest ``dl``
+    among the first ``max(ratio_candidates, m)``.
+
+    Parameters
+    ----------
+    d : (k,) float64
+        Stored distances of the shape's nearest others, in version 4's calibrated units,
+        in list order (non-decreasing; ties by ascending id), the shape left out.
+    dl : (k,) float64
+        Their light field distances to the shape.
+    config : Config
+        Reads ``config.lf_fusion``.
+
+    Returns
+    -------
+    float
+        NaN when ``k`` is 0.
+    """
+    f = config.lf_fusion
+    if not len(d):
+        return float("nan")
+    m = int(f.spread_candidates)
+    near = float(np.median(dl[:m]))
+    b = float(f.ratio_weight)
+    out = 1.0
+    if b < 1.0:
+        spread = near / f.typical / max(float(np.median(d[:m])), 1e-300)
+        out *= spread ** (1.0 - b)
+    if b > 0.0:
+        c = max(int(f.ratio_candidates), m)
+        best = float(np.median(np.sort(dl[:c])[:m]))
+        out *= (near / max(best, 1e-300)) ** b
+    return out
+
+
+def pooled(values: NDArray[np.float64], quantile: float) -> NDArray[np.float64]:
+    """The ``quantile`` of ``values`` (..., p) over the last axis, NaN left out.
+
+    0.5 is the median (:func:`numpy.nanmedian`); NaN where every value is NaN.
+    """
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows: NaN
+        if quantile == 0.5:
+            return np.asarray(np.nanmedian(values, axis=-1), np.float64)
+        return np.asarray(np.nanquantile(values, quantile, axis=-1), np.float64)
+
+
+def local_spreads(
+    index: Any, fields: ArrayReader, config: Config, ids: NDArray[np.int64] | None = None
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Indexed shapes' local spreads (every alive shape's by default).
+
+    Parameters
+    ----------
+    index : FeatureIndex
+        Fitted (:mod:`query.search.index`) over the stored vectors; its alive ids are the shapes.
+    fields : ArrayReader
+        Reads the ``"light_field"`` column by ids, (m, fields, 10, d), NaN rows for
+        records without; and, when ``config``'s stage fuses the field vectors, the
+        ``"field_vector"`` column (a shape whose row cannot be fused keeps ``l``).
+    config : Config
+        ``lf_fusion.spread_candidates`` and ``typical``, and the descriptor (calibration).
+    ids : (k,) int64, optional
+        The shapes wanted; ids not alive in the index are left out.
+
+    Returns
+    -------
+    ids : (n,) int64
+        Ascending, alive.
+    spreads : (n,) float64
+        NaN for a shape with no light fields or no neighbour with them.
+    """
+    from query.search.field_fusion import FIELD
+    from shapedb.signature.lightfield import light_field_distance
+
+    f = config.lf_fusion
+    fusion = FieldFusion.from_config(config)
+    alive = np.sort(np.asarray(index.ids_, np.int64)[np.asarray(index.alive_, bool)])
+    ids = alive if ids is None else np.intersect1d(alive, np.asarray(ids, np.int64))
+    out = np.full(len(ids), np.nan)
+    if len(alive) < 2 or len(ids) == 0:
+        return ids, out
+    m = min(_reach(f), len(alive) - 1)
+    cal = calibration(config)
+    x = np.asarray(index.features_, np.float64)[index.lookup(ids)]
+    for lo in range(0, len(ids), _CHUNK):
+        q = ids[lo : lo + _CHUNK]
+        near, dist = index.search(x[lo : lo + _CHUNK], m + 1)
+        wanted = np.unique(np.concatenate([q, near[near >= 0]]))
+        got = fields("light_field", wanted)
+        if got is None:
+            continue
+        fv = fields(FIELD, wanted) if fusion.active else None
+        pos = {int(i): k for k, i in enumerate(wanted)}
+        for row, sid in enumerate(q):
+            keep = (near[row] >= 0) & (near[row] != sid)
+            nb, d = near[row][keep][:m], dist[row][keep][:m]
+            lq = got[pos[int(sid)]]
+            lc = got[[pos[int(i)] for i in nb]]
+            ok = np.all(np.isfinite(lc.reshape(len(nb), -1)), axis=1)
+            if not np.all(np.isfinite(lq)) or not ok.any():
+                continue
+            dl = light_field_distance(lq[None], lc[ok])[0]
+            if fusion.active:
+                fc = None if fv is None else fv[[pos[int(i)] for i in nb]][ok]
+                dl = fusion.distance(dl, None if fv is None else fv[pos[int(sid)]], fc)
+            out[lo + row] = local_statistic(d[ok] / cal, dl, config)
+    return ids, out
+
+
+def commit_distances(n: int, config: Config) -> int:
+    """Light field distances the statistics of a store of ``n`` shapes cost."""
+    return int(n) * _reach(config.lf_fusion)
+
+
+def _reach(f: Any) -> int:
+    """Nearest others the local statistic reads."""
+    reach = int(f.spread_candidates)
+    if f.ratio_weight > 0:
+        reach = max(reach, int(f.ratio_candidates))
+    return reach
+
+
+def _meta(config: Config, version: int) -> dict[str, Any]:
+    f, lf = config.lf_fusion, config.light_field
+    return {
+        "format": _FORMAT,
+        "version": version,
+        "spread_candidates": int(f.spread_candidates),
+        "typical": float(f.typical),
+        "ratio_weight": float(f.ratio_weight),
+        "ratio_candidates": int(f.ratio_candidates),
+        "light_field": repr(lf),
+        "descriptor": int(config.descriptor.version),
+        "method": config.kernel.method,
+        "field_fusion": FieldFusion.from_config(config).key(),
+    }
+
+
+class SpreadTable(ShapeTable):
+    """The local spreads of one store version, filled as they are asked for.
+
+    Parameters
+    ----------
+    db : shapedb.Database
+    fields : ArrayReader
+        The store's light fields by id (:func:`query.search.rerank_lightfield.stored_arrays`).
+    meta : dict, optional
+        The parameters (:func:`_meta` at the index's version by default).
+    """
+
+    directory = SPREAD_DIR
+    file = "spreads.npy"
+    what = "light field spreads"
+
+    def __init__(
+        self, db: Database, fields: ArrayReader, meta: dict[str, Any] | None = None
+    ) -> None:
+        self.fields = fields
+        super().__init__(db, meta if meta is not None else _meta(db.config, index_version(db)))
+
+    def compute(self, ids: NDArray[np.int64] | None) -> tuple[NDArray[np.int64], Any]:
+        return local_spreads(self.index, self.fields, self.db.config, ids)
+
+    def get(self, ids: NDArray[np.int64] | None = None) -> NDArray[np.float64]:
+        """(k,) spreads of ``ids`` (every alive shape's when None); NaN for ids without.
+
+        Computes the ids not known yet; once every alive shape has its spread, writes
+        the table for later processes.
+        """
+        _, values = self.known(ids)
+        return np.array([np.nan if v is None else float(v) for v in values], np.float64)
+
+
+def spread_table(db: Database, fields: ArrayReader) -> SpreadTable:
+    """The shared :class:`SpreadTable` of ``db``'s store at its index's current version."""
+    return shared_table(  # type: ignore[no-any-return]
+        _CACHE, _LOCK, db, lambda v: _meta(db.config, v), lambda m: SpreadTable(db, fields, m)
+    )
+
+
+def store_spreads(db: Database, fields: ArrayReader) -> dict[int, float]:
+    """Every stored shape's local spread at the store's current version, by id.
+
+    Read from ``<store>/index_lightfield/`` when it holds this version's spreads under
+    the store's parameters; else computed (:func:`local_spreads`) and written there.
+    """
+    table = spread_table(db, fields)
+    table.get(None)
+    return dict(table.values)
+
+
+def on_commit(db: Database, fields: ArrayReader) -> None:
+    """Bring the spreads up to date after a commit, for a store whose stage pools them.
+
+    Only a store with the ``"lightfield"`` scorer, ``pool > 0`` and light fields stored,
+    whose spreads were written before, and whose statistics cost at most
+    :data:`FULL_AT_COMMIT` light field distances (:func:`commit_distances`); a
+    larger store's searches compute the spreads they pool.
+    """
+    cfg = db.config
+    if cfg.rerank.scorer != "lightfield" or cfg.lf_fusion.pool <= 0:
+        return
+    if not (Path(db.store.path) / SPREAD_DIR / POINTER).exists():
+        return
+    table = spread_table(db, fields)
+    if commit_distances(int(np.count_nonzero(table.index.alive_)), cfg) <= FULL_AT_COMMIT:
+        table.get(None)
