@@ -159,21 +159,20 @@ class Database:
         return result, committed
 
     def _notify(self, result: CommitResult) -> None:
-        """Bring the derived state that was already built (indexes, side tables) up to date."""
+        """Bring the derived state up to date: the indexes already built, and the re-ranking
+        stage's side tables (the one place that writes them)."""
         from query.parts import index as parts_index
-        from query.search import index
+        from query.search import index, lightfield_neighbours, lightfield_spread
+        from query.search.rerank_lightfield import stored_arrays
+        from query.search.stage import scorer_for
 
         try:
             index.on_commit(self, result)
             parts_index.on_commit(self, result)
-            if self.config.rerank.scorer == "lightfield":
-                from query.search import lightfield_neighbours, lightfield_spread
-                from query.search.rerank_lightfield import LightFieldFusion, stored_arrays
-
+            stage = scorer_for(self.config)
+            if stage is not None:  # the stage's side tables, computed and written here
                 lightfield_spread.on_commit(self, stored_arrays(self))
-                lightfield_neighbours.on_commit(
-                    self, stored_arrays(self), LightFieldFusion(self.config)
-                )
+                lightfield_neighbours.on_commit(self, stored_arrays(self), stage)
         except Exception:  # derived state only: the commit itself stands
             log.warning(
                 "updating the indexes failed after version %d", result.version, exc_info=True

@@ -292,7 +292,7 @@ def _kernel_distance_rows(
     """
     from scipy.spatial.distance import cdist
 
-    from query.search.rerank import scorer_for
+    from query.search.stage import scorer_for
     from shapedb.signature.kernel import weights
 
     n = len(ids)

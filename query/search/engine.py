@@ -28,7 +28,7 @@ costs a Poisson reconstruction and its decomposition; a dense one in a store wit
 views and sparse clouds one more (point-cloud) decomposition.
 
 A store whose ``RerankConfig.scorer`` is not ``"none"`` (the default ``"lightfield"``)
-re-ranks the first ``RerankConfig.candidates`` results with that exact scorer
+re-ranks the first ``K`` results (:mod:`query.search.stage`) with that exact scorer
 (:mod:`query.search.rerank`), except in searches that compare sparse clouds or views (stores
 with sparse clouds or ``view_cells``), which rank by the stored distance. The hits are in
 the scorer's order; their distance and similarity are the stored vector's, so a later
@@ -155,13 +155,15 @@ def search_batch(
         ids, dist = _search_with_views(db, index, resolved, int(k), allowed, learned)
     else:
         from query.search.rerank import search as rerank_search
+        from query.search.stage import scorer_for
 
         vectors = np.stack([r.feature for r in resolved])
         qids = np.array([r.sid for r in resolved], np.int64)
         arrays, query_arrays = _stored_arrays(db, resolved)
         ids, dist = rerank_search(
             index, vectors, int(k), config=db.config, query_ids=qids, allowed=allowed,
-            arrays=arrays, query_arrays=query_arrays, stored_distances=True,
+            scorer=scorer_for(db.config), arrays=arrays, query_arrays=query_arrays,
+            stored_distances=True,
         )  # fmt: skip
     catalog = store_catalog(db, index.version_)
     lam = float(db.config.kernel.lam)

@@ -2,7 +2,7 @@
 
 A store with field vectors (``Config.stores_field_vectors``: each record's
 ``field_vector`` column, :func:`shapedb.signature.field_vector.field_vector` of its field's
-inside) and a field weight in its fusion (``LightFieldFusionConfig.field_depth_weight``
+inside) and a field weight in its fusion (``StageTuning.field_depth_weight``
 ``a`` or ``field_harmonic_weight`` ``c`` above 0) replaces the light field distance
 ``l`` of the ``"lightfield"`` stage (:mod:`query.search.rerank_lightfield`: its ranks, its gate,
 and the stored local statistics of :mod:`query.search.lightfield_spread`) by
@@ -20,7 +20,7 @@ row (one warning per :class:`FieldFusion`).
 The *scaled* field vector ``[depth / m_b, harmonic / m_h]`` (:meth:`FieldFusion.scaled`)
 makes ``b / m_b + h / m_h`` a plain L1 distance: the one the field vector index
 (:mod:`query.search.field_index`) ranks by, for the stage's extra candidates
-(``LightFieldFusionConfig.field_candidates``).
+(``StageTuning.field_candidates``).
 """
 
 from __future__ import annotations
@@ -31,6 +31,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from query.search.tuning import PRODUCT, StageTuning
 
 if TYPE_CHECKING:
     from shapedb.config.core import Config
@@ -89,13 +91,13 @@ class FieldFusion:
         self._warned = False
 
     @classmethod
-    def from_config(cls, config: Config) -> FieldFusion:
-        """The fusion of ``config.lf_fusion`` over ``config.field_vector``'s parts.
+    def from_config(cls, config: Config, tuning: StageTuning = PRODUCT) -> FieldFusion:
+        """The fusion of ``tuning`` over ``config.field_vector``'s parts.
 
         Off (:attr:`active` and :attr:`proposes` False) for a store without field
         vectors.
         """
-        f = config.lf_fusion
+        f = tuning
         stored = stores_field_vectors(config)
         depth, harmonic = slice(0, 0), slice(0, 0)
         if stored:

@@ -1,7 +1,7 @@
 """The field vector index: the stored shapes nearest by the L1 of their scaled field vectors.
 
 The light field stage (:mod:`query.search.rerank_lightfield`) re-ranks version 4's ``K``
-nearest shapes, and with ``LightFieldFusionConfig.field_candidates = K2 > 0`` also the
+nearest shapes, and with ``StageTuning.field_candidates = K2 > 0`` also the
 ``K2`` nearest by the L1 distance of the scaled field vectors ``[depth / m_b, harmonic
 / m_h]`` (:meth:`query.search.field_fusion.FieldFusion.scaled`) not among those ``K``. This
 module finds those ``K2``: a faiss ``IndexFlat(dim, METRIC_L1)`` over the scaled stored

@@ -1,6 +1,6 @@
 """The shared-neighbour term of the ``"lightfield"`` stage and its per-store-version table.
 
-The term (``LightFieldFusionConfig.shared_neighbours`` ``k`` and ``shared_weight``
+The term (``StageTuning.shared_neighbours`` ``k`` and ``shared_weight``
 ``beta``, :mod:`query.search.rerank_lightfield`): for a query ``q`` with candidates ``C`` (in
 list order) and stage distances ``dl(q, x)``,
 
@@ -36,7 +36,6 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Iterator
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
@@ -45,7 +44,7 @@ from numpy.typing import NDArray
 from query.search.field_fusion import FieldFusion
 from query.search.rerank import Candidates, stage_batch
 from query.search.shape_table import ShapeTable, index_version, shared_table
-from query.search.versioned import POINTER
+from query.search.tuning import PRODUCT, StageTuning
 
 if TYPE_CHECKING:
     from query.database import Database
@@ -85,6 +84,8 @@ _LOCK = threading.Lock()
 
 class StageRows(Protocol):
     """The scorer's side the table needs (:class:`query.search.rerank_lightfield.LightFieldFusion`)."""
+
+    tuning: StageTuning
 
     def stage_rows(
         self, batch: Candidates
@@ -190,7 +191,7 @@ def stage_lists(
         The store's per-record arrays (light fields, field vectors and their index), as
         a search reads them.
     config : Config
-        ``rerank.candidates`` (K), ``lf_fusion.shared_neighbours`` (k) and the stage's.
+        What the store keeps.
     scorer : StageRows
         The stage (``LightFieldFusion(config)``): its extra candidates and distances.
     ids : (m,) int64, optional
@@ -204,14 +205,15 @@ def stage_lists(
         Each shape's ``k`` nearest others, nearest first; -1 pads (fewer candidates, or a
         shape whose row the stage cannot score: no light fields).
     """
-    k = int(config.lf_fusion.shared_neighbours)
+    tuning = scorer.tuning
+    k = int(tuning.shared_neighbours)
     alive = np.sort(np.asarray(index.ids_, np.int64)[np.asarray(index.alive_, bool)])
     ids = alive if ids is None else np.intersect1d(alive, np.asarray(ids, np.int64))
     out = np.full((len(ids), k), -1, np.int64)
     if len(ids) == 0 or k == 0:
         return ids, out
     x = np.asarray(index.features_, np.float64)[index.lookup(ids)]
-    wanted = int(config.rerank.candidates)
+    wanted = int(tuning.candidates)
     for lo in range(0, len(ids), _CHUNK):
         q = ids[lo : lo + _CHUNK]
         cand, dist = index.search(x[lo : lo + _CHUNK], wanted)
@@ -229,23 +231,23 @@ def stage_lists(
     return ids, out
 
 
-def commit_distances(n: int, config: Config) -> int:
+def commit_distances(n: int, config: Config, tuning: StageTuning = PRODUCT) -> int:
     """Stage distances the lists of a store of ``n`` shapes cost (each reaches ``K + K2``)."""
-    f = config.lf_fusion
-    reach = int(config.rerank.candidates)
-    if FieldFusion.from_config(config).proposes:
+    f = tuning
+    reach = int(tuning.candidates)
+    if FieldFusion.from_config(config, tuning).proposes:
         reach += int(f.field_candidates)
     return int(n) * min(reach, int(n))
 
 
-def _meta(config: Config, version: int) -> dict[str, Any]:
-    f = config.lf_fusion
-    fusion = FieldFusion.from_config(config)
+def _meta(config: Config, version: int, tuning: StageTuning) -> dict[str, Any]:
+    f = tuning
+    fusion = FieldFusion.from_config(config, tuning)
     return {
         "format": _FORMAT,
         "version": version,
         "shared_neighbours": int(f.shared_neighbours),
-        "candidates": int(config.rerank.candidates),
+        "candidates": int(tuning.candidates),
         "light_field": repr(config.light_field),
         "descriptor": int(config.descriptor.version),
         "method": config.kernel.method,
@@ -279,8 +281,10 @@ class NeighbourTable(ShapeTable):
     def __init__(self, db: Database, fields: ArrayReader, scorer: StageRows,
                  meta: dict[str, Any] | None = None) -> None:  # fmt: skip
         self.fields, self.scorer = fields, scorer
-        self.k = int(db.config.lf_fusion.shared_neighbours)
-        super().__init__(db, meta if meta is not None else _meta(db.config, index_version(db)))
+        self.k = int(scorer.tuning.shared_neighbours)
+        if meta is None:
+            meta = _meta(db.config, index_version(db), scorer.tuning)
+        super().__init__(db, meta)
 
     def check(self, values: NDArray[Any]) -> None:
         if values.ndim != 2 or values.shape[1] != self.k:
@@ -292,8 +296,7 @@ class NeighbourTable(ShapeTable):
     def get(self, ids: NDArray[np.int64] | None = None) -> NDArray[np.int64]:
         """(m, k) lists of ``ids`` (every alive shape's when None); -1 rows for ids without.
 
-        Computes the ids not known yet; once every alive shape has its list, writes the
-        table for later processes.
+        Computes the ids not known yet, in this process (a read writes nothing).
         """
         _, values = self.known(ids)
         none = np.full(self.k, -1, np.int64)
@@ -304,7 +307,7 @@ class NeighbourTable(ShapeTable):
 def neighbour_table(db: Database, fields: ArrayReader, scorer: StageRows) -> NeighbourTable:
     """The shared :class:`NeighbourTable` of ``db``'s store at its index's current version."""
     return shared_table(  # type: ignore[no-any-return]
-        _CACHE, _LOCK, db, lambda v: _meta(db.config, v),
+        _CACHE, _LOCK, db, lambda v: _meta(db.config, v, scorer.tuning),
         lambda m: NeighbourTable(db, fields, scorer, m),
     )  # fmt: skip
 
@@ -313,7 +316,7 @@ def store_neighbours(db: Database, fields: ArrayReader, scorer: StageRows) -> di
     """Every stored shape's list at the store's current version, by id ((k,) int64 each).
 
     Read from ``<store>/index_neighbours/`` when it holds this version's lists under the
-    store's parameters; else computed (:func:`stage_lists`) and written there.
+    stage's parameters; else computed (:func:`stage_lists`), not written.
     """
     table = neighbour_table(db, fields, scorer)
     table.get(None)
@@ -324,15 +327,15 @@ def on_commit(db: Database, fields: ArrayReader, scorer: StageRows) -> None:
     """Bring the lists up to date after a commit, for a store whose stage reads them.
 
     Only a store with the ``"lightfield"`` scorer and the term on
-    (``LightFieldFusionConfig.shares_neighbours``), whose lists were written before, and
-    whose lists cost at most :data:`FULL_AT_COMMIT` stage distances
-    (:func:`commit_distances`); a larger store's searches compute the lists they read.
+    (:attr:`query.search.tuning.StageTuning.shares_neighbours`) whose lists cost at most
+    :data:`FULL_AT_COMMIT` stage distances (:func:`commit_distances`): the table is
+    computed and written here, the one place that writes it; a larger store's searches
+    compute the lists they read, in memory.
     """
     cfg = db.config
-    if cfg.rerank.scorer != "lightfield" or not cfg.lf_fusion.shares_neighbours:
-        return
-    if not (Path(db.store.path) / NEIGHBOUR_DIR / POINTER).exists():
+    if cfg.rerank.scorer != "lightfield" or not scorer.tuning.shares_neighbours:
         return
     table = neighbour_table(db, fields, scorer)
-    if commit_distances(table.n_alive, cfg) <= FULL_AT_COMMIT:
+    if commit_distances(table.n_alive, cfg, scorer.tuning) <= FULL_AT_COMMIT:
         table.get(None)
+        table.save()

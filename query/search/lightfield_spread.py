@@ -1,16 +1,16 @@
 """The store's local light field spreads: an index-time statistic of the ``"lightfield"`` stage.
 
 A stored shape's *local spread* is the median light field distance (over
-``LightFieldFusionConfig.typical``) over the median stored distance (in version 4's
+``StageTuning.typical``) over the median stored distance (in version 4's
 calibrated units, :func:`calibration`) among its ``spread_candidates`` nearest other
 stored shapes by the stored distance (the index's exact order, ties by ascending id). It
 is high where near neighbours by the stored vector look unlike each other: jointed
 subjects in other poses, whose silhouettes change with the pose. The scorer
 (:mod:`query.search.rerank_lightfield`) pools the spreads of a query's first candidates into
-its gate (``LightFieldFusionConfig.pool``), so a query is judged by the region of the
+its gate (``StageTuning.pool``), so a query is judged by the region of the
 store it falls in, not by itself alone, and a mixed store judges each region apart.
 
-With ``LightFieldFusionConfig.ratio_weight`` ``b > 0`` the stored statistic is
+With ``StageTuning.ratio_weight`` ``b > 0`` the stored statistic is
 ``spread ** (1 - b) * ratio ** b`` (:func:`local_statistic`): the *ratio* is the median
 light field distance of the shape's nearest others by the stored distance over that of
 its nearest by the light field among its ``ratio_candidates`` nearest by the stored
@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import logging
 import threading
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -47,7 +46,7 @@ from numpy.typing import NDArray
 
 from query.search.field_fusion import FieldFusion
 from query.search.shape_table import ShapeTable, index_version, shared_table
-from query.search.versioned import POINTER
+from query.search.tuning import PRODUCT, StageTuning, active
 
 if TYPE_CHECKING:
     from query.database import Database
@@ -90,10 +89,12 @@ def calibration(config: Config) -> float:
     return float(np.log(10.0) / sum(b[3] for b in LAYOUTS[config.descriptor.version]))
 
 
-def local_statistic(d: NDArray[np.float64], dl: NDArray[np.float64], config: Config) -> float:
+def local_statistic(
+    d: NDArray[np.float64], dl: NDArray[np.float64], tuning: StageTuning = PRODUCT
+) -> float:
     """One shape's local statistic from its nearest others by the stored distance.
 
-    ``spread ** (1 - b) * ratio ** b`` of :class:`shapedb.config.core.LightFieldFusionConfig`
+    ``spread ** (1 - b) * ratio ** b`` of :class:`query.search.tuning.StageTuning`
     (``b = ratio_weight``; ``m = spread_candidates``): the spread is the median of ``dl``
     over the first ``m`` (over ``typical``) over the median of ``d`` over them; the ratio
     the median of ``dl`` over the first ``m`` over the median of the ``m`` smallest ``dl``
@@ -106,15 +107,15 @@ def local_statistic(d: NDArray[np.float64], dl: NDArray[np.float64], config: Con
         in list order (non-decreasing; ties by ascending id), the shape left out.
     dl : (k,) float64
         Their light field distances to the shape.
-    config : Config
-        Reads ``config.lf_fusion``.
+    tuning : StageTuning
+        The stage's numbers.
 
     Returns
     -------
     float
         NaN when ``k`` is 0.
     """
-    f = config.lf_fusion
+    f = tuning
     if not len(d):
         return float("nan")
     m = int(f.spread_candidates)
@@ -146,7 +147,11 @@ def pooled(values: NDArray[np.float64], quantile: float) -> NDArray[np.float64]:
 
 
 def local_spreads(
-    index: Any, fields: ArrayReader, config: Config, ids: NDArray[np.int64] | None = None
+    index: Any,
+    fields: ArrayReader,
+    config: Config,
+    ids: NDArray[np.int64] | None = None,
+    tuning: StageTuning = PRODUCT,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """Indexed shapes' local spreads (every alive shape's by default).
 
@@ -159,7 +164,7 @@ def local_spreads(
         records without; and, when ``config``'s stage fuses the field vectors, the
         ``"field_vector"`` column (a shape whose row cannot be fused keeps ``l``).
     config : Config
-        ``lf_fusion.spread_candidates`` and ``typical``, and the descriptor (calibration).
+        The descriptor (calibration) and what the store keeps.
     ids : (k,) int64, optional
         The shapes wanted; ids not alive in the index are left out.
 
@@ -173,8 +178,8 @@ def local_spreads(
     from query.search.field_fusion import FIELD
     from shapedb.signature.lightfield import light_field_distance
 
-    f = config.lf_fusion
-    fusion = FieldFusion.from_config(config)
+    f = tuning
+    fusion = FieldFusion.from_config(config, tuning)
     alive = np.sort(np.asarray(index.ids_, np.int64)[np.asarray(index.alive_, bool)])
     ids = alive if ids is None else np.intersect1d(alive, np.asarray(ids, np.int64))
     out = np.full(len(ids), np.nan)
@@ -204,13 +209,13 @@ def local_spreads(
             if fusion.active:
                 fc = None if fv is None else fv[[pos[int(i)] for i in nb]][ok]
                 dl = fusion.distance(dl, None if fv is None else fv[pos[int(sid)]], fc)
-            out[lo + row] = local_statistic(d[ok] / cal, dl, config)
+            out[lo + row] = local_statistic(d[ok] / cal, dl, tuning)
     return ids, out
 
 
-def commit_distances(n: int, config: Config) -> int:
+def commit_distances(n: int, tuning: StageTuning = PRODUCT) -> int:
     """Light field distances the statistics of a store of ``n`` shapes cost."""
-    return int(n) * _reach(config.lf_fusion)
+    return int(n) * _reach(tuning)
 
 
 def _reach(f: Any) -> int:
@@ -221,8 +226,8 @@ def _reach(f: Any) -> int:
     return reach
 
 
-def _meta(config: Config, version: int) -> dict[str, Any]:
-    f, lf = config.lf_fusion, config.light_field
+def _meta(config: Config, version: int, tuning: StageTuning) -> dict[str, Any]:
+    f, lf = tuning, config.light_field
     return {
         "format": _FORMAT,
         "version": version,
@@ -233,7 +238,7 @@ def _meta(config: Config, version: int) -> dict[str, Any]:
         "light_field": repr(lf),
         "descriptor": int(config.descriptor.version),
         "method": config.kernel.method,
-        "field_fusion": FieldFusion.from_config(config).key(),
+        "field_fusion": FieldFusion.from_config(config, tuning).key(),
     }
 
 
@@ -254,38 +259,46 @@ class SpreadTable(ShapeTable):
     what = "light field spreads"
 
     def __init__(
-        self, db: Database, fields: ArrayReader, meta: dict[str, Any] | None = None
+        self,
+        db: Database,
+        fields: ArrayReader,
+        meta: dict[str, Any] | None = None,
+        tuning: StageTuning = PRODUCT,
     ) -> None:
-        self.fields = fields
-        super().__init__(db, meta if meta is not None else _meta(db.config, index_version(db)))
+        self.fields, self.tuning = fields, tuning
+        if meta is None:
+            meta = _meta(db.config, index_version(db), tuning)
+        super().__init__(db, meta)
 
     def compute(self, ids: NDArray[np.int64] | None) -> tuple[NDArray[np.int64], Any]:
-        return local_spreads(self.index, self.fields, self.db.config, ids)
+        return local_spreads(self.index, self.fields, self.db.config, ids, self.tuning)
 
     def get(self, ids: NDArray[np.int64] | None = None) -> NDArray[np.float64]:
         """(k,) spreads of ``ids`` (every alive shape's when None); NaN for ids without.
 
-        Computes the ids not known yet; once every alive shape has its spread, writes
-        the table for later processes.
+        Computes the ids not known yet, in this process (a read writes nothing).
         """
         _, values = self.known(ids)
         return np.array([np.nan if v is None else float(v) for v in values], np.float64)
 
 
-def spread_table(db: Database, fields: ArrayReader) -> SpreadTable:
+def spread_table(db: Database, fields: ArrayReader, tuning: StageTuning = PRODUCT) -> SpreadTable:
     """The shared :class:`SpreadTable` of ``db``'s store at its index's current version."""
     return shared_table(  # type: ignore[no-any-return]
-        _CACHE, _LOCK, db, lambda v: _meta(db.config, v), lambda m: SpreadTable(db, fields, m)
-    )
+        _CACHE, _LOCK, db, lambda v: _meta(db.config, v, tuning),
+        lambda m: SpreadTable(db, fields, m, tuning),
+    )  # fmt: skip
 
 
-def store_spreads(db: Database, fields: ArrayReader) -> dict[int, float]:
+def store_spreads(
+    db: Database, fields: ArrayReader, tuning: StageTuning = PRODUCT
+) -> dict[int, float]:
     """Every stored shape's local spread at the store's current version, by id.
 
     Read from ``<store>/index_lightfield/`` when it holds this version's spreads under
-    the store's parameters; else computed (:func:`local_spreads`) and written there.
+    the stage's parameters; else computed (:func:`local_spreads`), not written.
     """
-    table = spread_table(db, fields)
+    table = spread_table(db, fields, tuning)
     table.get(None)
     return dict(table.values)
 
@@ -293,16 +306,15 @@ def store_spreads(db: Database, fields: ArrayReader) -> dict[int, float]:
 def on_commit(db: Database, fields: ArrayReader) -> None:
     """Bring the spreads up to date after a commit, for a store whose stage pools them.
 
-    Only a store with the ``"lightfield"`` scorer, ``pool > 0`` and light fields stored,
-    whose spreads were written before, and whose statistics cost at most
-    :data:`FULL_AT_COMMIT` light field distances (:func:`commit_distances`); a
-    larger store's searches compute the spreads they pool.
+    Only a store with the ``"lightfield"`` scorer whose statistics cost at most
+    :data:`FULL_AT_COMMIT` light field distances (:func:`commit_distances`): the table
+    is computed and written here, the one place that writes it; a larger store's
+    searches compute the spreads they pool, in memory.
     """
-    cfg = db.config
-    if cfg.rerank.scorer != "lightfield" or cfg.lf_fusion.pool <= 0:
+    tuning = active()
+    if db.config.rerank.scorer != "lightfield" or tuning.pool <= 0:
         return
-    if not (Path(db.store.path) / SPREAD_DIR / POINTER).exists():
-        return
-    table = spread_table(db, fields)
-    if commit_distances(int(np.count_nonzero(table.index.alive_)), cfg) <= FULL_AT_COMMIT:
+    table = spread_table(db, fields, tuning)
+    if commit_distances(int(np.count_nonzero(table.index.alive_)), tuning) <= FULL_AT_COMMIT:
         table.get(None)
+        table.save()

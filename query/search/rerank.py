@@ -8,46 +8,27 @@ id). Past the K-th, results keep the stored-vector order and distance. Search
 (:mod:`query.search.engine`) and evaluation (:mod:`query.evaluate`) both go through
 :func:`rerank_candidates`, so they rank alike.
 
-Scorers are looked up by ``RerankConfig.scorer`` in a registry
-(:func:`register_scorer`): a factory ``(Config) -> Scorer``; a scorer defined in a
-module of its own is named in :data:`SCORER_MODULES`, imported on first use. A scorer sees one
-batch of candidate lists, :class:`Candidates`: the queries' and candidates' stored
-vectors, their ids and their stored distances, and returns one distance per
-candidate. A scorer that needs a per-record array of its own (not in the stored
-vector) reads it by the candidates' ids; a query that is not a stored shape has
+The scorer is an object the caller passes (:func:`query.search.stage.scorer_for` makes
+the store's: the light field stage of :mod:`query.search.rerank_lightfield`, or none). A
+scorer sees one batch of candidate lists, :class:`Candidates`: the queries' and
+candidates' stored vectors, their ids and their stored distances, and returns one
+distance per candidate. A scorer that needs a per-record array of its own (not in the
+stored vector) reads it by the candidates' ids; a query that is not a stored shape has
 ``query_ids`` -1 and its array must come from the query itself.
-
-Built in:
-
-* ``"none"``: no stage (:func:`scorer_for` returns None);
-* ``"adaptive"`` (:class:`AdaptiveFusion`): the stored vector without ``block``
-  plus ``weight * g(q)`` times ``block``'s part, where ``g(q)`` is the overlap of
-  the query's ``neighbours`` nearest candidates by either part, to the power
-  ``power``: the block counts where it agrees with the rest about the query's
-  neighbourhood. ``g = 0`` ranks by the stored vector without the block; ``g = 1``
-  with ``weight`` at the block's own weight by the stored vector. With
-  ``ratio > 0``, ``g(q)`` also fades out where the block spreads the candidates more
-  than the rest does (median block part over median base above ``ratio``).
-
-In a module of its own (:data:`SCORER_MODULES`):
-
-* ``"lightfield"`` (:mod:`query.search.rerank_lightfield`): the balls' light fields, stored per
-  record, in a gated reciprocal rank fusion with the stored distance; it reads them
-  through ``Candidates.arrays`` and ``Candidates.query_arrays``.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import logging
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from shapedb.errors import ConfigError
+from query.search.tuning import PRODUCT, StageTuning
 
 if TYPE_CHECKING:
     from shapedb.config.core import Config
@@ -56,17 +37,11 @@ __all__ = [
     "Candidates",
     "ArrayReader",
     "Scorer",
-    "AdaptiveFusion",
-    "register_scorer",
-    "scorer_for",
-    "scorers",
     "rerank_candidates",
     "extra_candidates",
     "with_extras",
     "stage_batch",
     "search",
-    "block_slice",
-    "SCORER_MODULES",
 ]
 
 log = logging.getLogger(__name__)
@@ -74,9 +49,6 @@ log = logging.getLogger(__name__)
 #: Queries scored together (bounds the (queries, candidates, d) temporaries).
 _CHUNK = 16
 _NO_ID = np.iinfo(np.int64).max
-#: Width of the ramp of ``RerankConfig.ratio``: the gate falls from 1 to 0 as the
-#: candidates' block-to-rest spread rises from ``ratio - RATIO_RAMP`` to ``ratio``.
-RATIO_RAMP = 0.1
 
 
 @dataclass(frozen=True)
@@ -109,8 +81,8 @@ class Candidates:
         float64, NaN rows where a query has none (e.g. a stored query, read by id).
     head : int, optional
         Entries of each list the stage re-ranks: version 4's ``K`` nearest and the
-        scorer's extra candidates after them (:func:`with_extras`); None:
-        ``config.rerank.candidates``.
+        scorer's extra candidates after them (:func:`with_extras`); None: the stage's
+        ``K`` (:attr:`query.search.tuning.StageTuning.candidates`).
     """
 
     query_ids: NDArray[np.int64]
@@ -147,147 +119,9 @@ class Scorer(Protocol):
     re-ranks them after the ``K`` (:func:`with_extras`).
     """
 
+    tuning: StageTuning
+
     def score(self, batch: Candidates) -> NDArray[np.float64]: ...
-
-
-ScorerFactory = Callable[["Config"], Scorer]
-_REGISTRY: dict[str, ScorerFactory] = {}
-#: Scorers registered by a module of their own: name -> module imported (and so
-#: registering it) the first time a store asks for that scorer.
-SCORER_MODULES: dict[str, str] = {"lightfield": "query.search.rerank_lightfield"}
-
-
-def register_scorer(name: str, factory: ScorerFactory) -> None:
-    """Make ``RerankConfig(scorer=name)`` use ``factory(config)`` to build its scorer.
-
-    Raises
-    ------
-    ConfigError
-        When ``name`` is ``"none"`` or already taken by another factory.
-    """
-    if name == "none" or (name in _REGISTRY and _REGISTRY[name] is not factory):
-        raise ConfigError("a scorer of this name exists", source=f"scorer={name!r}")
-    _REGISTRY[name] = factory
-
-
-def scorers() -> tuple[str, ...]:
-    """Names of the known scorers (registered or importable by name), ``"none"`` first."""
-    return ("none", *sorted(set(_REGISTRY) | set(SCORER_MODULES)))
-
-
-def scorer_for(config: Config) -> Scorer | None:
-    """The scorer of ``config.rerank``; None when its scorer is ``"none"``.
-
-    Raises
-    ------
-    ConfigError
-        When no scorer of that name is registered.
-    """
-    name = config.rerank.scorer
-    if name == "none":
-        return None
-    if name not in _REGISTRY and name in SCORER_MODULES:
-        import importlib
-
-        importlib.import_module(SCORER_MODULES[name])
-    factory = _REGISTRY.get(name)
-    if factory is None:
-        raise ConfigError(f"unknown scorer; known: {list(scorers())}", source=f"rerank={name!r}")
-    return factory(config)
-
-
-def block_slice(config: Config, block: str) -> slice:
-    """Where ``block`` lies in ``config``'s stored vector; an empty slice when absent."""
-    if config.kernel.method == "mdbd":
-        from shapedb.signature.descriptor import LAYOUTS
-
-        at = 0
-        for name, size, _, _ in LAYOUTS[config.descriptor.version]:
-            if name == block:
-                return slice(at, at + size)
-            at += size
-    return slice(0, 0)
-
-
-def _block_weight(config: Config, block: str) -> float:
-    from shapedb.signature.descriptor import LAYOUTS
-
-    found = [b[3] for b in LAYOUTS.get(config.descriptor.version, ()) if b[0] == block]
-    return float(found[0]) if found else 1.0
-
-
-class AdaptiveFusion:
-    """Scorer ``"adaptive"``: ``base + (weight / w_b) * g(q) * part``.
-
-    ``part`` is the stored distance over ``block``'s numbers, ``base`` over the
-    others (so ``base + part`` is the stored distance), ``w_b`` the block's weight in
-    the store's descriptor version. ``g(q) = (|A ∩ B| / m) ** power`` with ``A`` and
-    ``B`` the query's ``m = min(neighbours, valid candidates)`` nearest candidates by
-    ``base`` and by ``part`` (the query itself left out; ties by ascending id).
-
-    Parameters
-    ----------
-    config : Config
-        Reads ``config.rerank`` and the block layout of ``config.descriptor``.
-    """
-
-    def __init__(self, config: Config) -> None:
-        r = config.rerank
-        self.block = block_slice(config, r.block)
-        self.neighbours = int(r.neighbours)
-        self.power = float(r.power)
-        self.factor = float(r.weight) / _block_weight(config, r.block)
-        self.ratio = float(r.ratio)
-        if self.block.stop == self.block.start:
-            log.debug("rerank: no block %r in this layout: the stored distance decides", r.block)
-
-    def parts(self, batch: Candidates) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """``(base, part)``, (q, c) each: the stored distance outside and inside the block."""
-        diff = np.abs(batch.features - batch.queries[:, None, :]) * batch.weights
-        part = diff[..., self.block].sum(axis=-1)
-        inside = np.zeros(diff.shape[-1], bool)
-        inside[self.block] = True
-        base = diff[..., ~inside].sum(axis=-1)
-        return base, part
-
-    def gate(
-        self, batch: Candidates, base: NDArray[np.float64], part: NDArray[np.float64]
-    ) -> NDArray[np.float64]:
-        """``g(q)``, (q,): overlap of the nearest candidates by ``base`` and by ``part``.
-
-        With ``RerankConfig.ratio > 0`` also times ``clip((ratio - r) / RATIO_RAMP, 0,
-        1)``, ``r`` the median ``part`` over the median ``base`` of the candidates (the
-        query left out).
-        """
-        ok = batch.valid & (batch.ids != batch.query_ids[:, None])
-        key = np.where(ok, batch.ids, _NO_ID)
-        g = np.zeros(len(key))
-        for row in range(len(key)):
-            m = min(self.neighbours, int(ok[row].sum()))
-            if m == 0:
-                continue
-            b = np.where(ok[row], base[row], np.inf)
-            p = np.where(ok[row], part[row], np.inf)
-            g[row] = 1.0
-            if self.power > 0:  # power 0: the overlap does not count
-                a = np.lexsort((key[row], b))[:m]
-                c = np.lexsort((key[row], p))[:m]
-                g[row] = (len(np.intersect1d(a, c)) / m) ** self.power
-            if self.ratio > 0:
-                spread = np.median(p[ok[row]]) / max(float(np.median(b[ok[row]])), 1e-300)
-                g[row] *= float(np.clip((self.ratio - spread) / RATIO_RAMP, 0.0, 1.0))
-        return g
-
-    def score(self, batch: Candidates) -> NDArray[np.float64]:
-        """Fused distances, (q, c)."""
-        base, part = self.parts(batch)
-        if self.block.stop == self.block.start:
-            return base
-        g = self.gate(batch, base, part)
-        return base + (self.factor * g)[:, None] * part
-
-
-register_scorer("adaptive", AdaptiveFusion)
 
 
 def extra_candidates(
@@ -306,7 +140,7 @@ def with_extras(
 ) -> Candidates:
     """``batch`` with extra candidates re-ranked after its first ``K`` (the union).
 
-    Each list becomes: its first ``K = batch.head or config.rerank.candidates`` entries,
+    Each list becomes: its first ``K = batch.head or PRODUCT.candidates`` entries,
     then the extras not among them in stored-distance order (``|x - q| @ weights``, ties
     by ascending id; -1 / inf pads up to ``e``), then the rest of the list without the
     extras. ``head`` of the result covers the ``K`` and the ``e`` extra slots.
@@ -319,7 +153,7 @@ def with_extras(
     extra_features : (q, e, d) float64
         Their stored vectors (anything where padded).
     """
-    n_k = int(batch.head if batch.head is not None else batch.config.rerank.candidates)
+    n_k = int(batch.head if batch.head is not None else PRODUCT.candidates)
     n_k = min(n_k, batch.ids.shape[1])
     head = batch.ids[:, :n_k]
     ex = np.asarray(extra_ids, np.int64)
@@ -363,7 +197,7 @@ def rerank_candidates(
     ----------
     scorer : Scorer
     batch : Candidates
-        Lists of at least ``K = batch.head`` (default ``batch.config.rerank.candidates``)
+        Lists of at least ``K = batch.head`` (default ``PRODUCT.candidates``)
         entries where the store holds that many (stored-distance order, then any
         extras, :func:`with_extras`); entries past ``K`` keep their order and stored
         distance. Padding inside a list is squeezed out.
@@ -377,7 +211,7 @@ def rerank_candidates(
     distances : (q, k) float64
         The scorer's distance for the first ``K``, the stored one after; inf pads.
     """
-    n_k = int(batch.head if batch.head is not None else batch.config.rerank.candidates)
+    n_k = int(batch.head if batch.head is not None else PRODUCT.candidates)
     head = dataclasses.replace(
         batch,
         ids=batch.ids[:, :n_k],
@@ -472,7 +306,7 @@ def search(
     query_arrays: Mapping[str, NDArray[np.float64]] | None = None,
     stored_distances: bool = False,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """The index's search followed by the re-ranking stage of ``config.rerank``.
+    """The index's search followed by the re-ranking stage ``scorer``.
 
     Parameters
     ----------
@@ -483,13 +317,14 @@ def search(
     k : int
         Results per query.
     config : Config
-        The store's configuration (``rerank`` and the descriptor's block layout).
+        The store's configuration.
     query_ids : (q,) int64, optional
         Stored id of each query, -1 (the default) for one that is not stored.
     allowed : (m,) int, optional
         Restrict the candidates to these ids (an exhaustive scan).
     scorer : Scorer, optional
-        Overrides ``config.rerank.scorer``. A scorer's extra candidates
+        The stage (:func:`query.search.stage.scorer_for`); None: the index's order. Its
+        extra candidates
         (``extra_candidates``, :class:`Scorer`) are re-ranked after the ``K``, within
         ``allowed`` and the index's live ids.
     arrays, query_arrays : optional
@@ -503,12 +338,11 @@ def search(
     ids, distances : (q, k) int64, (q, k) float64
         As :meth:`FeatureIndex.search`; the first ``K`` re-ranked by the scorer.
     """
-    scorer = scorer if scorer is not None else scorer_for(config)
     if scorer is None or not len(np.asarray(index.features_)):
         return index.search(queries, k, allowed=allowed)  # type: ignore[no-any-return]
     q = np.atleast_2d(np.asarray(queries, np.float64))
     qid = np.full(len(q), -1, np.int64) if query_ids is None else np.asarray(query_ids, np.int64)
-    wanted = max(int(k), int(config.rerank.candidates))
+    wanted = max(int(k), int(scorer.tuning.candidates))
     cand, dist = index.search(q, wanted, allowed=allowed)
     out_i = np.full((len(q), k), -1, np.int64)
     out_d = np.full((len(q), k), np.inf)

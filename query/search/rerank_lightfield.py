@@ -4,7 +4,7 @@ A store created with ``rerank="lightfield"`` keeps each record's light fields (t
 ``light_field`` column: :func:`shapedb.signature.lightfield.record_light_field` of its balls under
 ``Config.light_field``). The scorer (:class:`LightFieldFusion`, registered through
 :data:`query.search.rerank.SCORER_MODULES`) re-ranks a query's candidates by the gated
-reciprocal rank fusion of :class:`shapedb.config.core.LightFieldFusionConfig`: the stored
+reciprocal rank fusion of :class:`query.search.tuning.StageTuning`: the stored
 distance's rank plus the light field distance's rank, the latter weighted by a gate that
 is off where the light field spreads near neighbours more than the stored distance does
 (jointed subjects, whose silhouettes change with the pose: the stored local statistics
@@ -22,12 +22,12 @@ stage's default) and a warning is logged once per scorer.
 
 A store with field vectors (:mod:`query.search.field_fusion`) fuses them into the light field
 distance wherever the stage uses it (the ranks, the gate, the stored local statistics)
-when a field weight is above 0, and with ``LightFieldFusionConfig.field_candidates > 0``
+when a field weight is above 0, and with ``StageTuning.field_candidates > 0``
 the scorer proposes the nearest shapes by the scaled field vectors as extra candidates
 (:meth:`LightFieldFusion.extra_candidates`, through the field vector index of
 :mod:`query.search.field_index`, which the store's reader offers: :meth:`StoredArrays.field_index`).
 
-With ``LightFieldFusionConfig.shared_neighbours`` ``k > 0`` and ``shared_weight`` ``beta
+With ``StageTuning.shared_neighbours`` ``k > 0`` and ``shared_weight`` ``beta
 > 0`` the light field's rank ranks by ``dl / m_l - beta * S(q, x)``, ``S`` the share of
 the query's and the candidate's ``k`` nearest neighbours in common
 (:mod:`query.search.lightfield_neighbours`, whose per-store-version table of the stored shapes'
@@ -54,7 +54,8 @@ from query.search.lightfield_neighbours import (
     shared_scores,
 )
 from query.search.lightfield_spread import calibration, local_statistic, pooled, spread_table
-from query.search.rerank import Candidates, register_scorer
+from query.search.rerank import Candidates
+from query.search.tuning import PRODUCT, StageTuning, active
 
 if TYPE_CHECKING:
     from shapedb.config.core import Config
@@ -64,6 +65,7 @@ __all__ = [
     "StoredArrays",
     "stored_arrays",
     "query_light_fields",
+    "forget",
     "COLUMN",
     "SPREAD",
     "NEIGHBOURS",
@@ -94,7 +96,7 @@ class LightFieldFusion:
     distance, not the stored vector's: it only orders one query's results.
 
     The formula, the gate ``g(q)`` and the spread are those of
-    :class:`shapedb.config.core.LightFieldFusionConfig` (``config.lf_fusion``); ranks and
+    :class:`query.search.tuning.StageTuning` (:data:`~query.search.tuning.PRODUCT`); ranks and
     the neighbourhoods are taken among the query's valid candidates in their list
     order (stored distance, ties by ascending id). With the shared-neighbour term
     (``shared_neighbours``, ``shared_weight``) ``rank_l`` ranks by ``dl / m_l - beta *
@@ -104,14 +106,16 @@ class LightFieldFusion:
     Parameters
     ----------
     config : Config
-        Reads ``config.lf_fusion``, ``config.light_field`` and the descriptor's layout.
+        Reads ``config.light_field`` and the descriptor's layout.
+    tuning : StageTuning
+        The stage's numbers (:data:`query.search.tuning.PRODUCT`; studies vary them).
     """
 
-    def __init__(self, config: Config) -> None:
+    def __init__(self, config: Config, *, tuning: StageTuning = PRODUCT) -> None:
         self.config = config
-        self.fusion = config.lf_fusion
+        self.tuning = tuning
         self.calibration = calibration(config)
-        self.field = FieldFusion.from_config(config)
+        self.field = FieldFusion.from_config(config, tuning)
         self._warned = False
         self._warned_index = False
         self._warned_lists = False
@@ -136,7 +140,7 @@ class LightFieldFusion:
 
         With ``shared`` (the term's ``S(q, x)``, :mod:`query.search.lightfield_neighbours`) and
         an open gate, the light field's rank is taken by ``dl / m_l - beta * S`` instead
-        of ``dl`` (:class:`shapedb.config.core.LightFieldFusionConfig`; ``m_l``:
+        of ``dl`` (:class:`query.search.tuning.StageTuning`; ``m_l``:
         :attr:`scale`); the gate reads ``dl`` alone. **The first result is kept**: the
         candidate first among those not ``own`` without the term (by fused score, ties
         by ascending id, as :func:`query.search.rerank.rerank_candidates` orders) is first among
@@ -154,7 +158,7 @@ class LightFieldFusion:
             first result).
         spreads : (c,) float64, optional
             The candidates' stored local spreads (NaN: unknown), pooled when
-            ``LightFieldFusionConfig.pool > 0``; None there: the term is off.
+            ``StageTuning.pool > 0``; None there: the term is off.
         gate : float, optional
             ``g(q)`` when already known (:meth:`gate` of the same arguments).
         shared : (c,) float64, optional
@@ -162,7 +166,7 @@ class LightFieldFusion:
         ids : (c,) int64, optional
             The candidates' ids (the first result's ties); needed with ``shared``.
         """
-        f = self.fusion
+        f = self.tuning
         d4 = d / self.calibration
         fused = 1.0 / (f.offset + _ranks(d4))
         g = self.gate(d4, dl, own, spreads) if gate is None else float(gate)
@@ -180,7 +184,7 @@ class LightFieldFusion:
     def scale(self) -> float:
         """``m_l`` of the shared-neighbour term: ``light_field_scale`` when the field vectors
         are fused into the light field distance, else ``typical``."""
-        f = self.fusion
+        f = self.tuning
         return float(f.light_field_scale if self.field.active else f.typical)
 
     def gate(
@@ -194,16 +198,12 @@ class LightFieldFusion:
 
         ``d4`` in calibrated units, list order; the arguments as :meth:`fuse`'s.
         """
-        f = self.fusion
+        f = self.tuning
         others = np.flatnonzero(~own)
         if not len(others):
             return 0.0
         others = others[np.argsort(d4[others], kind="stable")]  # nearest by d first
         g = 1.0
-        if f.power > 0:
-            m = min(f.neighbours, len(others))
-            b = others[np.argsort(dl[others], kind="stable")[:m]]
-            g = (len(np.intersect1d(others[:m], b)) / m) ** f.power
         if f.ceiling > 0:
             if f.pool > 0:
                 pool = None if spreads is None else spreads[: f.pool]
@@ -211,7 +211,7 @@ class LightFieldFusion:
                     return 0.0
                 spread = float(pooled(pool, f.pool_quantile))
             else:  # the query's own statistic over its candidates
-                spread = local_statistic(d4[others], dl[others], self.config)
+                spread = local_statistic(d4[others], dl[others], self.tuning)
             g *= float(np.clip((f.ceiling - spread) / f.ramp, 0.0, 1.0))
         if f.contrast_floor > 0:
             far = d4[others[min(f.contrast_depth, len(others)) - 1]]
@@ -285,7 +285,7 @@ class LightFieldFusion:
         if not rows:
             return out
         spreads = None
-        if self.fusion.pool > 0 and self.fusion.ceiling > 0 and batch.arrays is not None:
+        if self.tuning.pool > 0 and self.tuning.ceiling > 0 and batch.arrays is not None:
             wanted = np.unique(np.concatenate([batch.ids[row, cols] for row, cols, _, _ in rows]))
             got = batch.arrays(SPREAD, wanted)
             if got is not None:
@@ -296,9 +296,9 @@ class LightFieldFusion:
             if spreads is not None:
                 sp = np.array([spreads[int(i)] for i in batch.ids[row, cols]])
             gates.append(self.gate(batch.distances[row, cols] / self.calibration, dl, own, sp))
-        term_on = [r for r, g in zip(rows, gates, strict=True) if g > 0 and self.fusion.weight > 0]
+        term_on = [r for r, g in zip(rows, gates, strict=True) if g > 0 and self.tuning.weight > 0]
         lists = self._lists(batch, term_on)
-        k = int(self.fusion.shared_neighbours)
+        k = int(self.tuning.shared_neighbours)
         for (row, cols, dl, own), g in zip(rows, gates, strict=True):
             ids = batch.ids[row, cols]
             shared = None
@@ -313,7 +313,7 @@ class LightFieldFusion:
 
     def _lists(self, batch: Candidates, rows: list[Any]) -> dict[int, NDArray[np.int64]] | None:
         """The stored lists ``N_k(x)`` of the candidates of ``rows``, by id; None: no term."""
-        if not self.fusion.shares_neighbours or not rows:
+        if not self.tuning.shares_neighbours or not rows:
             return None
         wanted = np.unique(np.concatenate([batch.ids[row, cols] for row, cols, _, _ in rows]))
         got = None if batch.arrays is None else batch.arrays(NEIGHBOURS, wanted)
@@ -331,7 +331,7 @@ class LightFieldFusion:
     def extra_candidates(self, batch: Candidates, allowed: Any = None) -> NDArray[np.int64] | None:
         """(q, K2) nearest stored shapes by the scaled field vectors, or None (off).
 
-        ``K2 = LightFieldFusionConfig.field_candidates``; the query's own field vector
+        ``K2 = StageTuning.field_candidates``; the query's own field vector
         from ``batch.query_arrays`` or, for a stored query, read by id; the index from
         ``batch.arrays.field_index()`` (:mod:`query.search.field_index`). Within ``allowed``
         when given. A query without a field vector gets no extras (-1).
@@ -366,9 +366,6 @@ class LightFieldFusion:
                 missing = ~np.all(np.isfinite(out[stored]), axis=1)
                 out[stored[missing]] = read[missing]
         return out
-
-
-register_scorer("lightfield", LightFieldFusion)
 
 
 class StoredArrays:
@@ -442,12 +439,12 @@ class StoredArrays:
         it.
         """
         if name == SPREAD:
-            return spread_table(self.db, self).get(np.asarray(ids, np.int64))
+            return spread_table(self.db, self, active()).get(np.asarray(ids, np.int64))
         if name == NEIGHBOURS:
-            if not self.db.config.lf_fusion.shares_neighbours:
+            if not active().shares_neighbours:
                 return None
-            if self._stage is None:
-                self._stage = LightFieldFusion(self.db.config)
+            if self._stage is None or self._stage.tuning != active():
+                self._stage = LightFieldFusion(self.db.config, tuning=active())
             table = neighbour_table(self.db, self, self._stage)
             return table.get(np.asarray(ids, np.int64)).astype(np.float64)
         if name not in self._columns:
@@ -473,6 +470,12 @@ class StoredArrays:
 #: Readers by (store path, manifest version): the most recent few.
 _READERS: dict[tuple[str, int], StoredArrays] = {}
 _KEEP = 4
+
+
+def forget(path: str) -> None:
+    """Drop the shared readers of the store at ``path`` (its files changed under one version)."""
+    for key in [k for k in _READERS if k[0] == path]:
+        _READERS.pop(key, None)
 
 
 def stored_arrays(db: Any, *, preload: bool = False) -> StoredArrays:

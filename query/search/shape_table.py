@@ -3,11 +3,12 @@
 The ``"lightfield"`` stage keeps two such tables beside a store: the local spreads
 (:mod:`query.search.lightfield_spread`) and the shared-neighbour lists
 (:mod:`query.search.lightfield_neighbours`). Both depend on the whole store, so they belong to a
-store version: :class:`ShapeTable` computes the values of the ids asked for, keeps them
-in process, and once every alive shape has one writes them to a versioned directory
-under the store (:func:`query.search.versioned.save_version`: ``ids.npy`` and the values'
-file, the store version and the parameters in ``current.json``), read back while the
-version and the parameters match. :func:`shared_table` hands every reader of a store
+store version: :class:`ShapeTable` computes the values of the ids asked for and keeps them
+in process; a search never writes. After a commit the store's derived-state update
+computes every alive shape's value and saves the table (:meth:`ShapeTable.save`) to a
+versioned directory under the store (:func:`query.search.versioned.save_version`:
+``ids.npy`` and the values' file, the store version and the parameters in
+``current.json``), read back while the version and the parameters match. :func:`shared_table` hands every reader of a store
 version the same table.
 """
 
@@ -99,7 +100,11 @@ class ShapeTable:
         except (OSError, ValueError, KeyError) as exc:
             log.warning("recomputing the %s of %s: %s", self.what, self.db.store.path, exc)
 
-    def _write(self) -> None:
+    def save(self) -> None:
+        """Write the complete table beside the store (the commit's update calls this; no-op
+        while some alive shape has no value yet)."""
+        if not self.complete:
+            return
         ids = np.array(sorted(self.values), np.int64)
         values = np.asarray([self.values[int(i)] for i in ids])
 
@@ -114,8 +119,7 @@ class ShapeTable:
         """``(ids, values)``: every asked id's value (None where it has none; every alive
         shape's when ``ids`` is None).
 
-        Computes the ids not known yet; once every alive shape has its value, writes the
-        table for later processes.
+        Computes the ids not known yet, in this process (nothing is written: :meth:`save`).
         """
         with self._lock:
             want = None if ids is None else np.asarray(ids, np.int64).ravel()
@@ -128,7 +132,6 @@ class ShapeTable:
                     self.values.update({int(i): v for i, v in zip(got_ids, got, strict=True)})
                     if len(self.values) >= self.n_alive:  # compute answers alive ids only
                         self.complete = True
-                        self._write()
             if want is None:
                 want = np.array(sorted(self.values), np.int64)
             return want, [self.values.get(int(i)) for i in want]

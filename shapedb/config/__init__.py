@@ -1,1 +1,37 @@
-"""TODO"""
+"""The typed configuration a store is built with, and how older stores' read today.
+
+:class:`Config` composes one frozen section per concern (the decomposition, the kernel,
+the descriptor's version, sparse clouds, whether searches re-rank, the light fields and
+field vectors kept per record); it is stored with every record, so a store knows how it
+was built. :mod:`shapedb.config.migrations` is the one place that reads older layouts.
+"""
+
+from __future__ import annotations
+
+from shapedb.config.core import (
+    OPTIONS,
+    CloudConfig,
+    Config,
+    DescriptorConfig,
+    FieldVectorConfig,
+    KernelConfig,
+    LightFieldConfig,
+    MDBDConfig,
+    PartConfig,
+    RerankConfig,
+    parse_options,
+)
+
+__all__ = [
+    "Config",
+    "MDBDConfig",
+    "KernelConfig",
+    "DescriptorConfig",
+    "CloudConfig",
+    "RerankConfig",
+    "LightFieldConfig",
+    "FieldVectorConfig",
+    "PartConfig",
+    "OPTIONS",
+    "parse_options",
+]

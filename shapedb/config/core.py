@@ -6,11 +6,11 @@ A :class:`Config` composes the settings that determine a store's records:
 * :class:`KernelConfig`: the paper's Eq. 1-3 random-walk kernel and the feature method;
 * :class:`DescriptorConfig`: the version of shapedb's own descriptor (method "mdbd");
 * :class:`CloudConfig`: what a store keeps for sparse point clouds (views, reconstructions);
-* :class:`RerankConfig` (module :mod:`shapedb.config.rerank`): how a search re-ranks
-  the candidates of the index;
-* :class:`LightFieldConfig` and :class:`LightFieldFusionConfig` (module
-  :mod:`shapedb.config.lightfield`): the light fields of the balls stored per record and
-  the ``"lightfield"`` re-ranking scorer's fusion;
+* :class:`RerankConfig` (module :mod:`shapedb.config.rerank`): whether a search re-ranks
+  the candidates of the index (the stage's numbers are not options:
+  :mod:`query.search.tuning`);
+* :class:`LightFieldConfig` (module :mod:`shapedb.config.lightfield`): the light fields
+  stored per record;
 * :class:`FieldVectorConfig` (module :mod:`shapedb.config.field_vector`): the field vector
   (depth buffers and spherical harmonics of the field's inside) stored per record.
 
@@ -23,8 +23,8 @@ fields) are read through :mod:`shapedb.config.migrations`, the only module that 
 
 On the command line and in :func:`shapedb.connect` every setting is one flat option
 (:data:`OPTIONS`): the field's name, except ``descriptor`` for
-``DescriptorConfig.version``, ``rerank`` / ``rerank_<field>`` for :class:`RerankConfig`,
-``lf_<field>`` for the two light field sections and ``fv_<field>`` for
+``DescriptorConfig.version``, ``rerank`` for :class:`RerankConfig`,
+``lf_<field>`` for the light field section and ``fv_<field>`` for
 :class:`FieldVectorConfig`.
 """
 
@@ -39,12 +39,7 @@ from typing import Any, TypeVar
 from shapedb.config import migrations
 from shapedb.config.checks import check, is_int
 from shapedb.config.field_vector import FieldVectorConfig, product_field_vector
-from shapedb.config.lightfield import (
-    LightFieldConfig,
-    LightFieldFusionConfig,
-    product_light_field,
-    product_light_field_fusion,
-)
+from shapedb.config.lightfield import LightFieldConfig, product_light_field
 from shapedb.config.rerank import RerankConfig
 from shapedb.errors import ConfigError
 
@@ -54,7 +49,6 @@ __all__ = [
     "DescriptorConfig",
     "CloudConfig",
     "LightFieldConfig",
-    "LightFieldFusionConfig",
     "FieldVectorConfig",
     "RerankConfig",
     "PartConfig",
@@ -448,7 +442,6 @@ _SECTIONS: dict[str, type] = {
     "cloud": CloudConfig,
     "rerank": RerankConfig,
     "light_field": LightFieldConfig,
-    "lf_fusion": LightFieldFusionConfig,
     "field_vector": FieldVectorConfig,
 }
 
@@ -457,8 +450,8 @@ def _option(section: str, name: str) -> str:
     if section == "descriptor":
         return "descriptor"
     if section == "rerank":
-        return "rerank" if name == "scorer" else f"rerank_{name}"
-    if section in ("light_field", "lf_fusion"):
+        return "rerank"
+    if section == "light_field":
         return f"lf_{name}"
     if section == "field_vector":
         return f"fv_{name}"
@@ -467,9 +460,8 @@ def _option(section: str, name: str) -> str:
 
 #: Every flat option (``connect(path, **options)``, ``--set KEY=VALUE``) and the
 #: ``(section, field)`` of :class:`Config` it sets: a field's own name, except
-#: ``descriptor`` for ``DescriptorConfig.version``, ``rerank`` for ``RerankConfig.scorer``
-#: and ``rerank_<field>`` for its other fields, ``lf_<field>`` for the light field
-#: sections and ``fv_<field>`` for the field vector's.
+#: ``descriptor`` for ``DescriptorConfig.version``, ``rerank`` for ``RerankConfig.scorer``,
+#: ``lf_<field>`` for the light field section and ``fv_<field>`` for the field vector's.
 OPTIONS: dict[str, tuple[str, str]] = {
     _option(section, f.name): (section, f.name)
     for section, cls in _SECTIONS.items()
@@ -492,16 +484,13 @@ class Config:
     cloud : CloudConfig
         Sparse views and reconstructions of sparse point clouds.
     rerank : RerankConfig
-        How a search re-ranks the index's candidates. ``scorer="lightfield"`` is also
+        Whether a search re-ranks the index's candidates. ``scorer="lightfield"`` is also
         the switch that makes ingest store each record's light fields (the
         ``light_field`` column).
     light_field : LightFieldConfig
         The light fields stored per record when the scorer is ``"lightfield"``
-        (default: 64 px, 3 light fields, silhouettes only, of the packing continued to
-        2048 balls: ``LightFieldConfig.n_balls``).
-    lf_fusion : LightFieldFusionConfig
-        How the ``"lightfield"`` scorer fuses them with the stored distance (and, in a
-        store that keeps field vectors, fuses those into the light field distance).
+        (:func:`~shapedb.config.lightfield.product_light_field`: 3 light fields of 128 px,
+        silhouettes only, of the field's inside seen about its surface).
     field_vector : FieldVectorConfig
         The field vector stored per record when :attr:`stores_field_vectors`.
     """
@@ -512,7 +501,6 @@ class Config:
     cloud: CloudConfig = field(default_factory=CloudConfig)
     rerank: RerankConfig = field(default_factory=RerankConfig)
     light_field: LightFieldConfig = field(default_factory=product_light_field)
-    lf_fusion: LightFieldFusionConfig = field(default_factory=product_light_field_fusion)
     field_vector: FieldVectorConfig = field(default_factory=product_field_vector)
 
     @property

@@ -15,8 +15,8 @@ Store configuration layouts (``Config.to_dict()``):
 * **2**: ``{"layout": 2, "mdbd", "kernel", "descriptor": {"version"}, "cloud"}``.
 * **3**: layout 2 plus ``"rerank"`` (how a search re-ranks, ``RerankConfig``); a store of
   an earlier layout searched without a re-ranking stage (:data:`SECTIONS_ADDED`).
-* **4**: layout 3 plus ``"light_field"`` and ``"lf_fusion"`` (``LightFieldConfig``,
-  ``LightFieldFusionConfig``: the light fields a store with the ``"lightfield"`` scorer
+* **4**: layout 3 plus ``"light_field"`` and ``"lf_fusion"`` (``LightFieldConfig``, and
+  the stage's fusion numbers: the light fields a store with the ``"lightfield"`` scorer
   keeps per record, and that scorer's fusion); a store of an earlier layout kept no light
   fields and reads both sections at today's defaults for the product (64 px, 3 light
   fields, silhouettes only).
@@ -24,8 +24,11 @@ Store configuration layouts (``Config.to_dict()``):
   spherical harmonics of the field's inside a store keeps per record); a store of an
   earlier layout kept none (``enabled`` False), and its ``lf_fusion`` section, stored or
   not, reads the field vector's fusion fields off (weights 0, no field candidates).
-  An ``lf_fusion`` section written before the shared-neighbour term reads it off
-  (``shared_neighbours`` 0, ``shared_weight`` 0).
+* **6**: layout 5 without ``"lf_fusion"`` and with ``"rerank"`` holding ``scorer`` alone:
+  the stage's numbers are constants of the code (``query.search.tuning``), not options.
+  An older store's ``lf_fusion`` and its other ``rerank`` fields are dropped: it searches
+  with today's stage. A store of the retired ``"adaptive"`` scorer (an opt-in that lost on
+  some set) reads ``"none"``: its stored vectors, ranked by the descriptor alone.
 
 Part-index configuration layouts (``PartConfig.to_dict()``):
 
@@ -37,7 +40,7 @@ A field a stored section predates takes the value that reproduces what built the
 (:data:`ADDED`, :data:`STORED_ADDED`, :data:`PART_ADDED`); a section not stored at all takes
 today's defaults (the upgraded dict leaves it out), but for :data:`ADDED`'s values. Layout 4
 stores wrote ``lf_fusion`` before its fields ``pool`` and ``contrast_floor``: such a section
-reads ``pool`` 0 and no floor (the gate it searched with).
+read ``pool`` 0 and no floor (the gate it searched with) until layout 6 dropped the section.
 """
 
 from __future__ import annotations
@@ -51,6 +54,8 @@ __all__ = [
     "ADDED",
     "STORED_ADDED",
     "SECTIONS_ADDED",
+    "DROPPED",
+    "RETIRED_SCORERS",
     "PART_ADDED",
     "upgrade_config",
     "upgrade_part_config",
@@ -60,7 +65,7 @@ __all__ = [
 ]
 
 #: The layout :meth:`Config.to_dict` writes.
-LAYOUT = 5
+LAYOUT = 6
 #: The layout :meth:`PartConfig.to_dict` writes.
 PART_LAYOUT = 2
 
@@ -93,18 +98,6 @@ ADDED: dict[str, dict[str, Any]] = {
         "source": "balls",
         "centre": "volume",
     },
-    # before the field vectors: none stored, none fused, no candidates from them; before
-    # the shared-neighbour term: no term
-    "lf_fusion": {
-        "field_depth_weight": 0.0,
-        "field_harmonic_weight": 0.0,
-        "light_field_scale": 1.0,
-        "field_depth_scale": 1.0,
-        "field_harmonic_scale": 1.0,
-        "field_candidates": 0,
-        "shared_neighbours": 0,
-        "shared_weight": 0.0,
-    },
     "field_vector": {"enabled": False},
 }
 
@@ -112,15 +105,6 @@ ADDED: dict[str, dict[str, Any]] = {
 #: reproduces what a stored section without them did. Unlike :data:`ADDED`, only a
 #: stored section takes them: a section the layout predates keeps today's defaults.
 STORED_ADDED: dict[str, dict[str, Any]] = {
-    # before the pooled spread and the contrast floor: the query's own spread, no floor
-    # before the ratio and the pooled quantile: the local spread alone, pooled by its median
-    "lf_fusion": {
-        "pool": 0,
-        "contrast_floor": 0.0,
-        "ratio_weight": 0.0,
-        "ratio_candidates": 100,
-        "pool_quantile": 0.5,
-    },
     # before n_balls, the light fields were those of the decomposition's balls; before
     # source, always of balls; before centre, the field was seen about its volume centroid
     "light_field": {"n_balls": 0, "source": "balls", "centre": "volume"},
@@ -132,9 +116,16 @@ STORED_ADDED: dict[str, dict[str, Any]] = {
 SECTIONS_ADDED: dict[str, int] = {
     "rerank": 3,
     "light_field": 4,
-    "lf_fusion": 4,
     "field_vector": 5,
 }
+
+#: Sections and fields layout 6 no longer stores: the stage's numbers, now constants.
+DROPPED: dict[str, tuple[str, ...]] = {
+    "lf_fusion": (),  # the whole section
+    "rerank": ("candidates", "neighbours", "power", "weight", "block", "ratio"),
+}
+#: Scorers a store may have been written with that read as another today.
+RETIRED_SCORERS: dict[str, str] = {"adaptive": "none"}
 
 #: Decomposition fields added after ``Config.fingerprint`` was first stored, and the
 #: value at which the fingerprint leaves them out, so that stores written before each
@@ -185,6 +176,22 @@ def upgrade_config(data: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
         if isinstance(section, dict):
             for key, legacy in ADDED.get(name, {}).items():
                 section.setdefault(key, legacy)
+    return _drop_retired(sections)
+
+
+def _drop_retired(sections: dict[str, Any]) -> dict[str, Any]:
+    """Layout 6: the sections and fields of :data:`DROPPED` left out, retired scorers mapped."""
+    for name, keys in DROPPED.items():
+        if name not in sections:
+            continue
+        if not keys:
+            sections.pop(name)
+        elif isinstance(sections[name], dict):
+            for key in keys:
+                sections[name].pop(key, None)
+    rerank = sections.get("rerank")
+    if isinstance(rerank, dict) and rerank.get("scorer") in RETIRED_SCORERS:
+        rerank["scorer"] = RETIRED_SCORERS[rerank["scorer"]]
     return sections
 
 

@@ -18,7 +18,7 @@ Two rotation-invariant descriptors of the inside of the signed field the MDBD pa
 float32, under a :class:`shapedb.config.core.FieldVectorConfig`; a store with
 ``Config.stores_field_vectors`` keeps it per record (``field_vector`` column), and the
 ``"lightfield"`` scorer fuses its parts' L1 distances into the light field distance
-(:class:`shapedb.config.core.LightFieldFusionConfig`).
+(:class:`query.search.tuning.StageTuning`).
 """
 
 from __future__ import annotations

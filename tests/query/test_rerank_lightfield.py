@@ -19,13 +19,15 @@ from query.evaluate import evaluate, retrieval_scores
 from query.search import rerank
 from query.search.index import FeatureIndex
 from query.search.rerank_lightfield import COLUMN, LightFieldFusion, stored_arrays
+from query.search.stage import scorer_for
+from query.search.tuning import PRODUCT
 from shapedb.config.core import Config, parse_options
 from shapedb.errors import ConfigError
 from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus
 from shapedb.signature.kernel import weights
 from shapedb.signature.lightfield import light_field_distance
 
-STAGE = CONFIG.with_options(rerank="lightfield", rerank_candidates=6)
+STAGE = CONFIG.with_options(rerank="lightfield")
 #: The stage on the balls' light fields (the fills and the longer packing are theirs).
 BALLS = STAGE.with_options(lf_source="balls", lf_resolution=64)
 
@@ -33,45 +35,24 @@ BALLS = STAGE.with_options(lf_source="balls", lf_resolution=64)
 def _study_case(n: int = 40, seed: int = 0) -> tuple[Config, np.ndarray, np.ndarray, np.ndarray]:
     """A v4 store's vectors, light fields and a typical distance that opens some gates."""
     rng = np.random.default_rng(seed)
-    config = Config().with_options(rerank="lightfield", rerank_candidates=n)
+    config = Config().with_options(rerank="lightfield")
     x = rng.random((n, config.dim))
     classes = rng.random((4, 3, 10, 46))
     lf = classes[np.arange(n) % 4] + 0.3 * rng.random((n, 3, 10, 46))
     return config, x, lf, light_field_distance(lf)
 
 
-#: The stage's settings before the pooled spread and the contrast floor (issue 25's
-#: first product): what a store written then reads (shapedb.config.migrations).
-LEGACY = {"lf_weight": 8.0, "lf_power": 3.0, "lf_ceiling": 0.09, "lf_spread_candidates": 100,
-          "lf_pool": 0, "lf_contrast_floor": 0.0, "lf_ramp": 0.02, "lf_ratio_weight": 0.0}  # fmt: skip
-
-
-def test_a_store_written_before_the_pool_reads_the_legacy_gate() -> None:
-    stored = json.loads(Config().with_options(rerank="lightfield", **LEGACY).to_json())
-    del stored["lf_fusion"]["pool"], stored["lf_fusion"]["contrast_floor"]
-    got = Config.from_json(json.dumps(stored)).lf_fusion
-    assert (got.pool, got.contrast_floor, got.weight, got.power) == (0, 0.0, 8.0, 3.0)
-    assert Config().lf_fusion.pool > 0 and Config().lf_fusion.contrast_floor > 0
-
-
-def test_a_store_written_before_the_ratio_reads_its_spread_gate() -> None:
-    spread_gate = {"lf_pool": 20, "lf_ceiling": 0.11, "lf_spread_candidates": 5,
-                   "lf_contrast_floor": 0.3}  # fmt: skip
-    stored = json.loads(Config().with_options(rerank="lightfield", **spread_gate).to_json())
-    for key in ("ratio_weight", "ratio_candidates", "pool_quantile"):
-        del stored["lf_fusion"][key]
-    got = Config.from_json(json.dumps(stored)).lf_fusion
-    assert (got.ratio_weight, got.pool_quantile) == (0.0, 0.5)
-    assert (got.pool, got.ceiling, got.spread_candidates) == (20, 0.11, 5)
-    ratio = Config().with_options(lf_ratio_weight=0.5, lf_ratio_candidates=30,
-                                  lf_pool_quantile=0.25)  # fmt: skip
-    assert Config.from_json(ratio.to_json()) == ratio
-    assert ratio.lf_fusion.ratio_candidates == 30
+#: The first light field stage's gate (no pool, no contrast floor, no ratio): its ranks
+#: are the study's formula (bench/studies/lightfield_balls.py, without the overlap).
+LEGACY = replace(
+    PRODUCT, weight=8.0, ceiling=0.09, spread_candidates=100, pool=0, contrast_floor=0.0,
+    ramp=0.02, ratio_weight=0.0, field_depth_weight=0.0, field_harmonic_weight=0.0,
+    field_candidates=0, shared_neighbours=0,
+)  # fmt: skip
 
 
 def test_with_every_shape_a_candidate_the_legacy_gate_ranks_as_the_study() -> None:
     config, x, lf, dl = _study_case()
-    config = config.with_options(**LEGACY)
     w = weights(config)
     d = np.abs(x[:, None, :] - x[None, :, :]) @ w
     cal = np.log(10.0) / sum(
@@ -84,9 +65,8 @@ def test_with_every_shape_a_candidate_the_legacy_gate_ranks_as_the_study() -> No
         np.take_along_axis(d4, near, 1), 1
     )
     typical = float(np.median(ratio) / 0.09)
-    config = config.with_options(lf_typical=typical)
-    f = config.lf_fusion
-    study = fuse("adrank", f.weight, d4, dl, typical, f.neighbours, f.power, f.ceiling, f.ramp)
+    f = replace(LEGACY, typical=typical, candidates=len(x))
+    study = fuse("adrank", f.weight, d4, dl, typical, f.neighbours, 0.0, f.ceiling, f.ramp)
     index = FeatureIndex(kind="flat").fit(np.arange(len(x)), x.astype(np.float32), w)
 
     def arrays(name: str, ids: np.ndarray) -> np.ndarray | None:
@@ -94,7 +74,7 @@ def test_with_every_shape_a_candidate_the_legacy_gate_ranks_as_the_study() -> No
 
     got, _ = rerank.search(
         index, index.features_.astype(np.float64), len(x), config=config,
-        query_ids=np.arange(len(x)), arrays=arrays,
+        query_ids=np.arange(len(x)), arrays=arrays, scorer=LightFieldFusion(config, tuning=f),
     )  # fmt: skip
     want = np.argsort(study, axis=1, kind="stable")
     plain = np.argsort(d, axis=1, kind="stable")
@@ -109,22 +89,24 @@ def test_without_light_fields_the_stored_order_is_kept_with_a_warning(
     index = FeatureIndex(kind="flat").fit(np.arange(12), x.astype(np.float32), weights(config))
     q = index.features_.astype(np.float64)
     with caplog.at_level(logging.WARNING, logger="query.search.rerank_lightfield"):
-        got, _ = rerank.search(index, q, 12, config=config, query_ids=np.arange(12))
+        got, _ = rerank.search(
+            index, q, 12, config=config, query_ids=np.arange(12), scorer=LightFieldFusion(config)
+        )
     assert np.array_equal(got, index.search(q, 12)[0])
     assert "keeps no light fields" in caplog.text
 
 
-def test_bad_fusion_values_name_the_field() -> None:
-    for option, value in [("lf_weight", -1.0), ("lf_neighbours", 0), ("lf_ramp", 0.0),
-                          ("lf_typical", 0.0), ("lf_spread_candidates", 0), ("lf_n_fields", 11),
-                          ("lf_pool", -1), ("lf_contrast_floor", 1.5), ("lf_contrast_ramp", 0.0),
-                          ("lf_contrast_depth", 1), ("lf_ratio_weight", 1.5),
-                          ("lf_ratio_candidates", 0), ("lf_pool_quantile", -0.1)]:  # fmt: skip
-        with pytest.raises(ConfigError, match=option.removeprefix("lf_")):
-            Config().with_options(**{option: value})
-    assert Config().with_options(lf_weight=2.0).lf_fusion.weight == 2.0
-    typed = parse_options(["rerank=lightfield", "lf_weight=2", "lf_n_fields=10"])
-    assert typed == {"rerank": "lightfield", "lf_weight": 2.0, "lf_n_fields": 10}
+def test_bad_stage_numbers_and_light_field_options_name_the_field() -> None:
+    for name, value in [("weight", -1.0), ("neighbours", 0), ("ramp", 0.0), ("typical", 0.0),
+                        ("spread_candidates", 0), ("pool", -1), ("contrast_ramp", 0.0),
+                        ("contrast_depth", 1), ("ratio_weight", 1.5), ("ratio_candidates", 0),
+                        ("pool_quantile", -0.1), ("weight", float("nan"))]:  # fmt: skip
+        with pytest.raises(ConfigError, match=name):
+            replace(PRODUCT, **{name: value})
+    with pytest.raises(ConfigError, match="n_fields"):
+        Config().with_options(lf_n_fields=11)
+    typed = parse_options(["rerank=lightfield", "lf_n_fields=10"])
+    assert typed == {"rerank": "lightfield", "lf_n_fields": 10}
     assert Config().with_options(**typed).stores_light_fields
     assert Config().stores_light_fields  # the default stage
     assert not Config().with_options(rerank="none").stores_light_fields
@@ -239,9 +221,8 @@ def test_a_store_written_before_the_column_searches_in_the_stored_order(
     forget(old)
 
 
-def test_the_scorer_is_registered_by_its_module() -> None:
-    assert isinstance(rerank.scorer_for(STAGE), LightFieldFusion)
-    assert "lightfield" in rerank.scorers()
+def test_the_store_s_stage_is_the_light_field_stage() -> None:
+    assert isinstance(scorer_for(STAGE), LightFieldFusion)
 
 
 def test_a_store_with_filled_silhouettes_fills_its_records_and_its_queries(

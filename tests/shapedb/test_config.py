@@ -14,7 +14,6 @@ from shapedb.config.core import (
     FieldVectorConfig,
     KernelConfig,
     LightFieldConfig,
-    LightFieldFusionConfig,
     MDBDConfig,
     PartConfig,
     RerankConfig,
@@ -37,15 +36,15 @@ def test_json_round_trip_and_fingerprint() -> None:
 
 def test_each_concern_is_its_own_section() -> None:
     cfg = Config().with_options(
-        tie_cells=0.0, lam=2.0, descriptor=1, view_cells=4.0, reconstruct_depth=6, rerank_power=2
+        tie_cells=0.0, lam=2.0, descriptor=1, view_cells=4.0, reconstruct_depth=6, rerank="none"
     )
     assert cfg.mdbd == MDBDConfig(tie_cells=0.0)
     assert cfg.kernel == KernelConfig(lam=2.0)
     assert cfg.descriptor == DescriptorConfig(version=1)
     assert cfg.cloud == CloudConfig(view_cells=4.0, reconstruct_depth=6)
-    assert cfg.rerank == RerankConfig(power=2.0)
+    assert cfg.rerank == RerankConfig(scorer="none")
     assert set(cfg.to_dict()) == {
-        "layout", "mdbd", "kernel", "descriptor", "cloud", "rerank", "light_field", "lf_fusion",
+        "layout", "mdbd", "kernel", "descriptor", "cloud", "rerank", "light_field",
         "field_vector",
     }  # fmt: skip
     kernel_fields = {f.name for f in dataclasses.fields(KernelConfig)}
@@ -57,19 +56,17 @@ def test_every_flat_option_names_one_field() -> None:
     assert OPTIONS["view_cells"] == ("cloud", "view_cells")
     assert OPTIONS["tie_rule"] == ("mdbd", "tie_rule")
     assert OPTIONS["rerank"] == ("rerank", "scorer")
-    assert OPTIONS["rerank_candidates"] == ("rerank", "candidates")
-    typed = parse_options(["rerank=adaptive", "rerank_ratio=0.4", "rerank_candidates=50"])
-    assert typed == {"rerank": "adaptive", "rerank_ratio": 0.4, "rerank_candidates": 50}
+    assert parse_options(["rerank=none"]) == {"rerank": "none"}
     assert OPTIONS["lf_resolution"] == ("light_field", "resolution")
-    assert OPTIONS["lf_weight"] == ("lf_fusion", "weight")
-    assert OPTIONS["lf_field_candidates"] == ("lf_fusion", "field_candidates")
+    for knob in ("lf_weight", "lf_field_candidates", "rerank_candidates", "rerank_ratio"):
+        assert knob not in OPTIONS  # the stage's numbers are constants (query.search.tuning)
     assert OPTIONS["fv_enabled"] == ("field_vector", "enabled")
     assert OPTIONS["fv_harmonic_bands"] == ("field_vector", "harmonic_bands")
     assert parse_options(["fv_enabled=false", "fv_depth_resolution=32"]) == {
         "fv_enabled": False, "fv_depth_resolution": 32
     }  # fmt: skip
     sections = (MDBDConfig, KernelConfig, DescriptorConfig, CloudConfig, RerankConfig,
-                LightFieldConfig, LightFieldFusionConfig, FieldVectorConfig)  # fmt: skip
+                LightFieldConfig, FieldVectorConfig)  # fmt: skip
     assert len(OPTIONS) == sum(len(dataclasses.fields(c)) for c in sections)
     options = Config().options()
     assert set(options) == set(OPTIONS) and options["descriptor"] == 4
@@ -162,3 +159,11 @@ def test_options_parse_from_text_by_field_type() -> None:
     ]:
         with pytest.raises(ConfigError, match=match):
             parse_options([bad])
+
+
+def test_the_configuration_stays_small_and_rejects_retired_scorers() -> None:
+    """About forty fields in all (the stage's numbers are not options), and no string
+    names a scorer the code does not have."""
+    assert len(OPTIONS) <= 45
+    with pytest.raises(ConfigError, match="rerank"):
+        Config().with_options(rerank="adaptive")

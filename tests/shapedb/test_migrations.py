@@ -18,7 +18,6 @@ from shapedb.config.core import (
     FieldVectorConfig,
     KernelConfig,
     LightFieldConfig,
-    LightFieldFusionConfig,
     MDBDConfig,
     PartConfig,
     RerankConfig,
@@ -84,7 +83,7 @@ def test_nothing_stored_is_todays_defaults_but_the_stage_the_layout_predates() -
         rerank="none", lf_source="balls", lf_resolution=64, lf_centre="volume"
     )
     # and no field vectors, none fused (the sections' own defaults are the legacy ones)
-    plain = replace(plain, lf_fusion=LightFieldFusionConfig(), field_vector=FieldVectorConfig())
+    plain = replace(plain, field_vector=FieldVectorConfig())
     assert Config().rerank.scorer == "lightfield"
     assert Config.from_dict({}) == plain
     assert Config.from_dict({"kernel": {}, "mdbd": {}}) == plain
@@ -142,8 +141,7 @@ def _layout1_store_config() -> Config:
         rerank=RerankConfig(scorer="none"),  # written before re-ranking stages
         # before the light fields: those the product kept when the section came
         light_field=LightFieldConfig(n_fields=3, resolution=64, n_balls=2048, source="balls"),
-        # before the field vectors: none stored, none fused
-        lf_fusion=LightFieldFusionConfig(),
+        # before the field vectors: none stored
         field_vector=FieldVectorConfig(),
     )
 
@@ -203,14 +201,25 @@ def test_stores_written_before_sheets_never_thicken_and_keep_their_fingerprint(
 
 
 def test_stores_of_earlier_layouts_search_without_a_reranking_stage() -> None:
-    stored = Config().with_options(rerank="adaptive", rerank_candidates=50).to_dict()
-    assert stored["layout"] >= 3 and Config.from_dict(stored).rerank.scorer == "adaptive"
+    stored = Config().to_dict()
     del stored["rerank"]
     stored["layout"] = 2
     assert Config.from_dict(stored).rerank.scorer == "none"
     assert Config.from_json(LAST_FLAT).rerank.scorer == "none"
-    with pytest.raises(ConfigError, match="candidates"):
-        Config.from_dict({**Config().to_dict(), "rerank": {"candidates": 0}})
+    with pytest.raises(ConfigError, match="rerank"):
+        Config.from_dict({**Config().to_dict(), "rerank": {"scorer": "teleport"}})
+
+
+def test_layout_5_stores_drop_the_stage_numbers_and_the_retired_scorer() -> None:
+    """A layout-5 store kept the stage's numbers (``lf_fusion``, ``rerank_*``) and could use
+    the adaptive scorer: it reads today's stage, and an adaptive store the descriptor alone."""
+    stored = Config().to_dict()
+    stored["layout"] = 5
+    stored["lf_fusion"] = {"weight": 4.0, "pool": 0, "shared_neighbours": 0}
+    stored["rerank"] = {"scorer": "lightfield", "candidates": 50, "ratio": 0.35}
+    assert Config.from_dict(stored) == Config()
+    stored["rerank"]["scorer"] = "adaptive"
+    assert Config.from_dict(stored).rerank.scorer == "none"
 
 
 def test_light_fields_stored_before_the_fills_read_as_the_plain_discs() -> None:
@@ -223,7 +232,7 @@ def test_light_fields_stored_before_the_fills_read_as_the_plain_discs() -> None:
     assert (old.edges, old.dilate_px, old.close_px) == (False, 0.0, 0)
     assert old.n_fields == filled.light_field.n_fields
     # a store of a layout before the light fields: the plain discs too
-    del stored["light_field"], stored["lf_fusion"]
+    del stored["light_field"]
     stored["layout"] = 3
     before = Config.from_dict(stored).light_field
     assert (before.edges, before.dilate_px, before.close_px) == (False, 0.0, 0)
@@ -254,7 +263,7 @@ def test_light_fields_stored_before_the_source_read_as_the_balls() -> None:
     assert old.light_field.source == "balls" and not old.light_field_inside
     assert old.light_field_tail == old.light_field.n_balls - old.mdbd.n_balls
     # a store of a layout before the light fields: the balls too
-    del stored["light_field"], stored["lf_fusion"]
+    del stored["light_field"]
     stored["layout"] = 3
     assert Config.from_dict(stored).light_field.source == "balls"
     # no light fields stored: nothing to keep
@@ -270,40 +279,29 @@ def test_light_fields_stored_before_the_centre_read_about_the_volume_centroid() 
     assert Config.from_dict(stored) == today
     del stored["light_field"]["centre"]
     assert Config.from_dict(stored).light_field.centre == "volume"
-    del stored["light_field"], stored["lf_fusion"]
+    del stored["light_field"]
     stored["layout"] = 3
     assert Config.from_dict(stored).light_field.centre == "volume"
     with pytest.raises(ConfigError, match="lf_centre"):
         Config().with_options(lf_centre="middle")
 
 
-def test_stores_written_before_the_field_vectors_keep_none_and_fuse_none() -> None:
+def test_stores_written_before_the_field_vectors_keep_none() -> None:
     new = Config()
-    assert new.stores_field_vectors and new.lf_fusion.field_candidates > 0
+    assert new.stores_field_vectors
     stored = new.to_dict()
-    assert stored["layout"] == 5 and Config.from_dict(stored) == new
-    # a layout-4 store: its lf_fusion section without the fusion's fields, no field_vector
+    assert stored["layout"] == migrations.LAYOUT and Config.from_dict(stored) == new
+    # a layout-4 store: no field_vector section (its lf_fusion section is dropped)
     del stored["field_vector"]
-    for name in ("field_depth_weight", "field_harmonic_weight", "light_field_scale",
-                 "field_depth_scale", "field_harmonic_scale", "field_candidates"):  # fmt: skip
-        del stored["lf_fusion"][name]
     stored["layout"] = 4
+    stored["lf_fusion"] = {"weight": 8.0}
     old = Config.from_dict(stored)
     assert old.field_vector == FieldVectorConfig() and not old.field_vector.enabled
     assert not old.stores_field_vectors
-    fusion = old.lf_fusion
-    assert (fusion.field_depth_weight, fusion.field_harmonic_weight) == (0.0, 0.0)
-    assert fusion.field_candidates == 0
-    default = LightFieldFusionConfig()
-    assert fusion == replace(new.lf_fusion, **{
-        name: getattr(default, name)
-        for name in ("field_depth_weight", "field_harmonic_weight", "light_field_scale",
-                     "field_depth_scale", "field_harmonic_scale", "field_candidates")
-    })  # fmt: skip
     # everything else as the store wrote it
-    assert replace(old, lf_fusion=new.lf_fusion, field_vector=new.field_vector) == new
+    assert replace(old, field_vector=new.field_vector) == new
     # a layout-3 store: neither light fields nor field vectors
     del stored["lf_fusion"], stored["light_field"]
     stored["layout"] = 3
     older = Config.from_dict(stored)
-    assert older.lf_fusion == LightFieldFusionConfig() and not older.field_vector.enabled
+    assert not older.field_vector.enabled

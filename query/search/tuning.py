@@ -1,0 +1,167 @@
+"""The re-ranking stage's tuned numbers, in one place: :data:`PRODUCT` is what every search uses.
+
+These are not options: no user has a reason to turn them, and a store does not keep them
+(a store keeps only whether its searches re-rank, ``RerankConfig.scorer``). Each number
+was chosen on the validation splits of the bench's sets (CAPOD, jointed figures, machined
+parts, the web-like generic and web sets, people) by the objective the comment names, and
+its figures on the test splits are in docs/results.md; the research that chose them is
+under ``bench/studies/``. A study varies them by passing another :class:`StageTuning` to
+the stage (``LightFieldFusion(config, tuning=replace(PRODUCT, weight=4.0))``), or runs a
+whole store's searches and commits under another with :func:`tuned`.
+
+The stage (:mod:`query.search.rerank_lightfield`): among a query's candidates, with
+``rank_d`` and ``rank_l`` each candidate's rank by the stored distance ``d`` and by the
+light field distance ``l``, the fused distance is ``-(1 / (offset + rank_d) + weight *
+g(q) / (offset + rank_l))``, ``g(q)`` the product of the spread ceiling (the store's
+pooled local statistic of the query's candidates) and the contrast floor (how far the
+stored vector already sets the nearest apart); the field vectors are fused into ``l``,
+their index adds candidates, and candidates that share the query's nearest neighbours
+rise. :class:`StageTuning`'s attributes name each part.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+from shapedb.errors import ConfigError
+
+__all__ = ["StageTuning", "PRODUCT", "active", "tuned"]
+
+
+@dataclass(frozen=True)
+class StageTuning:
+    """The numbers of the light field re-ranking stage (:data:`PRODUCT`: the defaults).
+
+    Attributes
+    ----------
+    candidates : int
+        K, the index's nearest candidates the stage re-ranks.
+    weight : float
+        Weight of the light field's rank term at ``g = 1``.
+    neighbours : int
+        Size of the query's neighbourhood the contrast reads.
+    ceiling, ramp : float
+        The gate's spread ceiling: ``clip((ceiling - s_q) / ramp, 0, 1)``.
+    typical : float
+        Typical light field distance (the unit of a shape's local spread).
+    offset : float
+        Rank offset of the reciprocal rank fusion.
+    spread_candidates : int
+        Nearest others a shape's local spread is measured over.
+    pool, pool_quantile : int, float
+        ``s_q`` is the ``pool_quantile`` of the stored local statistics of the query's
+        first ``pool`` candidates.
+    contrast_floor, contrast_ramp, contrast_depth : float, float, int
+        The contrast floor ``clip((t_q - floor) / ramp, 0, 1)``, ``t_q`` the median ``d`` of
+        the query's ``neighbours`` nearest others over ``d`` of its ``contrast_depth``-th.
+    ratio_weight, ratio_candidates : float, int
+        The ratio's share of the local statistic, and the others it is taken among.
+    field_depth_weight, field_harmonic_weight : float
+        Weights of the field vector's depth and harmonic distances fused into ``l``.
+    light_field_scale, field_depth_scale, field_harmonic_scale : float
+        Fixed scales of the three distances in that fusion.
+    field_candidates : int
+        Candidates the field vector index adds to the index's K.
+    shared_neighbours, shared_weight : int, float
+        ``k`` and ``beta`` of the shared-neighbour term (0: off).
+    """
+
+    # K: the index's 100 nearest, re-ranked (the stage's candidates since it was introduced;
+    # the adaptive and light field stages were both chosen at K = 100 on validation).
+    candidates: int = 100
+    # Weight, local statistic (spread over the 3 nearest others, ratio share 0.2 among the
+    # 100 nearest), pool (the query's 30 first candidates, at their lower quartile), spread
+    # ceiling 0.17 and ramp 0.034, contrast ramp 0.2: the best validation objective of the
+    # 2,304 settings of the gate's ratio grid that keep both margins (jointed sets shut,
+    # rigid ones open): python -m bench.studies.lightfield_gate --split validation --grid ratio
+    weight: float = 8.0
+    spread_candidates: int = 3
+    ratio_weight: float = 0.2
+    ratio_candidates: int = 100
+    pool: int = 30
+    pool_quantile: float = 0.25
+    ceiling: float = 0.17
+    ramp: float = 0.034
+    contrast_ramp: float = 0.2
+    # Rank offset 60 and the contrast's 5 nearest: the first light field stage's grid on
+    # validation (offset 20 gains about one web query on test with a perfect gate, not kept).
+    offset: float = 60.0
+    neighbours: int = 5
+    # The geometric mean over the six validation sets of the median light field distance.
+    typical: float = 18.03
+    # The contrast floor 0.2 over depth 20: the highest objective of their grid with the
+    # shared-neighbour term on: python -m bench.studies.lightfield_gate --contrast-grid
+    contrast_floor: float = 0.2
+    contrast_depth: int = 20
+    # The field vectors fused into the light field distance at weights 0.25 and 0.25, and
+    # their index's 200 nearest added to the candidates: the field vector choice on
+    # validation (python -m bench.studies.field_choice).
+    field_depth_weight: float = 0.25
+    field_harmonic_weight: float = 0.25
+    field_candidates: int = 200
+    # The three distances' medians over each validation set's off-diagonal pairs, then the
+    # median of the six sets.
+    light_field_scale: float = 20.67
+    field_depth_scale: float = 6.045
+    field_harmonic_scale: float = 2.168
+    # Shared neighbours at k 3, beta 1.6: the highest objective of their grid on validation,
+    # with the field seen about its surface (python -m bench.studies.lightfield_gate --shared-grid).
+    shared_neighbours: int = 3
+    shared_weight: float = 1.6
+
+    def __post_init__(self) -> None:
+        for name, value in vars(self).items():
+            integer = isinstance(value, int) and not isinstance(value, bool)
+            ok = integer or (isinstance(value, float) and value == value)
+            if not ok or value < 0 or value == float("inf"):
+                raise ConfigError(f"StageTuning.{name} must be a finite number >= 0, got {value!r}")
+        for name in ("candidates", "neighbours", "spread_candidates", "ratio_candidates"):
+            if getattr(self, name) < 1:
+                raise ConfigError(f"StageTuning.{name} must be >= 1")
+        positive = ("ramp", "typical", "offset", "contrast_ramp", "light_field_scale")
+        for name in (*positive, "field_depth_scale", "field_harmonic_scale"):
+            if getattr(self, name) <= 0:
+                raise ConfigError(f"StageTuning.{name} must be > 0")
+        if self.contrast_depth < 2 or self.pool_quantile > 1 or self.ratio_weight > 1:
+            raise ConfigError(
+                "StageTuning: contrast_depth must be >= 2, pool_quantile and ratio_weight <= 1"
+            )
+
+    @property
+    def shares_neighbours(self) -> bool:
+        """Whether the shared-neighbour term is on (``k > 0`` and ``beta > 0``)."""
+        return self.shared_neighbours > 0 and self.shared_weight > 0
+
+
+#: What every search uses.
+PRODUCT = StageTuning()
+
+
+_ACTIVE: list[StageTuning] = [PRODUCT]
+_LOCK = threading.Lock()
+
+
+def active() -> StageTuning:
+    """The numbers a store's searches and commits use now: :data:`PRODUCT` but inside
+    :func:`tuned`."""
+    return _ACTIVE[-1]
+
+
+@contextmanager
+def tuned(tuning: StageTuning) -> Iterator[StageTuning]:
+    """Run a block's searches and commits with ``tuning`` instead of :data:`PRODUCT`.
+
+    For studies and tests that compare settings of the stage on one store (the side
+    tables are keyed by the numbers they were computed with, so they never mix).
+    Process-wide: not for concurrent searches that want different numbers.
+    """
+    with _LOCK:
+        _ACTIVE.append(tuning)
+    try:
+        yield tuning
+    finally:
+        with _LOCK:
+            _ACTIVE.remove(tuning)
