@@ -362,7 +362,7 @@ def _reranked_rows(
         order = np.lexsort((np.broadcast_to(ids, d.shape), d), axis=-1)
         batch = Candidates(
             ids[idx], x[idx], ids[order], x[order], w, np.take_along_axis(d, order, 1), config,
-            arrays,
+            arrays, None, int(scorer.tuning.candidates),
         )  # fmt: skip
         extra = extra_candidates(scorer, batch, ids)
         if extra is not None:

@@ -282,7 +282,7 @@ def stage_batch(
     feats[pos < 0] = 0.0
     batch = Candidates(
         np.asarray(query_ids, np.int64), np.asarray(queries, np.float64), ids, feats,
-        index.weights_, distances, config, arrays, query_arrays,
+        index.weights_, distances, config, arrays, query_arrays, int(scorer.tuning.candidates),
     )  # fmt: skip
     extra = extra_candidates(scorer, batch, allowed)
     if extra is not None:

@@ -24,7 +24,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 from shapedb.errors import ConfigError
 
@@ -113,11 +113,13 @@ class StageTuning:
     shared_weight: float = 1.6
 
     def __post_init__(self) -> None:
-        for name, value in vars(self).items():
+        for f in fields(self):
+            value = getattr(self, f.name)
             integer = isinstance(value, int) and not isinstance(value, bool)
-            ok = integer or (isinstance(value, float) and value == value)
-            if not ok or value < 0 or value == float("inf"):
-                raise ConfigError(f"StageTuning.{name} must be a finite number >= 0, got {value!r}")
+            ok = integer if f.type == "int" else integer or isinstance(value, float)
+            if not ok or not 0 <= value < float("inf"):
+                kind = "an integer" if f.type == "int" else "a finite number"
+                raise ConfigError(f"StageTuning.{f.name} must be {kind} >= 0, got {value!r}")
         for name in ("candidates", "neighbours", "spread_candidates", "ratio_candidates"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"StageTuning.{name} must be >= 1")

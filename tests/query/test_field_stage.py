@@ -8,6 +8,7 @@ read the matrix), and field vectors.
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -19,13 +20,13 @@ from query.search.field_fusion import FIELD, FieldFusion
 from query.search.field_index import FieldIndex
 from query.search.index import FeatureIndex
 from query.search.rerank_lightfield import COLUMN, LightFieldFusion
+from query.search.tuning import PRODUCT
 from shapedb.config.core import Config
 from shapedb.signature.kernel import weights
 
 DEPTH, HARMONIC = slice(0, 4), slice(4, 7)
 #: The stage with its gate wide open (g = 1): the light field's rank always counts.
-OPEN = {"rerank": "lightfield", "lf_weight": 4.0, "lf_power": 0.0, "lf_ceiling": 0.0,
-        "lf_contrast_floor": 0.0, "lf_pool": 0}  # fmt: skip
+OPEN = replace(PRODUCT, weight=4.0, ceiling=0.0, contrast_floor=0.0, pool=0)
 
 
 def _fusion(**kw: Any) -> FieldFusion:
@@ -71,7 +72,8 @@ def matrix_distance(monkeypatch: pytest.MonkeyPatch) -> Any:
 def _case(n: int = 40, k: int = 8, seed: int = 0, **options: Any) -> dict[str, Any]:
     """A store of n random vectors, light field distances and field vectors in 4 classes."""
     rng = np.random.default_rng(seed)
-    config = Config().with_options(**{**OPEN, "rerank_candidates": k, **options})
+    config = Config().with_options(rerank="lightfield")
+    tuning = replace(OPEN, candidates=k, **options)
     x = rng.random((n, config.dim)).astype(np.float32).astype(np.float64)  # as stored
     w = weights(config)
     index = FeatureIndex(kind="flat").fit(np.arange(n), x.astype(np.float32), w)
@@ -80,11 +82,11 @@ def _case(n: int = 40, k: int = 8, seed: int = 0, **options: Any) -> dict[str, A
     pts = rng.random((n, 5))
     L = np.abs(pts[:, None] - pts[None]).sum(-1)  # a metric, 0 on the diagonal
     lf = np.arange(n, dtype=np.float64).reshape(n, 1, 1, 1)
-    return {"config": config, "x": x, "index": index, "fv": fv, "L": L, "lf": lf}
+    return {"config": config, "tuning": tuning, "x": x, "index": index, "fv": fv, "L": L, "lf": lf}
 
 
-def _scorer(config: Config, fusion: FieldFusion) -> LightFieldFusion:
-    scorer = LightFieldFusion(config)
+def _scorer(case: dict[str, Any], fusion: FieldFusion) -> LightFieldFusion:
+    scorer = LightFieldFusion(case["config"], tuning=case["tuning"])
     scorer.field = fusion
     return scorer
 
@@ -95,7 +97,7 @@ def _search(case: dict[str, Any], fusion: FieldFusion, k: int, **kw: Any) -> Any
     q = kw.pop("queries", np.arange(n))
     return rerank.search(
         index, case["x"][q], k, config=case["config"], query_ids=q,
-        scorer=_scorer(case["config"], fusion),
+        scorer=_scorer(case, fusion),
         arrays=Reader(case["lf"], case["fv"], fusion), **kw,
     )  # fmt: skip
 
@@ -132,8 +134,8 @@ def test_a_row_without_field_vectors_keeps_the_light_field_distance(
 
 
 def test_the_stage_ranks_by_the_fused_distance_everywhere(matrix_distance: Any) -> None:
-    # the gate's overlap and the query's own spread read the distance too
-    case = _case(lf_power=2.0, lf_ceiling=5.0, lf_ramp=5.0)
+    # the gate's own spread of the query reads the distance too
+    case = _case(ceiling=5.0, ramp=5.0)
     fusion = _fusion()
     n = len(case["x"])
     b = np.abs(case["fv"][:, None, DEPTH] - case["fv"][None, :, DEPTH]).sum(-1)
@@ -205,13 +207,13 @@ def test_the_union_honours_where_and_deletions(matrix_distance: Any) -> None:
 
 
 def test_extras_follow_the_k_in_stored_order_without_repeats() -> None:
-    config = Config().with_options(rerank="lightfield", rerank_candidates=2)
+    config = Config().with_options(rerank="lightfield")
     w = np.ones(config.dim)
     xq = np.zeros((1, config.dim))
     feats = np.stack([np.full(config.dim, v) for v in (0.1, 0.2, 0.3, 0.4)])[None]
     batch = rerank.Candidates(
         np.array([-1]), xq, np.array([[5, 6, 7, 8]]), feats, w,
-        (feats[0] @ w)[None], config,
+        (feats[0] @ w)[None], config, head=2,
     )  # fmt: skip
     extra_ids = np.array([[9, 6, 8, -1, 9]])  # 6 is in the K, 9 twice, 8 in the rest
     extra_f = np.stack([np.full(config.dim, v) for v in (0.35, 0.2, 0.4, 0.0, 0.35)])[None]

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -17,16 +16,24 @@ from query.search.field_fusion import FIELD, FieldFusion, query_field_vectors
 from query.search.field_index import field_index
 from query.search.lightfield_spread import SPREAD_DIR, spread_table, store_spreads
 from query.search.rerank_lightfield import stored_arrays
+from query.search.tuning import PRODUCT, tuned
 from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus
 from shapedb.mdbd.decomposition import decompose
 
 #: The stage with field vectors: K = 3 of version 4 and K2 = 2 by the field vectors, the
 #: gate open (g = 1) so that the fused distance always counts.
-FIELD_STAGE = CONFIG.with_options(
-    rerank="lightfield", rerank_candidates=3, fv_enabled=True, lf_field_depth_weight=0.5,
-    lf_field_harmonic_weight=0.5, lf_field_candidates=2, lf_power=0.0, lf_ceiling=0.0,
-    lf_contrast_floor=0.0, lf_pool=0,
+FIELD_STAGE = CONFIG.with_options(rerank="lightfield", fv_enabled=True)
+TUNING = replace(
+    PRODUCT, candidates=3, field_depth_weight=0.5, field_harmonic_weight=0.5,
+    field_candidates=2, ceiling=0.0, contrast_floor=0.0, pool=0,
 )  # fmt: skip
+
+
+@pytest.fixture(autouse=True)
+def _stage() -> Iterator[None]:
+    """Every search and commit of these tests runs the stage at :data:`TUNING`."""
+    with tuned(TUNING):
+        yield
 
 
 def _shapes() -> dict[str, Any]:
@@ -48,14 +55,15 @@ def fv_db(tmp_path_factory: pytest.TempPathFactory, forget: Callable[[Any], None
 
     db = database.connect(tmp_path_factory.mktemp("fv") / "store", config=FIELD_STAGE)
     shapes = _shapes()
-    db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
+    with tuned(TUNING):
+        db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
     yield db
     forget(db)
 
 
 def test_the_store_keeps_field_vectors_and_the_stage_reads_them(fv_db: Any) -> None:
     assert fv_db.config.stores_field_vectors
-    fusion = FieldFusion.from_config(fv_db.config)
+    fusion = FieldFusion.from_config(fv_db.config, TUNING)
     assert fusion.active and fusion.proposes
     ids, _ = fv_db.store.features()
     got = stored_arrays(fv_db)(FIELD, ids)
@@ -133,17 +141,15 @@ def test_a_where_filter_and_a_deletion_keep_the_union_within_the_store(
 
 
 def test_the_spread_table_is_recomputed_when_the_fusion_changes(fv_db: Any) -> None:
-    first = store_spreads(fv_db, stored_arrays(fv_db))
-    root = Path(fv_db.store.path) / SPREAD_DIR
-    meta = json.loads((root / "current.json").read_text())
-    assert meta["field_fusion"] == FieldFusion.from_config(fv_db.config).key()
-    other = fv_db.config.with_options(lf_field_depth_weight=4.0, lf_field_harmonic_weight=0.0)
-    view = SimpleNamespace(store=fv_db.store, config=other)
-    table = spread_table(view, stored_arrays(fv_db))  # type: ignore[arg-type]
-    assert not table.complete  # the stored table is another fusion's
+    first = store_spreads(fv_db, stored_arrays(fv_db), TUNING)
+    table = spread_table(fv_db, stored_arrays(fv_db), TUNING)
+    assert table.meta["field_fusion"] == FieldFusion.from_config(fv_db.config, TUNING).key()
+    assert not (Path(fv_db.store.path) / SPREAD_DIR).exists()  # pool 0: nothing to keep
+    other = replace(TUNING, field_depth_weight=4.0, field_harmonic_weight=0.0)
+    table = spread_table(fv_db, stored_arrays(fv_db), other)
+    assert not table.complete  # the table in memory is another fusion's
     again = dict(zip(sorted(first), table.get(np.array(sorted(first))), strict=True))
     assert again != first
-    plain = SimpleNamespace(store=fv_db.store, config=fv_db.config)
-    assert spread_table(plain, stored_arrays(fv_db)).get(  # type: ignore[arg-type]
+    assert spread_table(fv_db, stored_arrays(fv_db), TUNING).get(
         np.array(sorted(first))
     ).tolist() == [first[i] for i in sorted(first)]

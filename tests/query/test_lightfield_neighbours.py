@@ -16,6 +16,7 @@ ranks 1, 4, 2, 3, 5, 6; at ``beta`` 1 the term promotes 2 above 4 (1.5 - 2/3 < 1
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -34,6 +35,7 @@ from query.search.lightfield_neighbours import (
     stage_lists,
 )
 from query.search.rerank_lightfield import COLUMN, LightFieldFusion
+from query.search.tuning import PRODUCT, StageTuning
 from shapedb.config.core import Config
 from shapedb.errors import ConfigError
 from shapedb.signature.kernel import weights
@@ -50,18 +52,19 @@ L = np.array(
     ]
 )
 LISTS = [[1, 4], [5, 6], [4, 0], [4, 0], [2, 3], [6, 1], [5, 1]]
-#: The gate wide open and the light field's rank deciding; no field vectors (m_l = typical).
-STAGE = {"rerank": "lightfield", "rerank_candidates": 7, "fv_enabled": False, "lf_weight": 1000.0,
-         "lf_power": 0.0, "lf_ceiling": 0.0, "lf_contrast_floor": 0.0, "lf_pool": 0,
-         "lf_typical": 1.0, "lf_shared_neighbours": 2}  # fmt: skip
+#: No field vectors (m_l = typical).
+STAGE = Config().with_options(rerank="lightfield", fv_enabled=False)
+#: The gate wide open and the light field's rank deciding.
+OPEN = replace(PRODUCT, candidates=7, weight=1000.0, ceiling=0.0, contrast_floor=0.0, pool=0,
+               typical=1.0, shared_neighbours=2)  # fmt: skip
 
 
 class Reader:
     """The store's arrays: light fields (ids) and the lists, computed by the product's
     :func:`stage_lists` on first use; counts the lists asked for."""
 
-    def __init__(self, index: FeatureIndex, config: Config) -> None:
-        self.index, self.config = index, config
+    def __init__(self, index: FeatureIndex, config: Config, tuning: StageTuning) -> None:
+        self.index, self.config, self.tuning = index, config, tuning
         self.lists: np.ndarray | None = None
         self.asked = 0
 
@@ -71,7 +74,7 @@ class Reader:
         if name == NEIGHBOURS:
             self.asked += 1
             if self.lists is None:
-                scorer = LightFieldFusion(self.config)
+                scorer = LightFieldFusion(self.config, tuning=self.tuning)
                 self.lists = stage_lists(self.index, self, self.config, scorer)[1]
             return np.asarray(self.lists[ids], np.float64)
         return None
@@ -89,37 +92,37 @@ def matrix(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(shapedb.signature.lightfield, "light_field_distance", distance)
 
 
-def _store(beta: float, **options: Any) -> tuple[Config, FeatureIndex, Reader]:
+def _store(beta: float, **options: Any) -> tuple[LightFieldFusion, FeatureIndex, Reader]:
     """Stored vectors in id order from every shape (no ties), the stage at ``beta``."""
-    config = Config().with_options(**{**STAGE, "lf_shared_weight": beta, **options})
-    x = np.zeros((7, config.dim), np.float32)
+    stage = LightFieldFusion(STAGE, tuning=replace(OPEN, shared_weight=beta, **options))
+    x = np.zeros((7, STAGE.dim), np.float32)
     x[:, 0] = np.arange(7) / 10.0
-    index = FeatureIndex(kind="flat").fit(np.arange(7), x, weights(config))
-    return config, index, Reader(index, config)
+    index = FeatureIndex(kind="flat").fit(np.arange(7), x, weights(STAGE))
+    return stage, index, Reader(index, STAGE, stage.tuning)
 
 
 def _order(beta: float, query: int = 0, *, outside: bool = False, **options: Any) -> list[int]:
-    config, index, reader = _store(beta, **options)
+    stage, index, reader = _store(beta, **options)
     x = np.asarray(index.features_, np.float64)[[query]]
     got, _ = rerank.search(
-        index, x, 7, config=config, query_ids=np.array([-1 if outside else query]),
+        index, x, 7, config=STAGE, query_ids=np.array([-1 if outside else query]), scorer=stage,
         arrays=reader, query_arrays={COLUMN: np.full((1, 1, 1, 1), float(query))},
     )  # fmt: skip
     return [int(i) for i in got[0]]
 
 
 def test_the_lists_are_each_shape_s_nearest_others_among_its_candidates(matrix: None) -> None:
-    config, index, reader = _store(1.0)
-    ids, lists = stage_lists(index, reader, config, LightFieldFusion(config))
+    stage, index, reader = _store(1.0)
+    ids, lists = stage_lists(index, reader, STAGE, stage)
     assert ids.tolist() == list(range(7)) and lists.tolist() == LISTS
-    few_ids, few = stage_lists(index, reader, config, LightFieldFusion(config), np.array([9, 3]))
+    few_ids, few = stage_lists(index, reader, STAGE, stage, np.array([9, 3]))
     assert few_ids.tolist() == [3] and few.tolist() == [LISTS[3]]  # 9 is not stored
 
 
 def test_the_term_promotes_the_shape_that_shares_the_query_s_neighbours(matrix: None) -> None:
     assert _order(0.0) == [0, 1, 4, 2, 3, 5, 6]  # by dl alone
     assert _order(1.0) == [0, 1, 2, 4, 3, 5, 6]
-    assert _order(1.0, lf_shared_neighbours=0) == [0, 1, 4, 2, 3, 5, 6]  # k 0: off
+    assert _order(1.0, shared_neighbours=0) == [0, 1, 4, 2, 3, 5, 6]  # k 0: off
 
 
 def test_the_first_result_is_kept(matrix: None) -> None:
@@ -137,8 +140,8 @@ def test_an_outside_copy_differs_from_the_stored_id_by_the_reciprocal_term_only(
     # the outside copy of 0 (dl 0 to it: its own) has the same N_2 = {1, 4} but matches no
     # stored id: 2 and 3 lose the 1/3 of 0 in their lists, and 2 is not promoted
     assert _order(1.0, outside=True) == [0, 1, 4, 2, 3, 5, 6]
-    config, index, reader = _store(1.0)
-    _, lists = stage_lists(index, reader, config, LightFieldFusion(config))
+    stage, index, reader = _store(1.0)
+    _, lists = stage_lists(index, reader, STAGE, stage)
     ids = np.arange(7)
     own = ids == 0
     mine = nearest_others(L[0], own, ids, 2)
@@ -151,9 +154,11 @@ def test_an_outside_copy_differs_from_the_stored_id_by_the_reciprocal_term_only(
 
 def test_a_closed_gate_leaves_the_term_out_and_reads_no_lists(matrix: None) -> None:
     # a contrast floor of 1 shuts every gate: the stored distance's order, no lists read
-    config, index, reader = _store(3.0, lf_contrast_floor=1.0)
+    stage, index, reader = _store(3.0, contrast_floor=1.0)
     x = np.asarray(index.features_, np.float64)
-    got, _ = rerank.search(index, x, 7, config=config, query_ids=np.arange(7), arrays=reader)
+    got, _ = rerank.search(
+        index, x, 7, config=STAGE, query_ids=np.arange(7), arrays=reader, scorer=stage
+    )
     assert np.array_equal(got, index.search(x, 7)[0])
     assert reader.asked == 0 and reader.lists is None
 
@@ -189,30 +194,21 @@ def test_keep_first_moves_only_the_first_other_candidate() -> None:
 @pytest.mark.parametrize(
     ("options", "match"),
     [
-        ({"lf_shared_neighbours": -1}, "lf_shared_neighbours"),
-        ({"lf_shared_neighbours": 51}, "lf_shared_neighbours"),
-        ({"lf_shared_neighbours": 2.0}, "lf_shared_neighbours"),
-        ({"lf_shared_weight": -0.1}, "lf_shared_weight"),
-        ({"lf_shared_weight": 101.0}, "lf_shared_weight"),
-        ({"lf_shared_weight": float("nan")}, "lf_shared_weight"),
-        ({"lf_shared_weight": True}, "lf_shared_weight"),
+        ({"shared_neighbours": -1}, "shared_neighbours"),
+        ({"shared_neighbours": 2.0}, "shared_neighbours"),
+        ({"shared_weight": -0.1}, "shared_weight"),
+        ({"shared_weight": float("nan")}, "shared_weight"),
+        ({"shared_weight": True}, "shared_weight"),
     ],
 )
-def test_bad_values_name_the_option(options: dict[str, Any], match: str) -> None:
+def test_bad_values_name_the_number(options: dict[str, Any], match: str) -> None:
     with pytest.raises(ConfigError, match=match):
-        Config().with_options(**options)
+        replace(PRODUCT, **options)
 
 
-def test_the_product_turns_the_term_on_and_a_store_written_before_reads_it_off() -> None:
-    new = Config()
-    assert (new.lf_fusion.shared_neighbours, new.lf_fusion.shared_weight) == (3, 1.6)
-    assert new.lf_fusion.shares_neighbours
-    stored = new.to_dict()
-    assert Config.from_dict(stored) == new
-    del stored["lf_fusion"]["shared_neighbours"], stored["lf_fusion"]["shared_weight"]
-    old = Config.from_dict(stored)
-    assert (old.lf_fusion.shared_neighbours, old.lf_fusion.shared_weight) == (0, 0.0)
-    assert not old.lf_fusion.shares_neighbours
+def test_the_product_turns_the_term_on() -> None:
+    assert (PRODUCT.shared_neighbours, PRODUCT.shared_weight) == (3, 1.6)
+    assert PRODUCT.shares_neighbours and not replace(PRODUCT, shared_weight=0.0).shares_neighbours
 
 
 def test_a_commit_recomputes_the_lists_within_a_budget_of_stage_distances() -> None:

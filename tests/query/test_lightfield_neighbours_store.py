@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -38,13 +39,26 @@ from query.search.lightfield_neighbours import (
 )
 from query.search.rerank import stage_batch
 from query.search.rerank_lightfield import COLUMN, LightFieldFusion, stored_arrays
+from query.search.tuning import PRODUCT, StageTuning, tuned
 from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus
 
-STAGE = CONFIG.with_options(
-    rerank="lightfield", rerank_candidates=5, fv_enabled=True, lf_field_depth_weight=0.5,
-    lf_field_harmonic_weight=0.5, lf_field_candidates=2, lf_power=0.0, lf_ceiling=0.0,
-    lf_contrast_floor=0.0, lf_pool=0, lf_shared_neighbours=2, lf_shared_weight=0.8,
+STAGE = CONFIG.with_options(rerank="lightfield", fv_enabled=True)
+#: K 5 and K2 2, the gate open, the term at k 2, beta 0.8 (``ON``) and off (``OFF``).
+ON = replace(
+    PRODUCT, candidates=5, field_depth_weight=0.5, field_harmonic_weight=0.5,
+    field_candidates=2, ceiling=0.0, contrast_floor=0.0, pool=0, shared_neighbours=2,
+    shared_weight=0.8,
 )  # fmt: skip
+OFF = replace(ON, shared_neighbours=0)
+
+
+@pytest.fixture(autouse=True)
+def _stage() -> Iterator[None]:
+    """Every search and commit of these tests runs the stage at :data:`ON`."""
+    with tuned(ON):
+        yield
+
+
 LISTS = {
     "box_a": ["box_b", "rod_b"], "box_b": ["box_a", "rod_b"], "rod_a": ["rod_b", "box_b"],
     "rod_b": ["rod_a", "box_b"], "ring_a": ["ring_b", "box_b"], "ring_b": ["ring_a", "box_b"],
@@ -64,11 +78,12 @@ def _shapes() -> dict[str, Any]:
     }
 
 
-def _connect(root: Path, **options: Any) -> Any:
+def _connect(root: Path, tuning: StageTuning = ON) -> Any:
     import query.database as database
 
-    db = database.connect(root, config=STAGE.with_options(**options))
-    db.ingest([(n, n.split("_")[0], g) for n, g in _shapes().items()], workers=1)
+    db = database.connect(root, config=STAGE)
+    with tuned(tuning):
+        db.ingest([(n, n.split("_")[0], g) for n, g in _shapes().items()], workers=1)
     return db
 
 
@@ -77,7 +92,7 @@ def dbs(tmp_path_factory: pytest.TempPathFactory,
         forget: Callable[[Any], None]) -> Iterator[dict[str, Any]]:  # fmt: skip
     """The store with the term (``"on"``) and the same store without it (``"off"``)."""
     root = tmp_path_factory.mktemp("snn")
-    got = {"on": _connect(root / "on"), "off": _connect(root / "off", lf_shared_neighbours=0)}
+    got = {"on": _connect(root / "on"), "off": _connect(root / "off", OFF)}
     yield got
     for db in got.values():
         forget(db)
@@ -88,16 +103,17 @@ def _names(db: Any) -> dict[int, str]:
     return dict(zip(t.column("id").to_pylist(), t.column("name").to_pylist(), strict=True))
 
 
-def _orders(db: Any, **kw: Any) -> dict[str, list[str]]:
-    return {n: [h.name for h in db.search(n, k=7, **kw)] for n in _shapes()}
+def _orders(db: Any, tuning: StageTuning = ON) -> dict[str, list[str]]:
+    with tuned(tuning):
+        return {n: [h.name for h in db.search(n, k=7)] for n in _shapes()}
 
 
 def test_the_lists_and_the_order_with_the_term_on_and_off(dbs: dict[str, Any]) -> None:
     db = dbs["on"]
     names = _names(db)
-    lists = store_neighbours(db, stored_arrays(db), LightFieldFusion(db.config))
+    lists = store_neighbours(db, stored_arrays(db), LightFieldFusion(db.config, tuning=ON))
     assert {names[i]: [names[int(j)] for j in v] for i, v in lists.items()} == LISTS
-    on, off = _orders(db), _orders(dbs["off"])
+    on, off = _orders(db), _orders(dbs["off"], OFF)
     assert off["box_a"] == ["box_a", "box_b", "rod_b", "ring_b", "rod_a", "ring_a", "ball"]
     assert on["box_a"] == ["box_a", "box_b", "rod_b", "rod_a", "ring_b", "ring_a", "ball"]
     assert off["box_b"] == ["box_b", "box_a", "rod_b", "ring_b", "rod_a", "ring_a", "ball"]
@@ -126,7 +142,7 @@ def test_an_outside_copy_differs_from_the_stored_id_by_the_reciprocal_term_only(
 ) -> None:
     db = dbs["on"]
     shapes = _shapes()
-    scorer = LightFieldFusion(db.config)
+    scorer = LightFieldFusion(db.config, tuning=ON)
     reader = stored_arrays(db)
     index = open_index(db)
     ids, _ = db.store.features()
@@ -154,7 +170,7 @@ def test_an_outside_copy_differs_from_the_stored_id_by_the_reciprocal_term_only(
 
 def test_a_closed_gate_leaves_the_term_out_and_reads_no_lists(dbs: dict[str, Any]) -> None:
     db = dbs["on"]
-    shut = db.config.with_options(lf_contrast_floor=1.0)  # every gate shut
+    shut = LightFieldFusion(db.config, tuning=replace(ON, contrast_floor=1.0))  # gates shut
     reader = stored_arrays(db)
     asked: list[str] = []
 
@@ -165,8 +181,8 @@ def test_a_closed_gate_leaves_the_term_out_and_reads_no_lists(dbs: dict[str, Any
     index = open_index(db)
     ids, _ = db.store.features()
     x = np.asarray(index.features_, np.float64)[index.lookup(ids)]
-    got, _ = rerank.search(index, x, 7, config=shut, query_ids=ids, arrays=spy,
-                           scorer=LightFieldFusion(shut))  # fmt: skip
+    got, _ = rerank.search(index, x, 7, config=db.config, query_ids=ids, arrays=spy,
+                           scorer=shut)  # fmt: skip
     assert np.array_equal(got, index.search(x, 7)[0])  # the stored distance's order
     assert NEIGHBOURS not in asked and COLUMN in asked
 
@@ -178,9 +194,9 @@ def test_the_table_is_kept_per_version_and_read_back_by_a_new_connection(
 
     db = _connect(tmp_path / "s")
     root = Path(db.store.path) / NEIGHBOUR_DIR
-    assert not root.exists()  # nothing computed before a search asks
+    assert (root / "current.json").exists()  # written at commit, the one place that writes
     before = _orders(db)
-    first = store_neighbours(db, stored_arrays(db), LightFieldFusion(db.config))
+    first = store_neighbours(db, stored_arrays(db), LightFieldFusion(db.config, tuning=ON))
     meta = json.loads((root / "current.json").read_text())
     assert meta["version"] == db.store.version and meta["shared_neighbours"] == 2
     ids, lists = (
@@ -200,7 +216,7 @@ def test_the_table_is_kept_per_version_and_read_back_by_a_new_connection(
     monkeypatch.setattr(neighbours, "stage_lists", refuse)
     again = database.connect(tmp_path / "s")
     assert _orders(again) == before
-    table = neighbour_table(again, stored_arrays(again), LightFieldFusion(again.config))
+    table = neighbour_table(again, stored_arrays(again), LightFieldFusion(again.config, tuning=ON))
     assert table.complete and table.version == meta["version"]
     monkeypatch.undo()
     # a commit is a new version: a small store's lists are recomputed at commit
@@ -208,12 +224,14 @@ def test_the_table_is_kept_per_version_and_read_back_by_a_new_connection(
     meta2 = json.loads((root / "current.json").read_text())
     assert meta2["version"] == again.store.version > meta["version"]
     box_c = again.store.resolve("box_c")
-    lists2 = neighbour_table(again, stored_arrays(again), LightFieldFusion(again.config)).values
+    lists2 = neighbour_table(
+        again, stored_arrays(again), LightFieldFusion(again.config, tuning=ON)
+    ).values
     assert len(lists2) == 8 and any(box_c in v for v in lists2.values())
     # a deletion: the deleted shape is in no list and in no result
     box_b = again.store.resolve("box_b")
     again.delete(["box_b"])
-    lists3 = neighbour_table(again, stored_arrays(again), LightFieldFusion(again.config))
+    lists3 = neighbour_table(again, stored_arrays(again), LightFieldFusion(again.config, tuning=ON))
     assert lists3.complete and lists3.version == again.store.version
     assert all(box_b not in v for v in lists3.values.values())
     for name in [*_shapes(), "box_c"]:
@@ -233,19 +251,17 @@ def test_a_where_filter_is_honoured(dbs: dict[str, Any]) -> None:
 
 
 def test_the_table_s_key_holds_k_and_the_stage_not_beta(dbs: dict[str, Any]) -> None:
-    from types import SimpleNamespace
-
     db = dbs["on"]
-    lists = store_neighbours(db, stored_arrays(db), LightFieldFusion(db.config))
-    for options, same in (({"lf_shared_weight": 3.0}, True), ({"lf_shared_neighbours": 3}, False),
-                          ({"lf_field_candidates": 1}, False), ({"rerank_candidates": 4}, False)):  # fmt: skip
-        view = SimpleNamespace(store=db.store, config=db.config.with_options(**options))
-        table = neighbour_table(view, stored_arrays(db), LightFieldFusion(view.config))  # type: ignore[arg-type]
+    lists = store_neighbours(db, stored_arrays(db), LightFieldFusion(db.config, tuning=ON))
+    for options, same in (({"shared_weight": 3.0}, True), ({"shared_neighbours": 3}, False),
+                          ({"field_candidates": 1}, False), ({"candidates": 4}, False)):  # fmt: skip
+        stage = LightFieldFusion(db.config, tuning=replace(ON, **options))
+        table = neighbour_table(db, stored_arrays(db), stage)
         assert table.complete == same, options
         got = table.get(np.array(sorted(lists)))
-        assert got.shape == (7, view.config.lf_fusion.shared_neighbours)
+        assert got.shape == (7, stage.tuning.shared_neighbours)
         if same:
             assert got.tolist() == [lists[i].tolist() for i in sorted(lists)]
-    assert neighbour_table(db, stored_arrays(db), LightFieldFusion(db.config)).get(
+    assert neighbour_table(db, stored_arrays(db), LightFieldFusion(db.config, tuning=ON)).get(
         np.array(sorted(lists))
     ).tolist() == [lists[i].tolist() for i in sorted(lists)]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -28,6 +29,7 @@ from query.search.lightfield_spread import (
     store_spreads,
 )
 from query.search.rerank_lightfield import COLUMN, SPREAD, LightFieldFusion, stored_arrays
+from query.search.tuning import PRODUCT, StageTuning
 from shapedb.config.core import Config
 from shapedb.geometry.implicit import Box, Capsule
 from shapedb.signature.kernel import weights
@@ -37,7 +39,7 @@ from shapedb.signature.lightfield import light_field_distance
 def _case(n: int = 40, seed: int = 1) -> tuple[Config, FeatureIndex, np.ndarray, np.ndarray]:
     """A v4 store of n vectors in 4 classes and their light fields; every shape a candidate."""
     rng = np.random.default_rng(seed)
-    config = Config().with_options(rerank="lightfield", rerank_candidates=n)
+    config = Config().with_options(rerank="lightfield")
     x = rng.random((n, config.dim))
     classes = rng.random((4, 3, 10, 46))
     lf = classes[np.arange(n) % 4] + 0.3 * rng.random((n, 3, 10, 46))
@@ -45,7 +47,7 @@ def _case(n: int = 40, seed: int = 1) -> tuple[Config, FeatureIndex, np.ndarray,
     return config, index, lf, light_field_distance(lf)
 
 
-def _reader(index: FeatureIndex, lf: np.ndarray, config: Config) -> Any:
+def _reader(index: FeatureIndex, lf: np.ndarray, config: Config, tuning: StageTuning) -> Any:
     spreads: dict[str, np.ndarray] = {}
 
     def arrays(name: str, ids: np.ndarray) -> np.ndarray | None:
@@ -53,53 +55,61 @@ def _reader(index: FeatureIndex, lf: np.ndarray, config: Config) -> Any:
             return lf[ids]
         if name == SPREAD:
             if "s" not in spreads:
-                spreads["s"] = local_spreads(index, arrays, config)[1]
+                spreads["s"] = local_spreads(index, arrays, config, None, tuning)[1]
             return spreads["s"][ids]
         return None
 
     return arrays
 
 
+#: The stage on the light field distance alone, every shape of a 40-shape case a candidate.
+PLAIN = replace(PRODUCT, candidates=40, field_depth_weight=0.0, field_harmonic_weight=0.0,
+                field_candidates=0, shared_neighbours=0)  # fmt: skip
+#: A gate of the spread alone, pooled by the median (the first pooled gate).
+SPREAD_GATE = {"ratio_weight": 0.0, "pool_quantile": 0.5}
 #: A gate of the ratio (half the local statistic's log), pooled by the lower quartile.
-RATIO = {"lf_ratio_weight": 0.5, "lf_ratio_candidates": 12, "lf_spread_candidates": 3,
-         "lf_pool_quantile": 0.25}  # fmt: skip
+RATIO = {"ratio_weight": 0.5, "ratio_candidates": 12, "spread_candidates": 3,
+         "pool_quantile": 0.25}  # fmt: skip
 
 
-@pytest.mark.parametrize("gate", [{}, RATIO], ids=["spread", "ratio"])
+def _with_power(f: StageTuning) -> Any:
+    """The bench's gate formula reads the retired overlap's power: 0, off."""
+    return SimpleNamespace(**vars(f), power=0.0)
+
+
+@pytest.mark.parametrize("gate", [SPREAD_GATE, RATIO], ids=["spread", "ratio"])
 def test_the_pooled_gate_ranks_as_the_selection_bench(gate: dict[str, Any]) -> None:
     config, index, lf, dl = _case()
-    config = config.with_options(**gate)
+    f = replace(PLAIN, **gate)
     x = np.asarray(index.features_, np.float64)
     d = np.abs(x[:, None, :] - x[None, :, :]) @ index.weights_ / calibration(config)
     # a typical distance and a contrast floor that open some gates and close others
     probe = Store(SimpleNamespace(labels=np.arange(40) % 4, sets=np.zeros(40), d4=d, dl=dl),
                   np.arange(40), candidates=40)  # fmt: skip
-    f = config.lf_fusion
     s = local_spreads_of(probe, f.spread_candidates, 1.0, f.ratio_weight, f.ratio_candidates)
     dd = probe.others(probe.D)
     t = np.median(dd[:, : f.neighbours], 1) / dd[:, f.contrast_depth - 1]
     # a typical distance that puts the ceiling at the median statistic
     typical = (float(np.median(s)) / f.ceiling) ** (1.0 / (1.0 - f.ratio_weight))
-    config = config.with_options(lf_typical=typical,
-                                 lf_contrast_floor=float(np.median(t)) - 0.02)  # fmt: skip
-    want_w = gate_weights(probe, config.lf_fusion)
+    f = replace(f, typical=typical, contrast_floor=float(np.median(t)) - 0.02)
+    want_w = gate_weights(probe, _with_power(f))
     assert 0 < np.count_nonzero(want_w) < 40  # the gate decides
     got, _ = rerank.search(index, x, 40, config=config, query_ids=np.arange(40),
-                           arrays=_reader(index, lf, config))  # fmt: skip
+                           arrays=_reader(index, lf, config, f),
+                           scorer=LightFieldFusion(config, tuning=f))  # fmt: skip
     assert np.array_equal(got, probe.rankings(want_w))
     assert not np.array_equal(got, probe.order)  # the light field moved some rankings
 
 
 def test_without_spreads_the_pooled_gate_keeps_the_stored_order() -> None:
     config, index, lf, _ = _case(12)
-    config = config.with_options(rerank_candidates=12)
     x = np.asarray(index.features_, np.float64)
 
     def fields_only(name: str, ids: np.ndarray) -> np.ndarray | None:
         return lf[ids] if name == COLUMN else None
 
     got, _ = rerank.search(index, x, 12, config=config, query_ids=np.arange(12),
-                           arrays=fields_only)  # fmt: skip
+                           arrays=fields_only, scorer=LightFieldFusion(config))  # fmt: skip
     assert np.array_equal(got, index.search(x, 12)[0])
 
 
@@ -163,7 +173,6 @@ def test_on_the_fused_distance_the_product_stage_keeps_the_chain_shut(
     # the product's fusion (chosen on validation): the stored spreads, the gate and the
     # ranks read the fused distance
     got = _analytic(tmp_path, fv_enabled=True)
-    assert got["chain"].config.lf_fusion == Config().lf_fusion
     assert LightFieldFusion(got["chain"].config).field.active
     rigid, chain = _gates(got["rigid"]), _gates(got["chain"])
     assert np.count_nonzero(rigid) >= 6, rigid
@@ -179,7 +188,7 @@ def test_the_spreads_are_kept_with_the_store_at_its_version(stores: dict[str, An
     root = Path(db.store.path) / SPREAD_DIR
     meta = json.loads((root / "current.json").read_text())
     assert meta["version"] == db.store.version
-    assert meta["spread_candidates"] == db.config.lf_fusion.spread_candidates
+    assert meta["spread_candidates"] == PRODUCT.spread_candidates
     ids, spreads = (
         np.load(root / meta["dir"] / "ids.npy"),
         np.load(root / meta["dir"] / "spreads.npy"),
@@ -190,27 +199,27 @@ def test_the_spreads_are_kept_with_the_store_at_its_version(stores: dict[str, An
 def test_the_local_statistic_of_a_hand_made_neighbourhood() -> None:
     d = np.array([1.0, 2.0, 3.0, 4.0, 5.0])  # calibrated stored distances, list order
     dl = np.array([6.0, 2.0, 9.0, 1.0, 4.0])  # the light field's nearest are the 4th, 2nd
-    config = Config().with_options(lf_spread_candidates=2, lf_typical=2.0, lf_ratio_weight=0.0)
-    assert local_statistic(d, dl, config) == (4.0 / 2.0) / 1.5  # median l / typical / median d
-    config = config.with_options(lf_ratio_weight=1.0, lf_ratio_candidates=5)
-    assert local_statistic(d, dl, config) == 4.0 / 1.5  # median of 6, 2 over median of 1, 2
-    config = config.with_options(lf_ratio_candidates=3)  # among the first 3: 2 and 6
-    assert local_statistic(d, dl, config) == 1.0
-    config = config.with_options(lf_ratio_weight=0.5, lf_ratio_candidates=5)
-    assert np.isclose(local_statistic(d, dl, config), np.sqrt((2.0 / 1.5) * (4.0 / 1.5)))
-    assert np.isnan(local_statistic(d[:0], dl[:0], config))
+    f = replace(PRODUCT, spread_candidates=2, typical=2.0, ratio_weight=0.0)
+    assert local_statistic(d, dl, f) == (4.0 / 2.0) / 1.5  # median l / typical / median d
+    f = replace(f, ratio_weight=1.0, ratio_candidates=5)
+    assert local_statistic(d, dl, f) == 4.0 / 1.5  # median of 6, 2 over median of 1, 2
+    f = replace(f, ratio_candidates=3)  # among the first 3: 2 and 6
+    assert local_statistic(d, dl, f) == 1.0
+    f = replace(f, ratio_weight=0.5, ratio_candidates=5)
+    assert np.isclose(local_statistic(d, dl, f), np.sqrt((2.0 / 1.5) * (4.0 / 1.5)))
+    assert np.isnan(local_statistic(d[:0], dl[:0], f))
     values = np.array([[4.0, 1.0, np.nan, 3.0, 2.0]])
     assert pooled(values, 0.5).tolist() == [2.5]
     assert pooled(values, 0.25).tolist() == [1.75]
 
 
-@pytest.mark.parametrize("gate", [{}, RATIO], ids=["spread", "ratio"])
+@pytest.mark.parametrize("gate", [SPREAD_GATE, RATIO], ids=["spread", "ratio"])
 def test_spreads_asked_for_a_few_shapes_equal_the_whole_store_s(gate: dict[str, Any]) -> None:
     config, index, lf, _ = _case()
-    config = config.with_options(**gate)
-    _, whole = local_spreads(index, _reader(index, lf, config), config)
+    f = replace(PLAIN, **gate)
+    _, whole = local_spreads(index, _reader(index, lf, config, f), config, None, f)
     few = np.array([31, 3, 17, 99])  # 99 is not stored: left out
-    got_ids, got = local_spreads(index, _reader(index, lf, config), config, few)
+    got_ids, got = local_spreads(index, _reader(index, lf, config, f), config, few, f)
     assert got_ids.tolist() == [3, 17, 31]
     assert np.array_equal(got, whole[[3, 17, 31]])
 
@@ -225,9 +234,11 @@ def test_a_search_computes_only_the_spreads_it_pools(
     asked: list[int] = []
     real = spread_module.local_spreads
 
-    def counting(index: Any, fields: Any, config: Config, ids: Any = None) -> Any:
+    def counting(
+        index: Any, fields: Any, config: Config, ids: Any = None, tuning: Any = PRODUCT
+    ) -> Any:
         asked.append(-1 if ids is None else len(ids))
-        return real(index, fields, config, ids)
+        return real(index, fields, config, ids, tuning)
 
     monkeypatch.setattr(spread_module, "local_spreads", counting)
     spread_module._CACHE.clear()
@@ -241,10 +252,12 @@ def test_a_search_computes_only_the_spreads_it_pools(
     assert got.tolist() == [whole[2], whole[5]]
     table.get(np.array([5]))
     assert asked == [2]  # known: not computed again
+    table.get(None)
+    assert table.complete and not (root / "current.json").exists()  # a search never writes
 
 
 def test_a_commit_recomputes_the_statistics_within_a_budget_of_light_field_distances() -> None:
-    ratio, spread = Config(), Config().with_options(lf_ratio_weight=0.0, lf_spread_candidates=5)
+    ratio, spread = PRODUCT, replace(PRODUCT, ratio_weight=0.0, spread_candidates=5)
     assert commit_distances(2000, spread) == FULL_AT_COMMIT  # the spread gate's 2,000 shapes
-    assert commit_distances(100, ratio) == 100 * max(ratio.lf_fusion.ratio_candidates, 3)
+    assert commit_distances(100, ratio) == 100 * max(ratio.ratio_candidates, 3)
     assert commit_distances(101, ratio) > FULL_AT_COMMIT >= commit_distances(100, ratio)
