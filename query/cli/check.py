@@ -4,24 +4,13 @@ from __future__ import annotations
 
 import argparse
 
-from query.cli.common import Subparsers, add_command, add_db_argument, print_json
+from query.cli.common import add_db_argument, print_json
 
-__all__ = ["register", "check", "repair"]
+__all__ = ["check_arguments", "check", "repair"]
 
 
-def register(subparsers: Subparsers) -> None:
-    """Add ``check`` and ``repair``."""
-    s = add_command(
-        subparsers,
-        "check",
-        check,
-        help="verify every segment against the size and checksum in the manifest",
-    )
-    add_db_argument(s)
-    s.add_argument("--json", action="store_true")
-    s = add_command(
-        subparsers, "repair", repair, help="rebuild the manifest from the intact segments"
-    )
+def check_arguments(s: argparse.ArgumentParser) -> None:
+    """The arguments of ``check`` and ``repair``."""
     add_db_argument(s)
     s.add_argument("--json", action="store_true")
 

@@ -1,6 +1,7 @@
-"""What the subcommands of ``shapedb`` share: the ``--db`` argument, opening a store, and output.
+"""What the subcommands of ``shapedb`` share: the command table's row type, the ``--db``
+argument, opening a store, reading shape ids, and output.
 
-Output goes to stdout (tables, JSON); progress bars to stderr, only on a terminal.
+Output goes to stdout (aligned text tables, JSON); progress bars to stderr, only on a terminal.
 """
 
 from __future__ import annotations
@@ -10,8 +11,10 @@ import json
 import os
 import sys
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
+from shapedb.errors import QueryError
 from shapedb.results import jsonable
 
 if TYPE_CHECKING:
@@ -19,30 +22,64 @@ if TYPE_CHECKING:
     from shapedb.results import Hit
 
 __all__ = [
+    "Command",
     "Handler",
     "Subparsers",
     "add_db_argument",
     "add_command",
+    "verbose_parent",
     "open_store",
     "existing_store",
     "query_arg",
+    "shape_ref",
+    "MAX_ID",
     "ProgressBar",
     "hit_row",
     "jsonable",
     "print_json",
     "print_rows",
+    "format_table",
     "HIT_COLUMNS",
 ]
 
 #: A subcommand's handler: the parsed arguments in, the exit status out.
 Handler = Callable[[argparse.Namespace], int]
 
+#: Adds a subcommand's arguments to its parser (and may set its description and epilog).
+Arguments = Callable[[argparse.ArgumentParser], None]
+
+#: The largest shape id: ids are stored as int64.
+MAX_ID = 2**63 - 1
+
 #: The columns of a search hit in tables.
 HIT_COLUMNS = ("id", "name", "label", "similarity", "distance")
 
 
+@dataclass(frozen=True)
+class Command:
+    """One row of the command table (:data:`query.cli.COMMANDS`).
+
+    Attributes
+    ----------
+    name : str
+        The subcommand, e.g. ``"ingest"``.
+    help : str
+        One line for ``shapedb --help`` (also the start of ``shapedb NAME --help``).
+    arguments : callable
+        ``arguments(parser)`` adds the subcommand's arguments.
+    handler : callable
+        ``handler(args) -> int``: runs the subcommand, returns the exit status.
+    """
+
+    name: str
+    help: str
+    arguments: Arguments
+    handler: Handler
+
+
 class Subparsers(Protocol):
-    """The object ``ArgumentParser.add_subparsers`` returns (what ``register`` receives)."""
+    """The object ``ArgumentParser.add_subparsers`` returns (what a group's ``register``
+    receives, for groups that still add their parsers themselves)."""
 
     def add_parser(self, name: str, **kwargs: Any) -> argparse.ArgumentParser: ...
 
@@ -54,12 +91,13 @@ def add_command(
 
     Every subcommand also takes ``-v`` (as the command itself does before it).
     """
-    parser = subparsers.add_parser(name, help=help, parents=[_verbose()])
+    parser = subparsers.add_parser(name, help=help, parents=[verbose_parent()])
     parser.set_defaults(handler=handler)
     return parser
 
 
-def _verbose() -> argparse.ArgumentParser:
+def verbose_parent() -> argparse.ArgumentParser:
+    """A parent parser holding ``-v``, so that it also works after the subcommand."""
     parent = argparse.ArgumentParser(add_help=False)
     parent.add_argument(
         "-v",
@@ -110,11 +148,27 @@ def seconds(text: str) -> float:
     return value
 
 
+def shape_ref(text: str) -> str | int:
+    """A stored shape's int id for digits, else its name.
+
+    Raises
+    ------
+    QueryError
+        For digits beyond the largest id (:data:`MAX_ID`).
+    """
+    if not text.strip().isdigit():
+        return text
+    value = int(text)
+    if value > MAX_ID:
+        raise QueryError(f"shape id out of range: ids run from 1 to {MAX_ID}", source=text.strip())
+    return value
+
+
 def query_arg(text: str) -> str | int:
-    """A path when such a file exists, an int id for digits, else a name."""
+    """A path when such a file exists, else :func:`shape_ref` (an int id for digits, a name)."""
     if os.path.exists(text):
         return text
-    return int(text) if text.strip().isdigit() else text
+    return shape_ref(text)
 
 
 class ProgressBar:
@@ -149,19 +203,64 @@ def print_json(data: Any) -> None:
     print(json.dumps(jsonable(data), indent=None))
 
 
-def _cell(v: Any) -> str:
+def _cell(v: Any, floats: str = ".6g") -> str:
     if isinstance(v, float):
-        return f"{v:.6g}"
+        text = format(v, floats)
+        return text[1:] if text.startswith("-") and not text.strip("-0.") else text  # no -0.00
     text = "" if v is None else str(v)
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def print_rows(rows: list[dict[str, Any]], columns: Sequence[str]) -> None:
-    """Print ``rows`` as an aligned text table of ``columns`` (``(no rows)`` when empty)."""
-    cells = [[_cell(r.get(c)) for c in columns] for r in rows]
-    widths = [max([len(c)] + [len(row[k]) for row in cells]) for k, c in enumerate(columns)]
-    print("  ".join(c.ljust(w) for c, w in zip(columns, widths, strict=True)).rstrip())
-    for row in cells:
-        print("  ".join(v.ljust(w) for v, w in zip(row, widths, strict=True)).rstrip())
-    if not rows:
+def format_table(
+    rows: Sequence[dict[str, Any]],
+    columns: Sequence[str],
+    *,
+    headers: Sequence[str] | None = None,
+    floats: str = ".6g",
+) -> list[str]:
+    """The lines of an aligned text table: a header, then one line per row.
+
+    Numbers are right-aligned, everything else left-aligned; floats are formatted with
+    the format spec ``floats`` (default 6 significant digits) and long cells are cut to
+    60 characters. ``headers`` (default ``columns``) are the names shown.
+    """
+    names = list(columns if headers is None else headers)
+    cells = [[_cell(r.get(c), floats) for c in columns] for r in rows]
+    widths = [max([len(n)] + [len(row[k]) for row in cells]) for k, n in enumerate(names)]
+    numeric = [
+        bool(rows) and all(_is_number(r.get(c)) or r.get(c) is None for r in rows) for c in columns
+    ]
+
+    def line(values: Sequence[str]) -> str:
+        parts = [
+            v.rjust(w) if right else v.ljust(w)
+            for v, w, right in zip(values, widths, numeric, strict=True)
+        ]
+        return "  ".join(parts).rstrip()
+
+    return [line(names)] + [line(row) for row in cells]
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def print_rows(
+    rows: list[dict[str, Any]],
+    columns: Sequence[str],
+    *,
+    headers: Sequence[str] | None = None,
+    floats: str = ".6g",
+    count: bool = False,
+) -> None:
+    """Print ``rows`` as an aligned text table of ``columns`` (:func:`format_table`, which
+    takes ``headers`` and ``floats``).
+
+    ``(no rows)`` follows an empty table; with ``count``, ``(N rows)`` follows any table.
+    """
+    for line in format_table(rows, columns, headers=headers, floats=floats):
+        print(line)
+    if count:
+        print(f"({len(rows)} row{'' if len(rows) == 1 else 's'})")
+    elif not rows:
         print("(no rows)")

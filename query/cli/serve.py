@@ -5,22 +5,16 @@ from __future__ import annotations
 import argparse
 import os
 
-from query.cli.common import Subparsers, add_command, add_db_argument, existing_store
+from query.cli.common import add_db_argument, existing_store
 
-__all__ = ["register", "serve"]
+__all__ = ["serve_arguments", "serve", "TOKEN_VARIABLE"]
 
 #: Where ``--token`` is read from when it is not given (a command line is visible to ``ps``).
 TOKEN_VARIABLE = "SHAPEDB_TOKEN"
 
 
-def register(subparsers: Subparsers) -> None:
-    """Add ``serve``."""
-    s = add_command(
-        subparsers,
-        "serve",
-        serve,
-        help="a web page and JSON API over a store (needs shapedb[serve])",
-    )
+def serve_arguments(s: argparse.ArgumentParser) -> None:
+    """The arguments of ``serve``."""
     add_db_argument(s)
     s.add_argument(
         "--host",

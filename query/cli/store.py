@@ -4,25 +4,38 @@ from __future__ import annotations
 
 import argparse
 import os
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
 
 from query.cli.common import (
     ProgressBar,
-    Subparsers,
-    add_command,
     add_db_argument,
     existing_store,
+    format_table,
     open_store,
     positive_int,
     print_json,
     seconds,
+    shape_ref,
 )
 
-__all__ = ["register", "ingest", "info", "delete"]
+__all__ = [
+    "ingest_arguments",
+    "info_arguments",
+    "delete_arguments",
+    "ingest",
+    "info",
+    "delete",
+    "print_config",
+    "disk_usage",
+    "human_bytes",
+    "build_line",
+]
 
 
-def register(subparsers: Subparsers) -> None:
-    """Add ``ingest``, ``info`` and ``delete``."""
-    s = add_command(subparsers, "ingest", ingest, help="add model files or folders to a store")
+def ingest_arguments(s: argparse.ArgumentParser) -> None:
+    """The arguments of ``ingest``."""
     s.add_argument("paths", nargs="+", metavar="PATH", help="files or folders")
     add_db_argument(s)
     s.add_argument("--labels", metavar="CSV", help="CSV with path,label[,extra columns]")
@@ -41,7 +54,8 @@ def register(subparsers: Subparsers) -> None:
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="any configuration option of a new store, e.g. --set tie_cells=0 (repeatable)",
+        help="any configuration option of a new store, e.g. --set tie_cells=0 (repeatable; "
+        "`shapedb info --config` lists them)",
     )
     s.add_argument(
         "--workers", type=positive_int, metavar="N", help="worker processes (default: all cores)"
@@ -58,15 +72,23 @@ def register(subparsers: Subparsers) -> None:
     s.add_argument(
         "--max-faces", type=positive_int, metavar="N", help="refuse meshes of more than N faces"
     )
+    s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     s.add_argument("--json", action="store_true", help="print the report as JSON")
 
-    s = add_command(
-        subparsers, "info", info, help="counts, labels, failures and configuration of a store"
-    )
-    add_db_argument(s)
-    s.add_argument("--json", action="store_true")
 
-    s = add_command(subparsers, "delete", delete, help="remove shapes by id or name")
+def info_arguments(s: argparse.ArgumentParser) -> None:
+    """The arguments of ``info``."""
+    add_db_argument(s)
+    s.add_argument(
+        "--config",
+        action="store_true",
+        help="print every configuration option, one per line, grouped by section",
+    )
+    s.add_argument("--json", action="store_true", help="print the summary (or --config) as JSON")
+
+
+def delete_arguments(s: argparse.ArgumentParser) -> None:
+    """The arguments of ``delete``."""
     s.add_argument("targets", nargs="+", metavar="ID_OR_NAME")
     add_db_argument(s)
     _lock_timeout(s)
@@ -92,7 +114,7 @@ def ingest(args: argparse.Namespace) -> int:
     if args.balls is not None:
         options["n_balls"] = args.balls
     db = open_store(args.db, lock_timeout=args.lock_timeout, **options)
-    bar = ProgressBar(enabled=not args.json)
+    bar = ProgressBar(enabled=not (args.json or args.quiet))
     try:
         report = db.ingest(
             args.paths,
@@ -102,7 +124,7 @@ def ingest(args: argparse.Namespace) -> int:
             workers=args.workers,
             scheduler=args.scheduler,
             force=args.force,
-            progress=bar,
+            progress=False if args.quiet else bar,
             batch_size=args.batch_size,
             max_bytes=args.max_bytes,
             max_faces=args.max_faces,
@@ -124,28 +146,91 @@ def ingest(args: argparse.Namespace) -> int:
 
 
 def info(args: argparse.Namespace) -> int:
-    """``shapedb info``."""
+    """``shapedb info``: a short summary; ``--config`` every configuration option."""
     db = existing_store(args.db)
+    if args.config:
+        if args.json:
+            print_json(db.config.to_dict())
+        else:
+            print_config(db.config.options())
+        return 0
     summary = db.info()
     if args.json:
         print_json(summary)
         return 0
+    labels = summary["labels"]
     print(f"store:    {os.path.abspath(args.db)}")
     print(f"shapes:   {summary['shapes']}")
-    labels = summary["labels"]
-    print(f"labels:   {len(labels)}" + (":" if labels else ""))
-    for name, count in labels.items():
-        print(f"  {count:6d}  {name}")
-    options = db.config.options()
-    print("config:   " + ", ".join(f"{k}={v}" for k, v in options.items()))
+    print(f"labels:   {len(labels)}" + ("" if labels else " (no labelled shapes)"))
+    rows = [{"label": name, "shapes": count} for name, count in labels.items()]
+    for line in format_table(rows, ["label", "shapes"], headers=["", ""])[1:] if rows else []:
+        print(f"  {line}")
+    files, size = disk_usage(db.path)
+    print(f"size:     {human_bytes(size)} in {files} files")
+    print(f"build:    {build_line(db.path)}")
     print(f"failures: {len(summary['failures'])}")
     for f in summary["failures"]:
         print(f"  {f['path']}: {f['error']}")
+    print(f"config:   `shapedb info --config --db {args.db}` lists every option")
     return 0
+
+
+def print_config(options: dict[str, Any]) -> None:
+    """Print ``options`` (``Config.options()``) one per line, grouped by section.
+
+    Each line is ``name = value``, with the name ``--set`` and ``connect`` take.
+    """
+    from shapedb.config.core import OPTIONS
+
+    sections: dict[str, list[str]] = {}
+    for name in options:
+        sections.setdefault(OPTIONS[name][0], []).append(name)
+    width = max(len(name) for name in options)
+    for k, (section, names) in enumerate(sections.items()):
+        print(("\n" if k else "") + f"[{section}]")
+        for name in names:
+            print(f"  {name.ljust(width)} = {options[name]}")
+
+
+def disk_usage(path: Path) -> tuple[int, int]:
+    """(files, bytes) under ``path``, recursively."""
+    files = [p for p in path.rglob("*") if p.is_file()]
+    return len(files), sum(p.stat().st_size for p in files)
+
+
+def human_bytes(n: int) -> str:
+    """``n`` bytes as B, KB, MB, GB or TB (powers of 1024), e.g. ``"1.2 MB"``."""
+    size = float(n)
+    for unit in ("B", "KB", "MB", "GB"):
+        if size < 1024:
+            return f"{size:.0f} {unit}" if unit == "B" else f"{size:.1f} {unit}"
+        size /= 1024
+    return f"{size:.1f} TB"
+
+
+def build_line(path: Path) -> str:
+    """The store's format and schema versions, creation and last-change times (UTC)."""
+    from shapedb.store.manifest import read_manifest
+
+    manifest = read_manifest(path)
+
+    def when(key: str) -> str:
+        stamp = manifest.get(key)
+        if not isinstance(stamp, (int, float)):
+            return "unknown"
+        return datetime.fromtimestamp(stamp, tz=timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+
+    return (
+        f"format {manifest['format_version']}, schema {manifest.get('schema_version', '?')}, "
+        f"version {manifest['version']}, created {when('created_at')}, "
+        f"updated {when('updated_at')}"
+    )
 
 
 def delete(args: argparse.Namespace) -> int:
     """``shapedb delete``."""
+    for target in args.targets:
+        shape_ref(target)  # the range check; the store reads a name of digits as a name first
     n = open_store(args.db, create=False, lock_timeout=args.lock_timeout).delete(args.targets)
     print(f"deleted {n} shape(s)")
     return 0

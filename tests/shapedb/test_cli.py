@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import argparse
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -11,9 +13,8 @@ import trimesh
 from query.cli import main
 
 
-@pytest.fixture()
-def models(tmp_path: Path) -> Path:
-    folder = tmp_path / "models"
+def _boxes_and_rods(folder: Path) -> Path:
+    """Six box meshes in ``folder``: three ``boxes`` and three ``rods``, a folder each."""
     for cls, shapes in {
         "boxes": [(1, 1, 1), (1, 2, 1), (1, 1, 3)],
         "rods": [(0.6, 0.6, 3), (0.7, 0.7, 4), (0.6, 0.8, 2.5)],
@@ -21,8 +22,22 @@ def models(tmp_path: Path) -> Path:
         (folder / cls).mkdir(parents=True)
         for k, ext in enumerate(shapes):
             trimesh.creation.box(extents=ext).export(folder / cls / f"{cls}{k}.obj")
+    return folder
+
+
+@pytest.fixture()
+def models(tmp_path: Path) -> Path:
+    folder = _boxes_and_rods(tmp_path / "models")
     (folder / "broken.stl").write_bytes(b"\0" * 80 + b"\x05\0\0\0" + b"\1")
     return folder
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A store of the six boxes and rods, labelled by folder, shared by the read-only tests."""
+    root = tmp_path_factory.mktemp("store")
+    assert _ingest(_boxes_and_rods(root / "models"), root / "db", "--quiet") == 0
+    return root / "db"
 
 
 def _json(capsys: pytest.CaptureFixture[str]) -> object:
@@ -285,3 +300,178 @@ def test_ingest_voxels_as_smooth_solids(tmp_path: Path, capsys: pytest.CaptureFi
     assert main(["ingest", str(folder), "--db", str(db), "--as", "smooth_voxels",
                  "--workers", "1", "--json"]) == 0  # fmt: skip
     assert _json(capsys) == {"ingested": 1, "skipped": 0, "failed": [], "notes": []}
+
+
+# --------------------------------------------------------------------------------------
+# Output for people
+# --------------------------------------------------------------------------------------
+
+
+def test_info_is_a_short_summary(store: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    capsys.readouterr()
+    assert main(["info", "--db", str(store)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "labels:   2" in lines  # no stray colon
+    assert "  boxes  3" in lines and "  rods   3" in lines
+    size = next(line for line in lines if line.startswith("size:"))
+    assert size.split()[2] in {"KB", "MB"} and "files" in size
+    build = next(line for line in lines if line.startswith("build:"))
+    assert "format 1" in build and "schema" in build and "created 20" in build
+    assert not any("resolution" in line for line in lines)  # the configuration has its own flag
+    assert len(lines) <= 12
+
+
+def test_info_config_is_one_option_a_line_by_section(
+    store: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from shapedb.config.core import OPTIONS
+
+    capsys.readouterr()
+    assert main(["info", "--db", str(store), "--config"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    sections = [line for line in lines if line.startswith("[")]
+    assert "[mdbd]" in sections and len(sections) == len(set(sections)) >= 3
+    options = [line.split() for line in lines if line.startswith("  ")]
+    assert [o[0] for o in options] == list(OPTIONS) and all(o[1] == "=" for o in options)
+    assert ["resolution", "=", "32"] in options
+    assert main(["info", "--db", str(store), "--config", "--json"]) == 0
+    assert _json(capsys)["mdbd"]["resolution"] == 32
+
+
+def test_eval_prints_overall_scores_and_a_table_by_class(
+    store: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    capsys.readouterr()
+    assert main(["eval", "--db", str(store), "--json"]) == 0
+    scores = _json(capsys)
+    keys = {"queries", "nn", "first_tier", "second_tier", "e_measure", "dcg", "per_class"}
+    assert set(scores) == keys and set(scores["per_class"]) == {"boxes", "rods"}
+    assert main(["eval", "--db", str(store)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "6 queries" in lines[0] and f"NN {scores['nn']:.3f}" in lines[1]
+    at = next(i for i, line in enumerate(lines) if line.startswith("class"))
+    header, rows = lines[at], lines[at + 1 :]
+    assert header.split() == ["class", "queries", "NN", "1-T", "2-T", "DCG"]
+    assert [r.split()[0] for r in rows] == ["boxes", "rods", "(all)"]
+    for row in rows:  # aligned: every number ends where its column's name ends
+        assert len(row) == len(header)
+        ends = [m.end() for m in re.finditer(r"\S+", header)][1:]
+        assert [m.end() for m in re.finditer(r"\S+", row)][1:] == ends
+    boxes = scores["per_class"]["boxes"]
+    assert rows[0].split()[1:] == [str(int(boxes["queries"]))] + [
+        f"{boxes[k]:.3f}" for k in ("nn", "first_tier", "second_tier", "dcg")
+    ]
+
+
+def test_match_help_states_defaults_columns_and_ball_numbers(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["match", "--help"])
+    assert exc.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    from query.cli import COMMANDS
+
+    (command,) = [c for c in COMMANDS if c.name == "match"]
+    parser = argparse.ArgumentParser()
+    command.arguments(parser)
+    for action in parser._actions:
+        if action.option_strings and action.dest not in {"help", "verbose", "db"}:
+            assert "default" in (action.help or ""), action.option_strings
+    assert "(default 2)" in text  # --hops
+    for column in ("similarity", "centre", "nodes"):
+        assert re.search(rf"\b{column}\b", text.split("output columns:")[1]), column
+    assert "shapedb show QUERY --balls" in text and "--out PNG" in text
+
+
+def test_show_balls_lists_the_numbers_match_takes(
+    store: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    capsys.readouterr()
+    assert main(["show", "rods1", "--balls", "--db", str(store)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].split() == ["ball", "x", "y", "z", "radius", "contacts"]
+    assert [int(line.split()[0]) for line in lines[1:]] == list(range(len(lines) - 1))
+    assert main(["show", "rods1", "--db", str(store)]) == 1  # neither --out nor --balls
+    assert "--balls" in capsys.readouterr().err
+
+
+def test_sql_prints_an_aligned_table_with_readable_names(
+    store: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    capsys.readouterr()
+    sql = "select label, count(*) from shapes group by label order by label"
+    assert main(["sql", sql, "--db", str(store)]) == 0
+    assert capsys.readouterr().out.splitlines() == [
+        "label  count",
+        "boxes      3",
+        "rods       3",
+        "(2 rows)",
+    ]
+    assert main(["sql", sql, "--db", str(store), "--json"]) == 0  # the Arrow names, untouched
+    assert _json(capsys) == [
+        {"label": "boxes", "count_star()": 3},
+        {"label": "rods", "count_star()": 3},
+    ]
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["search", "100000000000000000000"],
+        ["search", "rods1", "-k", "100000000000000000000"],
+        ["delete", "100000000000000000000"],
+        ["show", "100000000000000000000", "--balls"],
+        ["match", "100000000000000000000", "--node", "0"],
+        ["match", "rods1", "-k", "100000000000000000000"],
+    ],
+)
+def test_numbers_out_of_range_are_one_line_errors(
+    store: Path, capsys: pytest.CaptureFixture[str], argv: list[str]
+) -> None:
+    capsys.readouterr()
+    assert main([*argv, "--db", str(store)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("shapedb: error: ") and err.count("\n") == 1
+    assert "100000000000000000000" in err and "internal" not in err
+
+
+def test_ingest_quiet_asks_for_no_progress(
+    models: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import query.database
+    from shapedb.errors import QueryError
+
+    seen: list[object] = []
+
+    def ingest(self: object, paths: object, **options: object) -> None:
+        seen.append(options["progress"])
+        raise QueryError("stop here")
+
+    monkeypatch.setattr(query.database.Database, "ingest", ingest)
+    assert _ingest(models, tmp_path / "db", "--quiet") == 1
+    assert _ingest(models, tmp_path / "db") == 1
+    assert seen[0] is False and callable(seen[1])
+
+
+def test_demo_ends_saying_where_its_store_is(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("faiss")
+    import tempfile
+
+    import query.cli.demo
+    import shapedb.examples
+
+    few = [s for s in shapedb.examples.catalogue() if s[1] in {"figure-s0", "figure-s1"}][::2]
+    monkeypatch.setattr(shapedb.examples, "catalogue", lambda: few)
+    monkeypatch.setattr(query.cli.demo, "DEMO_STORE", {"resolution": 24, "n_balls": 32})
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    assert main(["demo", "--workers", "1"]) == 0
+    (made,) = tmp_path.glob("shapedb-demo-*")
+    last = capsys.readouterr().out.splitlines()[-2:]
+    assert str(made) in last[0] and last[1].startswith(f"remove it with:  rm -r {made}")
+    assert main(["demo", "--workers", "1", "--clean"]) == 0
+    last_line = capsys.readouterr().out.splitlines()[-1]
+    assert last_line.startswith("removed the demo store")
+    assert set(tmp_path.glob("shapedb-demo-*")) == {made}  # the second demo's store is gone

@@ -1,20 +1,22 @@
-"""The layout of the ``shapedb`` command line: subcommands beside their handlers, one-line errors."""
+"""The layout of the ``shapedb`` command line: one command table, short functions, one-line
+errors."""
 
 from __future__ import annotations
 
-import argparse
+import ast
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
+import query.cli
 import query.database
-from query.cli import GROUPS, build_parser, main
+from query.cli import COMMANDS, build_parser, main
 from shapedb.errors import StoreError
 
-#: Subcommands that must stay (groups may add more).
-COMMANDS = {
+#: Subcommands that must stay (the table may add more).
+COMMAND_NAMES = {
     "ingest",
     "info",
     "delete",
@@ -30,29 +32,47 @@ COMMANDS = {
 }
 
 
-class _Recorder:
-    """Stands in for ``add_subparsers()``: records the parser of each subcommand."""
-
-    def __init__(self) -> None:
-        self.parsers: dict[str, argparse.ArgumentParser] = {}
-
-    def add_parser(self, name: str, **kwargs: object) -> argparse.ArgumentParser:
-        self.parsers[name] = argparse.ArgumentParser(prog=name)
-        return self.parsers[name]
+#: The longest function allowed in query/cli/ (lines, decorators and docstring included).
+MAX_FUNCTION_LINES = 80
 
 
-def test_every_subcommand_is_registered_beside_its_handler() -> None:
-    seen: set[str] = set()
-    for group in GROUPS:
-        recorder = _Recorder()
-        group.register(recorder)
-        for name, parser in recorder.parsers.items():
-            handler = parser.get_default("handler")
-            assert callable(handler), name
-            assert handler.__module__ == group.__name__, (name, handler.__module__)
-        assert not seen & set(recorder.parsers)
-        seen |= set(recorder.parsers)
-    assert COMMANDS <= seen
+def test_the_command_table_names_every_subcommand_once_beside_its_handler() -> None:
+    names = [c.name for c in COMMANDS]
+    assert len(names) == len(set(names))
+    assert COMMAND_NAMES <= set(names)
+    for command in COMMANDS:
+        assert command.help and command.help == " ".join(command.help.split()), command.name
+        assert callable(command.arguments) and callable(command.handler), command.name
+        assert command.handler.__module__.startswith("query.cli."), command.name
+
+
+def test_the_parser_is_built_from_the_table() -> None:
+    parser = build_parser()
+    for command in COMMANDS:
+        argv = [command.name, "--help"]
+        with pytest.raises(SystemExit) as exc:
+            parser.parse_args(argv)
+        assert exc.value.code == 0, command.name
+    args = parser.parse_args(["delete", "7", "--db", "x"])
+    (delete,) = [c for c in COMMANDS if c.name == "delete"]
+    assert args.handler is delete.handler and args.targets == ["7"]
+
+
+def _function_lines(path: Path) -> dict[str, int]:
+    """The length in lines of every function in ``path``, decorators included."""
+    return {
+        f"{path.name}:{node.name}:{node.lineno}": (node.end_lineno or node.lineno)
+        - min([node.lineno, *(d.lineno for d in node.decorator_list)])
+        + 1
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+    }
+
+
+def test_no_function_in_the_cli_is_over_80_lines() -> None:
+    package = Path(query.cli.__file__).parent
+    lengths = {k: v for path in package.glob("*.py") for k, v in _function_lines(path).items()}
+    assert lengths and not {k: v for k, v in lengths.items() if v > MAX_FUNCTION_LINES}
 
 
 def test_the_parser_dispatches_to_the_handlers() -> None:
@@ -108,5 +128,5 @@ def test_help_lists_every_subcommand() -> None:
     code = "import sys; from query.cli import main; sys.exit(main(['--help']))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
-    for name in COMMANDS:
+    for name in COMMAND_NAMES:
         assert name in out.stdout
