@@ -136,52 +136,83 @@ def _score(
             me = col_of[idx[row]]
             cols = np.flatnonzero(col_code == c[row])
             cols = cols[cols != me]  # ...and is never counted
-            kv = key[row, cols]
-            ranks = np.searchsorted(ordered[row], kv, side="left") + 1
-            tied = np.searchsorted(ordered[row], kv, side="right") - ranks + 1 > 1
-            for t in np.flatnonzero(tied):  # equal scores: smaller id first, query excluded
-                before = np.flatnonzero(key[row, : cols[t]] == kv[t])
-                ranks[t] += len(before[before != me])
-            ranks = np.sort(ranks)
-            rel = len(ranks)  # C - 1
+            ranks = _class_ranks(key[row], ordered[row], cols, me)
             results["index"].append(float(idx[row]))
-            results["nn"].append(float(ranks[0] == 1))
-            results["first_tier"].append(np.count_nonzero(ranks <= rel) / rel)
-            results["second_tier"].append(np.count_nonzero(ranks <= 2 * rel) / rel)
-            h = np.count_nonzero(ranks <= k_e)
-            results["e_measure"].append(2.0 * h / (k_e + rel) if h else 0.0)
-            results["dcg"].append(float(disc[ranks - 1].sum() / ideal[rel - 1]))
-            prec = np.arange(1, rel + 1) / ranks
-            rec = np.arange(1, rel + 1) / rel
-            interp = np.maximum.accumulate(prec[::-1])[::-1]  # max precision at recall >= r
-            at = np.searchsorted(rec, levels - 1e-12, side="left")
-            pr_sum += np.where(at < rel, interp[np.minimum(at, rel - 1)], 0.0)
+            for m, value in _measures(ranks, disc, ideal, k_e).items():
+                results[m].append(value)
+            pr_sum += _precision_at(ranks, levels)
 
     per_query = {m: np.asarray(v, np.float64) for m, v in results.items()}
     per_query["index"] = per_query["index"].astype(np.int64)
     q = len(per_query["index"])
     if q == 0:
         log.warning("no query has a class of two or more labelled shapes: nothing to score")
-    means = {m: float(per_query[m].mean()) if q else float("nan") for m in MEASURES}
-    qc = code[per_query["index"]]
-    per_class: dict[str, dict[str, float]] = {}
-    for ci, name in enumerate(names):
-        sel = qc == ci
-        if sel.any():
-            entry: dict[str, float] = {"queries": int(sel.sum())}
-            entry.update({m: float(per_query[m][sel].mean()) for m in MEASURES})
-            per_class[str(name)] = entry
     skipped = int(((code >= 0) & (size[np.maximum(code, 0)] <= 1)).sum()) if n else 0
     if skipped:
         log.info("skipped %d queries from classes of one shape", skipped)
     return RetrievalScores(
         queries=q,
-        **means,
-        per_class=per_class,
+        **{m: float(per_query[m].mean()) if q else float("nan") for m in MEASURES},
+        per_class=_per_class(per_query, code, names),
         recall=levels,
         precision=pr_sum / q if q else np.full(len(levels), np.nan),
         per_query=per_query,
     )
+
+
+def _class_ranks(
+    key: NDArray[np.float64], ordered: NDArray[np.float64], cols: NDArray[np.intp], me: int
+) -> NDArray[np.intp]:
+    """Sorted 1-based ranks of a query's class members ``cols`` among the scores ``key``
+    (columns in id order, ``ordered`` their sorted values); ties: smaller id first, the
+    query ``me`` left out."""
+    kv = key[cols]
+    ranks = np.searchsorted(ordered, kv, side="left") + 1
+    tied = np.searchsorted(ordered, kv, side="right") - ranks + 1 > 1
+    for t in np.flatnonzero(tied):
+        before = np.flatnonzero(key[: cols[t]] == kv[t])
+        ranks[t] += len(before[before != me])
+    return np.sort(ranks)
+
+
+def _measures(
+    ranks: NDArray[np.intp], disc: NDArray[np.float64], ideal: NDArray[np.float64], k_e: int
+) -> dict[str, float]:
+    """NN, first and second tier, E-measure and DCG of one query's sorted class ranks."""
+    rel = len(ranks)  # C - 1
+    h = np.count_nonzero(ranks <= k_e)
+    return {
+        "nn": float(ranks[0] == 1),
+        "first_tier": np.count_nonzero(ranks <= rel) / rel,
+        "second_tier": np.count_nonzero(ranks <= 2 * rel) / rel,
+        "e_measure": 2.0 * h / (k_e + rel) if h else 0.0,
+        "dcg": float(disc[ranks - 1].sum() / ideal[rel - 1]),
+    }
+
+
+def _precision_at(ranks: NDArray[np.intp], levels: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Interpolated precision (the max at recall >= r) at each recall level."""
+    rel = len(ranks)
+    prec = np.arange(1, rel + 1) / ranks
+    rec = np.arange(1, rel + 1) / rel
+    interp = np.maximum.accumulate(prec[::-1])[::-1]
+    at = np.searchsorted(rec, levels - 1e-12, side="left")
+    return np.where(at < rel, interp[np.minimum(at, rel - 1)], 0.0)
+
+
+def _per_class(
+    per_query: dict[str, NDArray[Any]], code: NDArray[np.int64], names: NDArray[Any]
+) -> dict[str, dict[str, float]]:
+    """Each class's query count and mean measures."""
+    qc = code[per_query["index"]]
+    out: dict[str, dict[str, float]] = {}
+    for ci, name in enumerate(names):
+        sel = qc == ci
+        if sel.any():
+            entry: dict[str, float] = {"queries": int(sel.sum())}
+            entry.update({m: float(per_query[m][sel].mean()) for m in MEASURES})
+            out[str(name)] = entry
+    return out
 
 
 def evaluate(

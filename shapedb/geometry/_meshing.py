@@ -255,6 +255,54 @@ def refine_closest(
     dist.ravel()[idx] = best
 
 
+def _region_verdicts(
+    far: NDArray[np.bool_],
+    sub_ijk: NDArray[np.int64],
+    sub_val: NDArray[np.float64],
+    ambiguity: float,
+) -> tuple[NDArray[np.int32], NDArray[np.int8]]:
+    """The 6-connected regions of the ``far`` cells, and each region's verdict from its
+    sub-grid nodes: 1 inside, -1 outside, 0 undecided (mixed, ambiguous or no node; label
+    0, the near-surface shell, is always undecided)."""
+    labels, n_labels = ndimage.label(far)
+    node_label = labels[sub_ijk[:, 0], sub_ijk[:, 1], sub_ijk[:, 2]]
+    hi = np.full(n_labels + 1, -np.inf)
+    lo = np.full(n_labels + 1, np.inf)
+    np.maximum.at(hi, node_label, sub_val)
+    np.minimum.at(lo, node_label, sub_val)
+    region = np.zeros(n_labels + 1, dtype=np.int8)
+    region[lo > 0.5 + ambiguity] = 1
+    region[hi < 0.5 - ambiguity] = -1
+    region[np.bincount(node_label, minlength=n_labels + 1) == 0] = 0  # no node: undecided
+    region[0] = 0
+    return labels, region
+
+
+def _inherit_from_nodes(
+    dist: NDArray[np.floating],
+    node_val: NDArray[np.float64],
+    stride: int,
+    inside: NDArray[np.bool_],
+    todo: NDArray[np.bool_],
+    margin: float,
+    ambiguity: float,
+) -> None:
+    """Cells of ``todo`` farther from the surface than from their nearest sub-grid node
+    (whose value ``node_val`` is unambiguous) take its classification, in place."""
+    axes = [np.arange(n) for n in dist.shape]
+    node = [
+        np.minimum(np.rint(a / stride).astype(np.int64) * stride, ((n - 1) // stride) * stride)
+        for a, n in zip(axes, dist.shape, strict=True)
+    ]
+    off2 = [((a - n) ** 2).astype(np.float32) for a, n in zip(axes, node, strict=True)]
+    offset = np.sqrt(off2[0][:, None, None] + off2[1][None, :, None] + off2[2][None, None, :])
+    val = node_val[np.ix_(*(n // stride for n in node))]
+    safe = (dist > offset + margin) & (np.abs(val - 0.5) >= ambiguity)
+    inherit = todo & safe
+    inside[inherit] = val[inherit] > 0.5
+    todo &= ~safe
+
+
 def coarse_to_fine_inside(
     grid: Grid,
     dist: NDArray[np.floating],
@@ -304,40 +352,19 @@ def coarse_to_fine_inside(
     inside : grid.shape bool
     """
     shape = grid.shape
-    axes = [np.arange(n) for n in shape]
     sub = [np.arange(0, n, stride) for n in shape]
     sx, sy, sz = np.meshgrid(*sub, indexing="ij")
     sub_ijk = np.stack([sx.ravel(), sy.ravel(), sz.ravel()], axis=1)
     sub_val = value(grid.to_point(sub_ijk))
 
-    labels, n_labels = ndimage.label(dist > near)
-    node_label = labels[sub_ijk[:, 0], sub_ijk[:, 1], sub_ijk[:, 2]]
-    hi = np.full(n_labels + 1, -np.inf)
-    lo = np.full(n_labels + 1, np.inf)
-    np.maximum.at(hi, node_label, sub_val)
-    np.minimum.at(lo, node_label, sub_val)
-    region = np.zeros(n_labels + 1, dtype=np.int8)  # 1 inside, -1 outside, 0 undecided
-    region[lo > 0.5 + ambiguity] = 1
-    region[hi < 0.5 - ambiguity] = -1
-    region[np.bincount(node_label, minlength=n_labels + 1) == 0] = 0  # no node: undecided
-    region[0] = 0  # label 0 is the near-surface shell
+    labels, region = _region_verdicts(dist > near, sub_ijk, sub_val, ambiguity)
+    n_labels = len(region) - 1
     cell_region = region[labels]
     inside = cell_region > 0
     todo = cell_region == 0
     del labels, cell_region
 
-    # undecided regions: nearest-node inheritance where provably safe
-    node = [
-        np.minimum(np.rint(a / stride).astype(np.int64) * stride, ((n - 1) // stride) * stride)
-        for a, n in zip(axes, shape, strict=True)
-    ]
-    off2 = [((a - n) ** 2).astype(np.float32) for a, n in zip(axes, node, strict=True)]
-    offset = np.sqrt(off2[0][:, None, None] + off2[1][None, :, None] + off2[2][None, None, :])
-    val = sub_val.reshape(sx.shape)[np.ix_(*(n // stride for n in node))]
-    safe = (dist > offset + margin) & (np.abs(val - 0.5) >= ambiguity)
-    inherit = todo & safe
-    inside[inherit] = val[inherit] > 0.5
-    todo &= ~safe
+    _inherit_from_nodes(dist, sub_val.reshape(sx.shape), stride, inside, todo, margin, ambiguity)
     grid_nodes = np.zeros(shape, dtype=bool)
     grid_nodes[np.ix_(*sub)] = True
     inside[grid_nodes] = sub_val > 0.5
@@ -352,14 +379,9 @@ def coarse_to_fine_inside(
         inside[todo] = value(grid.to_point(idx)) > 0.5
     logger.debug(
         "coarse-to-fine sign: %d regions (%d undecided), %d sub-grid + %d finer-node + %d "
-        "direct evaluations for %d cells",
-        n_labels,
-        int((region[1:] == 0).sum()),
-        sub_ijk.shape[0],
-        n_finer,
-        len(idx),
-        grid.size,
-    )
+        "direct evaluations for %d cells", n_labels, int((region[1:] == 0).sum()),
+        sub_ijk.shape[0], n_finer, len(idx), grid.size,
+    )  # fmt: skip
     return inside
 
 

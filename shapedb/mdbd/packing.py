@@ -332,24 +332,33 @@ def pack_balls(
             c, r = cell, top
         centers[n], radii[n] = c, r
         n += 1
-        reach = r + top + 2.0 * h
         if naive:
-            d = (
-                np.sqrt(
-                    (x[:, None, None] - c[0]) ** 2
-                    + (y[None, :, None] - c[1]) ** 2
-                    + (z[None, None, :] - c[2]) ** 2
-                )
-                - r
-            )
-            np.minimum(F, d.astype(np.float32), out=F)
+            _carve_naive(F, (x, y, z), c, r)
         else:
-            _carve(F, bmax, BLOCK, origin, h, c, r, reach)
+            _carve(F, bmax, BLOCK, origin, h, c, r, r + top + 2.0 * h)
     if main < 0:
         main, refiner_main = n, refiner
-    centers, radii = centers[:n], radii[:n]
     if stats is not None:
         stats["refine"] = refiner_main.seconds if refiner_main is not None else 0.0
         stats["queries"] = float(refiner_main.queries if refiner_main is not None else 0)
         stats["main"] = float(main)
-    return centers, radii
+    return centers[:n], radii[:n]
+
+
+def _carve_naive(
+    F: NDArray[np.float32],
+    axes: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+    c: NDArray[np.float64],
+    r: float,
+) -> None:
+    """The reference carve: every cell's field becomes at most its distance to ball (c, r)."""
+    x, y, z = axes
+    d = (
+        np.sqrt(
+            (x[:, None, None] - c[0]) ** 2
+            + (y[None, :, None] - c[1]) ** 2
+            + (z[None, None, :] - c[2]) ** 2
+        )
+        - r
+    )
+    np.minimum(F, d.astype(np.float32), out=F)

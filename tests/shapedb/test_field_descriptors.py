@@ -206,13 +206,6 @@ def test_a_decomposition_gives_its_insides_vector_and_none_without_it() -> None:
         ("fv_harmonic_shells", 0),
         ("fv_harmonic_bands", 33),
         ("fv_harmonic_angles", 2.5),
-        ("lf_field_depth_weight", -1.0),
-        ("lf_field_harmonic_weight", float("nan")),
-        ("lf_light_field_scale", 0.0),
-        ("lf_field_depth_scale", float("inf")),
-        ("lf_field_harmonic_scale", -2.0),
-        ("lf_field_candidates", -1),
-        ("lf_field_candidates", 1.5),
     ],
 )
 def test_invalid_settings_name_the_option_in_one_line(option: str, value: object) -> None:
