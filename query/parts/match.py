@@ -445,45 +445,33 @@ def match(
     qa = resolve(db, a, complement=complement, part=cfg)
     v = _query_node(qa, node, point)
     if b is not None:
-        qb = resolve(db, b, part=cfg)
-        vs, us, ds = match_pairs(
-            qa.graph,
-            qb.graph,
-            config=cfg,
-            top=top,
-            nodes1=None if v is None else [v],
-            overlap=overlap,
-        )
-        sets_a = node_sets(qa.graph, vs, cfg.hops)
-        sets_b = node_sets(qb.graph, us, cfg.hops)
-        return [
-            PartMatch(
-                qb.id,
-                qb.name,
-                qb.label,
-                float(np.exp(-cfg.kernel.lam * d)),
-                tuple(int(x) for x in nb),
-                tuple(int(x) for x in na),
-                int(u),
-                int(vv),
-                float(d),
-            )
-            for vv, u, d, na, nb in zip(vs, us, ds, sets_a, sets_b, strict=True)
-        ]
+        return _pairwise(qa, resolve(db, b, part=cfg), v, cfg, top=top, overlap=overlap)
     if db is None:
         raise QueryError("corpus part search needs a database", source="b=None")
     feat, qnodes = part_feature(qa.graph, v, cfg)
     return _corpus(
-        db,
-        feat,
-        qnodes,
-        -1 if v is None else v,
-        cfg,
-        k=k,
-        where=where,
-        per_shape=per_shape,
+        db, feat, qnodes, -1 if v is None else v, cfg, k=k, where=where, per_shape=per_shape,
         overlap=_check_overlap(overlap),
-    )
+    )  # fmt: skip
+
+
+def _pairwise(
+    qa: Any, qb: Any, v: int | None, cfg: PartConfig, *, top: int, overlap: float | None
+) -> list[PartMatch]:
+    """Algorithm 1 between two resolved models: the ``top`` pairs, best first."""
+    vs, us, ds = match_pairs(
+        qa.graph, qb.graph, config=cfg, top=top, nodes1=None if v is None else [v],
+        overlap=overlap,
+    )  # fmt: skip
+    sets_a = node_sets(qa.graph, vs, cfg.hops)
+    sets_b = node_sets(qb.graph, us, cfg.hops)
+    return [
+        PartMatch(
+            qb.id, qb.name, qb.label, float(np.exp(-cfg.kernel.lam * d)),
+            tuple(int(x) for x in nb), tuple(int(x) for x in na), int(u), int(vv), float(d),
+        )  # fmt: skip
+        for vv, u, d, na, nb in zip(vs, us, ds, sets_a, sets_b, strict=True)
+    ]
 
 
 def _corpus(

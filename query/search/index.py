@@ -540,18 +540,7 @@ def open_index(
     store = db.store
     root = Path(_store_key(db))
     config = db.config
-    from shapedb.signature.kernel import weights
-
-    w = np.asarray(weights(config), dtype=np.float64)
-    suffix = ""
-    if metric is not None and metric.learned:
-        if metric.dim != w.shape[0]:
-            raise ConfigError(
-                f"the metric weighs {metric.dim}-long vectors, the store's are {w.shape[0]}",
-                source="metric",
-            )
-        w = w * metric.dim_weights()
-        suffix = f"_metric_{metric.digest}"
+    w, suffix = _weights(config, metric)
     key = _store_key(db) + ("#view" if view else "") + suffix
     directory = root / ((VIEW_INDEX_DIR if view else INDEX_DIR) + suffix)
     with _LOCK:
@@ -582,6 +571,22 @@ def open_index(
             log.info("feature index %s at store version %s: %r", action, version, index)
         _CACHE[key] = (config, index)
         return index
+
+
+def _weights(config: Any, metric: LearnedMetric | None) -> tuple[NDArray[np.float64], str]:
+    """The distance's per-number weights (the kernel's, times a learned metric's) and the
+    suffix of the metric's own index directory ("" for the plain index)."""
+    from shapedb.signature.kernel import weights
+
+    w = np.asarray(weights(config), dtype=np.float64)
+    if metric is None or not metric.learned:
+        return w, ""
+    if metric.dim != w.shape[0]:
+        raise ConfigError(
+            f"the metric weighs {metric.dim}-long vectors, the store's are {w.shape[0]}",
+            source="metric",
+        )
+    return w * metric.dim_weights(), f"_metric_{metric.digest}"
 
 
 def _load(root: Path) -> FeatureIndex | None:
