@@ -68,11 +68,14 @@ if TYPE_CHECKING:
 __all__ = ["create_app", "serve", "DEFAULT_MAX_UPLOAD_BYTES", "is_loopback"]
 
 log = logging.getLogger(__name__)
+#: One line per request: method, path, status, milliseconds (INFO; ``serve`` shows it).
+requests_log = logging.getLogger("query.serve")
 
 WEB = Path(__file__).parent / "web"
 DEFAULT_MAX_UPLOAD_BYTES = 64 * 2**20
 _MULTIPART_SLACK = 64 * 2**10  # headers and boundaries around the uploaded bytes
 _LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1", "[::1]")
+_GRACE_SECONDS = 3  # at shutdown, requests still running after this are cancelled
 
 
 def is_loopback(host: str) -> bool:
@@ -102,15 +105,10 @@ class _Guard:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
-        headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope["headers"]}
-        host = headers.get("host", "")
-        refusal = self._refusal(scope, headers, host)
-        if refusal is not None:
-            await refusal(scope, receive, send)
-            return
-        seen = 0
-        started = False
         t0 = time.perf_counter()
+        status = 0  # no response started (yet)
+        headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope["headers"]}
+        seen = 0
 
         async def limited() -> Any:
             nonlocal seen
@@ -122,9 +120,9 @@ class _Guard:
             return message
 
         async def tracked(message: Any) -> None:
-            nonlocal started
+            nonlocal status
             if message["type"] == "http.response.start":
-                started = True
+                status = int(message["status"])
                 took = f"app;dur={1e3 * (time.perf_counter() - t0):.3f}".encode()
                 message = {
                     **message,
@@ -133,11 +131,23 @@ class _Guard:
             await send(message)
 
         try:
-            await self.app(scope, limited, tracked)
-        except TooLarge:
-            if started:
-                raise
-            await _too_large(self.limit)(scope, receive, send)
+            refusal = self._refusal(scope, headers, headers.get("host", ""))
+            if refusal is not None:
+                await refusal(scope, receive, tracked)
+                return
+            try:
+                await self.app(scope, limited, tracked)
+            except TooLarge:
+                if status:  # the response had started
+                    raise
+                await _too_large(self.limit)(scope, receive, tracked)
+        except Exception:
+            status = status or 500  # answered by the error handler outside this middleware
+            raise
+        finally:
+            took = 1e3 * (time.perf_counter() - t0)
+            # status 0: the client went away, or an error escaped, before any response
+            requests_log.info("%s %s %d %.1f ms", scope["method"], scope["path"], status, took)
 
     def _refusal(self, scope: Any, headers: dict[str, str], host: str) -> Any:
         if self.hosts is not None:
@@ -149,8 +159,9 @@ class _Guard:
             return _too_large(self.limit)
         if scope["method"] not in ("GET", "HEAD", "OPTIONS"):
             origin = headers.get("origin")
+            # "null" (a sandboxed frame, a file:// page, a redirect) is no origin of ours
             if headers.get("sec-fetch-site") == "cross-site" or (
-                origin is not None and origin != "null" and origin.split("://", 1)[-1] != host
+                origin is not None and (origin == "null" or origin.split("://", 1)[-1] != host)
             ):
                 return error_response(
                     403, "cross-origin request refused: use the page this server serves"
@@ -308,10 +319,18 @@ def serve(
     hosts = list(_LOOPBACK_NAMES) if is_loopback(host) else None
     app = create_app(db, token=token, max_upload_bytes=max_upload_bytes, allowed_hosts=hosts)
     warm(db)
+    if requests_log.level == logging.NOTSET:  # the request log shows unless set otherwise
+        requests_log.setLevel(logging.INFO)
     config = uvicorn.Config(
-        app, host=host, port=int(port), log_level=log_level, access_log=False, lifespan="off"
+        app,
+        host=host,
+        port=int(port),
+        log_level=log_level,
+        access_log=False,  # the request log (requests_log) says more: the milliseconds
+        lifespan="off",
+        timeout_graceful_shutdown=_GRACE_SECONDS,
     )
-    server = uvicorn.Server(config)
+    server = _stopping_server(uvicorn, app.state.service)(config)
     sock = _bind(host, int(port))  # bound here: the real port is known, errors come first
     if on_ready is not None:
         shown = f"[{host}]" if ":" in host else host
@@ -319,7 +338,20 @@ def serve(
     try:
         server.run(sockets=[sock])
     finally:
+        app.state.service.statements.stop()
         sock.close()
+
+
+def _stopping_server(uvicorn: Any, service: Service) -> Any:
+    """uvicorn's ``Server`` that interrupts the running SQL statements as it stops, so
+    that Ctrl-C ends the server within seconds even with a long statement running."""
+
+    class Server(uvicorn.Server):  # type: ignore[misc,name-defined]
+        async def shutdown(self, sockets: Any = None) -> None:
+            service.statements.stop()
+            await super().shutdown(sockets)
+
+    return Server
 
 
 def _bind(host: str, port: int) -> socket.socket:
