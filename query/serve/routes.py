@@ -295,6 +295,10 @@ class Api:
             result = await self.service.statements.run(statement, request.receive)
         except ClientGone:
             return error_response(_CLIENT_GONE, "the client closed the request")
+        except QueryError as exc:
+            if statement.interrupted and self.service.statements.stopping:
+                raise HTTPException(503, "the server is stopping: statement interrupted") from exc
+            raise
         rows = result.slice(0, body.limit).to_pylist()
         return json_response(
             {

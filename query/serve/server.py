@@ -5,7 +5,7 @@ store's manifest version first (:func:`query.search.index.open_index` does), so 
 committed by another process (an ingest running beside the server) are picked up
 without a restart.
 
-API (all JSON; the OpenAPI page is ``/docs``)::
+API (all JSON; the OpenAPI page is ``/docs``; the table is :data:`query.serve.routes.ROUTES`)::
 
     GET  /api/info                         the store's db.info()
     GET  /api/search?id=ID_OR_NAME&k=10[&where=SQL]     -> [{id, name, label, similarity}]
@@ -16,7 +16,7 @@ API (all JSON; the OpenAPI page is ``/docs``)::
     GET  /api/shapes/{id}/surface          mesh or cloud of its source file, when still there
     GET  /api/shapes/{id}/thumbnail.png    cached under <store>/thumbnails/
     POST /api/match                        part search, as db.match
-    POST /api/sql                          one statement through db.sql
+    POST /api/sql                          one SELECT, sandboxed as db.sql is (interruptible)
     GET  /api/eval?label=label             db.evaluate: scores, per class, PR curve
     POST /api/ingest                       multipart "file" (repeatable) [+ "label"] -> job
     GET  /api/ingest/{job}                 its progress and report
@@ -24,15 +24,22 @@ API (all JSON; the OpenAPI page is ``/docs``)::
 
 Errors are ``{"error": "<one line>", "status": N}`` with 400 (bad input, naming the
 reason), 401 (no or wrong token where one is needed), 403 (a cross-origin write),
-404 (unknown shape), 409 (an ingest already running or the store locked), 413 (body
-too large) or 500 (a damaged store, or an unexpected error: logged, never shown).
+404 (unknown shape, or an id beyond int64), 409 (an ingest already running or the
+store locked), 413 (body too large), 500 (a damaged store, or an unexpected error:
+logged, never shown) or 503 (an SQL statement interrupted as the server stops).
+
+A statement of ``/api/sql`` is interrupted when its client disconnects, and when the
+server stops (Ctrl-C ends the server within seconds). Every request is logged, one
+line ``METHOD PATH STATUS MS ms`` at INFO on the logger ``query.serve``, which
+:func:`serve` shows (status 499: a statement whose client went away; 0: no answer
+was started).
 
 Safe by default: :func:`serve` binds 127.0.0.1 and refuses any other host without a
 token; with a token, uploads, ingest and SQL (``/api/sql`` and ``where``) need
 ``Authorization: Bearer TOKEN``. Requests with a body larger than
 ``max_upload_bytes`` are refused; uploads are written to a private temporary folder
 (mode 0700) and deleted after use. No CORS headers are sent, writes carrying a
-foreign ``Origin`` are refused, and a loopback server only answers to loopback host
+foreign ``Origin`` (``null`` included) are refused, and a loopback server only answers to loopback host
 names (against DNS rebinding).
 """
 
