@@ -30,6 +30,7 @@ log = logging.getLogger(__name__)
 #: server (an interrupt that lands before DuckDB starts the statement is repeated).
 _POLL_SECONDS = 0.2
 _SHOWN = 200  # characters of a statement named in an error
+_VIEWS = ("shapes", "balls", "edges", "failures")
 
 
 class ClientGone(Exception):
@@ -48,27 +49,25 @@ class Statement:
     ----------
     db : shapedb.Database
     text : str
-        The statement; checked here to be exactly one SELECT (DuckDB's parser).
-
-    Raises
-    ------
-    QueryError
-        Empty, malformed, several statements, or not a SELECT.
+        The statement; :meth:`run` checks that it is exactly one SELECT (DuckDB's parser).
     """
 
     def __init__(self, db: Database, text: str) -> None:
-        import duckdb
-
         self.db = db
         self.text = text
         self.source = _short(text)
         self.interrupted = False
         self._con: Any = None
         self._lock = threading.Lock()
-        if not text.strip():
-            raise QueryError("empty SQL statement", source=repr(text))
+
+    def check(self) -> None:
+        """QueryError unless the statement is exactly one SELECT (DuckDB's parser)."""
+        import duckdb
+
+        if not self.text.strip():
+            raise QueryError("empty SQL statement", source=repr(self.text))
         try:
-            parsed = duckdb.extract_statements(text)
+            parsed = duckdb.extract_statements(self.text)
         except duckdb.Error as exc:
             raise QueryError(
                 f"{type(exc).__name__}: {_short(str(exc))}", source=self.source
@@ -89,12 +88,15 @@ class Statement:
         Raises
         ------
         QueryError
-            DuckDB refused or failed the statement, or it was interrupted.
+            Not exactly one SELECT, DuckDB refused or failed it, or it was interrupted.
+        StoreError
+            One of the store's files cannot be read (damaged); as ``db.sql`` says it.
         """
         import duckdb
 
         from query.sql import connect
 
+        self.check()
         con = connect(self.db)
         try:
             with self._lock:
@@ -107,11 +109,17 @@ class Statement:
             raise QueryError("the statement was interrupted", source=self.source) from exc
         except duckdb.Error as exc:
             text = " ".join(str(exc).split())
+            if any(path in text for path in self._store_files()):
+                self.db.sql(self.text)  # raises the store's own error, naming the segment
             raise QueryError(f"{type(exc).__name__}: {text[:300]}", source=self.source) from exc
         finally:
             with self._lock:
                 self._con = None
             con.close()
+
+    def _store_files(self) -> list[str]:
+        store = self.db.store
+        return [p for table in _VIEWS for p in store.files(table)]
 
     def interrupt(self) -> None:
         """Stop the statement (now if it runs, or as soon as it would start); thread-safe."""

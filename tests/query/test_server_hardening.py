@@ -189,3 +189,17 @@ def test_ctrl_c_stops_the_server_during_a_statement(store):
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+def test_sql_over_a_damaged_segment_is_a_store_error(tmp_path):
+    import shapedb
+
+    models = write_models(tmp_path / "models")
+    db = shapedb.connect(tmp_path / "store", **OPTIONS)
+    db.ingest([models["box0"]], workers=1)
+    segment = Path(db.store.files("balls")[0])
+    segment.write_bytes(segment.read_bytes()[:100])  # no footer: DuckDB cannot read it
+    api = client(create_app(db), raise_server_exceptions=False)
+    r = api.post("/api/sql", json={"sql": "SELECT sum(r) FROM balls"})
+    assert r.status_code == 500 and "cannot be read" in r.json()["error"]
+    assert segment.name in r.json()["error"]
