@@ -177,7 +177,10 @@ class Statements:
         gone = asyncio.ensure_future(_disconnect(receive))
         try:
             while not work.done():
-                await asyncio.wait({work, gone}, timeout=_POLL_SECONDS)
+                waiting = {work} if gone.done() else {work, gone}
+                await asyncio.wait(
+                    waiting, timeout=_POLL_SECONDS, return_when=asyncio.FIRST_COMPLETED
+                )
                 if gone.done() or self.stopping:
                     statement.interrupt()
             if gone.done() and statement.interrupted:
