@@ -5,7 +5,7 @@ store's manifest version first (:func:`query.search.index.open_index` does), so 
 committed by another process (an ingest running beside the server) are picked up
 without a restart.
 
-API (all JSON; the OpenAPI page is ``/docs``)::
+API (all JSON; the OpenAPI page is ``/docs``; the table is :data:`query.serve.routes.ROUTES`)::
 
     GET  /api/info                         the store's db.info()
     GET  /api/search?id=ID_OR_NAME&k=10[&where=SQL]     -> [{id, name, label, similarity}]
@@ -16,7 +16,7 @@ API (all JSON; the OpenAPI page is ``/docs``)::
     GET  /api/shapes/{id}/surface          mesh or cloud of its source file, when still there
     GET  /api/shapes/{id}/thumbnail.png    cached under <store>/thumbnails/
     POST /api/match                        part search, as db.match
-    POST /api/sql                          one statement through db.sql
+    POST /api/sql                          one SELECT, sandboxed as db.sql is (interruptible)
     GET  /api/eval?label=label             db.evaluate: scores, per class, PR curve
     POST /api/ingest                       multipart "file" (repeatable) [+ "label"] -> job
     GET  /api/ingest/{job}                 its progress and report
@@ -24,15 +24,22 @@ API (all JSON; the OpenAPI page is ``/docs``)::
 
 Errors are ``{"error": "<one line>", "status": N}`` with 400 (bad input, naming the
 reason), 401 (no or wrong token where one is needed), 403 (a cross-origin write),
-404 (unknown shape), 409 (an ingest already running or the store locked), 413 (body
-too large) or 500 (a damaged store, or an unexpected error: logged, never shown).
+404 (unknown shape, or an id beyond int64), 409 (an ingest already running or the
+store locked), 413 (body too large), 500 (a damaged store, or an unexpected error:
+logged, never shown) or 503 (an SQL statement interrupted as the server stops).
+
+A statement of ``/api/sql`` is interrupted when its client disconnects, and when the
+server stops (Ctrl-C ends the server within seconds). Every request is logged, one
+line ``METHOD PATH STATUS MS ms`` at INFO on the logger ``query.serve``, which
+:func:`serve` shows (status 499: a statement whose client went away; 0: no answer
+was started).
 
 Safe by default: :func:`serve` binds 127.0.0.1 and refuses any other host without a
 token; with a token, uploads, ingest and SQL (``/api/sql`` and ``where``) need
 ``Authorization: Bearer TOKEN``. Requests with a body larger than
 ``max_upload_bytes`` are refused; uploads are written to a private temporary folder
 (mode 0700) and deleted after use. No CORS headers are sent, writes carrying a
-foreign ``Origin`` are refused, and a loopback server only answers to loopback host
+foreign ``Origin`` (``null`` included) are refused, and a loopback server only answers to loopback host
 names (against DNS rebinding).
 """
 
@@ -68,11 +75,14 @@ if TYPE_CHECKING:
 __all__ = ["create_app", "serve", "DEFAULT_MAX_UPLOAD_BYTES", "is_loopback"]
 
 log = logging.getLogger(__name__)
+#: One line per request: method, path, status, milliseconds (INFO; ``serve`` shows it).
+requests_log = logging.getLogger("query.serve")
 
 WEB = Path(__file__).parent / "web"
 DEFAULT_MAX_UPLOAD_BYTES = 64 * 2**20
 _MULTIPART_SLACK = 64 * 2**10  # headers and boundaries around the uploaded bytes
 _LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1", "[::1]")
+_GRACE_SECONDS = 3  # at shutdown, requests still running after this are cancelled
 
 
 def is_loopback(host: str) -> bool:
@@ -102,15 +112,10 @@ class _Guard:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
-        headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope["headers"]}
-        host = headers.get("host", "")
-        refusal = self._refusal(scope, headers, host)
-        if refusal is not None:
-            await refusal(scope, receive, send)
-            return
-        seen = 0
-        started = False
         t0 = time.perf_counter()
+        status = 0  # no response started (yet)
+        headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope["headers"]}
+        seen = 0
 
         async def limited() -> Any:
             nonlocal seen
@@ -122,9 +127,9 @@ class _Guard:
             return message
 
         async def tracked(message: Any) -> None:
-            nonlocal started
+            nonlocal status
             if message["type"] == "http.response.start":
-                started = True
+                status = int(message["status"])
                 took = f"app;dur={1e3 * (time.perf_counter() - t0):.3f}".encode()
                 message = {
                     **message,
@@ -133,11 +138,23 @@ class _Guard:
             await send(message)
 
         try:
-            await self.app(scope, limited, tracked)
-        except TooLarge:
-            if started:
-                raise
-            await _too_large(self.limit)(scope, receive, send)
+            refusal = self._refusal(scope, headers, headers.get("host", ""))
+            if refusal is not None:
+                await refusal(scope, receive, tracked)
+                return
+            try:
+                await self.app(scope, limited, tracked)
+            except TooLarge:
+                if status:  # the response had started
+                    raise
+                await _too_large(self.limit)(scope, receive, tracked)
+        except Exception:
+            status = status or 500  # answered by the error handler outside this middleware
+            raise
+        finally:
+            took = 1e3 * (time.perf_counter() - t0)
+            # status 0: the client went away, or an error escaped, before any response
+            requests_log.info("%s %s %d %.1f ms", scope["method"], scope["path"], status, took)
 
     def _refusal(self, scope: Any, headers: dict[str, str], host: str) -> Any:
         if self.hosts is not None:
@@ -149,8 +166,9 @@ class _Guard:
             return _too_large(self.limit)
         if scope["method"] not in ("GET", "HEAD", "OPTIONS"):
             origin = headers.get("origin")
+            # "null" (a sandboxed frame, a file:// page, a redirect) is no origin of ours
             if headers.get("sec-fetch-site") == "cross-site" or (
-                origin is not None and origin != "null" and origin.split("://", 1)[-1] != host
+                origin is not None and (origin == "null" or origin.split("://", 1)[-1] != host)
             ):
                 return error_response(
                     403, "cross-origin request refused: use the page this server serves"
@@ -308,10 +326,18 @@ def serve(
     hosts = list(_LOOPBACK_NAMES) if is_loopback(host) else None
     app = create_app(db, token=token, max_upload_bytes=max_upload_bytes, allowed_hosts=hosts)
     warm(db)
+    if requests_log.level == logging.NOTSET:  # the request log shows unless set otherwise
+        requests_log.setLevel(logging.INFO)
     config = uvicorn.Config(
-        app, host=host, port=int(port), log_level=log_level, access_log=False, lifespan="off"
+        app,
+        host=host,
+        port=int(port),
+        log_level=log_level,
+        access_log=False,  # the request log (requests_log) says more: the milliseconds
+        lifespan="off",
+        timeout_graceful_shutdown=_GRACE_SECONDS,
     )
-    server = uvicorn.Server(config)
+    server = _stopping_server(uvicorn, app.state.service)(config)
     sock = _bind(host, int(port))  # bound here: the real port is known, errors come first
     if on_ready is not None:
         shown = f"[{host}]" if ":" in host else host
@@ -319,7 +345,20 @@ def serve(
     try:
         server.run(sockets=[sock])
     finally:
+        app.state.service.statements.stop()
         sock.close()
+
+
+def _stopping_server(uvicorn: Any, service: Service) -> Any:
+    """uvicorn's ``Server`` that interrupts the running SQL statements as it stops, so
+    that Ctrl-C ends the server within seconds even with a long statement running."""
+
+    class Server(uvicorn.Server):  # type: ignore[misc,name-defined]
+        async def shutdown(self, sockets: Any = None) -> None:
+            service.statements.stop()
+            await super().shutdown(sockets)
+
+    return Server
 
 
 def _bind(host: str, port: int) -> socket.socket:

@@ -26,6 +26,7 @@ from fastapi import Request, UploadFile
 from fastapi.responses import Response
 from starlette.exceptions import HTTPException
 
+from query.serve.statements import Statements
 from shapedb.errors import (
     MissingDependencyError,
     NotFoundError,
@@ -40,6 +41,7 @@ if TYPE_CHECKING:
     from query.database import Database
 
 __all__ = [
+    "MAX_ID",
     "Job",
     "LRU",
     "Service",
@@ -57,6 +59,8 @@ __all__ = [
     "status_of",
 ]
 
+#: The largest shape id (ids are int64): larger numbers are refused at the boundary.
+MAX_ID = 2**63 - 1
 _QUERY_CACHE = 16  # uploaded queries kept for /api/queries and /api/match
 
 
@@ -169,6 +173,7 @@ class Service:
         self.evals = LRU(4)
         self.jobs: dict[str, Job] = {}
         self.ingest_lock = threading.Lock()
+        self.statements = Statements()
 
     # -------------------------------------------------------------- auth
     def authorised(self, request: Request) -> bool:
@@ -201,6 +206,7 @@ class Service:
     def resolve_id(self, id_or_name: str | int) -> int:
         """A stored id from an id or a name, as ``Store.resolve`` reads it: a name first,
         a string of digits that is no shape's name as an id (never a path on the server).
+        A number beyond the int64 ids is no shape (404), never an overflow.
 
         Names are looked up in a map kept per store version, so a request costs no
         table scan. An id that is not stored is left to the caller's lookup to refuse.
@@ -220,7 +226,9 @@ class Service:
             if len(ids) > 1:
                 raise QueryError(f"name is ambiguous: shapes {ids} have it; use an id", source=text)
             return ids[0]
-        if text.isdigit():
+        if text.isascii() and text.isdigit():
+            if int(text) > MAX_ID:
+                raise NotFoundError("no shape with this id (ids are below 2**63)", source=text)
             return int(text)
         raise NotFoundError("no shape with this name or id", source=text)
 

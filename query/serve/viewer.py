@@ -221,11 +221,13 @@ def stored_surface(db: Database, record: Any) -> dict[str, Any]:
     Returns
     -------
     dict
-        As :func:`surface_payload`; ``{"kind": "none"}`` for in-memory shapes, and
-        for sources that are gone or no longer load.
+        As :func:`surface_payload`; ``{"kind": "none"}`` for in-memory shapes, for
+        sources that are only a file name (uploads), and for sources that are gone
+        or no longer load.
     """
     source = record.source
-    if not source or not Path(source).is_file():
+    # a relative source is a name only (an uploaded model): never a file of the server's
+    if not source or not Path(source).is_absolute() or not Path(source).is_file():
         return {"kind": "none"}
     try:
         geometry = db.load(source)
