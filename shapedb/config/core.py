@@ -458,6 +458,22 @@ def _option(section: str, name: str) -> str:
     return name
 
 
+#: Fields of the per-record signatures that are their specification, not a user's choice:
+#: the light field descriptor's (Zernike order, Fourier coefficients, angles, seed, and the
+#: fills and depth terms its studies tried) and the field vector's resolutions. A store
+#: keeps them (it knows how its records were built) and a study may set them on the
+#: section's dataclass, but they are not flat options.
+SPECIFICATION: dict[str, tuple[str, ...]] = {
+    "light_field": (
+        "zernike_order", "fourier", "angles", "fourier_weight", "depth_weight", "seed",
+        "edges", "dilate_px", "close_px",
+    ),
+    "field_vector": (
+        "depth_resolution", "depth_frequencies", "harmonic_shells", "harmonic_bands",
+        "harmonic_angles",
+    ),
+}  # fmt: skip
+
 #: Every flat option (``connect(path, **options)``, ``--set KEY=VALUE``) and the
 #: ``(section, field)`` of :class:`Config` it sets: a field's own name, except
 #: ``descriptor`` for ``DescriptorConfig.version``, ``rerank`` for ``RerankConfig.scorer``,
@@ -466,6 +482,7 @@ OPTIONS: dict[str, tuple[str, str]] = {
     _option(section, f.name): (section, f.name)
     for section, cls in _SECTIONS.items()
     for f in fields(cls)
+    if f.name not in SPECIFICATION.get(section, ())
 }
 
 

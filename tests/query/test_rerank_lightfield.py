@@ -232,7 +232,8 @@ def test_a_store_with_filled_silhouettes_fills_its_records_and_its_queries(
     from shapedb.mdbd.decomposition import decompose
     from shapedb.signature.lightfield import record_light_field
 
-    filled = BALLS.with_options(lf_edges=True, lf_n_balls=0)  # the decomposition's balls
+    balls = BALLS.with_options(lf_n_balls=0)  # the decomposition's balls
+    filled = replace(balls, light_field=replace(balls.light_field, edges=True))  # a study's fill
     db = database.connect(tmp_path / "store", config=filled)
     shapes = {n: g for n, g in _shapes().items() if n in ("box_a", "rod_a", "ring_a")}
     db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)

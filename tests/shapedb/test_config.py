@@ -8,6 +8,7 @@ import pytest
 
 from shapedb.config.core import (
     OPTIONS,
+    SPECIFICATION,
     CloudConfig,
     Config,
     DescriptorConfig,
@@ -61,13 +62,14 @@ def test_every_flat_option_names_one_field() -> None:
     for knob in ("lf_weight", "lf_field_candidates", "rerank_candidates", "rerank_ratio"):
         assert knob not in OPTIONS  # the stage's numbers are constants (query.search.tuning)
     assert OPTIONS["fv_enabled"] == ("field_vector", "enabled")
-    assert OPTIONS["fv_harmonic_bands"] == ("field_vector", "harmonic_bands")
-    assert parse_options(["fv_enabled=false", "fv_depth_resolution=32"]) == {
-        "fv_enabled": False, "fv_depth_resolution": 32
+    assert "fv_harmonic_bands" not in OPTIONS and "lf_zernike_order" not in OPTIONS  # specs
+    assert parse_options(["fv_enabled=false", "lf_resolution=32"]) == {
+        "fv_enabled": False, "lf_resolution": 32
     }  # fmt: skip
     sections = (MDBDConfig, KernelConfig, DescriptorConfig, CloudConfig, RerankConfig,
                 LightFieldConfig, FieldVectorConfig)  # fmt: skip
-    assert len(OPTIONS) == sum(len(dataclasses.fields(c)) for c in sections)
+    specs = sum(len(v) for v in SPECIFICATION.values())
+    assert len(OPTIONS) == sum(len(dataclasses.fields(c)) for c in sections) - specs
     options = Config().options()
     assert set(options) == set(OPTIONS) and options["descriptor"] == 4
     assert Config().with_options(**options) == Config()
@@ -164,6 +166,6 @@ def test_options_parse_from_text_by_field_type() -> None:
 def test_the_configuration_stays_small_and_rejects_retired_scorers() -> None:
     """About forty fields in all (the stage's numbers are not options), and no string
     names a scorer the code does not have."""
-    assert len(OPTIONS) <= 45
+    assert len(OPTIONS) <= 30
     with pytest.raises(ConfigError, match="rerank"):
         Config().with_options(rerank="adaptive")

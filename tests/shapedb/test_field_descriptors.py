@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from shapedb.config.core import Config, FieldVectorConfig
+from shapedb.config.field_vector import FieldVectorConfig
 from shapedb.errors import ConfigError
 from shapedb.geometry.base import Grid
 from shapedb.geometry.implicit import Box, Sphere
@@ -197,20 +198,20 @@ def test_a_decomposition_gives_its_insides_vector_and_none_without_it() -> None:
 
 
 @pytest.mark.parametrize(
-    ("option", "value"),
+    ("name", "value"),
     [
-        ("fv_enabled", 1),
-        ("fv_depth_resolution", 4),
-        ("fv_depth_frequencies", 40),
-        ("fv_depth_frequencies", 0),
-        ("fv_harmonic_shells", 0),
-        ("fv_harmonic_bands", 33),
-        ("fv_harmonic_angles", 2.5),
+        ("enabled", 1),
+        ("depth_resolution", 4),
+        ("depth_frequencies", 40),
+        ("depth_frequencies", 0),
+        ("harmonic_shells", 0),
+        ("harmonic_bands", 33),
+        ("harmonic_angles", 2.5),
     ],
 )
-def test_invalid_settings_name_the_option_in_one_line(option: str, value: object) -> None:
-    with pytest.raises(ConfigError, match=f"^{option}=") as err:
-        Config().with_options(**{option: value})
+def test_invalid_settings_name_the_option_in_one_line(name: str, value: object) -> None:
+    with pytest.raises(ConfigError, match=f"^fv_{name}=") as err:
+        FieldVectorConfig(**{name: value})
     assert "\n" not in str(err.value)
 
 
@@ -219,7 +220,8 @@ def test_new_stores_keep_field_vectors_only_beside_the_fields_light_fields() -> 
     assert not Config().with_options(fv_enabled=False).stores_field_vectors
     assert not Config().with_options(lf_source="balls").stores_field_vectors
     assert not Config().with_options(rerank="none").stores_field_vectors
-    fusion = Config().lf_fusion
-    assert fusion.field_candidates == 200
-    assert (fusion.field_depth_weight, fusion.field_harmonic_weight) == (0.25, 0.25)
-    assert (fusion.contrast_floor, fusion.contrast_ramp, fusion.contrast_depth) == (0.2, 0.2, 20)
+    from query.search.tuning import PRODUCT
+
+    assert PRODUCT.field_candidates == 200
+    assert (PRODUCT.field_depth_weight, PRODUCT.field_harmonic_weight) == (0.25, 0.25)
+    assert (PRODUCT.contrast_floor, PRODUCT.contrast_ramp, PRODUCT.contrast_depth) == (0.2, 0.2, 20)

@@ -223,7 +223,8 @@ def test_layout_5_stores_drop_the_stage_numbers_and_the_retired_scorer() -> None
 
 
 def test_light_fields_stored_before_the_fills_read_as_the_plain_discs() -> None:
-    filled = Config().with_options(rerank="lightfield", lf_edges=True, lf_close_px=1)
+    today = Config().with_options(rerank="lightfield")
+    filled = replace(today, light_field=replace(today.light_field, edges=True, close_px=1))
     stored = filled.to_dict()
     assert Config.from_dict(stored).light_field == filled.light_field
     for name in ("edges", "dilate_px", "close_px"):
