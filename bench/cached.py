@@ -13,8 +13,8 @@ from collections.abc import Sequence
 from typing import Any
 
 from bench.common import cache_path, load_balls
-from bench.datasets import Dataset, capod, generic, parts, web, webplus
-from bench.datasets import articulated as figures
+from bench.sets.datasets import Dataset, capod, generic, parts, web, webplus
+from bench.sets.datasets import articulated as figures
 from bench.representations import build
 from shapedb.config.core import MDBDConfig
 

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.datasets import Model, mesh_arrays, min_cloud_points, point_cloud, stable_seed
+from bench.sets.datasets import Model, mesh_arrays, min_cloud_points, point_cloud, stable_seed
 
 __all__ = ["main", "measure", "profile_cloud_query"]
 
@@ -130,7 +130,7 @@ def main(argv: list[str] | None = None) -> None:
     import argparse
 
     from bench.common import format_table, write_json
-    from bench.datasets import articulated, capod, parts, people
+    from bench.sets.datasets import articulated, capod, parts, people
 
     makers = {"people": people, "capod": capod, "figures": articulated, "parts": parts}
 

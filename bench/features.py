@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common import Balls, decompose_all, recon_variant
-from bench.datasets import Dataset, stable_seed
+from bench.sets.datasets import Dataset, stable_seed
 from shapedb import kernel
 from shapedb.config.core import Config, KernelConfig, MDBDConfig
 from shapedb.mdbd.reconstruct import volumes_agree

@@ -20,7 +20,7 @@ import numpy as np
 
 from bench.cached import ENGINE_COMMITS
 from bench.common import cache_path
-from bench.datasets import CACHE_DIR, Dataset
+from bench.sets.datasets import CACHE_DIR, Dataset
 from shapedb.config.core import MDBDConfig
 from shapedb.geometry.inside import Inside
 

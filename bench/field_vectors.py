@@ -48,7 +48,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.cached import load, model_key
-from bench.datasets import CACHE_DIR
+from bench.sets.datasets import CACHE_DIR
 from bench.field_shells import as_inside
 
 #: A :class:`bench.gate_stores.Split` (that module imports this one).

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from bench import cached, inside_fields
 from bench.cached import load
 from bench.common import format_table
-from bench.datasets import CACHE_DIR
+from bench.sets.datasets import CACHE_DIR
 from bench.features import kernel_features
 from bench.gate_checks import margin
 from bench.packings import light_field_balls

@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 
 from bench.cached import CHOICES, ENGINE_COMMITS, load
 from bench.common import cache_path
-from bench.datasets import CACHE_DIR, Dataset
+from bench.sets.datasets import CACHE_DIR, Dataset
 from bench.field_shells import as_inside, model_inside, shells
 from shapedb.config.core import LightFieldConfig, MDBDConfig
 

@@ -191,7 +191,7 @@ def _scores(order: np.ndarray, labels: np.ndarray) -> dict[str, float]:
 def mesh_baselines(ds: Any) -> dict[str, np.ndarray]:
     """(n, n) distances of the light field descriptor and D2 (2^18 pairs) on the meshes."""
     from bench.baselines import D2Config, d2_descriptor
-    from bench.datasets import mesh_arrays
+    from bench.sets.datasets import mesh_arrays
     from bench.lightfield import LFDConfig, lfd_descriptor, lfd_distance
 
     arrays = [mesh_arrays(m) for m in ds.models]

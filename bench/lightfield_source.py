@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 from bench import inside_fields
 from bench.cached import CHOICES, SETS, load, model_key
 from bench.common import format_table, per_query, retrieval_scores, write_json
-from bench.datasets import CACHE_DIR, Dataset
+from bench.sets.datasets import CACHE_DIR, Dataset
 from bench.field_vector_cost import ingest_cpu
 from bench.field_vector_cost import models as first_models
 from bench.packings import light_field_balls

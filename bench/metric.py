@@ -39,7 +39,7 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.datasets import Dataset
+from bench.sets.datasets import Dataset
 from bench.features import complete, kernel_features, l1_matrix, mixture_mask, reconstructions
 from bench.retrieval import build_sets
 from query.learn.metric import LearnedMetric, block_layout, fit_metric

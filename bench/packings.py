@@ -19,7 +19,7 @@ import numpy as np
 
 from bench.cached import ENGINE_COMMITS, load
 from bench.common import Balls, cache_path, variant_geometry
-from bench.datasets import CACHE_DIR, Dataset
+from bench.sets.datasets import CACHE_DIR, Dataset
 from shapedb.config.core import MDBDConfig
 
 __all__ = ["longer"]

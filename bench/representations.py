@@ -11,7 +11,7 @@ Each method compares query clouds with the mesh database as a store does:
     those clouds with Gaussian noise of 0.3 % of the bounding-box diagonal;
 ``partial->mesh``
     the part of the cloud one horizontal depth camera sees (the far side missing,
-    :func:`bench.people.partial_cloud`);
+    :func:`bench.sets.people.partial_cloud`);
 ``mixture``
     an even, seeded half of the models as clouds, the rest as meshes, all against all.
 
@@ -80,7 +80,7 @@ from bench.common import (
     variant_geometry,
     write_json,
 )
-from bench.datasets import (
+from bench.sets.datasets import (
     PEOPLE_EXTRA_VALIDATION,
     Dataset,
     Model,

@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from bench.common import decompose_all, format_table, retrieval_scores, write_json
-from bench.datasets import CACHE_DIR, Dataset, articulated, capod, generic, parts, people, web
+from bench.sets.datasets import CACHE_DIR, Dataset, articulated, capod, generic, parts, people, web
 from query.search import rerank
 from query.search.index import FeatureIndex
 from shapedb.config.core import Config, MDBDConfig
@@ -103,7 +103,7 @@ def descriptors(
 
 def lfd_matrix(ds: Dataset) -> np.ndarray:
     """Light field distances between the split's meshes, (n, n); descriptors cached."""
-    from bench.datasets import mesh_arrays
+    from bench.sets.datasets import mesh_arrays
     from bench.lightfield import LFDConfig, lfd_descriptor, lfd_distance
 
     code = _digest("bench/lightfield.py")

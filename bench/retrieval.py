@@ -57,7 +57,7 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.datasets import Dataset, build_sets, mesh_arrays
+from bench.sets.datasets import Dataset, build_sets, mesh_arrays
 from bench.features import complete, kernel_features, l1_matrix, mixture_mask, reconstructions
 from bench.lightfield import LFDConfig, lfd_descriptor, lfd_similarity
 from shapedb.config.core import Config, DescriptorConfig, KernelConfig, MDBDConfig

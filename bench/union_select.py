@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from bench.common import decompose_all, format_table, retrieval_scores, write_json
-from bench.datasets import Dataset, articulated, capod, generic, parts, web
+from bench.sets.datasets import Dataset, articulated, capod, generic, parts, web
 from shapedb.config.core import Config, DescriptorConfig, MDBDConfig
 from shapedb.signature.descriptor import LAYOUTS, UNION_TYPICAL, UNION_WEIGHT
 from shapedb.signature.union import union_features
@@ -85,7 +85,7 @@ def set_matrices(
 
 def cost(per_set: int = 8) -> dict[str, dict[str, float]]:
     """Median CPU seconds per model: decomposition, descriptor v4, v5 and v7 (CAPOD, generic)."""
-    from bench.datasets import mesh_arrays
+    from bench.sets.datasets import mesh_arrays
     from shapedb.geometry.mesh import TriangleMesh
     from shapedb.mdbd.decomposition import decompose
     from shapedb.mdbd.graph import ContactGraph

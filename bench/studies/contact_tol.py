@@ -42,7 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common import Balls, decompose_all, format_table, retrieval_scores, write_json
-from bench.datasets import Dataset
+from bench.sets.datasets import Dataset
 from bench.features import l1_matrix
 from bench.retrieval import build_sets
 from shapedb.config.core import MDBDConfig

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from bench.baselines import D2Config, d2_descriptor, l1_similarity
 from bench.common import Balls, decompose_all, format_table, retrieval_scores
-from bench.datasets import Dataset, mesh_arrays
+from bench.sets.datasets import Dataset, mesh_arrays
 from bench.studies import descriptors as desc
 from shapedb.config.core import KernelConfig, MDBDConfig
 

@@ -65,7 +65,7 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.datasets import CACHE_DIR, Dataset, capod, generic, mesh_arrays, web
+from bench.sets.datasets import CACHE_DIR, Dataset, capod, generic, mesh_arrays, web
 from shapedb.config.core import Config, DescriptorConfig, LightFieldConfig
 from shapedb.signature.descriptor import LAYOUTS
 from shapedb.signature.lightfield import ball_light_field, light_field_distance

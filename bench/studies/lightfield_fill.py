@@ -53,7 +53,7 @@ from numpy.typing import NDArray
 
 from bench.cached import SETS, load
 from bench.common import Balls, format_table, per_query, retrieval_scores, write_json
-from bench.datasets import CACHE_DIR, Dataset, mesh_arrays
+from bench.sets.datasets import CACHE_DIR, Dataset, mesh_arrays
 from bench.packings import longer
 from bench.studies.lightfield_balls import fill_config
 from shapedb.config.core import MDBDConfig

@@ -53,7 +53,7 @@ from bench.common import (
     variant_geometry,
     write_json,
 )
-from bench.datasets import CACHE_DIR, Dataset, web
+from bench.sets.datasets import CACHE_DIR, Dataset, web
 from bench.packings import longer
 from shapedb.config.core import Config, MDBDConfig, RerankConfig
 from shapedb.config.lightfield import product_light_field

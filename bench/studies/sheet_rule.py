@@ -28,8 +28,8 @@ import numpy as np
 
 from bench.cached import SETS
 from bench.common import format_table, variant_geometry, write_json
-from bench.datasets import articulated as figures
-from bench.datasets import capod, generic, parts, web
+from bench.sets.datasets import articulated as figures
+from bench.sets.datasets import capod, generic, parts, web
 from bench.field_vector_cost import ingest_cpu
 from shapedb.config.core import Config, MDBDConfig
 from shapedb.geometry.sheet import LocallyThickened

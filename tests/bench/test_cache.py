@@ -12,7 +12,7 @@ import pytest
 import trimesh
 
 import bench.common as common
-from bench.datasets import Model
+from bench.sets.datasets import Model
 from shapedb.config.core import MDBDConfig
 from shapedb.mdbd.graph import contact_edges
 

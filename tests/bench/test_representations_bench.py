@@ -65,7 +65,7 @@ def _balls(radius: float, shift: float) -> Any:
 
 def test_store_rule_mean_averages_a_cloud_and_its_reconstruction() -> None:
     """``combine="mean"`` compares the mean of the two features; a mask scales all three."""
-    from bench.datasets import Dataset, Model
+    from bench.sets.datasets import Dataset, Model
     from bench.features import kernel_features
     from bench.representations import SetData, pose_free_mask, store_rule
     from shapedb.config.core import KernelConfig

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bench.baselines import D2Config
-from bench.datasets import web
+from bench.sets.datasets import web
 from bench.retrieval import cloud_classes, main, run_baselines
 
 

@@ -1,7 +1,7 @@
 """Mesh parts the generated web-like sets are assembled from.
 
 Each part is a ``(vertices (v, 3) float, faces (f, 3) int)`` pair in its own index
-space; the generators (:mod:`bench.generic_shapes`, :mod:`bench.web_shapes`)
+space; the generators (:mod:`bench.sets.generic_shapes`, :mod:`bench.sets.web_shapes`)
 concatenate them into one triangle soup without merging, as web models are built.
 Closed parts: :func:`box`, :func:`rod`, :func:`ellipsoid`, :func:`revolve` with both
 caps; open parts: :func:`quad` / :func:`hquad` (zero-thickness sheets) and

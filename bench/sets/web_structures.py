@@ -1,4 +1,4 @@
-"""Builders of the ``web`` set's buildings and vehicles (see :mod:`bench.web_shapes`).
+"""Builders of the ``web`` set's buildings and vehicles (see :mod:`bench.sets.web_shapes`).
 
 Each builder takes a seeded generator and returns the parts of one model, z up,
 standing on z = 0, in metres (scaled down: a house is about 10 m, but only the
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.mesh_parts import (
+from bench.sets.mesh_parts import (
     Part,
     Rng,
     box,
@@ -25,7 +25,7 @@ from bench.mesh_parts import (
     sheet,
     transform,
 )
-from bench.web_furniture import cylinder, vary
+from bench.sets.web_furniture import cylinder, vary
 
 __all__ = ["walls", "roof", "wheel", "BUILDERS"]
 

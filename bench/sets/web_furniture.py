@@ -1,4 +1,4 @@
-"""Builders of the ``web`` set's furniture and household kinds (see :mod:`bench.web_shapes`).
+"""Builders of the ``web`` set's furniture and household kinds (see :mod:`bench.sets.web_shapes`).
 
 Each builder takes a seeded generator and returns the parts of one model, z up,
 standing on z = 0, in metres. Close families on purpose: seven kinds of seat, five
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.mesh_parts import Part, Rng, box, ellipsoid, hquad, quad, revolve, rod
+from bench.sets.mesh_parts import Part, Rng, box, ellipsoid, hquad, quad, revolve, rod
 
 __all__ = [
     "vary", "slab", "panel", "legs", "cylinder", "BUILDERS",

@@ -1,4 +1,4 @@
-"""Builders of the ``webplus`` set's natural kinds (see :mod:`bench.webplus_shapes`).
+"""Builders of the ``webplus`` set's natural kinds (see :mod:`bench.sets.webplus_shapes`).
 
 Category-level classes in many poses, as a held-out web benchmark has them: a biped
 dinosaur, a kangaroo and an ape (standing, walking, hopping, knuckle-walking, sitting,
@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.mesh_parts import Part, Rng, ellipsoid, revolve, rod, rotation, sheet
-from bench.web_furniture import vary
-from bench.webplus_made import tube
+from bench.sets.mesh_parts import Part, Rng, ellipsoid, revolve, rod, rotation, sheet
+from bench.sets.web_furniture import vary
+from bench.sets.webplus_made import tube
 
 __all__ = ["limb", "BUILDERS"]
 

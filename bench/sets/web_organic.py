@@ -1,4 +1,4 @@
-"""Builders of the ``web`` set's natural kinds (see :mod:`bench.web_shapes`).
+"""Builders of the ``web`` set's natural kinds (see :mod:`bench.sets.web_shapes`).
 
 Animals, people and trees as web models make them: ellipsoids and rods that
 interpenetrate, fins and wings as zero-thickness sheets. Close families: two
@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.mesh_parts import Part, Rng, box, ellipsoid, revolve, rod, sheet
-from bench.web_furniture import vary
+from bench.sets.mesh_parts import Part, Rng, box, ellipsoid, revolve, rod, sheet
+from bench.sets.web_furniture import vary
 
 __all__ = ["BUILDERS"]
 

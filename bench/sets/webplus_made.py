@@ -1,10 +1,10 @@
-"""Builders of the ``webplus`` set's man-made kinds (see :mod:`bench.webplus_shapes`).
+"""Builders of the ``webplus`` set's man-made kinds (see :mod:`bench.sets.webplus_shapes`).
 
 Kinds that neither ``web`` nor ``generic`` has, in close families: three seats
 (rocking, folding and lounge chairs), three lamps (chandelier, pendant and street
 lamps), a shoe rack, a fence and a gate, three aircraft (fighter jet, airship,
 quadcopter) and two boats (rowboat, catamaran); bridges and towers are in
-:mod:`bench.webplus_structures`. Each builder takes a
+:mod:`bench.sets.webplus_structures`. Each builder takes a
 seeded generator and returns the parts of one model, z up, standing on z = 0, in
 metres; proportions vary by up to about 40 %, part counts and styles vary with the seed.
 """
@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.mesh_parts import Part, Rng, box, ellipsoid, hquad, quad, revolve, rod, sheet
-from bench.web_furniture import panel, slab, vary
+from bench.sets.mesh_parts import Part, Rng, box, ellipsoid, hquad, quad, revolve, rod, sheet
+from bench.sets.web_furniture import panel, slab, vary
 
 __all__ = ["tube", "arc_points", "BUILDERS"]
 

@@ -13,26 +13,26 @@ validation, the rest to test; parameter studies see only the validation split):
     different limb proportions, each in many poses (the class is the subject),
     like SHREC'14's 15 subjects x 20 poses. Meshed with :func:`shapedb.examples.to_mesh`.
 ``people``
-    Fine-grained people from :func:`bench.people.person`: 12 subjects x 10 poses
+    Fine-grained people from :func:`bench.sets.people.person`: 12 subjects x 10 poses
     whose limb lengths and girths lie 3-10 % apart (the class is the subject),
     meshes of about 7,000 vertices, like registered scans of real people.
 ``parts``
     Machined parts from :func:`shapedb.examples.part` (the class is the kind,
     seeds vary the dimensions and features).
 ``generic``
-    Web-like man-made and natural models from :mod:`bench.generic_shapes` (boxes,
+    Web-like man-made and natural models from :mod:`bench.sets.generic_shapes` (boxes,
     zero-thickness sheets, open and interpenetrating parts; the class is the kind),
     used as the triangle soups they are generated as.
 ``web``
-    A harder web-like set from :mod:`bench.web_shapes`: 45 kinds in close families
+    A harder web-like set from :mod:`bench.sets.web_shapes`: 45 kinds in close families
     (seats, tables, buildings, vehicles, aircraft, ...), large variation within a
     kind, random yaw and some arbitrary rotations; sources carry
-    :func:`bench.web_shapes.web_version`, so caches key on the generator's code.
+    :func:`bench.sets.web_shapes.web_version`, so caches key on the generator's code.
 ``webplus``
-    A held-out web-like set from :mod:`bench.webplus_shapes`: 39 kinds that neither
+    A held-out web-like set from :mod:`bench.sets.webplus_shapes`: 39 kinds that neither
     ``web`` nor ``generic`` has (close man-made families, animals in many poses,
     plants), built and oriented as ``web``; every model is in the test split (nobody
-    tunes on it). Sources carry :func:`bench.webplus_shapes.webplus_version`.
+    tunes on it). Sources carry :func:`bench.sets.webplus_shapes.webplus_version`.
 
 Point-cloud versions follow the paper: a random 20 % of the mesh vertices, seeded by
 the model name; meshes so coarse that this gives fewer than ``min_points`` points are
@@ -77,7 +77,7 @@ __all__ = [
     "people_version",
 ]
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 #: The real data set (outside the repository; never copied into it): ``SHAPEDB_CAPOD``,
 #: else ``../shared/data/capod`` beside the checkout or beside the worktrees' folder.
 CAPOD_ROOT = Path(
@@ -287,8 +287,8 @@ def parts(per_kind: int = 12, kinds: Sequence[str] | None = None) -> Dataset:
 
 
 def generic(per_kind: int = 20, kinds: Sequence[str] | None = None) -> Dataset:
-    """Generated web-like models: one class per kind of :mod:`bench.generic_shapes`."""
-    from bench.generic_shapes import KINDS
+    """Generated web-like models: one class per kind of :mod:`bench.sets.generic_shapes`."""
+    from bench.sets.generic_shapes import KINDS
 
     kinds = tuple(kinds) if kinds else KINDS
     models = [
@@ -300,12 +300,12 @@ def generic(per_kind: int = 20, kinds: Sequence[str] | None = None) -> Dataset:
 
 
 def web(per_kind: int = 20, kinds: Sequence[str] | None = None) -> Dataset:
-    """The hard web-like set: one class per kind of :mod:`bench.web_shapes`.
+    """The hard web-like set: one class per kind of :mod:`bench.sets.web_shapes`.
 
     Sources are ``"web:<kind>:<seed>:<web_version>"``: a change of the generator's
     code changes every source, so no cache serves stale models.
     """
-    from bench.web_shapes import KINDS, web_version
+    from bench.sets.web_shapes import KINDS, web_version
 
     kinds = tuple(kinds) if kinds else KINDS
     version = web_version()
@@ -318,13 +318,13 @@ def web(per_kind: int = 20, kinds: Sequence[str] | None = None) -> Dataset:
 
 
 def webplus(per_kind: int = 16, kinds: Sequence[str] | None = None) -> Dataset:
-    """The held-out web-like set: one class per kind of :mod:`bench.webplus_shapes`.
+    """The held-out web-like set: one class per kind of :mod:`bench.sets.webplus_shapes`.
 
     Every model is in the ``"test"`` split (the validation split is empty: the set
     checks settings chosen on the other sets and is never tuned on). Sources are
     ``"webplus:<kind>:<seed>:<webplus_version>"``, so no cache serves stale models.
     """
-    from bench.webplus_shapes import KINDS, webplus_version
+    from bench.sets.webplus_shapes import KINDS, webplus_version
 
     kinds = tuple(kinds) if kinds else KINDS
     version = webplus_version()
@@ -426,12 +426,12 @@ def mesh_arrays(
     are meshed at :data:`GENERATED_MESH_RESOLUTION` and cached as npz.
     """
     if model.source.startswith("generic:"):
-        from bench.generic_shapes import generic_mesh
+        from bench.sets.generic_shapes import generic_mesh
 
         _, kind, seed = model.source.split(":")
         return generic_mesh(kind, int(seed))
     if model.source.startswith("web:"):
-        from bench.web_shapes import web_mesh, web_version
+        from bench.sets.web_shapes import web_mesh, web_version
 
         _, kind, seed, version = model.source.split(":")
         if version != web_version():
@@ -440,7 +440,7 @@ def mesh_arrays(
             )
         return web_mesh(kind, int(seed))
     if model.source.startswith("webplus:"):
-        from bench.webplus_shapes import webplus_mesh, webplus_version
+        from bench.sets.webplus_shapes import webplus_mesh, webplus_version
 
         _, kind, seed, version = model.source.split(":")
         if version != webplus_version():
@@ -458,7 +458,7 @@ def mesh_arrays(
         CACHE_DIR / "meshes" / f"{model.source.replace(':', '_')}_{GENERATED_MESH_RESOLUTION}.npz"
     )
     if model.source.startswith("person:"):
-        from bench import people as people_module
+        from bench.sets import people as people_module
 
         path = path.with_name(
             f"{model.source.replace(':', '_')}_{people_module.MESH_RESOLUTION}"
@@ -491,7 +491,7 @@ def people_version(part: str = "mesh") -> str:
     """
     import hashlib
 
-    from bench import people as p
+    from bench.sets import people as p
 
     if part == "mesh":
         code = [p.proportions, p.angles, p._segments, p._cone, p.person, p.person_mesh]

@@ -1,4 +1,4 @@
-"""Builders of the ``webplus`` set's structures (see :mod:`bench.webplus_shapes`).
+"""Builders of the ``webplus`` set's structures (see :mod:`bench.sets.webplus_shapes`).
 
 Four bridges (arch, suspension, truss, beam) and six towers (lighthouse, water tower,
 silo, lattice pylon, guyed radio mast, wind turbine), z up, standing on z = 0, in
@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.mesh_parts import Part, Rng, box, ellipsoid, quad, revolve, rod, sheet
-from bench.web_furniture import slab, vary
-from bench.webplus_made import arc_points, tube
+from bench.sets.mesh_parts import Part, Rng, box, ellipsoid, quad, revolve, rod, sheet
+from bench.sets.web_furniture import slab, vary
+from bench.sets.webplus_made import arc_points, tube
 
 __all__ = ["BUILDERS"]
 

@@ -20,7 +20,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from bench.mesh_parts import F, Part, Rng, V, box, ellipsoid, hquad, place, quad, revolve, rod
+from bench.sets.mesh_parts import F, Part, Rng, V, box, ellipsoid, hquad, place, quad, revolve, rod
 
 __all__ = ["KINDS", "generic_mesh"]
 
