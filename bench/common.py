@@ -597,7 +597,7 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
             return PointCloud(noisy_cloud(paper, v, seed=seed))
         return PointCloud(partial_cloud(paper, v, f, seed=seed))
     if variant == "pointcloud_dense":
-        from bench.baselines import sample_surface
+        from bench.support.baselines import sample_surface
         from shapedb.geometry.pointcloud import PointCloud
 
         rng = np.random.default_rng(stable_seed(model.name, variant))

@@ -558,7 +558,7 @@ def point_cloud(
     (k, 3) float64
         The points.
     """
-    from bench.baselines import sample_surface
+    from bench.support.baselines import sample_surface
 
     rng = np.random.default_rng(seed)
     v = np.asarray(vertices, dtype=np.float64)

@@ -10,11 +10,12 @@ vary by up to about 40 %, part counts and optional parts vary, and styles differ
 
 As on the web, every model is a triangle soup of unmerged parts (closed boxes,
 zero-thickness sheets, open tubes; parts interpenetrate), 30 % of the parts have their
-faces flipped, and the orientation is not canonical: every model is turned by a
-random angle about its up axis, and :data:`TILTED` of them are turned arbitrarily in
-3-D. Sizes are random too (a factor in [0.5, 2]), and :data:`GROUNDED` of the models
-stand on a ground sheet or a display base, as some web models do; :data:`FURNISHED`
-of them keep hidden parts inside their bulkiest part (interiors no view shows).
+faces flipped, and the orientation is not canonical: every model is turned by a random
+angle about its up axis, and :data:`~bench.sets.assembly.TILTED` of them are turned
+arbitrarily in 3-D. Sizes are random too (a factor in [0.5, 2]), and
+:data:`~bench.sets.assembly.GROUNDED` of the models stand on a ground sheet or a display
+base, as some web models do; :data:`~bench.sets.assembly.FURNISHED` of them keep hidden
+parts inside their bulkiest part (interiors no view shows).
 
 ``web_mesh(kind, seed)`` is deterministic and cheap (milliseconds).
 :func:`web_version` is a digest of the generator's code, for cache keys.
@@ -26,19 +27,10 @@ import functools
 from collections.abc import Callable
 
 from bench.sets import web_furniture, web_organic, web_structures
-from bench.sets.assembly import FLIPPED, FURNISHED, GROUNDED, TILTED, assemble, code_version
+from bench.sets.assembly import assemble, code_version
 from bench.sets.mesh_parts import F, Part, Rng, V
 
-__all__ = [
-    "KINDS",
-    "FAMILIES",
-    "TILTED",
-    "FLIPPED",
-    "GROUNDED",
-    "FURNISHED",
-    "web_mesh",
-    "web_version",
-]
+__all__ = ["KINDS", "FAMILIES", "web_mesh", "web_version"]
 
 _BUILDERS: dict[str, Callable[[Rng], list[Part]]] = {
     **web_furniture.BUILDERS,

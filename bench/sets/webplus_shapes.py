@@ -9,13 +9,14 @@ category-level natural classes in many poses (four bipeds: dinosaur, kangaroo, a
 ostrich; three quadrupeds: elephant, rhinoceros, giraffe; spider, insect, snake,
 penguin, whale; three plants).
 
-Assembled by :mod:`bench.sets.assembly` as the ``web`` set is, with the same
-fractions: every model is a triangle soup of unmerged parts (closed boxes,
-zero-thickness sheets, open tubes; parts interpenetrate), :data:`FLIPPED` of the parts
-have their faces flipped, every model is turned by a random yaw and :data:`TILTED` of
-them by an arbitrary 3-D rotation, scaled by a factor in [0.5, 2]; :data:`GROUNDED`
-stand on a ground sheet or display base and :data:`FURNISHED` keep hidden parts inside
-their bulkiest part. The seeds are the set's own (``"webplus/<kind>/<seed>"``).
+Assembled by :mod:`bench.sets.assembly` as the ``web`` set is, with the same fractions:
+every model is a triangle soup of unmerged parts (closed boxes, zero-thickness sheets,
+open tubes; parts interpenetrate), :data:`~bench.sets.assembly.FLIPPED` of the parts
+have their faces flipped, every model is turned by a random yaw and
+:data:`~bench.sets.assembly.TILTED` of them by an arbitrary 3-D rotation, scaled by a
+factor in [0.5, 2]; :data:`~bench.sets.assembly.GROUNDED` stand on a ground sheet or
+display base and :data:`~bench.sets.assembly.FURNISHED` keep hidden parts inside their
+bulkiest part. The seeds are the set's own (``"webplus/<kind>/<seed>"``).
 
 ``webplus_mesh(kind, seed)`` is deterministic and cheap (milliseconds);
 :func:`webplus_version` is a digest of the generator's code, for cache keys.
@@ -27,19 +28,10 @@ import functools
 from collections.abc import Callable
 
 from bench.sets import web_furniture, webplus_made, webplus_natural, webplus_structures
-from bench.sets.assembly import FLIPPED, FURNISHED, GROUNDED, TILTED, assemble, code_version
+from bench.sets.assembly import assemble, code_version
 from bench.sets.mesh_parts import F, Part, Rng, V
 
-__all__ = [
-    "KINDS",
-    "FAMILIES",
-    "TILTED",
-    "FLIPPED",
-    "GROUNDED",
-    "FURNISHED",
-    "webplus_mesh",
-    "webplus_version",
-]
+__all__ = ["KINDS", "FAMILIES", "webplus_mesh", "webplus_version"]
 
 _BUILDERS: dict[str, Callable[[Rng], list[Part]]] = {
     **webplus_made.BUILDERS,

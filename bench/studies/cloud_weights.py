@@ -56,8 +56,8 @@ from numpy.typing import NDArray
 
 import bench.common as common
 from bench.common import Balls, format_table, log_margin, mdbd_config, retrieval_scores, write_json
-from bench.sets.datasets import Dataset, Model
 from bench.representations import build
+from bench.sets.datasets import Dataset, Model
 from bench.studies.people_blocks import PRE_SHEET, block_features, l1
 from shapedb.config.core import MDBDConfig
 from shapedb.geometry.view import is_sparse

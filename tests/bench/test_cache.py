@@ -168,8 +168,8 @@ def test_derived_caches_are_keyed_by_the_engine(
     model: Model, cache: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Distance matrices and field vectors derived from a decomposition are re-computed when
-    the engine changes (bench.cached.model_key holds the decomposition's cache key)."""
-    from bench.cached import model_key
+    the engine changes (bench.support.cached.model_key holds the decomposition's cache key)."""
+    from bench.support.cached import model_key
 
     before = model_key(model)
     assert before.startswith("capsule" + model.source)

@@ -1,11 +1,11 @@
 """Decompositions continued past their balls (the light fields of a longer packing), cached.
 
-:func:`longer` gives a split's models (those :func:`bench.cached.load` has) decomposed as
+:func:`longer` gives a split's models (those :func:`bench.support.cached.load` has) decomposed as
 ingest does in a store whose ``LightFieldConfig.n_balls`` exceeds ``MDBDConfig.n_balls``:
 ``shapedb.mdbd.decomposition.decompose(tail_balls=...)``, the decomposition's balls then the tail (each
 part by decreasing radius). Cached under ``$SHAPEDB_BENCH_CACHE/lightfield_pack`` (keyed by
 the model, the default MDBD configuration, the engine's code and the tail; the older
-engines of :data:`bench.cached.ENGINE_COMMITS` are read too).
+engines of :data:`bench.support.cached.ENGINE_COMMITS` are read too).
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from bench.cached import ENGINE_COMMITS, load
 from bench.common import Balls, cache_path, variant_geometry
 from bench.sets.datasets import CACHE_DIR, Dataset
+from bench.support.cached import ENGINE_COMMITS, load
 from shapedb.config.core import MDBDConfig
 
 __all__ = ["longer"]
@@ -45,7 +45,7 @@ def _decompose_longer(args: tuple[Any, int, str]) -> str | None:
 
 def _path(folder: Path, model: Any, tail: int) -> Path:
     """Today's cache path of a model's longer packing, else an older engine's that exists
-    (:data:`bench.cached.ENGINE_COMMITS`: engines whose balls today's reproduce)."""
+    (:data:`bench.support.cached.ENGINE_COMMITS`: engines whose balls today's reproduce)."""
     cfg = MDBDConfig()
     keys = [cache_path(model, "mesh", cfg)]
     keys += [cache_path(model, "mesh", cfg, engine_commit=c) for c in ENGINE_COMMITS]

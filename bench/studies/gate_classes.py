@@ -6,8 +6,8 @@ mesh light field descriptor ranking every shape; with the share of the class's q
 whose gate is open (at all, and fully). Classes are listed by the descriptor's lead in
 first tier. Run::
 
-    nice -n 5 python -m bench.gate_classes --split validation --dataset generic
-    nice -n 5 python -m bench.gate_classes --split validation --dataset generic \
+    nice -n 5 python -m bench.studies.gate_classes --split validation --dataset generic
+    nice -n 5 python -m bench.studies.gate_classes --split validation --dataset generic \
         --store web generic capod figures parts people --out /tmp/classes.json
 """
 
@@ -22,13 +22,13 @@ from typing import Any
 
 import numpy as np
 
-from bench.cached import CHOICES, load
 from bench.common import format_table, write_json
-from bench.field_vectors import fuse, stage_of
-from bench.gate_stores import Split, Store, gate_weights, shared_stores
-from bench.lightfield_gate import RESULTS
-from bench.lightfield_gate import parser as gate_parser
-from bench.rerank_select import lfd_split_matrix
+from bench.studies.lightfield_gate import RESULTS
+from bench.studies.lightfield_gate import parser as gate_parser
+from bench.support.cached import CHOICES, load
+from bench.support.field_vectors import fuse, stage_of
+from bench.support.lightfield import lfd_split_matrix
+from bench.support.stores import Split, Store, gate_weights, shared_stores
 from shapedb.config.core import Config
 
 __all__ = ["per_class", "main"]
@@ -72,7 +72,7 @@ def per_class(split: str, name: str, store: Sequence[str] | None = None) -> list
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
-    ap = argparse.ArgumentParser(prog="python -m bench.gate_classes", description=__doc__)
+    ap = argparse.ArgumentParser(prog="python -m bench.studies.gate_classes", description=__doc__)
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
     ap.add_argument("--dataset", default="generic", choices=CHOICES)
     ap.add_argument(

@@ -2,13 +2,13 @@
 
 Usage (from the repository root)::
 
-    python -m bench.lightfield_rerank                       # validation, six sets
-    python -m bench.lightfield_rerank --split test
-    python -m bench.lightfield_rerank --split test --datasets webplus   # the held-out set
-    python -m bench.lightfield_rerank --cost                # per-query db.search time
+    python -m bench.studies.lightfield_rerank                       # validation, six sets
+    python -m bench.studies.lightfield_rerank --split test
+    python -m bench.studies.lightfield_rerank --split test --datasets webplus   # the held-out set
+    python -m bench.studies.lightfield_rerank --cost                # per-query db.search time
 
 For each set's split (meshes; the cached decompositions the light field study reads,
-:func:`bench.cached.load`; nothing is decomposed), every shape queries a
+:func:`bench.support.cached.load`; nothing is decomposed), every shape queries a
 flat :class:`query.search.index.FeatureIndex` through :func:`query.search.rerank.search` with ``k =
 n`` (the product's search path), its own id given, as ``db.search(id)`` does. Rows, in
 the same run:
@@ -23,7 +23,7 @@ the same run:
   spreads computed over the set as a store computes them
   (:func:`query.search.lightfield_spread.local_spreads`); with the field's light fields and the
   field vectors on (the default), the field vectors too (:func:`field_vectors`, of the
-  shells cached by :mod:`bench.field_shells`): the fused distance and the union
+  shells cached by :mod:`bench.support.field_shells`): the fused distance and the union
   candidates (:mod:`query.search.field_fusion`, :mod:`query.search.field_index`);
 * ``lightfield (spread gate)``: the same with the gate before the ratio (the pooled
   local spread alone, :data:`SPREAD_GATE`), without the field vectors;
@@ -32,8 +32,8 @@ the same run:
 
 With ``--baselines``, in the same run: the balls' light fields alone (``light fields
 (balls)``, :func:`shapedb.signature.lightfield.light_field_distance` of the stored light fields),
-and on the meshes the light field descriptor (:mod:`bench.lightfield`) and D2
-(:mod:`bench.baselines`, 2^18 pairs). ``--per-kind`` adds every row's NN per class.
+and on the meshes the light field descriptor (:mod:`bench.support.lightfield`) and D2
+(:mod:`bench.support.baselines`, 2^18 pairs). ``--per-kind`` adds every row's NN per class.
 
 That the scorer ranks as the study's formula does is checked by the study
 (``python -m bench.studies.lightfield_balls --check-product``).
@@ -47,7 +47,7 @@ statistics and shared-neighbour lists (the index-time tables), then ``db.search(
 k=10)`` for every shape, interleaved, and prints medians and ratios to the plain store;
 and the first search on a fresh copy of the stores with and without the term (cold).
 ``--lf-source field`` (and ``--lf-set FIELD=VALUE``): the ``lightfield`` rows read the
-light fields of the field's inside (cached by :mod:`bench.inside_fields`).
+light fields of the field's inside (cached by :mod:`bench.support.inside_fields`).
 Written to bench/results/lightfield_rerank_<split>.json (``lightfield_rerank_cost.json``).
 """
 
@@ -64,11 +64,11 @@ from typing import Any
 
 import numpy as np
 
-from bench import inside_fields
-from bench.cached import CHOICES, load
 from bench.common import class_nn, format_table, retrieval_scores, write_json
-from bench.features import kernel_features
-from bench.packings import light_field_balls
+from bench.support import inside_fields
+from bench.support.cached import CHOICES, load
+from bench.support.features import kernel_features
+from bench.support.packings import light_field_balls
 from query.search import rerank
 from query.search.field_fusion import FIELD, FieldFusion
 from query.search.field_index import FieldIndex
@@ -79,11 +79,11 @@ from query.search.rerank_lightfield import COLUMN, SPREAD, LightFieldFusion
 from shapedb.config.core import Config
 from shapedb.signature.lightfield import light_field_distance, record_light_field
 
-RESULTS = Path(__file__).resolve().parent / "results"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 SETS = ("web", "generic", "capod", "figures", "parts", "people")
 _MEASURES = ("nn", "first_tier", "dcg")
 _CHUNK = 32
-#: The stage's gate before the ratio (issue 25's pooled spread and contrast floor).
+#: The stage's gate before the ratio (the pooled spread and contrast floor).
 SPREAD_GATE = {"lf_weight": 4.0, "lf_ceiling": 0.11, "lf_ramp": 0.02, "lf_spread_candidates": 5,
                "lf_pool": 20, "lf_contrast_ramp": 0.05, "lf_ratio_weight": 0.0,
                "lf_pool_quantile": 0.5}  # fmt: skip
@@ -148,8 +148,8 @@ class Arrays:
 def field_vectors(ds: Any, config: Config) -> np.ndarray:
     """(n, d) float32 field vectors of ``ds``'s models as a store keeps them:
     :func:`shapedb.signature.field_vector.field_vector` of the field's inside cached by
-    :func:`bench.field_shells.shells`."""
-    from bench.field_shells import shells
+    :func:`bench.support.field_shells.shells`."""
+    from bench.support.field_shells import shells
     from shapedb.geometry.inside import Inside
     from shapedb.signature.field_vector import field_vector
 
@@ -190,9 +190,9 @@ def _scores(order: np.ndarray, labels: np.ndarray) -> dict[str, float]:
 
 def mesh_baselines(ds: Any) -> dict[str, np.ndarray]:
     """(n, n) distances of the light field descriptor and D2 (2^18 pairs) on the meshes."""
-    from bench.baselines import D2Config, d2_descriptor
     from bench.sets.datasets import mesh_arrays
-    from bench.lightfield import LFDConfig, lfd_descriptor, lfd_distance
+    from bench.support.baselines import D2Config, d2_descriptor
+    from bench.support.lightfield import LFDConfig, lfd_descriptor, lfd_distance
 
     arrays = [mesh_arrays(m) for m in ds.models]
     lfd = np.stack([lfd_descriptor(v, f, LFDConfig()) for v, f in arrays])
@@ -203,7 +203,7 @@ def mesh_baselines(ds: Any) -> dict[str, np.ndarray]:
 
 def light_fields(balls: Sequence[Any], config: Config) -> np.ndarray:
     """(n, fields, 10, d) float32 light fields as a store keeps them, of ``balls`` as given
-    (a longer packing's: :func:`bench.packings.light_field_balls`)."""
+    (a longer packing's: :func:`bench.support.packings.light_field_balls`)."""
     cfg = config.light_field
     return np.stack([record_light_field(b.centers, b.radii, cfg, edges=b.edges) for b in balls])
 
@@ -237,7 +237,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         ds, balls = load(name, args.split)
         labels = np.asarray(ds.labels)
         v4 = kernel_features(balls, Config())
-        if lf_cfg.light_field_inside:  # the field's inside, cached by bench.inside_fields
+        if lf_cfg.light_field_inside:  # the field's inside, cached by bench.support.inside_fields
             lf = inside_fields.light_fields(name, args.split, ds, lf_cfg.light_field)
         else:
             lf = light_fields(
@@ -411,14 +411,14 @@ def cost(args: argparse.Namespace, repeats: int = 3, cold: int = 8) -> dict[str,
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
     ap = argparse.ArgumentParser(
-        prog="python -m bench.lightfield_rerank", description=__doc__.split("\n")[0]
+        prog="python -m bench.studies.lightfield_rerank", description=__doc__.split("\n")[0]
     )
     ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
     ap.add_argument("--no-adaptive", action="store_true", help="leave out the v7 adaptive row")
     ap.add_argument("--lf-within", type=int, default=0,
                     help="the light fields' balls: the first of the packing continued to this "
-                         "many (as bench.lightfield_gate --lf-within)")  # fmt: skip
+                         "many (as bench.studies.lightfield_gate --lf-within)")  # fmt: skip
     ap.add_argument("--baselines", action="store_true",
                     help="the balls' light fields alone, mesh LFD and D2 in the same run")  # fmt: skip
     ap.add_argument("--per-kind", action="store_true", help="every row's NN per class")

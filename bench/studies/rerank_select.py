@@ -2,10 +2,10 @@
 
 Usage (from the repository root)::
 
-    python -m bench.rerank_select                      # validation, six sets, the k x p x w x K grid
-    python -m bench.rerank_select --grid ratio --out bench/results/rerank_select_validation_ratio.json
-    python -m bench.rerank_select --split test --setting 10 1 16 100 0.35 --lfd   # k p w K ratio
-    python -m bench.rerank_select --cost               # per-query search time, with and without
+    python -m bench.studies.rerank_select                      # validation, six sets, the k x p x w x K grid
+    python -m bench.studies.rerank_select --grid ratio --out bench/results/rerank_select_validation_ratio.json
+    python -m bench.studies.rerank_select --split test --setting 10 1 16 100 0.35 --lfd   # k p w K ratio
+    python -m bench.studies.rerank_select --cost               # per-query search time, with and without
 
 For each set's split (meshes, decompositions at the defaults from the bench cache), the
 descriptors of versions 4 and 7 are computed from the balls (cached on disk by
@@ -20,7 +20,7 @@ grid. The ranking of each query (itself left out) is scored with the PSB measure
 The chosen setting is the best objective (mean over the sets of (NN + 1-T + DCG) / 3)
 among those with no set's NN, 1-T or DCG more than two queries' worth below version 4
 (the "two-queries rule"); the table also says whether it beats version 4's objective
-on every set. ``--lfd`` adds the light field descriptor (:mod:`bench.lightfield`,
+on every set. ``--lfd`` adds the light field descriptor (:mod:`bench.support.lightfield`,
 meshes; descriptors cached). ``--cost`` times ``db.search`` on a store of the web
 validation shapes (version 7) with the stage and without it, queries interleaved, and
 scores both stores with ``db.evaluate`` (which must reproduce the web rows of the
@@ -43,11 +43,12 @@ import numpy as np
 
 from bench.common import decompose_all, format_table, retrieval_scores, write_json
 from bench.sets.datasets import CACHE_DIR, Dataset, articulated, capod, generic, parts, people, web
+from bench.support.lightfield import lfd_matrix
 from query.search import rerank
 from query.search.index import FeatureIndex
 from shapedb.config.core import Config, MDBDConfig
 
-RESULTS = Path(__file__).resolve().parent / "results"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 SETS = ("web", "generic", "capod", "articulated", "parts", "people")
 #: The grid of the adaptive stage: neighbours k, power p, weight w, candidates K.
 GRID = {"neighbours": (5, 10, 20), "power": (1.0, 2.0), "weight": (4.0, 8.0, 16.0),
@@ -55,7 +56,7 @@ GRID = {"neighbours": (5, 10, 20), "power": (1.0, 2.0), "weight": (4.0, 8.0, 16.
 #: The grid of ``--grid ratio``: the spread ceiling beside the overlap gate.
 RATIO_GRID = {"neighbours": (5, 10), "power": (0.0, 1.0, 2.0), "weight": (8.0, 16.0, 24.0, 32.0),
               "candidates": (100,), "ratio": (0.0, 0.35, 0.4)}  # fmt: skip
-#: An engine whose cached decompositions the test splits fall back on (bench.union_select).
+#: An engine whose cached decompositions the test splits fall back on (bench.studies.union_select).
 OLDER_ENGINE = "b95b2be"
 _MEASURES = ("nn", "first_tier", "dcg")
 _QUERY_CHUNK = 32
@@ -69,7 +70,7 @@ def _makers() -> dict[str, Any]:
 
 
 def _digest(*modules: str) -> str:
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     h = hashlib.sha256()
     for m in modules:
         h.update((root / m).read_bytes())
@@ -80,7 +81,7 @@ def descriptors(
     ds: Dataset, version: int, workers: int, split: str
 ) -> tuple[np.ndarray, np.ndarray]:
     """Stored vectors of ``version`` for the split's meshes: (kept indices (n,), (n, d))."""
-    from bench.features import kernel_features
+    from bench.support.features import kernel_features
 
     balls = decompose_all(ds.models, "mesh", MDBDConfig(), workers=workers)
     keep = np.array([i for i, b in enumerate(balls) if b is not None], np.int64)
@@ -99,43 +100,6 @@ def descriptors(
     path.parent.mkdir(parents=True, exist_ok=True)
     np.savez(path, names=names, x=x)
     return keep, x
-
-
-def lfd_matrix(ds: Dataset) -> np.ndarray:
-    """Light field distances between the split's meshes, (n, n); descriptors cached."""
-    from bench.sets.datasets import mesh_arrays
-    from bench.lightfield import LFDConfig, lfd_descriptor, lfd_distance
-
-    code = _digest("bench/lightfield.py")
-    folder = CACHE_DIR / "lfd"
-    folder.mkdir(parents=True, exist_ok=True)
-    out = []
-    for m in ds.models:
-        key = hashlib.sha256(f"{m.source}|{m.name}".encode()).hexdigest()[:20]
-        path = folder / f"{key}_{code}.npy"
-        if not path.exists():
-            np.save(path, lfd_descriptor(*mesh_arrays(m), LFDConfig()))
-        out.append(np.load(path))
-    return np.asarray(lfd_distance(np.stack(out)), np.float64)
-
-
-def lfd_split_matrix(models: Sequence[Any]) -> np.ndarray:
-    """:func:`lfd_matrix` of any models together (several sets' splits), (n, n), cached
-    under ``$SHAPEDB_BENCH_CACHE/lfd/matrices`` by the models and the descriptor's code."""
-    from types import SimpleNamespace
-
-    keys = "\n".join(f"{m.source}|{m.name}" for m in models)
-    code = _digest("bench/lightfield.py")
-    key = hashlib.sha256((code + keys).encode()).hexdigest()[:16]
-    path = CACHE_DIR / "lfd" / "matrices" / f"{key}.npy"
-    if path.exists():
-        return np.load(path)
-    t = time.perf_counter()
-    d = lfd_matrix(SimpleNamespace(models=list(models)))  # type: ignore[arg-type]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.save(path, d)
-    print(f"  mesh light field distances {d.shape}: {time.perf_counter() - t:.0f} s", flush=True)
-    return d
 
 
 def ranking_scores(
@@ -176,7 +140,7 @@ def _beats(entry: dict[str, Any], base: dict[str, Any], sets: Sequence[str]) -> 
 def select(args: argparse.Namespace) -> dict[str, Any]:
     """Score the rows on every set; returns the JSON written."""
     if args.split == "test":
-        from bench.union_select import read_older_cache
+        from bench.studies.union_select import read_older_cache
 
         read_older_cache(OLDER_ENGINE)
     data = {}
@@ -312,7 +276,7 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
     ap = argparse.ArgumentParser(
-        prog="python -m bench.rerank_select", description=__doc__.split("\n")[0]
+        prog="python -m bench.studies.rerank_select", description=__doc__.split("\n")[0]
     )
     ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=SETS)
     ap.add_argument("--split", default="validation", choices=["validation", "test"])

@@ -1,17 +1,20 @@
-"""The gate bench's stores: every set of a split together, and one store's rankings at any gate.
+"""The light field stage's stores: every set of a split together, and one store's rankings.
 
 :class:`Split` holds a split's shapes (sets, labels), version 4's stored distances and the
 stage's distance (the light fields', or its fusion with the field vectors:
-:func:`bench.field_vectors.fuse`); :class:`Store` one store's candidate lists (version 4's
-K, and with the field vectors the union with their K2 nearest) and its rankings at
-per-query weights; :func:`gate_weights` the product's gate
-(:class:`shapedb.config.core.LightFieldFusionConfig`) on a store, :func:`score_row` a row of
-scores against version 4 with the two-queries rule. Used by :mod:`bench.lightfield_gate`
-(which re-exports these names) and :mod:`bench.field_choice`.
+:func:`bench.support.field_vectors.fuse`); :class:`Store` one store's candidate lists
+(version 4's K, and with the field vectors the union with their K2 nearest) and its
+rankings at per-query weights; :func:`gate_weights` the product's own gate
+(:meth:`query.search.rerank_lightfield.LightFieldFusion.gate`, at any
+:class:`shapedb.config.core.LightFieldFusionConfig`) on a store; :func:`score_row` a row
+of scores against version 4 with the two-queries rule. Used by :mod:`bench.rerank` (the
+product's stage at its defaults) and by the studies that tune it
+(:mod:`bench.studies.lightfield_gate`, :mod:`bench.studies.field_choice`, ...).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import time
 from collections.abc import Callable, Sequence
@@ -21,15 +24,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench import cached, inside_fields
-from bench.cached import load
 from bench.common import format_table
 from bench.sets.datasets import CACHE_DIR
-from bench.features import kernel_features
-from bench.gate_checks import margin
-from bench.packings import light_field_balls
-from query.search.lightfield_spread import pooled
+from bench.support import cached, inside_fields
+from bench.support.cached import load
+from bench.support.features import kernel_features
+from bench.support.packings import light_field_balls
+from query.search.lightfield_spread import local_statistic, pooled
+from query.search.rerank_lightfield import LightFieldFusion
 from shapedb.config.core import Config
+from shapedb.signature import lightfield, lightfield_descriptor
 from shapedb.signature.descriptor import LAYOUTS
 from shapedb.signature.lightfield import light_field_distance, record_light_field
 
@@ -41,18 +45,18 @@ __all__ = [
     "Split",
     "Store",
     "local_spreads",
+    "shape_statistics",
     "gate_statistic",
-    "gate_margin",
     "gate_weights",
     "score_row",
     "shared_scale",
     "shared_stores",
     "shared_rows",
-    "contrast_rows",
+    "store_names",
+    "product_split",
+    "split_stores",
     "product_stores",
     "rows_table",
-    "SHARED_GRID",
-    "CONTRAST_GRID",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -65,14 +69,9 @@ MIXES = {
     "webplus+figures": ("webplus", "figures"),
     "webplus+people": ("webplus", "people"),
 }
-#: Sets a run may name: the six, and the held-out ones :mod:`bench.cached` knows (``webplus``).
+#: Sets a run may name: the six, and the held-out ones :mod:`bench.support.cached` knows (``webplus``).
 CHOICES = tuple(getattr(cached, "CHOICES", SETS))
 MEASURES = ("nn", "first_tier", "dcg")
-#: The shared-neighbour grid of ``--shared-grid``: ``k`` x ``beta``.
-SHARED_GRID = ((2, 3, 4, 5), (0.4, 0.8, 1.6))
-#: The contrast grid of ``--contrast-grid``: ``contrast_floor`` x ``contrast_ramp`` x
-#: ``contrast_depth`` (floor 0, the contrast off, once).
-CONTRAST_GRID = ((0.0, 0.1, 0.2, 0.25, 0.3, 0.35), (0.05, 0.1, 0.2), (20, 30, 50))
 
 
 class Split:
@@ -89,12 +88,12 @@ class Split:
         holds them).
     dl : (n, n) float64
         The stage's distance: the light field distances of the float32 light fields, or
-        their fusion with the field vectors (:func:`bench.field_vectors.fuse`).
+        their fusion with the field vectors (:func:`bench.support.field_vectors.fuse`).
     light : (n, n) float64
         The light field distances.
     dv : (n, n) float64 or None
         The scaled field vectors' L1 distances (a fused split's union candidates).
-    stage : bench.field_vectors.FieldStage or None
+    stage : bench.support.field_vectors.FieldStage or None
         The field vectors' part of a fused split.
     """
 
@@ -113,7 +112,9 @@ class Split:
             cfg = cfg.with_options(lf_n_balls=lf_n_balls)
         if lf_source is not None:
             cfg = cfg.with_options(lf_source=lf_source)
-        for kv in lf_set:  # other light-field settings (the field's: bench.inside_fields.cut)
+        for (
+            kv
+        ) in lf_set:  # other light-field settings (the field's: bench.support.inside_fields.cut)
             k, v = kv.split("=", 1)
             value: Any = (
                 v if not v.replace(".", "", 1).isdigit() else float(v) if "." in v else int(v)
@@ -123,7 +124,7 @@ class Split:
         for name in names:
             ds, balls = load(name, split)
             x.append(kernel_features(balls, Config()).astype(np.float32))
-            if cfg.light_field_inside:  # the field's inside, cached by bench.inside_fields
+            if cfg.light_field_inside:  # the field's inside, cached by bench.support.inside_fields
                 fields.append(inside_fields.light_fields(name, split, ds, cfg.light_field))
             else:
                 seen = light_field_balls(name, split, ds, balls, cfg, within=lf_within)
@@ -146,9 +147,11 @@ class Split:
             self.d4[i] = np.abs(v - v[i]).sum(axis=1)
         self.d4 /= np.log(10.0) / sum(b[3] for b in LAYOUTS[4])  # calibrated units
         self.dl = _light_field_matrix(np.concatenate(fields), keys)
-        self.light = self.dl  # the light field distance (dl: the stage's, bench.field_vectors)
+        self.light = (
+            self.dl
+        )  # the light field distance (dl: the stage's, bench.support.field_vectors)
         self.dv: FloatArray | None = None  # the scaled field vectors' L1 (the union candidates)
-        self.stage: Any = None  # bench.field_vectors.FieldStage of a fused split
+        self.stage: Any = None  # bench.support.field_vectors.FieldStage of a fused split
 
     def store(self, names: Sequence[str]) -> NDArray[np.int64]:
         """Row indices of a store made of these sets."""
@@ -156,8 +159,7 @@ class Split:
 
 
 def _light_field_matrix(fields: NDArray[np.float32], keys: list[str]) -> FloatArray:
-    core = Path(__file__).resolve().parents[1] / "shapedb"
-    code = b"".join((core / f).read_bytes() for f in ("lightfield.py", "lightfield_descriptor.py"))
+    code = b"".join(Path(m.__file__).read_bytes() for m in (lightfield, lightfield_descriptor))
     key = hashlib.sha256(code + "\n".join(keys).encode()).hexdigest()[:16]
     path = CACHE_DIR / "lightfield_gate" / f"{key}.npy"
     if path.exists():
@@ -184,7 +186,7 @@ class Store:
         The rank fusion's offset.
     field_candidates : int
         K2: each query's candidates also take its ``K2`` nearest by ``split.dv`` (the
-        scaled field vectors' L1, :mod:`bench.field_vectors`) that are not among the K,
+        scaled field vectors' L1, :mod:`bench.support.field_vectors`) that are not among the K,
         after them in the stored distance's order (the product's union). 0, or a split
         without ``dv``: the K alone.
 
@@ -214,7 +216,7 @@ class Store:
         self.listing, self.count = self.order, np.full(n, k)
         dv = getattr(split, "dv", None)
         if field_candidates > 0 and dv is not None:
-            from bench.field_vectors import union_order
+            from bench.support.field_vectors import union_order
 
             self.listing, self.count = union_order(
                 self.order, dv[np.ix_(rows, rows)], k, min(field_candidates, n))  # fmt: skip
@@ -384,36 +386,53 @@ class Store:
         return out
 
 
+def _with_fusion(f: Any) -> Config:
+    """The default configuration with ``f`` as its ``lf_fusion`` (what the product's gate reads)."""
+    return dataclasses.replace(Config(), lf_fusion=f)
+
+
 def local_spreads(st: Store, candidates: int, typical: float, ratio_weight: float = 0.0,
                   ratio_candidates: int = 100) -> FloatArray:  # fmt: skip
-    """(n,) each stored shape's local statistic (:func:`query.search.lightfield_spread.local_statistic`).
+    """(n,) each stored shape's local statistic over its nearest others in the store.
 
-    The local spread over its ``candidates`` nearest others, times the ratio to the
-    power ``ratio_weight`` (the spread's power ``1 - ratio_weight``).
+    The product's :func:`query.search.lightfield_spread.local_statistic` at
+    ``spread_candidates=candidates``, ``typical``, ``ratio_weight`` and
+    ``ratio_candidates``, of each shape's nearest others by the stored distance
+    (:meth:`Store.nearest`).
     """
-    reach = max(candidates, ratio_candidates) if ratio_weight > 0 else candidates
-    d, ll = st.nearest(reach)
-    near = np.median(ll[:, :candidates], 1)
-    out = np.ones(len(d))
-    if ratio_weight < 1:
-        spread = near / typical / np.maximum(np.median(d[:, :candidates], 1), 1e-300)
-        out *= spread ** (1.0 - ratio_weight)
-    if ratio_weight > 0:
-        best = np.median(np.sort(ll, 1)[:, :candidates], 1)
-        out *= (near / np.maximum(best, 1e-300)) ** ratio_weight
-    return out
+    f = dataclasses.replace(Config().lf_fusion, spread_candidates=candidates, typical=typical,
+                            ratio_weight=ratio_weight, ratio_candidates=ratio_candidates)  # fmt: skip
+    config = _with_fusion(f)
+    d, ll = st.nearest(max(candidates, ratio_candidates) if ratio_weight > 0 else candidates)
+    return np.array([local_statistic(d[i], ll[i], config) for i in range(len(d))])
+
+
+def shape_statistics(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
+    """(n,) every stored shape's local statistic under the fusion ``f`` (:func:`local_spreads`),
+    the spreads the product keeps with a store. ``memo``: kept by store and the fields read."""
+    key = ("local", id(st), f.spread_candidates, f.typical, f.ratio_weight,
+           f.ratio_candidates if f.ratio_weight > 0 else 0)  # fmt: skip
+    if memo is not None and key in memo:
+        return memo[key]
+    s = local_spreads(st, f.spread_candidates, f.typical, f.ratio_weight, f.ratio_candidates)
+    if memo is not None:
+        memo[key] = s
+    return s
 
 
 def gate_statistic(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
     """(n,) ``s_q`` of :class:`shapedb.config.core.LightFieldFusionConfig` ``f`` for every query.
 
-    ``memo``: results kept by store and the fields they read (a grid reuses them).
+    The shape's own local statistic (:func:`shape_statistics`), or with ``f.pool`` its
+    ``pool_quantile`` over the first ``pool`` candidates (the product's
+    :func:`query.search.lightfield_spread.pooled`). ``memo``: results kept by store and
+    the fields they read (a grid reuses them).
     """
     key = (id(st), f.spread_candidates, f.typical, f.ratio_weight,
            f.ratio_candidates if f.ratio_weight > 0 else 0, f.pool, f.pool_quantile)  # fmt: skip
     if memo is not None and key in memo:
         return memo[key]
-    s = local_spreads(st, f.spread_candidates, f.typical, f.ratio_weight, f.ratio_candidates)
+    s = shape_statistics(st, f, memo)
     if f.pool > 0:
         s = pooled(s[st.cand[:, : f.pool]], f.pool_quantile)
     if memo is not None:
@@ -421,29 +440,21 @@ def gate_statistic(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None)
     return s
 
 
-def gate_margin(stores: dict[str, Store], f: Any,
-                memo: dict[Any, FloatArray] | None = None) -> dict[str, float]:  # fmt: skip
-    """:func:`margin` of ``f``'s pooled statistic over every set in every store."""
-    return margin({(k, str(s)): gate_statistic(st, f, memo)[st.sets == s]
-                   for k, st in stores.items() for s in dict.fromkeys(st.sets)})  # fmt: skip
-
-
 def gate_weights(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
     """(n,) ``weight * g(q)`` of :class:`shapedb.config.core.LightFieldFusionConfig` ``f``.
 
+    ``g(q)`` is the product's gate (:meth:`query.search.rerank_lightfield.LightFieldFusion.gate`)
+    on each query's candidates, reading the stored shapes' :func:`shape_statistics`.
     ``memo``: the pooled statistics already computed, by store and the fields they read.
     """
-    n = len(st.rows)
-    g = np.ones(n)
-    if f.power > 0:
-        g *= st.overlap(f.neighbours) ** f.power
-    if f.ceiling > 0:
-        g *= np.clip((f.ceiling - gate_statistic(st, f, memo)) / f.ramp, 0.0, 1.0)
-    if f.contrast_floor > 0:
-        d = st.others(st.D)
-        far = d[:, min(f.contrast_depth, d.shape[1]) - 1]
-        t = np.median(d[:, : f.neighbours], 1) / np.maximum(far, 1e-300)
-        g *= np.clip((t - f.contrast_floor) / f.contrast_ramp, 0.0, 1.0)
+    scorer = LightFieldFusion(_with_fusion(f))
+    spreads = shape_statistics(st, f, memo) if f.ceiling > 0 and f.pool > 0 else None
+    g = np.empty(len(st.rows))
+    for q in range(len(g)):
+        keep = ~st.pad[q]
+        cand = st.cand[q][keep]
+        g[q] = scorer.gate(st.D[q][keep], st.L[q][keep], st.own[q][keep],
+                           None if spreads is None else spreads[cand])  # fmt: skip
     return f.weight * g
 
 
@@ -484,23 +495,21 @@ def shared_stores(stores: dict[str, Store], split: Split, f: Any,
 
 
 def shared_rows(stores: dict[str, Store], split: Split, f: Any,
-                base: dict[str, dict[str, dict[str, float]]], grid: bool = False,
+                base: dict[str, dict[str, dict[str, float]]],
+                grid: Sequence[tuple[int, float]] = (),
                 within: str = "store") -> dict[str, dict[str, Any]]:  # fmt: skip
     """The "stage now" rows of the gate bench at the fusion ``f`` (its gate in every row).
 
-    With ``f``'s shared-neighbour term on, first the same stage without it; with ``grid``,
-    the stage at every ``k`` x ``beta`` of :data:`SHARED_GRID`; last the stage at ``f``
+    With ``f``'s shared-neighbour term on, first the same stage without it; then the stage
+    at every ``(k, beta)`` of ``grid`` (a study's); last the stage at ``f``
     (``"stage now (LightFieldFusionConfig defaults)"``). ``within``: where ``N_k`` is taken
     (:meth:`Store.with_shared`).
     """
-    import dataclasses
-    import itertools
-
     gated = {k: gate_weights(st, f) for k, st in stores.items()}
     rows: dict[str, dict[str, Any]] = {}
     if f.shared_neighbours > 0 and f.shared_weight > 0:
         rows["stage now without the shared neighbours (k 0)"] = score_row(stores, gated, base)
-    for k, beta in itertools.product(*SHARED_GRID) if grid else ():
+    for k, beta in grid:
         g = dataclasses.replace(f, shared_neighbours=k, shared_weight=beta)
         rows[f"stage now, shared k {k} beta {beta:g}"] = score_row(
             shared_stores(stores, split, g, within), gated, base)  # fmt: skip
@@ -510,56 +519,49 @@ def shared_rows(stores: dict[str, Store], split: Split, f: Any,
     return rows
 
 
-def contrast_rows(stores: dict[str, Store], split: Split, f: Any,
-                  base: dict[str, dict[str, dict[str, float]]],
-                  within: str = "store") -> dict[str, dict[str, Any]]:  # fmt: skip
-    """The stage at the fusion ``f`` with its contrast at every setting of :data:`CONTRAST_GRID`.
+def store_names(datasets: Sequence[str]) -> dict[str, tuple[str, ...]]:
+    """The stores of a run over ``datasets``: each set alone, and each mix of :data:`MIXES`
+    whose sets are all among them."""
+    names: dict[str, tuple[str, ...]] = {s: (s,) for s in datasets}
+    names.update({n: v for n, v in MIXES.items() if set(v) <= set(datasets)})
+    return names
 
-    Every row keeps ``f``'s other gate fields and its shared-neighbour term (the gate is
-    chosen for the stage the product runs); labelled ``"contrast: {...}"`` with the
-    setting, and last ``"best of the contrast grid: {...}"``, the highest objective among
-    the rows that pass the rule (no set more than two queries below version 4).
+
+def product_split(split_name: str, datasets: Sequence[str] = SETS) -> Split:
+    """:class:`Split` of ``datasets`` at the product's stage: fused with the product's field
+    vectors (:func:`bench.support.field_vectors.fuse`) when its stage has them."""
+    import argparse
+
+    from bench.support.field_vectors import fuse, stage_of
+
+    split = Split(split_name, datasets)
+    stage = stage_of(argparse.Namespace())
+    return split if stage is None else fuse(split, datasets, stage)
+
+
+def split_stores(split: Split, datasets: Sequence[str]) -> tuple[
+    dict[str, tuple[str, ...]], dict[str, Store], dict[str, Store], dict[str, Any]
+]:  # fmt: skip
+    """The stores of ``split`` over ``datasets`` (:func:`store_names`).
+
+    Returns the names, the stage's stores (a fused split's candidates are the union of
+    version 4's K and the field vectors' K2), version 4's stores (its K alone) and the
+    rule's base: version 4's scores per store and set.
     """
-    import dataclasses
-    import itertools
-
-    term = shared_stores(stores, split, f, within)
-    rows: dict[str, dict[str, Any]] = {}
-    for floor, ramp, depth in itertools.product(*CONTRAST_GRID):
-        if floor == 0 and (ramp, depth) != (CONTRAST_GRID[1][0], CONTRAST_GRID[2][0]):
-            continue  # the contrast off: ramp and depth unused
-        s = {"contrast_floor": floor, "contrast_ramp": ramp, "contrast_depth": depth}
-        g = dataclasses.replace(f, **s)
-        rows[f"contrast: {s}"] = score_row(
-            term, {k: gate_weights(st, g) for k, st in stores.items()}, base)  # fmt: skip
-    passing = {k: r for k, r in rows.items() if r["passes"]}
-    if passing:
-        top = max(passing, key=lambda k: passing[k]["objective"])
-        rows["best of the contrast grid: " + top.split(": ", 1)[1]] = passing[top]
-    return rows
+    stage = getattr(split, "stage", None)
+    k2 = stage.candidates if stage is not None else 0
+    names = store_names(datasets)
+    stores = {n: Store(split, split.store(v), field_candidates=k2) for n, v in names.items()}
+    v4 = {n: Store(split, split.store(v)) for n, v in names.items()} if k2 > 0 else stores
+    base = {n: st.per_set(st.measures(np.zeros(len(st.rows)))) for n, st in v4.items()}
+    return names, stores, v4, base
 
 
 def product_stores(split_name: str) -> tuple[Split, dict[str, Store], dict[str, Any]]:
-    """The gate bench's stores of a split at the product's stage, and the rule's base.
-
-    Every set of :data:`SETS` and every mix of :data:`MIXES` among them is a store of the
-    split fused with the product's field vectors (:func:`bench.field_vectors.fuse`), its
-    candidates their union; the base is version 4's scores per store and set (no stage).
-    """
-    import argparse
-
-    from bench.field_vectors import fuse, stage_of
-
-    split = Split(split_name, SETS)
-    stage = stage_of(argparse.Namespace())
-    if stage is not None:
-        split = fuse(split, SETS, stage)
-    k2 = stage.candidates if stage is not None else 0
-    names: dict[str, tuple[str, ...]] = {s: (s,) for s in SETS}
-    names.update({n: v for n, v in MIXES.items() if set(v) <= set(SETS)})
-    stores = {n: Store(split, split.store(v), field_candidates=k2) for n, v in names.items()}
-    v4 = {n: Store(split, split.store(v)) for n, v in names.items()}
-    base = {n: st.per_set(st.measures(np.zeros(len(st.rows)))) for n, st in v4.items()}
+    """The stores of a split of every set of :data:`SETS` at the product's stage
+    (:func:`product_split`, :func:`split_stores`), and the rule's base."""
+    split = product_split(split_name)
+    _, stores, _, base = split_stores(split, SETS)
     return split, stores, base
 
 

@@ -6,10 +6,10 @@ descriptor version 5) and ``views`` (silhouettes and depth images of the ball un
 
 Usage (from the repository root)::
 
-    python -m bench.union_select                         # union block, four sets, validation
-    python -m bench.union_select --block views --datasets generic capod articulated parts web
-    python -m bench.union_select --split test --weights 0 8   # report two weights on test
-    python -m bench.union_select --cost 8      # CPU per model: decomposition, v4, v5, v7
+    python -m bench.studies.union_select                         # union block, four sets, validation
+    python -m bench.studies.union_select --block views --datasets generic capod articulated parts web
+    python -m bench.studies.union_select --split test --weights 0 8   # report two weights on test
+    python -m bench.studies.union_select --cost 8      # CPU per model: decomposition, v4, v5, v7
 
 For each set's split (meshes), the version-4 descriptor of :mod:`shapedb.signature.descriptor`
 and the block are computed from the cached decompositions; the block's typical L1
@@ -42,7 +42,7 @@ from shapedb.signature.descriptor import LAYOUTS, UNION_TYPICAL, UNION_WEIGHT
 from shapedb.signature.union import union_features
 from shapedb.signature.union_views import view_features
 
-RESULTS = Path(__file__).resolve().parent / "results"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 WEIGHTS = (0.0, 1.0, 2.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0)
 
 
@@ -134,7 +134,7 @@ def read_older_cache(commit: str) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
     ap = argparse.ArgumentParser(
-        prog="python -m bench.union_select", description=__doc__.split("\n")[0]
+        prog="python -m bench.studies.union_select", description=__doc__.split("\n")[0]
     )
     ap.add_argument("--block", default="union", choices=sorted(BLOCKS))
     ap.add_argument("--datasets", nargs="+", default=["generic", "capod", "articulated", "parts"])

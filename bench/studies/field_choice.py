@@ -1,18 +1,18 @@
-"""Choosing the field vectors' part of the ``"lightfield"`` stage on validation (issue 25).
+"""Choosing the field vectors' part of the ``"lightfield"`` stage on validation.
 
 Usage (from the repository root)::
 
     export SHAPEDB_BENCH_CACHE=/work/bench_cache
-    nice -n 5 python -m bench.field_choice --split validation     # the scales (medians)
-    nice -n 5 python -m bench.field_choice --choose               # the choice on validation
+    nice -n 5 python -m bench.studies.field_choice --split validation     # the scales (medians)
+    nice -n 5 python -m bench.studies.field_choice --choose               # the choice on validation
 
-The scales ``m_l``, ``m_b``, ``m_h`` of :mod:`bench.field_vectors` are medians of each
+The scales ``m_l``, ``m_b``, ``m_h`` of :mod:`bench.support.field_vectors` are medians of each
 distance over the split's off-diagonal pairs (:func:`medians`: pooled over the six sets,
 per set, and the median of the per-set medians). ``--choose`` (:func:`choose`) scores
 every scale rule x :data:`WEIGHTS` x :data:`K2` through the gate bench's stores (every
 set and mix) at today's gate, with the two-queries rule against version 4, the analytic
 chain on the fused distance and the gate's margins; the gate itself is re-chosen by
-``python -m bench.lightfield_gate --field-vectors ...`` (its grid) on the chosen
+``python -m bench.studies.lightfield_gate --field-vectors ...`` (its grid) on the chosen
 distance. Written to bench/results/field_vectors_{medians,choice}_<split>.json.
 """
 
@@ -30,21 +30,26 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common import format_table, write_json
-from bench.field_vectors import FieldStage, analytic_distance, fuse, off_median, split_parts
-from bench.gate_checks import MIN_MARGIN, analytic_gates, analytic_shapes, analytic_stores
-from bench.gate_stores import (
+from bench.studies.gate_checks import (
+    MIN_MARGIN,
+    analytic_gates,
+    analytic_shapes,
+    analytic_stores,
+    gate_margin,
+)
+from bench.support.field_vectors import FieldStage, analytic_distance, fuse, off_median, split_parts
+from bench.support.stores import (
     MIXES,
     SETS,
     Split,
     Store,
-    gate_margin,
     gate_weights,
     score_row,
 )
 from shapedb.config.core import Config
 
 FloatArray = NDArray[np.float64]
-RESULTS = Path(__file__).resolve().parent / "results"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 
 
 def medians(split: Split, names: Sequence[str]) -> dict[str, dict[str, float]]:
@@ -73,7 +78,7 @@ def choose(
     Per setting: the rows of the product's gate (``LightFieldFusionConfig()``) on the
     fused distance with the union candidates, the two-queries rule against version 4,
     the analytic chain (shut) and rigid store (open) on the fused distance, and the
-    jointed margin (:data:`bench.gate_checks.MIN_MARGIN`; every rigid set's 95 % under the
+    jointed margin (:data:`bench.studies.gate_checks.MIN_MARGIN`; every rigid set's 95 % under the
     ceiling, which no setting keeps, nor today's product on the field's light fields, is
     reported, not required). Chosen: the best objective among
     the settings that keep all three; else the best by the rule and the chain.
@@ -166,7 +171,7 @@ def _print(results: list[dict[str, Any]], best: dict[str, Any] | None) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
-    ap = argparse.ArgumentParser(prog="python -m bench.field_choice",
+    ap = argparse.ArgumentParser(prog="python -m bench.studies.field_choice",
                                  description=__doc__.split("\n")[0])  # fmt: skip
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
     ap.add_argument("--choose", action="store_true",

@@ -2,19 +2,19 @@
 
 Usage (from the repository root)::
 
-    python -m bench.lightfield_source                         # validation, every set, alone
-    python -m bench.lightfield_source --variants              # web validation: fields, px, depth
-    python -m bench.lightfield_source --variants "field, 3 x 128 px"   # every set
-    python -m bench.lightfield_source --split test --datasets web webplus
-    python -m bench.lightfield_source --cost 40               # ingest CPU per model
+    python -m bench.studies.lightfield_source                         # validation, every set, alone
+    python -m bench.studies.lightfield_source --variants              # web validation: fields, px, depth
+    python -m bench.studies.lightfield_source --variants "field, 3 x 128 px"   # every set
+    python -m bench.studies.lightfield_source --split test --datasets web webplus
+    python -m bench.studies.lightfield_source --cost 40               # ingest CPU per model
 
 Default: per set of the split, the light fields alone (every shape queries the rest of
 its set by the light field distance; NN / 1-T / DCG) of the mesh (the light field
 descriptor of ``bench/lightfield.py``, 10 light fields; not on the people, whose
 meshes are made on the fly), of the balls (:data:`BALLS`, the product's before the field's: the packing continued to
-2048 balls, :func:`bench.packings.light_field_balls`) and of the
+2048 balls, :func:`bench.support.packings.light_field_balls`) and of the
 field's inside at 3 light fields of 64 px (``source="field"``, cached by
-:mod:`bench.inside_fields`), in the same run. ``--variants``: the field's inside at 3
+:mod:`bench.support.inside_fields`), in the same run. ``--variants``: the field's inside at 3
 and 10 light fields, 64 and 128 px, and with depth images (``depth_weight``); named,
 only those (on every set unless ``--datasets``). ``--classes``: also each row's NN and
 first tier on the named classes.
@@ -42,21 +42,21 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench import inside_fields
-from bench.cached import CHOICES, SETS, load, model_key
 from bench.common import format_table, per_query, retrieval_scores, write_json
 from bench.sets.datasets import CACHE_DIR, Dataset
-from bench.field_vector_cost import ingest_cpu
-from bench.field_vector_cost import models as first_models
-from bench.packings import light_field_balls
+from bench.studies.field_vector_cost import ingest_cpu
+from bench.studies.field_vector_cost import models as first_models
+from bench.support import inside_fields
+from bench.support.cached import CHOICES, SETS, load, model_key
+from bench.support.packings import light_field_balls
 from shapedb.config.core import Config, LightFieldConfig
 from shapedb.signature.lightfield import light_field_distance, record_light_field
 
 FloatArray = NDArray[np.float64]
 #: The product's balls are the first by radius of the packing continued to this many
-#: (:func:`bench.packings.longer`'s ``within``, as the gate's product rows were measured).
+#: (:func:`bench.support.packings.longer`'s ``within``, as the gate's product rows were measured).
 WITHIN = 4096
-RESULTS = Path(__file__).resolve().parent / "results"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 #: The balls' light fields the product kept before the field's (``lf_source=balls``): 3
 #: light fields of 64 px of the packing continued to 2048 balls; the baseline of every run.
 BALLS = LightFieldConfig(n_fields=3, resolution=64, n_balls=2048, source="balls")
@@ -73,7 +73,9 @@ VARIANTS: dict[str, dict[str, Any]] = {
 
 
 def _cached(tag: str, keys: Sequence[str], compute: Any) -> FloatArray:
-    code = (Path(__file__).resolve().parents[1] / "shapedb" / "lightfield.py").read_bytes()
+    code = (
+        Path(__file__).resolve().parents[2] / "shapedb" / "signature" / "lightfield.py"
+    ).read_bytes()
     key = hashlib.sha256(code + tag.encode() + "\n".join(keys).encode()).hexdigest()[:16]
     path = CACHE_DIR / "lightfield_source" / f"{key}.npy"
     if path.exists():
@@ -88,7 +90,7 @@ def matrices(
     name: str, split: str, configs: dict[str, LightFieldConfig], mesh: bool = True
 ) -> tuple[Dataset, dict[str, FloatArray]]:
     """A split's light field distance matrices, (n, n) each: the mesh's, then per config."""
-    from bench.rerank_select import lfd_matrix
+    from bench.support.lightfield import lfd_matrix
 
     ds, balls = load(name, split)
     keys = [model_key(m) for m in ds.models]
@@ -210,7 +212,7 @@ def cost(k: int) -> dict[str, Any]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
-    ap = argparse.ArgumentParser(prog="python -m bench.lightfield_source",
+    ap = argparse.ArgumentParser(prog="python -m bench.studies.lightfield_source",
                                  description=__doc__.split("\n")[0])  # fmt: skip
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
     ap.add_argument("--datasets", nargs="+", default=None, choices=CHOICES)

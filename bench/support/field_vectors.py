@@ -3,10 +3,10 @@
 Usage (from the repository root)::
 
     export SHAPEDB_BENCH_CACHE=/work/bench_cache
-    nice -n 5 python -m bench.field_choice --split validation     # the scales (medians)
-    nice -n 5 python -m bench.field_choice --choose               # the choice on validation
+    nice -n 5 python -m bench.studies.field_choice --split validation     # the scales (medians)
+    nice -n 5 python -m bench.studies.field_choice --choose               # the choice on validation
 
-The product's stage (issue 25): each record keeps a *field vector*, the depth buffer
+The product's stage: each record keeps a *field vector*, the depth buffer
 descriptor of its field's inside (Vranic: 438 floats at 64 px, ``k`` 8) followed by the
 spherical-harmonic energies of the same inside (Kazhdan, on an angle grid: 32 shells x
 16 bands). The stage's distance between two shapes is
@@ -22,16 +22,16 @@ nearest followed by those of the ``K2`` nearest by the L1 distance of the scaled
 ``[depth / m_b, harmonic / m_h]`` (``field_candidates``) that are not among them, in the
 stored distance's order.
 
-:func:`fuse` turns a :class:`bench.gate_stores.Split` into that stage's split (its
+:func:`fuse` turns a :class:`bench.support.stores.Split` into that stage's split (its
 light field distance replaced by the fused one, the scaled vectors' distance kept for
-the candidates); :class:`bench.gate_stores.Store` takes the union. The vectors of
+the candidates); :class:`bench.support.stores.Store` takes the union. The vectors of
 the bench models (:func:`shapedb.signature.field_vector.field_vector`) come from the field
-shells cached by :mod:`bench.field_shells`
-(``$SHAPEDB_BENCH_CACHE/field_depth``, computed by :func:`bench.field_shells.fill` when missing) and are cached under
+shells cached by :mod:`bench.support.field_shells`
+(``$SHAPEDB_BENCH_CACHE/field_depth``, computed by :func:`bench.support.field_shells.fill` when missing) and are cached under
 ``$SHAPEDB_BENCH_CACHE/field_vectors``. :func:`analytic_distance` gives the analytic
-stores of :mod:`bench.gate_checks` the same fused distance, so the analytic chain is
+stores of :mod:`bench.studies.gate_checks` the same fused distance, so the analytic chain is
 checked on it. The choice of the scales, the weights and ``K2`` on validation is
-:mod:`bench.field_choice`.
+:mod:`bench.studies.field_choice`.
 """
 
 from __future__ import annotations
@@ -47,11 +47,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.cached import load, model_key
 from bench.sets.datasets import CACHE_DIR
-from bench.field_shells import as_inside
+from bench.support.cached import load, model_key
+from bench.support.field_shells import as_inside
 
-#: A :class:`bench.gate_stores.Split` (that module imports this one).
+#: A :class:`bench.support.stores.Split` (that module imports this one).
 Split = Any
 
 FloatArray = NDArray[np.float64]
@@ -133,7 +133,7 @@ def set_vectors(name: str, split: str) -> NDArray[np.float32]:
     Read from the cache, else computed from the study's cached shells (computing the
     shells the cache lacks).
     """
-    from bench.field_shells import shells
+    from bench.support.field_shells import shells
 
     ds, _ = load(name, split)
     fn, code = _describer()
@@ -266,9 +266,9 @@ def analytic_vectors(shapes: Sequence[tuple[str, Any]], config: Any) -> NDArray[
 
 def analytic_distance(db: Any, shapes: Sequence[tuple[str, Any]], stage: FieldStage) -> Callable[
         [int, NDArray[np.int64], FloatArray], FloatArray]:  # fmt: skip
-    """The fused distance of an analytic store (:func:`bench.gate_checks.analytic_stores`):
+    """The fused distance of an analytic store (:func:`bench.studies.gate_checks.analytic_stores`):
     ``f(query id, candidate ids, light field distances)``, for
-    :func:`bench.gate_checks.analytic_gates`'s ``distance``."""
+    :func:`bench.studies.gate_checks.analytic_gates`'s ``distance``."""
     v = analytic_vectors(shapes, db.config)
     t = db.store.shapes(["id", "name"])
     pos = {int(i): [s for s, _ in shapes].index(n)

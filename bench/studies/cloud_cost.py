@@ -1,87 +1,24 @@
-"""What a cloud query costs against a mesh query, through the facade, in one run.
-
-For the first ``n`` models of a set and each store configuration in ``configs``, a
-fresh store ingests the ``n`` meshes one at a time (``db.ingest``: "mesh ingest"),
-then every mesh (``db.search(mesh)``: "mesh query") and every paper cloud (a random
-20 % of the vertices, ``db.search(cloud)``: "cloud query") is searched once. All
-configurations run interleaved model by model, so that a shared machine's load
-falls on them alike; wall seconds, one thread (the Poisson solve too).
+"""Where a cloud query's time goes, against a mesh query's, stage by stage.
 
 :func:`profile_cloud_query` splits a cloud query into its stages (the cloud's own
 field, packing and refinement; the Poisson solve; the reconstruction's
 decomposition; their features), as ``query.search.engine`` runs them;
-``python -m bench.cloud_cost [--sets ...] [--n 4]`` prints its medians per set.
+``python -m bench.studies.cloud_cost [--sets ...] [--n 4]`` prints its medians per set.
+The live cost of whole queries through the facade is ``python -m bench.representations
+--cost`` (:func:`bench.support.cost.measure`).
 """
 
 from __future__ import annotations
 
-import tempfile
 import time
-from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from bench.sets.datasets import Model, mesh_arrays, min_cloud_points, point_cloud, stable_seed
+from bench.sets.datasets import Model
+from bench.support.cost import geometries
 
-__all__ = ["main", "measure", "profile_cloud_query"]
-
-
-def _geometries(model: Model) -> tuple[Any, Any]:
-    """The model's mesh and its paper cloud (as the bench's ``pointcloud`` variant)."""
-    from shapedb.geometry.mesh import TriangleMesh
-    from shapedb.geometry.pointcloud import PointCloud
-
-    v, f = mesh_arrays(model)
-    points = point_cloud(
-        v, f, seed=stable_seed(model.name, "pointcloud"), min_points=min_cloud_points(model)
-    )
-    return TriangleMesh(v, f, name=model.name), PointCloud(points, name=model.name)
-
-
-def measure(
-    models: Sequence[Model], configs: Mapping[str, Mapping[str, Any]]
-) -> dict[str, dict[str, list[float]]]:
-    """Wall seconds per model of mesh ingest, mesh query and cloud query, per configuration.
-
-    Parameters
-    ----------
-    models : sequence of Model
-        The models (their meshes are the store; at least 2).
-    configs : mapping
-        Name -> ``shapedb.connect`` options of a store (e.g. ``{"reconstruct_depth": 7}``).
-
-    Returns
-    -------
-    dict
-        Name -> {"ingest", "mesh", "cloud"} -> seconds (len(models),).
-    """
-    import shapedb
-
-    geoms = [_geometries(m) for m in models]
-    out: dict[str, dict[str, list[float]]] = {
-        c: {"ingest": [], "mesh": [], "cloud": []} for c in configs
-    }
-    with tempfile.TemporaryDirectory(prefix="cloud_cost_") as tmp:
-        dbs = {
-            c: shapedb.connect(Path(tmp) / f"s{i}", **opts)
-            for i, (c, opts) in enumerate(configs.items())
-        }
-        for m, (mesh, _) in zip(models, geoms, strict=True):
-            for c, db in dbs.items():
-                t0 = time.perf_counter()
-                db.ingest({m.name: mesh}, workers=1)
-                out[c]["ingest"].append(time.perf_counter() - t0)
-        for mesh, cloud in geoms:
-            for c, db in dbs.items():
-                t0 = time.perf_counter()
-                db.search(mesh, k=5)
-                out[c]["mesh"].append(time.perf_counter() - t0)
-                t0 = time.perf_counter()
-                db.search(cloud.transformed(np.eye(3), np.zeros(3)), k=5)  # a fresh copy
-                out[c]["cloud"].append(time.perf_counter() - t0)
-    return out
+__all__ = ["main", "profile_cloud_query"]
 
 
 def profile_cloud_query(model: Model, *, depth: int = 8) -> dict[str, float]:
@@ -95,7 +32,7 @@ def profile_cloud_query(model: Model, *, depth: int = 8) -> dict[str, float]:
     from shapedb.mdbd.reconstruct import reconstruct
     from shapedb.signature.kernel import features
 
-    mesh, cloud = _geometries(model)
+    mesh, cloud = geometries(model)
     t0 = time.perf_counter()
     features(decompose(mesh))
     out = {"mesh": time.perf_counter() - t0}
@@ -134,7 +71,10 @@ def main(argv: list[str] | None = None) -> None:
 
     makers = {"people": people, "capod": capod, "figures": articulated, "parts": parts}
 
-    ap = argparse.ArgumentParser(description="Where a cloud query's time goes, per set.")
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.studies.cloud_cost",
+        description="Where a cloud query's time goes, per set.",
+    )
     ap.add_argument(
         "--sets",
         nargs="+",
@@ -166,7 +106,7 @@ def main(argv: list[str] | None = None) -> None:
 
 
 #: Where :func:`main` writes its JSON.
-OUT = Path(__file__).resolve().parent / "results" / "cloud_cost_profile.json"
+OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "cloud_cost_profile.json"
 
 if __name__ == "__main__":
     main()

@@ -27,12 +27,17 @@ renders the light fields of a decomposition's balls.
 
 from __future__ import annotations
 
+import hashlib
+import time
+from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from bench.baselines import sample_surface
+from bench.support.baselines import sample_surface
 from shapedb.config.core import LightFieldConfig
 from shapedb.signature.lightfield import (
     dodecahedron_rotations,
@@ -54,6 +59,8 @@ __all__ = [
     "lfd_descriptor",
     "lfd_distance",
     "lfd_similarity",
+    "lfd_matrix",
+    "lfd_split_matrix",
 ]
 
 #: The distance of :mod:`shapedb.signature.lightfield` under the baseline's name.
@@ -173,3 +180,46 @@ def lfd_descriptor(
 def lfd_similarity(descriptors: ArrayLike, others: ArrayLike | None = None) -> NDArray[np.float64]:
     """Similarity ``-`` :func:`lfd_distance` (larger is more similar): (n, m) float64."""
     return -lfd_distance(descriptors, others)
+
+
+def _code_digest() -> str:
+    """sha256 (12 hex) of this module's bytes: the key of the cached descriptors."""
+    return hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:12]
+
+
+def lfd_matrix(ds: Any) -> np.ndarray:
+    """Light field distances between the split's meshes, (n, n); descriptors cached."""
+    from bench.sets.datasets import CACHE_DIR, mesh_arrays
+
+    code = _code_digest()
+    folder = CACHE_DIR / "lfd"
+    folder.mkdir(parents=True, exist_ok=True)
+    out = []
+    for m in ds.models:
+        key = hashlib.sha256(f"{m.source}|{m.name}".encode()).hexdigest()[:20]
+        path = folder / f"{key}_{code}.npy"
+        if not path.exists():
+            np.save(path, lfd_descriptor(*mesh_arrays(m), LFDConfig()))
+        out.append(np.load(path))
+    return np.asarray(lfd_distance(np.stack(out)), np.float64)
+
+
+def lfd_split_matrix(models: Sequence[Any]) -> np.ndarray:
+    """:func:`lfd_matrix` of any models together (several sets' splits), (n, n), cached
+    under ``$SHAPEDB_BENCH_CACHE/lfd/matrices`` by the models and the descriptor's code."""
+    from types import SimpleNamespace
+
+    from bench.sets.datasets import CACHE_DIR
+
+    keys = "\n".join(f"{m.source}|{m.name}" for m in models)
+    code = _code_digest()
+    key = hashlib.sha256((code + keys).encode()).hexdigest()[:16]
+    path = CACHE_DIR / "lfd" / "matrices" / f"{key}.npy"
+    if path.exists():
+        return np.load(path)
+    t = time.perf_counter()
+    d = lfd_matrix(SimpleNamespace(models=list(models)))  # type: ignore[arg-type]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.save(path, d)
+    print(f"  mesh light field distances {d.shape}: {time.perf_counter() - t:.0f} s", flush=True)
+    return d

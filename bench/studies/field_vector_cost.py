@@ -3,8 +3,8 @@
 Usage (from the repository root)::
 
     export SHAPEDB_BENCH_CACHE=/work/bench_cache
-    nice -n 5 python -m bench.field_vector_cost            # 20 web validation models
-    nice -n 5 python -m bench.field_vector_cost --models 40 --repeats 2
+    nice -n 5 python -m bench.studies.field_vector_cost            # 20 web validation models
+    nice -n 5 python -m bench.studies.field_vector_cost --models 40 --repeats 2
 
 Per model (web validation, one model of each class first, then the rest in order): the
 CPU seconds of this process for the ingest work of ``ingest.pipeline.build_record`` (load,
@@ -29,11 +29,11 @@ from typing import Any
 
 import numpy as np
 
-from bench.cached import load
 from bench.common import format_table, variant_geometry, write_json
+from bench.support.cached import load
 from shapedb.config.core import Config
 
-RESULTS = Path(__file__).resolve().parent / "results"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 STORES = {
     "today (fv_enabled=false)": Config().with_options(fv_enabled=False),
     "with the field vector": Config(),
@@ -127,7 +127,7 @@ def run(k: int, repeats: int) -> dict[str, Any]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
-    ap = argparse.ArgumentParser(prog="python -m bench.field_vector_cost",
+    ap = argparse.ArgumentParser(prog="python -m bench.studies.field_vector_cost",
                                  description=__doc__.split("\n")[0])  # fmt: skip
     ap.add_argument("--models", type=int, default=20, help="web validation models timed")
     ap.add_argument("--repeats", type=int, default=1, help="runs per model and store (min)")

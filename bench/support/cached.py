@@ -13,9 +13,8 @@ from collections.abc import Sequence
 from typing import Any
 
 from bench.common import cache_path, load_balls
-from bench.sets.datasets import Dataset, capod, generic, parts, web, webplus
+from bench.sets.datasets import Dataset, capod, generic, parts, people, web, webplus
 from bench.sets.datasets import articulated as figures
-from bench.representations import build
 from shapedb.config.core import MDBDConfig
 
 __all__ = ["ENGINE_COMMITS", "SETS", "HELD_OUT", "CHOICES", "load", "model_key"]
@@ -40,11 +39,8 @@ def load(name: str, split: str, variants: Sequence[str] = ("mesh",)) -> tuple[Da
 
     Returns the models and, per model, its Balls (one variant) or a tuple of Balls.
     """
-    if name == "people":
-        (ds,) = build(["people"], split)
-    else:
-        ds = {"web": web, "generic": generic, "capod": capod, "figures": figures,
-              "parts": parts, "webplus": webplus}[name]().split(split)  # fmt: skip
+    ds = {"web": web, "generic": generic, "capod": capod, "figures": figures, "parts": parts,
+          "people": people, "webplus": webplus}[name]().split(split)  # fmt: skip
     cfg = MDBDConfig()
     keep, balls = [], []
     for i, m in enumerate(ds.models):

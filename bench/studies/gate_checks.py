@@ -1,6 +1,6 @@
 """What a light field gate is checked against: jointed subjects, analytic stores, margins.
 
-Used by the gate's selection (:mod:`bench.lightfield_gate`) and by the tests of the
+A library of the gate's studies (not a script), used by the gate's selection (:mod:`bench.studies.lightfield_gate`) and by the tests of the
 ``"lightfield"`` stage:
 
 * :data:`JOINTED`: the bench sets whose subjects are jointed (figures, people), where the
@@ -8,7 +8,8 @@ Used by the gate's selection (:mod:`bench.lightfield_gate`) and by the tests of 
 * :func:`analytic_stores` and :func:`analytic_gates`: two small analytic stores (rigid
   boxes and rods; one chain in eight poses) and the product scorer's gate on them, at
   any :class:`shapedb.config.core.LightFieldFusionConfig`;
-* :func:`margin`: how far apart a gate statistic puts the jointed sets and the rigid ones;
+* :func:`margin`: how far apart a gate statistic puts the jointed sets and the rigid ones
+  (:func:`gate_margin`: of a gate's statistic on the bench's stores);
 * :data:`RATIO_GRID`, :data:`CEILINGS`, :func:`ratio_settings`: the ratio gate's grid.
 """
 
@@ -22,6 +23,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from bench.support.stores import Store, gate_statistic
 from query.search.lightfield_spread import pooled
 from shapedb.config.core import Config
 from shapedb.signature.lightfield import light_field_distance
@@ -39,6 +41,7 @@ __all__ = [
     "analytic_stores",
     "analytic_gates",
     "margin",
+    "gate_margin",
     "ratio_settings",
 ]
 
@@ -136,7 +139,7 @@ def analytic_stores(root: Path) -> dict[str, Any]:
     from query.database import connect
 
     # no stored field vectors: the stage sees the light field alone, and a field-vector
-    # run passes its fused distance to analytic_gates (bench.field_vectors.analytic_distance)
+    # run passes its fused distance to analytic_gates (bench.support.field_vectors.analytic_distance)
     config = Config().with_options(**ANALYTIC, fv_enabled=False)
     out = {}
     for name, shapes in analytic_shapes().items():
@@ -158,7 +161,7 @@ def analytic_gates(
     :func:`query.search.lightfield_spread.local_spreads` under ``f``, every shape a candidate.
     ``distance``: the stage's distance in place of the light field's,
     ``distance(query id, candidate ids, light field distances)`` (the field vectors'
-    fusion, :func:`bench.field_vectors.analytic_distance`), in the statistics and the
+    fusion, :func:`bench.support.field_vectors.analytic_distance`), in the statistics and the
     gate alike; ``memo`` keys it by its identity.
     """
     from query.search.index import open_index
@@ -247,3 +250,10 @@ def margin(pooled_by: dict[tuple[str, str], FloatArray]) -> dict[str, float]:
     out["ratio_5_95"] = out["jointed_5"] / out["rigid_95"]
     out["ratio_min_max"] = out["jointed_min"] / out["rigid_max"]
     return out
+
+
+def gate_margin(stores: dict[str, Store], f: Any,
+                memo: dict[Any, FloatArray] | None = None) -> dict[str, float]:  # fmt: skip
+    """:func:`margin` of ``f``'s pooled statistic over every set in every store."""
+    return margin({(k, str(s)): gate_statistic(st, f, memo)[st.sets == s]
+                   for k, st in stores.items() for s in dict.fromkeys(st.sets)})  # fmt: skip

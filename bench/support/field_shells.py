@@ -1,11 +1,11 @@
 """The shells of each model's field inside (the cells the field vector reads), cached.
 
-:func:`shells` gives a split's models (those :func:`bench.cached.load` has, in its order)
+:func:`shells` gives a split's models (those :func:`bench.support.cached.load` has, in its order)
 the shell cells of the inside of their MDBD field (:func:`model_inside`: the field of
 :func:`shapedb.mdbd.decomposition.prepare_field`, its inside by :func:`shapedb.geometry.inside.field_inside`), with the cell edge, the volume centroid, the inside
 cell count and the field's CPU seconds: what :func:`shapedb.signature.field_vector.field_vector`
 reads. Cached under ``$SHAPEDB_BENCH_CACHE/field_depth`` keyed by the model's cache key of
-:func:`bench.common.cache_path` (the older engines of :data:`bench.cached.ENGINE_COMMITS`
+:func:`bench.common.cache_path` (the older engines of :data:`bench.support.cached.ENGINE_COMMITS`
 are read too) and :data:`VERSION`; :func:`fill` computes what the cache lacks.
 """
 
@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from bench.cached import ENGINE_COMMITS
 from bench.common import cache_path
 from bench.sets.datasets import CACHE_DIR, Dataset
+from bench.support.cached import ENGINE_COMMITS
 from shapedb.config.core import MDBDConfig
 from shapedb.geometry.inside import Inside
 
@@ -53,7 +53,7 @@ def as_inside(z: Any) -> Inside:
 
 def _paths(model: Any) -> list[Path]:
     """Today's cache path of a model's shell, then those of the older engines
-    (:data:`bench.cached.ENGINE_COMMITS`, whose fields are today's)."""
+    (:data:`bench.support.cached.ENGINE_COMMITS`, whose fields are today's)."""
     cfg = MDBDConfig()
     keys = [cache_path(model, "mesh", cfg).stem]
     keys += [cache_path(model, "mesh", cfg, engine_commit=c).stem for c in ENGINE_COMMITS]

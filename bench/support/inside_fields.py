@@ -1,6 +1,6 @@
 """Light fields of the inside of each model's field (``LightFieldConfig.source="field"``), cached.
 
-:func:`light_fields` gives a split's models (those :func:`bench.cached.load` has, in its
+:func:`light_fields` gives a split's models (those :func:`bench.support.cached.load` has, in its
 order) their light fields as a store with ``source="field"`` keeps them: the field of
 :func:`shapedb.mdbd.decomposition.prepare_field` (as ``decompose`` computes it), its inside
 (:func:`shapedb.geometry.inside.field_inside`) rendered by :func:`shapedb.geometry.inside.inside_light_field`.
@@ -11,15 +11,15 @@ and 10 light fields at 128 px, silhouettes only. Fewer light fields are the firs
 depth weight rescales the depth block. Other Zernike orders, Fourier settings, seeds
 or fills are not cached (a ``ValueError``). The renderings about the volume centroid
 (``LightFieldConfig.centre="volume"``) are computed from the model's field; those about
-the shell's mean (``"surface"``) from its cached shell (:mod:`bench.field_shells`), in
+the shell's mean (``"surface"``) from its cached shell (:mod:`bench.support.field_shells`), in
 files of their own that record their centre.
 
 Cached under ``$SHAPEDB_BENCH_CACHE/lightfield_inside``, keyed by the model's cache key
 of :func:`bench.common.cache_path` (model, MDBD configuration, engine code; the older
-engines of :data:`bench.cached.ENGINE_COMMITS` are read too) and :data:`VERSION`, with
+engines of :data:`bench.support.cached.ENGINE_COMMITS` are read too) and :data:`VERSION`, with
 the CPU seconds of the field and of the rendering. Fill a split's cache with::
 
-    nice -n 5 python -m bench.inside_fields --split validation --datasets web generic
+    nice -n 5 python -m bench.support.inside_fields --split validation --datasets web generic
 """
 
 from __future__ import annotations
@@ -36,10 +36,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.cached import CHOICES, ENGINE_COMMITS, load
 from bench.common import cache_path
 from bench.sets.datasets import CACHE_DIR, Dataset
-from bench.field_shells import as_inside, model_inside, shells
+from bench.support.cached import CHOICES, ENGINE_COMMITS, load
+from bench.support.field_shells import as_inside, model_inside, shells
 from shapedb.config.core import LightFieldConfig, MDBDConfig
 
 __all__ = ["VERSION", "light_fields", "fill", "cut"]
@@ -203,7 +203,7 @@ def cpu(name: str, split: str, ds: Dataset) -> dict[str, float]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point: fill the cache of the named sets' splits."""
-    ap = argparse.ArgumentParser(prog="python -m bench.inside_fields")
+    ap = argparse.ArgumentParser(prog="python -m bench.support.inside_fields")
     ap.add_argument("--split", nargs="+", default=["validation"], choices=["validation", "test"])
     ap.add_argument("--datasets", nargs="+", default=["web"], choices=CHOICES)
     ap.add_argument("--workers", type=int, default=2)

@@ -22,7 +22,7 @@ Light field descriptor (Chen, Tian, Shen and Ouhyoung, Eurographics 2003)
     Zernike and Fourier descriptors of silhouettes from the 10 view pairs of a
     dodecahedron, several light fields per model, the distance minimised over the 60
     rotations of the dodecahedron and over light-field pairs; in its own module,
-    :mod:`bench.lightfield` (``LFDConfig``, ``lfd_descriptor``, ``lfd_similarity``),
+    :mod:`bench.support.lightfield` (``LFDConfig``, ``lfd_descriptor``, ``lfd_similarity``),
     which samples surfaces with :func:`sample_surface` from here.
 
 GraKeL graph kernels (Siglidis et al., JMLR 2020) on the MDBD contact graphs

@@ -2,11 +2,11 @@
 
 Usage (from the repository root)::
 
-    python -m bench.lightfield_gate                      # validation: the grid, the choice
-    python -m bench.lightfield_gate --split test         # test: the rows chosen on validation
-    python -m bench.lightfield_gate --lf-source field    # the same on the field's light fields
+    python -m bench.studies.lightfield_gate                      # validation: the grid, the choice
+    python -m bench.studies.lightfield_gate --split test         # test: the rows chosen on validation
+    python -m bench.studies.lightfield_gate --lf-source field    # the same on the field's light fields
 
-Every bench set's split (meshes; the cached balls of :func:`bench.cached.load`, nothing
+Every bench set's split (meshes; the cached balls of :func:`bench.support.cached.load`, nothing
 decomposed) is a store of its own, and so are the mixed stores of :data:`MIXES` (web +
 figures, web + people, generic + parts, all six). In each store every shape queries the
 others: its ``K = 100`` nearest by version 4's stored distance (ties by ascending id, the
@@ -17,13 +17,13 @@ the store. Rows, in the same run: version 4 (no stage), the balls' light fields 
 the gates before (:data:`LEGACY`, :data:`SPREAD_GATE`), the product's stage at its
 defaults, on validation the grid's choices, and with ``--oracle`` the gate's headroom
 (:func:`oracle_rows`: gates that know which sets are jointed); the statistics of each
-store and the gate's margin (:func:`bench.gate_checks.margin`) are printed beside.
+store and the gate's margin (:func:`bench.studies.gate_checks.margin`) are printed beside.
 
 The selection (validation, ``--grid ratio``, the default): every setting of
-:func:`bench.gate_checks.ratio_settings` that passes the rule (no set, alone or in a
+:func:`bench.studies.gate_checks.ratio_settings` that passes the rule (no set, alone or in a
 mix, more than two queries below v4 on NN, 1-T or DCG), keeps the analytic chain in
-poses shut through the product's scorer (:func:`bench.gate_checks.analytic_stores`) and
-keeps both margins (:data:`bench.gate_checks.MIN_MARGIN`); the best objective among them
+poses shut through the product's scorer (:func:`bench.studies.gate_checks.analytic_stores`) and
+keeps both margins (:data:`bench.studies.gate_checks.MIN_MARGIN`); the best objective among them
 is chosen. ``--grid spread``: the grid of the spread gate (:data:`GRID`), by the rule
 alone.
 
@@ -32,17 +32,17 @@ The light field distances (the store's float32 light fields,
 cached under ``$SHAPEDB_BENCH_CACHE/lightfield_gate`` keyed by the models and the code of
 ``shapedb/signature/lightfield.py`` and ``shapedb/signature/lightfield_descriptor.py``, so a changed silhouette
 re-computes them and the selection re-runs in one command. Written to
-bench/results/lightfield_gate_<split>.json. A held-out set that :mod:`bench.cached` knows
+bench/results/lightfield_gate_<split>.json. A held-out set that :mod:`bench.support.cached` knows
 (``webplus``) is run with ``--split test --no-grid --datasets webplus figures people`` (it
 and its mixes with the figures and the people). ``--lf-n-balls N``: the light fields of
 the packing continued to N balls (``LightFieldConfig.n_balls``, decomposed and cached by
-:func:`bench.packings.longer`; ``--lf-within M``: the first N by radius of the packing
+:func:`bench.support.packings.longer`; ``--lf-within M``: the first N by radius of the packing
 continued to M); version 4 stays that of the cached balls. ``--lf-source field``: the
 light fields of the field's inside (``LightFieldConfig.source``, computed once per model
-and cached by :mod:`bench.inside_fields`); ``--lf-set FIELD=VALUE``: other
+and cached by :mod:`bench.support.inside_fields`); ``--lf-set FIELD=VALUE``: other
 ``LightFieldConfig`` fields (e.g. ``resolution=128``).
 
-The field vectors (:mod:`bench.field_vectors`): ``--field-vectors`` scores the stage whose
+The field vectors (:mod:`bench.support.field_vectors`): ``--field-vectors`` scores the stage whose
 distance fuses the light field distance with the L1 distances of the field's depth
 buffers and harmonics (fixed scales) and whose candidates are the union of version 4's
 K and the field vectors' K2 nearest, everywhere the stage uses the light field distance
@@ -51,22 +51,23 @@ K and the field vectors' K2 nearest, everywhere the stage uses the light field d
 has them), and ``--no-field-vectors`` keeps the light field alone. Such a run also
 scores the stage before the field vectors (the light field distance, K alone) in the
 same run. ``--mesh-lfd``: the peer's row, every shape of each store ranked by the mesh
-light field descriptor (:func:`bench.rerank_select.lfd_split_matrix`, cached).
+light field descriptor (:func:`bench.support.lightfield.lfd_split_matrix`, cached).
 ``--no-rigid-margin``: the ratio grid keeps the jointed margin alone.
 
 The shared-neighbour term (:mod:`query.search.lightfield_neighbours`): "stage now" has the product's
 (``--shared K BETA``: another), beside the stage without it; ``--shared-grid`` adds every
-``k`` x ``beta`` of :data:`bench.gate_stores.SHARED_GRID` (:func:`bench.gate_stores.shared_rows`).
+``k`` x ``beta`` of :data:`bench.support.stores.SHARED_GRID` (:func:`bench.support.stores.shared_rows`).
 ``--grid-term``: the selection's grid scored with the product's shared-neighbour term on
 (the stage a store runs). ``--contrast-grid``: the stage now at every contrast floor x ramp
-x depth of :data:`bench.gate_stores.CONTRAST_GRID`, its term on, and the best of them by
-the rule (:func:`bench.gate_stores.contrast_rows`).
+x depth of :data:`bench.support.stores.CONTRAST_GRID`, its term on, and the best of them by
+the rule (:func:`bench.support.stores.contrast_rows`).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import itertools
 import sys
 import tempfile
 import time
@@ -77,26 +78,23 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.cached import load
 from bench.common import format_table, write_json
-from bench.gate_checks import (
+from bench.rerank import baseline_rows
+from bench.studies.gate_checks import (
     JOINTED,
     JOINTED_SETS,
     MIN_MARGIN,
     analytic_gates,
     analytic_shapes,
     analytic_stores,
+    gate_margin,
     ratio_settings,
 )
-from bench.gate_stores import (
+from bench.support.stores import (
     CHOICES,
-    MEASURES,
-    MIXES,
     SETS,
     Split,
     Store,
-    contrast_rows,
-    gate_margin,
     gate_statistic,
     gate_weights,
     local_spreads,
@@ -108,19 +106,11 @@ from bench.gate_stores import (
 from shapedb.config.core import Config
 
 __all__ = [
-    "SETS",
-    "MIXES",
-    "CHOICES",
-    "MEASURES",
-    "Split",
-    "Store",
-    "local_spreads",
-    "gate_statistic",
-    "gate_margin",
-    "gate_weights",
-    "score_row",
+    "GRID",
+    "SHARED_GRID",
+    "CONTRAST_GRID",
+    "contrast_rows",
     "select",
-    "mesh_lfd_row",
     "oracle_rows",
     "statistics",
     "parser",
@@ -128,7 +118,7 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
-RESULTS = Path(__file__).resolve().parent / "results"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 
 
 def _short(setting: dict[str, Any]) -> str:
@@ -168,20 +158,51 @@ LEGACY = {"weight": 8.0, "power": 3.0, "ceiling": 0.09, "spread_candidates": 100
           "contrast_floor": 0.0, "ramp": 0.02, "ratio_weight": 0.0}  # fmt: skip
 
 
+#: The shared-neighbour grid of ``--shared-grid``: ``k`` x ``beta``.
+SHARED_GRID = ((2, 3, 4, 5), (0.4, 0.8, 1.6))
+#: The contrast grid of ``--contrast-grid``: ``contrast_floor`` x ``contrast_ramp`` x
+#: ``contrast_depth`` (floor 0, the contrast off, once).
+CONTRAST_GRID = ((0.0, 0.1, 0.2, 0.25, 0.3, 0.35), (0.05, 0.1, 0.2), (20, 30, 50))
+
+
+def contrast_rows(stores: dict[str, Store], split: Split, f: Any,
+                  base: dict[str, dict[str, dict[str, float]]],
+                  within: str = "store") -> dict[str, dict[str, Any]]:  # fmt: skip
+    """The stage at the fusion ``f`` with its contrast at every setting of :data:`CONTRAST_GRID`.
+
+    Every row keeps ``f``'s other gate fields and its shared-neighbour term (the gate is
+    chosen for the stage the product runs); labelled ``"contrast: {...}"`` with the
+    setting, and last ``"best of the contrast grid: {...}"``, the highest objective among
+    the rows that pass the rule (no set more than two queries below version 4).
+    """
+    term = shared_stores(stores, split, f, within)
+    rows: dict[str, dict[str, Any]] = {}
+    for floor, ramp, depth in itertools.product(*CONTRAST_GRID):
+        if floor == 0 and (ramp, depth) != (CONTRAST_GRID[1][0], CONTRAST_GRID[2][0]):
+            continue  # the contrast off: ramp and depth unused
+        s = {"contrast_floor": floor, "contrast_ramp": ramp, "contrast_depth": depth}
+        g = dataclasses.replace(f, **s)
+        rows[f"contrast: {s}"] = score_row(
+            term, {k: gate_weights(st, g) for k, st in stores.items()}, base)  # fmt: skip
+    passing = {k: r for k, r in rows.items() if r["passes"]}
+    if passing:
+        top = max(passing, key=lambda k: passing[k]["objective"])
+        rows["best of the contrast grid: " + top.split(": ", 1)[1]] = passing[top]
+    return rows
+
+
 def select(args: argparse.Namespace, split: Split | None = None,
            analytic: dict[str, Any] | None = None) -> dict[str, Any]:  # fmt: skip
     """Rows of every store; on validation the grid and its choice; returns the JSON.
 
     ``split``: the shapes and distances to score (default: :class:`Split` of ``args``,
-    fused with the field vectors of :func:`bench.field_vectors.stage_of` ``args``; a
+    fused with the field vectors of :func:`bench.support.field_vectors.stage_of` ``args``; a
     study passes its own distances this way; a split with a ``stage``
-    (:func:`bench.field_vectors.fuse`) takes its union candidates and checks the
+    (:func:`bench.support.field_vectors.fuse`) takes its union candidates and checks the
     analytic stores on its distance). ``analytic``: the analytic stores
-    (:func:`bench.gate_checks.analytic_stores`), built here when None.
+    (:func:`bench.studies.gate_checks.analytic_stores`), built here when None.
     """
-    import itertools
-
-    from bench.field_vectors import analytic_distance, fuse, stage_of
+    from bench.support.field_vectors import analytic_distance, fuse, stage_of
 
     t0 = time.perf_counter()
     if split is None:
@@ -192,16 +213,9 @@ def select(args: argparse.Namespace, split: Split | None = None,
         if chosen is not None:
             split = fuse(split, args.datasets, chosen)
     stage = getattr(split, "stage", None)
-    k2 = stage.candidates if stage is not None else 0
-    names: dict[str, tuple[str, ...]] = {s: (s,) for s in args.datasets}
-    names.update({k: v for k, v in MIXES.items() if set(v) <= set(args.datasets)})
-    stores = {k: Store(split, split.store(v), field_candidates=k2) for k, v in names.items()}
+    stores, base, rows = baseline_rows(split, args.datasets,
+                                       mesh_lfd=getattr(args, "mesh_lfd", False))  # fmt: skip
     print(f"  {len(split.sets)} shapes, {len(stores)} stores ({time.perf_counter() - t0:.0f} s)")
-    zero = {k: np.zeros(len(st.rows)) for k, st in stores.items()}
-    v4 = stores  # version 4 alone: no union (its extras would come before the rest)
-    if k2 > 0:
-        v4 = {k: Store(split, split.store(v)) for k, v in names.items()}
-    base = {k: st.per_set(st.measures(zero[k])) for k, st in v4.items()}
     default = Config().lf_fusion
     if args.fusion:  # the "stage now" row at other values (a setting chosen elsewhere)
         pairs = dict(kv.split("=", 1) for kv in args.fusion)
@@ -212,27 +226,6 @@ def select(args: argparse.Namespace, split: Split | None = None,
                                       shared_weight=float(args.shared[1]))  # fmt: skip
     memo: dict[Any, FloatArray] = {}
     margins: dict[str, dict[str, float]] = {}
-    rows: dict[str, dict[str, Any]] = {
-        "v4 (no stage)": score_row(v4, zero, base),
-        ("light fields alone (K = 100)" if stage is None else
-         f"the stage's distance alone (K = 100, K2 = {k2})"): score_row(
-            stores, {k: np.full(len(st.rows), np.inf) for k, st in stores.items()}, base),
-        "rank fusion 0.5, ungated": score_row(
-            stores, {k: np.full(len(st.rows), 0.5) for k, st in stores.items()}, base),
-    }  # fmt: skip
-    if stage is not None:  # the product before the field vectors, in the same run
-        import copy
-
-        before = copy.copy(split)
-        before.dl, before.dv = split.light, None
-        plain = {k: Store(before, before.store(v)) for k, v in names.items()}
-        rows["the stage before the field vectors (light field distance, K = 100)"] = score_row(
-            plain, {k: gate_weights(st, Config().lf_fusion) for k, st in plain.items()}, base
-        )
-    if getattr(args, "mesh_lfd", False):  # the peer: every shape ranked by the mesh LFD
-        rows["mesh light field descriptor (every shape ranked)"] = mesh_lfd_row(
-            split, args.datasets, names, base
-        )
     legacy = dataclasses.replace(default, **LEGACY)  # type: ignore[arg-type]
     rows["stage before (overlap^3, own spread over 100)"] = score_row(
         stores, {k: gate_weights(st, legacy) for k, st in stores.items()}, base
@@ -318,7 +311,8 @@ def select(args: argparse.Namespace, split: Split | None = None,
             rows[f"best of the grid: {best[0]}"] = best[1]
             f = dataclasses.replace(default, power=0.0, **best[0])  # type: ignore[arg-type]
             margins[f"best of the grid: {best[0]}"] = gate_margin(stores, f, memo)
-    rows.update(shared_rows(stores, split, default, base, getattr(args, "shared_grid", False),
+    shared = list(itertools.product(*SHARED_GRID)) if getattr(args, "shared_grid", False) else []
+    rows.update(shared_rows(stores, split, default, base, shared,
                             getattr(args, "shared_within", "store")))  # fmt: skip
     if getattr(args, "contrast_grid", False):
         rows.update(contrast_rows(stores, split, default, base,
@@ -364,24 +358,6 @@ def select(args: argparse.Namespace, split: Split | None = None,
             "margins": margins,
             "statistics": statistics(stores, default),
             "sizes": {k: len(st.rows) for k, st in stores.items()}}  # fmt: skip
-
-
-def mesh_lfd_row(split: Split, sets: Sequence[str], names: dict[str, tuple[str, ...]],
-                 base: dict[str, dict[str, dict[str, float]]]) -> dict[str, Any]:  # fmt: skip
-    """The mesh light field descriptor's row (:func:`bench.rerank_select.lfd_split_matrix`):
-    every shape of each store ranked by it alone, scored like the stage's rows."""
-    import copy
-
-    from bench.rerank_select import lfd_split_matrix
-
-    models = [m for s in sets for m in load(s, split.split)[0].models]
-    peer = copy.copy(split)
-    peer.dl = lfd_split_matrix(models)
-    peer.dv = None
-    stores = {
-        k: Store(peer, peer.store(v), candidates=len(peer.store(v))) for k, v in names.items()
-    }
-    return score_row(stores, {k: np.full(len(st.rows), np.inf) for k, st in stores.items()}, base)
 
 
 def oracle_rows(stores: dict[str, Store], base: dict[str, dict[str, dict[str, float]]],
@@ -464,7 +440,7 @@ def _print(rows: dict[str, dict[str, Any]], stores: dict[str, Store], split: str
 def parser() -> argparse.ArgumentParser:
     """The command line of :func:`main` (and of the studies that score their own distances)."""
     ap = argparse.ArgumentParser(
-        prog="python -m bench.lightfield_gate", description=__doc__.split("\n")[0]
+        prog="python -m bench.studies.lightfield_gate", description=__doc__.split("\n")[0]
     )
     ap.add_argument("--split", default="validation", choices=["validation", "test"])
     ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
