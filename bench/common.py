@@ -369,7 +369,7 @@ _ENGINE_MODULES = (
 _ENGINE_PATHS = {
     "geometry": "geometry/base", "mdbd": "mdbd/decomposition", "frame": "mdbd/frame",
     "refine": "mdbd/refine", "packing": "mdbd/packing", "graph": "mdbd/graph",
-    "reconstruct": "mdbd/reconstruct",
+    "reconstruct": "mdbd/reconstruct", "config": "config/core",
 }  # fmt: skip
 
 
@@ -395,15 +395,19 @@ def _code_only(source: str) -> str:
 
 @functools.lru_cache(maxsize=256)
 def _source_at(commit: str, module: str) -> str | None:
-    """``shapedb/<module>.py`` at ``commit`` (None if it did not exist then)."""
+    """``shapedb/<module>.py`` at ``commit``, else the module at its place in the subpackages
+    (:data:`_ENGINE_PATHS`); None if it did not exist then."""
     import subprocess
 
     root = Path(__file__).resolve().parents[1]
-    done = subprocess.run(
-        ["git", "show", f"{commit}:shapedb/{module}.py"],
-        cwd=root, capture_output=True, text=True, check=False,
-    )  # fmt: skip
-    return done.stdout if done.returncode == 0 else None
+    for where in dict.fromkeys((module, _engine_path(module))):
+        done = subprocess.run(
+            ["git", "show", f"{commit}:shapedb/{where}.py"],
+            cwd=root, capture_output=True, text=True, check=False,
+        )  # fmt: skip
+        if done.returncode == 0:
+            return done.stdout
+    return None
 
 
 @functools.lru_cache(maxsize=256)

@@ -133,7 +133,9 @@ def light_field_matrix(
     variant: str = "mesh",
 ) -> tuple[FloatArray, float, float]:
     """Ball light field distances (queries x balls; cached), CPU s per model and of the distances."""
-    code = (Path(__file__).resolve().parents[2] / "shapedb" / "lightfield.py").read_bytes()
+    code = (
+        Path(__file__).resolve().parents[2] / "shapedb" / "signature" / "lightfield.py"
+    ).read_bytes()
     key = hashlib.sha256(
         code
         + text.encode()

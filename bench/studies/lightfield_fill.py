@@ -224,7 +224,9 @@ def fill_matrix(
     name: str, ds: Dataset, balls: list[Balls], text: str, n_balls: int = 0
 ) -> tuple[FloatArray, float]:
     """Light field distances of a fill (cached) and CPU s per model of the light fields."""
-    code = (Path(__file__).resolve().parents[2] / "shapedb" / "lightfield.py").read_bytes()
+    code = (
+        Path(__file__).resolve().parents[2] / "shapedb" / "signature" / "lightfield.py"
+    ).read_bytes()
     key = hashlib.sha256(
         code
         + text.encode()

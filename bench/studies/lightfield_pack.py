@@ -169,7 +169,9 @@ def lf_matrix(name: str, split: str, ds: Dataset, balls: list[Balls], tag: str) 
     """Light field distances (product light fields) of ``balls``, cached by ``tag``."""
     from shapedb.signature.lightfield import light_field_distance, record_light_field
 
-    code = (Path(__file__).resolve().parents[2] / "shapedb" / "lightfield.py").read_bytes()
+    code = (
+        Path(__file__).resolve().parents[2] / "shapedb" / "signature" / "lightfield.py"
+    ).read_bytes()
     names = "\n".join(m.name + m.source for m in ds.models).encode()
     key = hashlib.sha256(code + names + tag.encode()).hexdigest()[:16]
     path = CACHE_DIR / "lightfield_pack" / f"d_{name}_{split}_{key}.npy"
