@@ -13,7 +13,7 @@ every scale rule x :data:`WEIGHTS` x :data:`K2` through the gate bench's stores 
 set and mix) at today's gate, with the two-queries rule against version 4, the analytic
 chain on the fused distance and the gate's margins; the gate itself is re-chosen by
 ``python -m bench.studies.lightfield_gate --field-vectors ...`` (its grid) on the chosen
-distance. Written to bench/results/field_vectors_{medians,choice}_<split>.json.
+distance. Written to bench/results/studies/field_vectors_{medians,choice}_<split>.json.
 """
 
 from __future__ import annotations

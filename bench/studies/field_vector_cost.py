@@ -15,7 +15,7 @@ interleaved model by model and repeated (the minimum of the repeats). Printed: m
 and the median of the per-model ratios; also the field vector's own CPU over the
 baseline's whole ingest. The first field vector of a process also builds the harmonics
 on the angle grid (once per worker process); it is timed apart, in a warm-up on the first
-model. Written to bench/results/field_vector_cost.json.
+model. Written to bench/results/studies/field_vector_cost.json.
 """
 
 from __future__ import annotations

@@ -1,5 +1,9 @@
 """How much the ``"lightfield"`` stage's light field should count, per store and per query.
 
+The selection of the stage's gate: its grids, the gates before it and their margins.
+The product's stage at its defaults, measured per set, is :mod:`bench.rerank`, whose
+rows (:func:`bench.rerank.baseline_rows`) every run here starts from.
+
 Usage (from the repository root)::
 
     python -m bench.studies.lightfield_gate                      # validation: the grid, the choice
@@ -7,7 +11,7 @@ Usage (from the repository root)::
     python -m bench.studies.lightfield_gate --lf-source field    # the same on the field's light fields
 
 Every bench set's split (meshes; the cached balls of :func:`bench.support.cached.load`, nothing
-decomposed) is a store of its own, and so are the mixed stores of :data:`MIXES` (web +
+decomposed) is a store of its own, and so are the mixed stores of :data:`bench.support.stores.MIXES` (web +
 figures, web + people, generic + parts, all six). In each store every shape queries the
 others: its ``K = 100`` nearest by version 4's stored distance (ties by ascending id, the
 query among them, as ``query.search.rerank.search`` hands them over) are re-ranked by the gated
@@ -32,9 +36,9 @@ The light field distances (the store's float32 light fields,
 cached under ``$SHAPEDB_BENCH_CACHE/lightfield_gate`` keyed by the models and the code of
 ``shapedb/signature/lightfield.py`` and ``shapedb/signature/lightfield_descriptor.py``, so a changed silhouette
 re-computes them and the selection re-runs in one command. Written to
-bench/results/lightfield_gate_<split>.json. A held-out set that :mod:`bench.support.cached` knows
-(``webplus``) is run with ``--split test --no-grid --datasets webplus figures people`` (it
-and its mixes with the figures and the people). ``--lf-n-balls N``: the light fields of
+bench/results/studies/lightfield_gate_<split>.json. A held-out set that :mod:`bench.support.cached` knows
+(``webplus``) is measured by ``python -m bench.rerank --datasets webplus figures people``
+(it and its mixes with the figures and the people). ``--lf-n-balls N``: the light fields of
 the packing continued to N balls (``LightFieldConfig.n_balls``, decomposed and cached by
 :func:`bench.support.packings.longer`; ``--lf-within M``: the first N by radius of the packing
 continued to M); version 4 stays that of the cached balls. ``--lf-source field``: the
@@ -56,11 +60,11 @@ light field descriptor (:func:`bench.support.lightfield.lfd_split_matrix`, cache
 
 The shared-neighbour term (:mod:`query.search.lightfield_neighbours`): "stage now" has the product's
 (``--shared K BETA``: another), beside the stage without it; ``--shared-grid`` adds every
-``k`` x ``beta`` of :data:`bench.support.stores.SHARED_GRID` (:func:`bench.support.stores.shared_rows`).
+``k`` x ``beta`` of :data:`SHARED_GRID` (:func:`bench.support.stores.shared_rows`).
 ``--grid-term``: the selection's grid scored with the product's shared-neighbour term on
 (the stage a store runs). ``--contrast-grid``: the stage now at every contrast floor x ramp
-x depth of :data:`bench.support.stores.CONTRAST_GRID`, its term on, and the best of them by
-the rule (:func:`bench.support.stores.contrast_rows`).
+x depth of :data:`CONTRAST_GRID`, its term on, and the best of them by
+the rule (:func:`contrast_rows`).
 """
 
 from __future__ import annotations

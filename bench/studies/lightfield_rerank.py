@@ -48,7 +48,7 @@ k=10)`` for every shape, interleaved, and prints medians and ratios to the plain
 and the first search on a fresh copy of the stores with and without the term (cold).
 ``--lf-source field`` (and ``--lf-set FIELD=VALUE``): the ``lightfield`` rows read the
 light fields of the field's inside (cached by :mod:`bench.support.inside_fields`).
-Written to bench/results/lightfield_rerank_<split>.json (``lightfield_rerank_cost.json``).
+Written to bench/results/studies/lightfield_rerank_<split>.json (``lightfield_rerank_cost.json``).
 """
 
 from __future__ import annotations

@@ -25,7 +25,7 @@ store of the product's balls (baseline, measured in the same run, interleaved mo
 model) and of ``source="field"``; medians and the median of the per-model ratios.
 
 Distance matrices are cached under ``$SHAPEDB_BENCH_CACHE/lightfield_source``. Results go
-to bench/results/lightfield_source_<split>.json (``_variants``, ``_cost``).
+to bench/results/studies/lightfield_source_<split>.json (``_variants``, ``_cost``).
 """
 
 from __future__ import annotations

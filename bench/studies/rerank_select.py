@@ -3,7 +3,7 @@
 Usage (from the repository root)::
 
     python -m bench.studies.rerank_select                      # validation, six sets, the k x p x w x K grid
-    python -m bench.studies.rerank_select --grid ratio --out bench/results/rerank_select_validation_ratio.json
+    python -m bench.studies.rerank_select --grid ratio --out bench/results/studies/rerank_select_validation_ratio.json
     python -m bench.studies.rerank_select --split test --setting 10 1 16 100 0.35 --lfd   # k p w K ratio
     python -m bench.studies.rerank_select --cost               # per-query search time, with and without
 
@@ -25,7 +25,7 @@ meshes; descriptors cached). ``--cost`` times ``db.search`` on a store of the we
 validation shapes (version 7) with the stage and without it, queries interleaved, and
 scores both stores with ``db.evaluate`` (which must reproduce the web rows of the
 validation table).
-Written to bench/results/rerank_select_<split>.json (``rerank_cost.json``).
+Written to bench/results/studies/rerank_select_<split>.json (``rerank_cost.json``).
 """
 
 from __future__ import annotations
