@@ -54,3 +54,10 @@ def test_no_product_bench_imports_a_study() -> None:
         source = (BENCH / f"{name}.py").read_text()
         assert "from bench.studies" not in source, name
         assert "import bench.studies" not in source, name
+
+
+def test_the_top_level_holds_the_benchmarks_and_their_helpers_only() -> None:
+    """Data sets live in bench/sets/, shared code in bench/support/, research in studies."""
+    names = {p.stem for p in BENCH.glob("*.py")} - {"__init__"}
+    assert names - set(PRODUCT) == {"common"}
+    assert len(names) <= 15
