@@ -53,7 +53,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common import decompose_all, format_table, write_json
-from bench.datasets import Dataset, Model, capod, split_by_model
+from bench.sets.datasets import Dataset, Model, capod, split_by_model
 from shapedb.config.core import Config, MDBDConfig
 
 RESULTS = Path(__file__).resolve().parent / "results"

@@ -50,7 +50,7 @@ from numpy.typing import NDArray
 
 from bench.classify import generated, graphs_of
 from bench.common import format_table, write_json
-from bench.datasets import CAPOD_ROOT, capod
+from bench.sets.datasets import CAPOD_ROOT, capod
 from query.learn.selection import CANDIDATES, make_candidate, select_classifier
 from query.learn.training_data import stratified_folds, stratified_split
 from shapedb.config.core import Config, MDBDConfig

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from bench.datasets import (
+from bench.sets.datasets import (
     CACHE_DIR,
     Model,
     mesh_arrays,
@@ -369,7 +369,7 @@ _ENGINE_MODULES = (
 _ENGINE_PATHS = {
     "geometry": "geometry/base", "mdbd": "mdbd/decomposition", "frame": "mdbd/frame",
     "refine": "mdbd/refine", "packing": "mdbd/packing", "graph": "mdbd/graph",
-    "reconstruct": "mdbd/reconstruct",
+    "reconstruct": "mdbd/reconstruct", "config": "config/core",
 }  # fmt: skip
 
 
@@ -395,15 +395,19 @@ def _code_only(source: str) -> str:
 
 @functools.lru_cache(maxsize=256)
 def _source_at(commit: str, module: str) -> str | None:
-    """``shapedb/<module>.py`` at ``commit`` (None if it did not exist then)."""
+    """``shapedb/<module>.py`` at ``commit``, else the module at its place in the subpackages
+    (:data:`_ENGINE_PATHS`); None if it did not exist then."""
     import subprocess
 
     root = Path(__file__).resolve().parents[1]
-    done = subprocess.run(
-        ["git", "show", f"{commit}:shapedb/{module}.py"],
-        cwd=root, capture_output=True, text=True, check=False,
-    )  # fmt: skip
-    return done.stdout if done.returncode == 0 else None
+    for where in dict.fromkeys((module, _engine_path(module))):
+        done = subprocess.run(
+            ["git", "show", f"{commit}:shapedb/{where}.py"],
+            cwd=root, capture_output=True, text=True, check=False,
+        )  # fmt: skip
+        if done.returncode == 0:
+            return done.stdout
+    return None
 
 
 @functools.lru_cache(maxsize=256)
@@ -494,7 +498,7 @@ def cache_path(
     version = engine_version(variant, commit=engine_commit)
     key = [_source_key(model), variant, params, version]
     if variant.startswith(("pointcloud_noisy", "pointcloud_partial")):
-        key.append(people_version("scans"))  # bench.people makes these clouds
+        key.append(people_version("scans"))  # bench.sets.people makes these clouds
     text = json.dumps(key, sort_keys=True)
     digest = hashlib.sha256(text.encode()).hexdigest()[:20]
     return CACHE_DIR / "dec" / f"{digest}.npz"
@@ -531,9 +535,9 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
     ``mesh`` the mesh; ``pointcloud`` the paper's point cloud (seeded by the name);
     ``pointcloud_b`` another draw of it; ``pointcloud_sphere`` the paper's cloud with
     the sphere-fit distance (``PointCloud(distance="sphere")``); ``pointcloud_noisy`` the paper's cloud with
-    Gaussian noise (:func:`bench.people.noisy_cloud`, sigma 0.3 % of the diagonal);
+    Gaussian noise (:func:`bench.sets.people.noisy_cloud`, sigma 0.3 % of the diagonal);
     ``pointcloud_partial`` the part of it one horizontal depth camera sees
-    (:func:`bench.people.partial_cloud`); ``pointcloud_dense`` DENSE_SAMPLES points
+    (:func:`bench.sets.people.partial_cloud`); ``pointcloud_dense`` DENSE_SAMPLES points
     sampled uniformly by area on the surface (no normals); ``mesh_shift`` the mesh translated by
     (0.37, 0.21, 0.43) grid cells; ``mesh_rotate`` randomly rotated (seeded);
     ``mesh_decimate`` decimated to 25 % of its faces (fast-simplification);
@@ -586,7 +590,7 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
             return PointCloud(points, distance="sphere")
         return PointCloud(points)
     if variant in ("pointcloud_noisy", "pointcloud_partial"):
-        from bench.people import noisy_cloud, partial_cloud
+        from bench.sets.people import noisy_cloud, partial_cloud
         from shapedb.geometry.pointcloud import PointCloud
 
         paper = point_cloud(
@@ -597,7 +601,7 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
             return PointCloud(noisy_cloud(paper, v, seed=seed))
         return PointCloud(partial_cloud(paper, v, f, seed=seed))
     if variant == "pointcloud_dense":
-        from bench.baselines import sample_surface
+        from bench.support.baselines import sample_surface
         from shapedb.geometry.pointcloud import PointCloud
 
         rng = np.random.default_rng(stable_seed(model.name, variant))

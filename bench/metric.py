@@ -1,4 +1,4 @@
-"""Issue 6: a similarity learned on a labelled store (:mod:`query.learn.metric`), held out.
+"""A similarity learned on a labelled store (:mod:`query.learn.metric`), held out.
 
 Usage (from the repository root)::
 
@@ -39,9 +39,15 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.datasets import Dataset
-from bench.features import complete, kernel_features, l1_matrix, mixture_mask, reconstructions
 from bench.retrieval import build_sets
+from bench.sets.datasets import Dataset
+from bench.support.features import (
+    complete,
+    kernel_features,
+    l1_matrix,
+    mixture_mask,
+    reconstructions,
+)
 from query.learn.metric import LearnedMetric, block_layout, fit_metric
 from shapedb.config.core import Config, KernelConfig, MDBDConfig
 
@@ -108,7 +114,7 @@ _COLUMNS = (
     "margin mesh",
     "margin cloud",
 )
-#: (fitted on, scored on): the issue's direction, then the other way round (the test
+#: (fitted on, scored on): validation to test, then the other way round (the test
 #: splits are twice as large) to show that the choice is not one split's accident.
 DIRECTIONS = (("validation", "test"), ("test", "validation"))
 

@@ -55,7 +55,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common import Balls, decompose_all, format_table, write_json
-from bench.datasets import Model
+from bench.sets.datasets import Model
 from shapedb import examples
 from shapedb.config.core import MDBDConfig, PartConfig
 from shapedb.geometry.complement import Complement

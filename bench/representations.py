@@ -11,7 +11,7 @@ Each method compares query clouds with the mesh database as a store does:
     those clouds with Gaussian noise of 0.3 % of the bounding-box diagonal;
 ``partial->mesh``
     the part of the cloud one horizontal depth camera sees (the far side missing,
-    :func:`bench.people.partial_cloud`);
+    :func:`bench.sets.people.partial_cloud`);
 ``mixture``
     an even, seeded half of the models as clouds, the rest as meshes, all against all.
 
@@ -43,7 +43,7 @@ when the method uses it), and their ratio to the first method; they come from
 different runs, so only the live cost rows below compare like with like.
 
 Cost rows (``--cost N``, default 6): the first N models of each set through the
-facade in one run (:mod:`bench.cloud_cost`): median wall seconds of ``db.ingest`` of
+facade in one run (:mod:`bench.support.cost`): median wall seconds of ``db.ingest`` of
 a mesh, ``db.search`` of a mesh and ``db.search`` of its 20 % cloud, and the
 per-model ratio cloud / mesh query, for the default store and the cloud
 configurations of :data:`COST_CONFIGS`.
@@ -67,7 +67,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.baselines import D2Config, d2_descriptor
 from bench.common import (
     Balls,
     decompose_all,
@@ -80,7 +79,7 @@ from bench.common import (
     variant_geometry,
     write_json,
 )
-from bench.datasets import (
+from bench.sets.datasets import (
     PEOPLE_EXTRA_VALIDATION,
     Dataset,
     Model,
@@ -91,7 +90,8 @@ from bench.datasets import (
     parts,
     people,
 )
-from bench.features import kernel_features, l1_matrix, mixture_mask
+from bench.support.baselines import D2Config, d2_descriptor
+from bench.support.features import kernel_features, l1_matrix, mixture_mask
 from shapedb.config.core import Config, KernelConfig, MDBDConfig
 
 OUT = Path(__file__).resolve().parent / "results" / "representations.json"
@@ -455,14 +455,14 @@ COST_CONFIGS: dict[str, dict[str, Any]] = {
 
 
 def cost_table(ds: Dataset, n: int) -> tuple[str, list[list[Any]]]:
-    """Live cost rows (:func:`bench.cloud_cost.measure`) of the first ``n`` models of ``ds``.
+    """Live cost rows (:func:`bench.support.cost.measure`) of the first ``n`` models of ``ds``.
 
     Per configuration of :data:`COST_CONFIGS` (those equal to the default left out):
     median wall seconds of a mesh ingest, a mesh query and a cloud query, the median
     of the per-model ratios cloud / mesh query, and the cloud query's median against
     the default's.
     """
-    from bench.cloud_cost import measure
+    from bench.support.cost import measure
 
     base = Config()
     configs = {

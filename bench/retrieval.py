@@ -13,7 +13,7 @@ the MDBD kernel of Eq. 3 on meshes, on point clouds (20 % of the vertices), on a
 mixture, point-cloud queries against the mesh database; the GraKeL Shortest-Path,
 WL-subtree and Pyramid Match kernels on the same MDBD graphs (labels r/r1 rounded to
 1/25); D2, the spherical harmonic descriptor and the light field descriptor
-(:mod:`bench.lightfield`) on the meshes; the seconds each method took; and the mean kernel value
+(:mod:`bench.support.lightfield`) on the meshes; the seconds each method took; and the mean kernel value
 between the mesh and the point cloud of the same model (paper: 0.996), beside the
 same-class and other-class means. Everything is written to bench/results/retrieval.json.
 
@@ -39,15 +39,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.baselines import (
-    D2Config,
-    SHConfig,
-    d2_descriptor,
-    grakel_similarity,
-    l1_similarity,
-    l2_similarity,
-    sh_descriptor,
-)
 from bench.common import (
     MEASURES,
     Balls,
@@ -57,9 +48,24 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.datasets import Dataset, build_sets, mesh_arrays
-from bench.features import complete, kernel_features, l1_matrix, mixture_mask, reconstructions
-from bench.lightfield import LFDConfig, lfd_descriptor, lfd_similarity
+from bench.sets.datasets import Dataset, build_sets, mesh_arrays
+from bench.support.baselines import (
+    D2Config,
+    SHConfig,
+    d2_descriptor,
+    grakel_similarity,
+    l1_similarity,
+    l2_similarity,
+    sh_descriptor,
+)
+from bench.support.features import (
+    complete,
+    kernel_features,
+    l1_matrix,
+    mixture_mask,
+    reconstructions,
+)
+from bench.support.lightfield import LFDConfig, lfd_descriptor, lfd_similarity
 from shapedb.config.core import Config, DescriptorConfig, KernelConfig, MDBDConfig
 
 RESULTS = Path(__file__).resolve().parent / "results"

@@ -28,10 +28,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.baselines import D2Config, d2_descriptor, l1_similarity
 from bench.common import decompose_all, format_table, mdbd_config, variant_geometry
-from bench.datasets import Dataset, build_sets, families, mesh_arrays
-from bench.features import kernel_features, l1_matrix, reconstructions
+from bench.sets.datasets import Dataset, build_sets, families, mesh_arrays
+from bench.support.baselines import D2Config, d2_descriptor, l1_similarity
+from bench.support.features import kernel_features, l1_matrix, reconstructions
 from shapedb.config.core import KernelConfig, MDBDConfig
 
 __all__ = ["VARIANTS", "main", "run_stability"]

@@ -2,7 +2,7 @@
 
 For each CAPOD model (``--per-class`` models of every class), the mesh
 (:class:`shapedb.geometry.mesh.TriangleMesh`) and its point-cloud version
-(:func:`bench.datasets.point_cloud`: a random 20 % of the vertices, or 2,000
+(:func:`bench.sets.datasets.point_cloud`: a random 20 % of the vertices, or 2,000
 area-weighted surface samples for coarse meshes) are evaluated with ``grid_sdf`` on
 the same grid (``Grid.fit(mesh.bounds, resolution)``). Reported per model and per
 class, plus the median:
@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.datasets import capod, mesh_arrays, point_cloud, stable_seed
+from bench.sets.datasets import capod, mesh_arrays, point_cloud, stable_seed
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "agreement.json"
 

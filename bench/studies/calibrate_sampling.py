@@ -39,8 +39,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common import Balls, decompose_all, format_table, retrieval_scores, write_json
-from bench.features import l1_matrix, mixture_mask
 from bench.retrieval import build_sets
+from bench.support.features import l1_matrix, mixture_mask
 from shapedb.config.core import MDBDConfig
 from shapedb.signature.descriptor import describe
 

@@ -42,7 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common import Balls, decompose_all, format_table, mdbd_config, write_json
-from bench.datasets import articulated, capod, parts
+from bench.sets.datasets import articulated, capod, parts
 from shapedb.signature.descriptor import LAYOUTS, VERSION, describe
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "chaos.json"

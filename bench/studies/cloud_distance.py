@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 
 from bench.common import format_table, load_balls, mdbd_config, variant_geometry, write_json
-from bench.datasets import mesh_arrays
 from bench.representations import build
+from bench.sets.datasets import mesh_arrays
 from bench.studies.cloud_twins import cached_path
 from shapedb.geometry.mesh import TriangleMesh
 

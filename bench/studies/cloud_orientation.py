@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common import format_table, write_json
-from bench.datasets import generic, mesh_arrays, min_cloud_points, point_cloud, stable_seed
+from bench.sets.datasets import generic, mesh_arrays, min_cloud_points, point_cloud, stable_seed
 from shapedb.geometry.base import Grid
 from shapedb.geometry.mesh import TriangleMesh
 from shapedb.geometry.pointcloud import PointCloud

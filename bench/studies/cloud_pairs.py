@@ -47,8 +47,14 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.features import complete, kernel_features, l1_matrix, mixture_mask, reconstructions
 from bench.retrieval import build_sets
+from bench.support.features import (
+    complete,
+    kernel_features,
+    l1_matrix,
+    mixture_mask,
+    reconstructions,
+)
 from shapedb.config.core import KernelConfig, MDBDConfig
 from shapedb.signature.descriptor import LAYOUTS, VERSION
 

@@ -51,8 +51,8 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.features import kernel_features, l1_matrix
 from bench.representations import build, load_set
+from bench.support.features import kernel_features, l1_matrix
 from shapedb.config.core import Config, MDBDConfig
 from shapedb.signature.descriptor import LAYOUTS
 

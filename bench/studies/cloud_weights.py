@@ -33,7 +33,7 @@ Sets without cached clouds get mesh rows only.
 
 Usage: ``python -m bench.studies.cloud_weights --split validation`` (then ``--split
 test``); ``--sets people-xl capod figures parts generic`` by default (``people-xl``:
-the validation split with 12 more subjects, :func:`bench.datasets.people`);
+the validation split with 12 more subjects, :func:`bench.sets.datasets.people`);
 decomposes nothing (reads ``SHAPEDB_BENCH_CACHE``). Results go to
 bench/results/studies/cloud_weights_<split>.json.
 
@@ -56,8 +56,8 @@ from numpy.typing import NDArray
 
 import bench.common as common
 from bench.common import Balls, format_table, log_margin, mdbd_config, retrieval_scores, write_json
-from bench.datasets import Dataset, Model
 from bench.representations import build
+from bench.sets.datasets import Dataset, Model
 from bench.studies.people_blocks import PRE_SHEET, block_features, l1
 from shapedb.config.core import MDBDConfig
 from shapedb.geometry.view import is_sparse

@@ -42,9 +42,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common import Balls, decompose_all, format_table, retrieval_scores, write_json
-from bench.datasets import Dataset
-from bench.features import l1_matrix
 from bench.retrieval import build_sets
+from bench.sets.datasets import Dataset
+from bench.support.features import l1_matrix
 from shapedb.config.core import MDBDConfig
 from shapedb.signature.descriptor import describe
 

@@ -11,7 +11,7 @@ of its ``neighbours`` nearest others over that of its ``contrast_depth``-th, bel
 The light field's own contrast ``t_l`` (the same over the query's candidates ranked by the
 stage's light field distance) says how sure the light field is. This study opens the
 contrast wherever ``t_l < rho * t_v`` (the other factors of the gate unchanged), on the gate
-bench's stores (:mod:`bench.lightfield_gate`: every set and mix of the split, the product's
+bench's stores (:mod:`bench.studies.lightfield_gate`: every set and mix of the split, the product's
 stage with the field vectors and its shared-neighbour term), beside the product's gate and
 the contrast off. Written to bench/results/studies/contrast_surer_<split>.json.
 """
@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from bench.common import format_table, write_json
-from bench.gate_stores import (
+from bench.support.stores import (
     MEASURES,
     FloatArray,
     Store,

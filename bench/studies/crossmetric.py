@@ -42,9 +42,9 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.features import kernel_features as weighted_features
-from bench.features import l1_matrix as l1
 from bench.representations import build, load_set
+from bench.support.features import kernel_features as weighted_features
+from bench.support.features import l1_matrix as l1
 from shapedb.config.core import KernelConfig
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "crossmetric.json"

@@ -1,9 +1,9 @@
 """CAPOD clouds against meshes or dense clouds: does a point cloud find its own model first?
 
-Issue #2 asks that a point cloud of each model (:func:`bench.datasets.point_cloud`: a
+The targets: a point cloud of each model (:func:`bench.sets.datasets.point_cloud`: a
 random 20 % of its vertices, or 2,000 surface samples for coarse meshes), queried
 against the meshes of all the models, finds its own mesh first at least 95 % of the
-time; issue #6 that point-cloud queries against a mesh database lose at most 0.03 NN
+time, and point-cloud queries against a mesh database lose at most 0.03 NN
 against mesh-against-mesh retrieval. Per class and overall this bench reports:
 
 ``own_first``
@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common import Balls, decompose_all, format_table, mdbd_config, write_json
-from bench.datasets import capod, families
+from bench.sets.datasets import capod, families
 from shapedb.config.core import KernelConfig
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "representations_h5_capod.json"

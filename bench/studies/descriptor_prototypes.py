@@ -25,10 +25,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.baselines import D2Config, d2_descriptor, l1_similarity
 from bench.common import Balls, decompose_all, format_table, retrieval_scores
-from bench.datasets import Dataset, mesh_arrays
+from bench.sets.datasets import Dataset, mesh_arrays
 from bench.studies import descriptors as desc
+from bench.support.baselines import D2Config, d2_descriptor, l1_similarity
 from shapedb.config.core import KernelConfig, MDBDConfig
 
 __all__ = ["CANDIDATES", "main", "run_descriptors", "run_refine_shift"]

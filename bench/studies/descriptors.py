@@ -36,7 +36,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from bench.common import Balls
-from bench.features import l1_matrix
+from bench.support.features import l1_matrix
 
 __all__ = [
     "BLOCKS",

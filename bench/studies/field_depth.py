@@ -8,9 +8,9 @@ Usage (from the repository root)::
     nice -n 5 python -m bench.studies.field_depth --split test --datasets web webplus \
         --only "DBD 64 px, k 8" "SHD 32 x 16, grid" --triple 0.5 0.5   # the chosen fusion
 
-For each model of a split (those :func:`bench.cached.load` has): the field of
+For each model of a split (those :func:`bench.support.cached.load` has): the field of
 :func:`shapedb.mdbd.decomposition.prepare_field` and its inside (:func:`shapedb.geometry.inside.field_inside`,
-its shell cells), cached by :mod:`bench.field_shells`. From the shell (the
+its shell cells), cached by :mod:`bench.support.field_shells`. From the shell (the
 descriptors the product stores, :mod:`shapedb.signature.field_vector`):
 
 - :func:`depth_buffer_descriptor` (Vranic's DBD): the cells in their principal frame,
@@ -24,8 +24,8 @@ descriptors the product stores, :mod:`shapedb.signature.field_vector`):
   :func:`shapedb.signature.field_vector.harmonic_energies`).
 
 Both are compared by L1 (indexable). Measured alone and fused with the cached field
-light fields (:func:`bench.inside_fields.light_fields`, 3 x 128 px) and the mesh light
-field descriptor (:func:`bench.rerank_select.lfd_matrix`), in the same run: fusion is
+light fields (:func:`bench.support.inside_fields.light_fields`, 3 x 128 px) and the mesh light
+field descriptor (:func:`bench.support.lightfield.lfd_matrix`), in the same run: fusion is
 the sum of distances each divided by its median off-diagonal distance, the second
 weighted. Results go to bench/results/studies/field_depth_<split>.json.
 """
@@ -44,9 +44,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from bench.cached import CHOICES, load
 from bench.common import format_table, retrieval_scores, write_json
-from bench.field_shells import FOLDER, fill, shells
+from bench.support.cached import CHOICES, load
+from bench.support.field_shells import FOLDER, fill, shells
 from shapedb.config.core import FieldVectorConfig
 from shapedb.signature import field_vector
 from shapedb.signature.field_vector import spherical_coordinates
@@ -206,7 +206,7 @@ def run(
     triple: tuple[float, float] | None = None,
 ) -> dict[str, Any]:
     """Scores per set: mesh LFD, field light fields, each descriptor alone and fused."""
-    from bench.lightfield_source import matrices
+    from bench.studies.lightfield_source import matrices
     from shapedb.config.core import Config
 
     lf = dataclasses.replace(Config().light_field, source="field", resolution=128)

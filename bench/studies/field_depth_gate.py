@@ -7,9 +7,9 @@ Usage (from the repository root)::
     python -m bench.studies.field_depth_gate --grid         # the gate re-chosen on validation
     python -m bench.studies.field_depth_gate --split test --candidates   # where the cut loses
 
-The gate bench (:mod:`bench.lightfield_gate`, its fixed rows: version 4, the light fields
+The gate bench (:mod:`bench.studies.lightfield_gate`, its fixed rows: version 4, the light fields
 alone, the product's stage) scores a split whose light field distance ``l`` (the product's:
-the field's inside, :mod:`bench.inside_fields`) is replaced by
+the field's inside, :mod:`bench.support.inside_fields`) is replaced by
 
     ``m_l * (l / m_l + a * b / m_b + c * h / m_h) / (1 + a + c)``
 
@@ -34,10 +34,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.cached import load
 from bench.common import format_table, write_json
-from bench.lightfield_gate import SETS, Split, parser, select
 from bench.studies.field_depth import descriptor_matrix, shells
+from bench.studies.lightfield_gate import parser, select
+from bench.support.cached import load
+from bench.support.stores import SETS, Split
 
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 DBD = "DBD 64 px, k 8"

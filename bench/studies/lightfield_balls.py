@@ -2,7 +2,7 @@
 
 For each set's split (meshes), from the cached decompositions (nothing is decomposed:
 a decomposition missing under today's engine key is read under the keys of the
-engines in :data:`bench.cached.ENGINE_COMMITS`, which differ only where the sets are unaffected):
+engines in :data:`bench.support.cached.ENGINE_COMMITS`, which differ only where the sets are unaffected):
 
 * ``v4``: shapedb's default descriptor, L1 in version 4's calibrated units;
 * ``lfb <config>``: :func:`shapedb.signature.lightfield.ball_light_field` of the balls under
@@ -27,8 +27,8 @@ engines in :data:`bench.cached.ENGINE_COMMITS`, which differ only where the sets
 * with ``--queries pointcloud`` (or another cached variant): the queries are that
   variant's decompositions, compared with every model's mesh (its own mesh left out, as
   :func:`bench.common.retrieval_scores` leaves out the diagonal);
-* with ``--baselines``: the mesh light field descriptor (``bench.lightfield``) and D2
-  (``bench.baselines``) in the same run.
+* with ``--baselines``: the mesh light field descriptor (``bench.support.lightfield``) and D2
+  (``bench.support.baselines``) in the same run.
 
 Per row NN / 1-T / DCG per set and the objective (mean over the sets of (NN + 1-T +
 DCG) / 3). A fusion passes when no set's NN, 1-T or DCG is more than two queries below
@@ -57,7 +57,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.cached import CHOICES, SETS, load
 from bench.common import (
     Balls,
     class_nn,
@@ -65,7 +64,8 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.datasets import CACHE_DIR, Dataset, capod, generic, mesh_arrays, web
+from bench.sets.datasets import CACHE_DIR, Dataset, capod, generic, mesh_arrays, web
+from bench.support.cached import CHOICES, SETS, load
 from shapedb.config.core import Config, DescriptorConfig, LightFieldConfig
 from shapedb.signature.descriptor import LAYOUTS
 from shapedb.signature.lightfield import ball_light_field, light_field_distance
@@ -113,7 +113,7 @@ def _l1(x: FloatArray) -> FloatArray:
 
 def v4_distances(balls: list[Balls], queries: list[Balls] | None = None) -> FloatArray:
     """Version 4's L1 distances (queries x balls) in its calibrated units."""
-    from bench.features import kernel_features
+    from bench.support.features import kernel_features
 
     cfg = Config(descriptor=DescriptorConfig(version=4))
     f = kernel_features(balls, cfg)
@@ -133,7 +133,9 @@ def light_field_matrix(
     variant: str = "mesh",
 ) -> tuple[FloatArray, float, float]:
     """Ball light field distances (queries x balls; cached), CPU s per model and of the distances."""
-    code = (Path(__file__).resolve().parents[2] / "shapedb" / "lightfield.py").read_bytes()
+    code = (
+        Path(__file__).resolve().parents[2] / "shapedb" / "signature" / "lightfield.py"
+    ).read_bytes()
     key = hashlib.sha256(
         code
         + text.encode()
@@ -162,8 +164,8 @@ def light_field_matrix(
 
 def mesh_baselines(ds: Dataset) -> dict[str, FloatArray]:
     """Mesh light field descriptor and D2 distances of the split's models."""
-    from bench.baselines import D2Config, d2_descriptor
-    from bench.lightfield import LFDConfig, lfd_descriptor, lfd_distance
+    from bench.support.baselines import D2Config, d2_descriptor
+    from bench.support.lightfield import LFDConfig, lfd_descriptor, lfd_distance
 
     arrays = [mesh_arrays(m) for m in ds.models]
     lfd = np.stack([lfd_descriptor(v, f, LFDConfig()) for v, f in arrays])
@@ -287,8 +289,8 @@ def check_product(datasets: Sequence[str], split: str) -> dict[str, Any]:
     With every shape a candidate (K = n), per set: light fields in float64 and in float32
     as a store keeps them; returns ``{set: {kind: {"identical_rankings", "queries"}}}``.
     """
-    from bench.features import kernel_features
-    from bench.lightfield_rerank import LEGACY, index_of, rankings
+    from bench.studies.lightfield_rerank import LEGACY, index_of, rankings
+    from bench.support.features import kernel_features
     from shapedb.signature.lightfield import ball_light_field
 
     out: dict[str, Any] = {}

@@ -1,6 +1,6 @@
 """Filled silhouettes of the balls: where the balls' light fields lose to the mesh's.
 
-Three parts, each from the cached decompositions (:func:`bench.cached.load`):
+Three parts, each from the cached decompositions (:func:`bench.support.cached.load`):
 
 * ``--diagnose N``: for the first N web validation models (one per class first), the
   mesh's silhouette (dense surface splats closed by a pixel, as ``bench/lightfield.py``
@@ -51,11 +51,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.cached import SETS, load
 from bench.common import Balls, format_table, per_query, retrieval_scores, write_json
-from bench.datasets import CACHE_DIR, Dataset, mesh_arrays
-from bench.packings import longer
+from bench.sets.datasets import CACHE_DIR, Dataset, mesh_arrays
 from bench.studies.lightfield_balls import fill_config
+from bench.support.cached import SETS, load
+from bench.support.packings import longer
 from shapedb.config.core import MDBDConfig
 from shapedb.config.lightfield import product_light_field
 from shapedb.signature.lightfield import (
@@ -94,7 +94,7 @@ def mesh_in_frame(
     vertices: FloatArray, faces: NDArray[np.int64], o: FloatArray, extent: float, n: int = 40000
 ) -> NDArray[np.float32]:
     """Dense surface samples (and vertices) moved into a light field frame."""
-    from bench.baselines import sample_surface
+    from bench.support.baselines import sample_surface
 
     p = sample_surface(vertices, faces, n, rng=np.random.default_rng(0))
     p = np.vstack([p, vertices[np.unique(faces)]])
@@ -160,10 +160,10 @@ def diagnose(
 ) -> dict[str, Any]:
     """Per fill (and the grid's inside), mean per-view agreement with the mesh silhouette.
 
-    ``n_balls`` > 512: the packing continued to that many (``bench.packings.longer``
+    ``n_balls`` > 512: the packing continued to that many (``bench.support.packings.longer``
     within 4096, as lightfield_pack); ``classes``: only those classes' models.
     """
-    from bench.lightfield import render_silhouettes
+    from bench.support.lightfield import render_silhouettes
 
     ds, balls = load("web", split)
     if n_balls > MDBDConfig().n_balls:
@@ -224,7 +224,9 @@ def fill_matrix(
     name: str, ds: Dataset, balls: list[Balls], text: str, n_balls: int = 0
 ) -> tuple[FloatArray, float]:
     """Light field distances of a fill (cached) and CPU s per model of the light fields."""
-    code = (Path(__file__).resolve().parents[2] / "shapedb" / "lightfield.py").read_bytes()
+    code = (
+        Path(__file__).resolve().parents[2] / "shapedb" / "signature" / "lightfield.py"
+    ).read_bytes()
     key = hashlib.sha256(
         code
         + text.encode()
@@ -251,7 +253,7 @@ def fill_matrix(
 
 def voxels(split: str) -> dict[str, Any]:
     """LFD of the grid's inside on the web split, against the balls and the mesh."""
-    from bench.rerank_select import lfd_matrix
+    from bench.support.lightfield import lfd_matrix
 
     ds, balls = load("web", split)
     cfg = product_light_field()
@@ -296,7 +298,7 @@ def uncovered_cells(b: Balls, cells: FloatArray) -> NDArray[np.bool_]:
 def residual(split: str, n_balls: int) -> FloatArray:
     """Light fields (cached) of the packing continued to ``n_balls`` plus the grid's inside
     cells no ball contains (each a ball of half a cell), web ``split``, in
-    :func:`bench.packings.longer`'s model order; (n, n_fields, 10, dim)."""
+    :func:`bench.support.packings.longer`'s model order; (n, n_fields, 10, dim)."""
     tail = 4096 - MDBDConfig().n_balls
     ds, more, main = longer("web", split, tail)
     path = CACHE_DIR / "lightfield_fill" / f"residual_web_{split}_{len(ds)}_{n_balls}.npy"
@@ -319,12 +321,12 @@ def residual(split: str, n_balls: int) -> FloatArray:
 
 def per_class(split: str, n_balls: int, residual_too: bool = False) -> dict[str, Any]:
     """Per web class, NN and 1-T of the mesh LFD, the light fields of the packing continued
-    to ``n_balls`` (``bench.packings.longer`` within 4096, as lightfield_pack) and, when
+    to ``n_balls`` (``bench.support.packings.longer`` within 4096, as lightfield_pack) and, when
     ``--voxels`` has cached it, the grid's inside; with ``residual_too`` (or when cached)
     the balls plus the inside cells they leave uncovered (:func:`residual`); with each
     class's median ball count."""
-    from bench.rerank_select import lfd_matrix
     from bench.studies.lightfield_pack import lf_matrix
+    from bench.support.lightfield import lfd_matrix
 
     tail = 4096 - MDBDConfig().n_balls
     ds, balls, main = longer("web", split, tail)
@@ -398,7 +400,7 @@ def rank_fills(
     split: str, datasets: Sequence[str], fills: Sequence[str], n_balls: int = 0
 ) -> dict[str, Any]:
     """The balls' light fields alone per fill, and the mesh LFD, per set."""
-    from bench.rerank_select import lfd_matrix
+    from bench.support.lightfield import lfd_matrix
 
     table: dict[str, dict[str, Any]] = {f: {} for f in (*fills, "mesh LFD")}
     cpu: dict[str, dict[str, float]] = {}

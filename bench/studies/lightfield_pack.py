@@ -18,7 +18,7 @@ Default: per set, the split decomposed with ``max(--n-balls)`` balls in all (cac
 under ``$SHAPEDB_BENCH_CACHE/lightfield_pack``; the tail's first balls by radius stand
 for the shorter lengths), the product's light fields (64 px, 3 fields) alone per
 length, today's (the cached decompositions) and the mesh light field descriptor, in the
-same run. Through the product's stage: ``python -m bench.lightfield_gate --lf-n-balls N``.
+same run. Through the product's stage: ``python -m bench.studies.lightfield_gate --lf-n-balls N``.
 
 Usage::
 
@@ -43,7 +43,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.cached import CHOICES, SETS, load
 from bench.common import (
     Balls,
     cache_path,
@@ -53,14 +52,15 @@ from bench.common import (
     variant_geometry,
     write_json,
 )
-from bench.datasets import CACHE_DIR, Dataset, web
-from bench.packings import longer
+from bench.sets.datasets import CACHE_DIR, Dataset, web
+from bench.support.cached import CHOICES, SETS, load
+from bench.support.packings import longer
 from shapedb.config.core import Config, MDBDConfig, RerankConfig
 from shapedb.config.lightfield import product_light_field
 
 FloatArray = NDArray[np.float64]
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies"
-#: The engine whose cache keys hold the refined N-ball decompositions (bench.cached).
+#: The engine whose cache keys hold the refined N-ball decompositions (bench.support.cached).
 REFINED_ENGINE = "2ba8d98"
 
 
@@ -169,7 +169,9 @@ def lf_matrix(name: str, split: str, ds: Dataset, balls: list[Balls], tag: str) 
     """Light field distances (product light fields) of ``balls``, cached by ``tag``."""
     from shapedb.signature.lightfield import light_field_distance, record_light_field
 
-    code = (Path(__file__).resolve().parents[2] / "shapedb" / "lightfield.py").read_bytes()
+    code = (
+        Path(__file__).resolve().parents[2] / "shapedb" / "signature" / "lightfield.py"
+    ).read_bytes()
     names = "\n".join(m.name + m.source for m in ds.models).encode()
     key = hashlib.sha256(code + names + tag.encode()).hexdigest()[:16]
     path = CACHE_DIR / "lightfield_pack" / f"d_{name}_{split}_{key}.npy"
@@ -190,7 +192,7 @@ def retrieval(
     split: str, datasets: Sequence[str], n_balls: Sequence[int], workers: int, refined: bool
 ) -> dict[str, Any]:
     """The light fields alone of each packing length, today's (512, cached) and the mesh LFD."""
-    from bench.rerank_select import lfd_matrix
+    from bench.support.lightfield import lfd_matrix
 
     tail = max(n_balls) - MDBDConfig().n_balls
     table: dict[str, dict[str, Any]] = {}

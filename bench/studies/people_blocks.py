@@ -40,8 +40,8 @@ from numpy.typing import NDArray
 import bench.common as common
 import bench.representations as representations
 from bench.common import Balls, format_table, log_margin, mdbd_config, retrieval_scores, write_json
-from bench.features import kernel_features
 from bench.representations import build, load_set
+from bench.support.features import kernel_features
 from shapedb.config.core import Config, MDBDConfig
 from shapedb.signature.descriptor import LAYOUTS
 

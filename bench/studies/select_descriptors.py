@@ -33,8 +33,8 @@ from typing import Any
 import numpy as np
 
 from bench.common import decompose_all, format_table, log_margin, retrieval_scores, write_json
-from bench.datasets import Dataset
 from bench.retrieval import build_sets
+from bench.sets.datasets import Dataset
 from bench.studies import descriptors as desc
 from shapedb.config.core import MDBDConfig
 

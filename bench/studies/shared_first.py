@@ -5,12 +5,12 @@ Usage (from the repository root)::
     python -m bench.studies.shared_first                       # validation, the product's k, beta
     python -m bench.studies.shared_first --split test --shared 4 1.6
 
-The gate bench's stores (:mod:`bench.lightfield_gate`: every set and mix of the split a
+The gate bench's stores (:mod:`bench.studies.lightfield_gate`: every set and mix of the split a
 store, the product's stage with the field vectors, its gate) are scored three ways: the
 stage without the shared-neighbour term, with it as the product ranks (the first result
 among the query's others is the one without the term:
 :meth:`query.search.rerank_lightfield.LightFieldFusion.fuse`), and with it unconstrained (the term
-may change the first result too, :attr:`bench.gate_stores.Store.keep_first` False). The
+may change the first result too, :attr:`bench.support.stores.Store.keep_first` False). The
 rows show what the contract costs or saves on NN. Written to
 bench/results/studies/shared_first_<split>.json.
 """
@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.common import write_json
-from bench.gate_stores import (
+from bench.support.stores import (
     MEASURES,
     gate_weights,
     product_stores,

@@ -8,7 +8,7 @@ Usage (from the repository root)::
 
 For each set of the split: how many models the local rule thickens locally (their field
 and decomposition change; the others are bit-identical). Then the CPU seconds of the
-whole ingest work (:func:`bench.field_vector_cost.ingest_cpu`: load, decomposition with
+whole ingest work (:func:`bench.studies.field_vector_cost.ingest_cpu`: load, decomposition with
 the field's inside, descriptor, light fields, field vector) under ``sheet_rule="whole"``
 (the baseline) and ``"local"``, interleaved model by model, on ``--models`` models the
 rule changes and as many it leaves alone, from generic and web: medians and the median
@@ -26,11 +26,11 @@ from typing import Any
 
 import numpy as np
 
-from bench.cached import SETS
 from bench.common import format_table, variant_geometry, write_json
-from bench.datasets import articulated as figures
-from bench.datasets import capod, generic, parts, web
-from bench.field_vector_cost import ingest_cpu
+from bench.sets.datasets import articulated as figures
+from bench.sets.datasets import capod, generic, parts, web
+from bench.studies.field_vector_cost import ingest_cpu
+from bench.support.cached import SETS
 from shapedb.config.core import Config, MDBDConfig
 from shapedb.geometry.sheet import LocallyThickened
 from shapedb.mdbd.decomposition import prepare_field

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common import variant_geometry
-from bench.datasets import Model, people
+from bench.sets.datasets import Model, people
 from shapedb.config.core import MDBDConfig
 from shapedb.mdbd.decomposition import prepare_field
 

@@ -10,7 +10,7 @@ the first of them along the canonical frame's axes that is within a quarter of t
 tolerance of the maximum, so the choice follows the solid instead of the noise.
 
 For each tolerance this bench decomposes the validation splits of the three labelled
-sets as meshes and as point clouds (:func:`bench.datasets.point_cloud`) and prints, with
+sets as meshes and as point clouds (:func:`bench.sets.datasets.point_cloud`) and prints, with
 the default descriptor: mesh-mesh NN / 1-T / DCG, cloud queries against the mesh
 database (own mesh left out) and the even mixture, their gaps to mesh-mesh, and the
 mean kernel between a mesh and its own cloud.
@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from bench.common import Balls, decompose_all, format_table, retrieval_scores, write_json
-from bench.datasets import articulated, capod, parts, stable_seed
+from bench.sets.datasets import articulated, capod, parts, stable_seed
 from shapedb.config.core import KernelConfig, MDBDConfig
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "ties.json"

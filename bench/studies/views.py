@@ -34,8 +34,8 @@ from bench.common import (
     retrieval_scores,
     write_json,
 )
-from bench.features import l1_matrix, mixture_mask, reconstructions
 from bench.retrieval import build_sets
+from bench.support.features import l1_matrix, mixture_mask, reconstructions
 from shapedb.config.core import MDBDConfig
 from shapedb.signature.descriptor import describe
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.baselines import (
+from bench.support.baselines import (
     D2Config,
     d2_descriptor,
     grakel_similarity,

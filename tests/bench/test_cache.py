@@ -12,7 +12,7 @@ import pytest
 import trimesh
 
 import bench.common as common
-from bench.datasets import Model
+from bench.sets.datasets import Model
 from shapedb.config.core import MDBDConfig
 from shapedb.mdbd.graph import contact_edges
 
@@ -168,8 +168,8 @@ def test_derived_caches_are_keyed_by_the_engine(
     model: Model, cache: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Distance matrices and field vectors derived from a decomposition are re-computed when
-    the engine changes (bench.cached.model_key holds the decomposition's cache key)."""
-    from bench.cached import model_key
+    the engine changes (bench.support.cached.model_key holds the decomposition's cache key)."""
+    from bench.support.cached import model_key
 
     before = model_key(model)
     assert before.startswith("capsule" + model.source)

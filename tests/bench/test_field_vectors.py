@@ -6,8 +6,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from bench.field_vectors import FieldStage, union_order
-from bench.lightfield_gate import Store, gate_weights
+from bench.support.field_vectors import FieldStage, union_order
+from bench.support.stores import Store, gate_weights
 from shapedb.config.core import Config
 
 
@@ -73,8 +73,8 @@ def test_the_stage_of_a_config_without_the_fields_is_none() -> None:
 
 
 def test_the_analytic_gates_on_the_light_field_distance_are_the_product_s(tmp_path) -> None:  # type: ignore[no-untyped-def]
-    from bench.field_vectors import analytic_distance
-    from bench.gate_checks import analytic_gates, analytic_shapes, analytic_stores
+    from bench.studies.gate_checks import analytic_gates, analytic_shapes, analytic_stores
+    from bench.support.field_vectors import analytic_distance
 
     stores = analytic_stores(tmp_path)
     f = Config().lf_fusion
@@ -96,8 +96,8 @@ def test_the_analytic_gates_on_the_light_field_distance_are_the_product_s(tmp_pa
 def test_a_run_s_stage_is_the_product_s_unless_flags_say_otherwise() -> None:
     import dataclasses
 
-    from bench.field_vectors import CHOSEN, stage_of
-    from bench.lightfield_gate import parser
+    from bench.studies.lightfield_gate import parser
+    from bench.support.field_vectors import CHOSEN, stage_of
 
     product = FieldStage.of(Config().lf_fusion)
     assert stage_of(parser().parse_args([])) == product

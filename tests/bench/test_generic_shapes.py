@@ -1,11 +1,11 @@
-"""The generic web-like set (bench.generic_shapes, bench.datasets.generic)."""
+"""The generic web-like set (bench.sets.generic_shapes, bench.sets.datasets.generic)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from bench.datasets import generic, mesh_arrays
-from bench.generic_shapes import KINDS, generic_mesh
+from bench.sets.datasets import generic, mesh_arrays
+from bench.sets.generic_shapes import KINDS, generic_mesh
 
 
 def test_generation_is_deterministic_and_varied() -> None:

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from bench.inside_fields import cut
+from bench.support.inside_fields import cut
 from shapedb.config.core import LightFieldConfig, MDBDConfig
 from shapedb.geometry.implicit import Box
 from shapedb.geometry.inside import field_inside

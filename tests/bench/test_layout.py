@@ -10,7 +10,7 @@ import pytest
 BENCH = Path(__file__).resolve().parents[2] / "bench"
 STUDIES = sorted(p.stem for p in (BENCH / "studies").glob("*.py") if p.stem != "__init__")
 #: Study modules that are libraries of the others.
-NOT_SCRIPTS = {"descriptors"}
+NOT_SCRIPTS = {"descriptors", "gate_checks"}
 
 
 @pytest.mark.parametrize("name", sorted(set(STUDIES) - NOT_SCRIPTS))
@@ -54,3 +54,10 @@ def test_no_product_bench_imports_a_study() -> None:
         source = (BENCH / f"{name}.py").read_text()
         assert "from bench.studies" not in source, name
         assert "import bench.studies" not in source, name
+
+
+def test_the_top_level_holds_the_benchmarks_and_their_helpers_only() -> None:
+    """Data sets live in bench/sets/, shared code in bench/support/, research in studies."""
+    names = {p.stem for p in BENCH.glob("*.py")} - {"__init__"}
+    assert names - set(PRODUCT) == {"common"}
+    assert len(names) <= 15

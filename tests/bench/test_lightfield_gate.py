@@ -7,9 +7,9 @@ import os
 import numpy as np
 import pytest
 
-from bench.features import kernel_features
-from bench.lightfield_gate import Split, Store, gate_weights
-from bench.lightfield_rerank import index_of, rankings
+from bench.studies.lightfield_rerank import index_of, rankings
+from bench.support.features import kernel_features
+from bench.support.stores import Split, Store, gate_weights
 from shapedb.config.core import Config
 
 
@@ -18,9 +18,9 @@ from shapedb.config.core import Config
     not os.environ.get("SHAPEDB_BENCH_CACHE"), reason="needs the cached decompositions"
 )
 def test_the_gate_bench_ranks_the_parts_and_people_as_the_product() -> None:
-    from bench import inside_fields
-    from bench.cached import load
-    from bench.gate_stores import shared_stores
+    from bench.support import inside_fields
+    from bench.support.cached import load
+    from bench.support.stores import shared_stores
 
     # the product's light fields without the field vectors (the split fuses none), the
     # shared-neighbour term on; a shape's N_k among its candidates, as the product's table
@@ -41,7 +41,7 @@ def test_the_gate_bench_ranks_the_parts_and_people_as_the_product() -> None:
 
 
 def test_the_margin_is_the_least_jointed_over_the_largest_rigid() -> None:
-    from bench.gate_checks import margin
+    from bench.studies.gate_checks import margin
 
     rigid = np.linspace(0.0, 1.0, 101)  # 95 %: 0.95
     people = np.linspace(2.0, 3.0, 101)  # 5 %: 2.05
@@ -54,7 +54,7 @@ def test_the_margin_is_the_least_jointed_over_the_largest_rigid() -> None:
 
 
 def test_the_ratio_grid_scales_the_ceiling_with_the_ratio_weight() -> None:
-    from bench.gate_checks import CEILINGS, ratio_settings
+    from bench.studies.gate_checks import CEILINGS, ratio_settings
 
     settings = ratio_settings()
     keys = [tuple(sorted(s.items())) for s in settings]
@@ -68,7 +68,7 @@ def test_the_ratio_grid_scales_the_ceiling_with_the_ratio_weight() -> None:
 def test_a_store_s_nearest_others_are_its_candidates_without_itself() -> None:
     from types import SimpleNamespace
 
-    from bench.lightfield_gate import local_spreads
+    from bench.support.stores import local_spreads
 
     rng = np.random.default_rng(3)
     x = rng.random((30, 4))
@@ -91,8 +91,8 @@ def test_a_store_s_nearest_others_are_its_candidates_without_itself() -> None:
 def test_the_bench_s_shared_term_ranks_as_the_product() -> None:
     from types import SimpleNamespace
 
-    from bench.gate_stores import shared_stores
-    from bench.lightfield_rerank import Arrays
+    from bench.studies.lightfield_rerank import Arrays
+    from bench.support.stores import shared_stores
     from query.search import rerank
     from query.search.index import FeatureIndex
     from query.search.lightfield_spread import calibration
@@ -128,7 +128,8 @@ def test_the_contrast_grid_scores_every_setting_with_the_term() -> None:
     import dataclasses
     from types import SimpleNamespace
 
-    from bench.gate_stores import CONTRAST_GRID, contrast_rows, score_row, shared_stores
+    from bench.studies.lightfield_gate import CONTRAST_GRID, contrast_rows
+    from bench.support.stores import score_row, shared_stores
 
     rng = np.random.default_rng(7)
     n = 48

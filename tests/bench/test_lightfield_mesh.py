@@ -1,4 +1,4 @@
-"""The light field descriptor baseline (bench.lightfield: mesh splats) on analytic shapes.
+"""The light field descriptor baseline (bench.support.lightfield: mesh splats) on analytic shapes.
 
 The dodecahedron, the features and the distance are tested in tests/shapedb/test_lightfield.py.
 """
@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.lightfield import (
+from bench.support.lightfield import (
     LFDConfig,
     dodecahedron_rotations,
     dodecahedron_views,

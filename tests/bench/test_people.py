@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.datasets import families, people
-from bench.people import (
+from bench.sets.datasets import families, people
+from bench.sets.people import (
     MESH_VERTICES,
     NOISE_SIGMA,
     noisy_cloud,
@@ -43,7 +43,7 @@ def test_person_is_a_solid_about_one_point_seven_five_tall() -> None:
 def test_person_mesh_is_watertight_with_about_7k_vertices() -> None:
     pytest.importorskip("fast_simplification")
     pytest.importorskip("skimage")
-    from bench.people import person_mesh
+    from bench.sets.people import person_mesh
 
     v, f = person_mesh(1, 2)
     assert abs(len(v) - MESH_VERTICES) <= 0.02 * MESH_VERTICES
@@ -60,7 +60,7 @@ def test_people_set_is_split_by_subject_with_poses_as_families() -> None:
 
 
 def test_extra_validation_subjects_leave_the_test_split_as_it_is() -> None:
-    from bench.datasets import PEOPLE_EXTRA_POSES
+    from bench.sets.datasets import PEOPLE_EXTRA_POSES
 
     base, more = people(subjects=4, poses=6), people(subjects=4, poses=6, extra_validation=2)
     assert more.split("test").models == base.split("test").models

@@ -6,8 +6,8 @@ from typing import Any
 
 import numpy as np
 
-from bench.baselines import D2Config
 from bench.representations import Distances, d2_points, score_rows
+from bench.support.baselines import D2Config
 
 
 def _toy() -> tuple[Distances, np.ndarray]:
@@ -65,9 +65,9 @@ def _balls(radius: float, shift: float) -> Any:
 
 def test_store_rule_mean_averages_a_cloud_and_its_reconstruction() -> None:
     """``combine="mean"`` compares the mean of the two features; a mask scales all three."""
-    from bench.datasets import Dataset, Model
-    from bench.features import kernel_features
     from bench.representations import SetData, pose_free_mask, store_rule
+    from bench.sets.datasets import Dataset, Model
+    from bench.support.features import kernel_features
     from shapedb.config.core import KernelConfig
 
     models = tuple(Model(f"m{i}", "a", f"toy:{i}") for i in range(2))

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.baselines import D2Config
-from bench.datasets import web
 from bench.retrieval import cloud_classes, main, run_baselines
+from bench.sets.datasets import web
+from bench.support.baselines import D2Config
 
 
 def test_baselines_only_rank_a_tiny_web_set(capsys: pytest.CaptureFixture[str]) -> None:

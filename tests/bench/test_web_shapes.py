@@ -1,12 +1,12 @@
-"""The hard web-like set (bench.web_shapes, bench.datasets.web)."""
+"""The hard web-like set (bench.sets.web_shapes, bench.sets.datasets.web)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from bench.datasets import families, mesh_arrays, web
-from bench.web_shapes import FAMILIES, KINDS, web_mesh, web_version
+from bench.sets.datasets import families, mesh_arrays, web
+from bench.sets.web_shapes import FAMILIES, KINDS, web_mesh, web_version
 
 
 def test_kinds_come_in_close_families() -> None:

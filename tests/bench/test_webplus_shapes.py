@@ -1,4 +1,4 @@
-"""The held-out web-like set (bench.webplus_shapes, bench.datasets.webplus)."""
+"""The held-out web-like set (bench.sets.webplus_shapes, bench.sets.datasets.webplus)."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bench.datasets import families, mesh_arrays, webplus
-from bench.generic_shapes import KINDS as GENERIC_KINDS
-from bench.web_shapes import KINDS as WEB_KINDS
-from bench.webplus_shapes import FAMILIES, KINDS, webplus_mesh, webplus_version
+from bench.sets.datasets import families, mesh_arrays, webplus
+from bench.sets.generic_shapes import KINDS as GENERIC_KINDS
+from bench.sets.web_shapes import KINDS as WEB_KINDS
+from bench.sets.webplus_shapes import FAMILIES, KINDS, webplus_mesh, webplus_version
 
 
 def test_kinds_are_new_and_come_in_families() -> None:

@@ -12,9 +12,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from bench.gate_checks import ANALYTIC, chain
-from bench.lightfield_gate import Store, gate_weights
-from bench.lightfield_gate import local_spreads as local_spreads_of
+from bench.studies.gate_checks import ANALYTIC, chain
+from bench.support.stores import Store, gate_weights
+from bench.support.stores import local_spreads as local_spreads_of
 from query.search import rerank
 from query.search.field_fusion import FIELD
 from query.search.index import FeatureIndex

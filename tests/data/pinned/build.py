@@ -52,8 +52,8 @@ def _label(source: str) -> str:
 
 
 def _write_models(models: Path) -> Path:
-    from bench import datasets
-    from bench.web_shapes import web_version
+    from bench.sets import datasets
+    from bench.sets.web_shapes import web_version
 
     labels = ["path,label"]
     for source in MODELS:

@@ -1,0 +1,321 @@
+"""The field vectors of the ``"lightfield"`` stage, in the gate bench: fused distance, union candidates.
+
+Usage (from the repository root)::
+
+    export SHAPEDB_BENCH_CACHE=/work/bench_cache
+    nice -n 5 python -m bench.studies.field_choice --split validation     # the scales (medians)
+    nice -n 5 python -m bench.studies.field_choice --choose               # the choice on validation
+
+The product's stage: each record keeps a *field vector*, the depth buffer
+descriptor of its field's inside (Vranic: 438 floats at 64 px, ``k`` 8) followed by the
+spherical-harmonic energies of the same inside (Kazhdan, on an angle grid: 32 shells x
+16 bands). The stage's distance between two shapes is
+
+    ``m_l * (l / m_l + a * b / m_b + c * h / m_h) / (1 + a + c)``
+
+(``l`` the light field distance, ``b`` and ``h`` the L1 distances of the depth and the
+harmonic parts, ``m_*`` fixed scales, ``a`` and ``c`` the weights: the fields
+``field_depth_weight``, ``field_harmonic_weight``, ``light_field_scale``,
+``field_depth_scale``, ``field_harmonic_scale`` of
+:class:`shapedb.config.core.LightFieldFusionConfig`), and its candidates are version 4's ``K``
+nearest followed by those of the ``K2`` nearest by the L1 distance of the scaled vectors
+``[depth / m_b, harmonic / m_h]`` (``field_candidates``) that are not among them, in the
+stored distance's order.
+
+:func:`fuse` turns a :class:`bench.support.stores.Split` into that stage's split (its
+light field distance replaced by the fused one, the scaled vectors' distance kept for
+the candidates); :class:`bench.support.stores.Store` takes the union. The vectors of
+the bench models (:func:`shapedb.signature.field_vector.field_vector`) come from the field
+shells cached by :mod:`bench.support.field_shells`
+(``$SHAPEDB_BENCH_CACHE/field_depth``, computed by :func:`bench.support.field_shells.fill` when missing) and are cached under
+``$SHAPEDB_BENCH_CACHE/field_vectors``. :func:`analytic_distance` gives the analytic
+stores of :mod:`bench.studies.gate_checks` the same fused distance, so the analytic chain is
+checked on it. The choice of the scales, the weights and ``K2`` on validation is
+:mod:`bench.studies.field_choice`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import hashlib
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from bench.sets.datasets import CACHE_DIR
+from bench.support.cached import load, model_key
+from bench.support.field_shells import as_inside
+
+#: A :class:`bench.support.stores.Split` (that module imports this one).
+Split = Any
+
+FloatArray = NDArray[np.float64]
+FOLDER = CACHE_DIR / "field_vectors"
+#: Bump when the cached vectors change.
+VERSION = "v1"
+#: Floats of the depth buffer descriptor (64 px, ``k`` 8) at the head of a field vector.
+DEPTH_DIM = 438
+#: Floats of the harmonic energies (32 shells x 16 bands) after it.
+HARMONIC_DIM = 32 * 16
+
+
+@dataclasses.dataclass(frozen=True)
+class FieldStage:
+    """The field vectors' part of the stage (the fields of ``LightFieldFusionConfig``).
+
+    Attributes
+    ----------
+    depth_weight, harmonic_weight : float
+        ``a`` and ``c``, >= 0.
+    light_field_scale, depth_scale, harmonic_scale : float
+        ``m_l``, ``m_b``, ``m_h``, > 0 (units of each distance).
+    candidates : int
+        ``K2``, the field vectors' nearest added to version 4's ``K``; 0: none.
+    """
+
+    depth_weight: float = 0.5
+    harmonic_weight: float = 0.5
+    light_field_scale: float = 1.0
+    depth_scale: float = 1.0
+    harmonic_scale: float = 1.0
+    candidates: int = 100
+
+    @property
+    def fuses(self) -> bool:
+        """Whether the distance is not the light field's alone."""
+        return self.depth_weight > 0 or self.harmonic_weight > 0
+
+    @classmethod
+    def of(cls, fusion: Any) -> FieldStage | None:
+        """The stage of a ``LightFieldFusionConfig`` (None when it has no field vectors)."""
+        names = {"depth_weight": "field_depth_weight",
+                 "harmonic_weight": "field_harmonic_weight",
+                 "light_field_scale": "light_field_scale", "depth_scale": "field_depth_scale",
+                 "harmonic_scale": "field_harmonic_scale", "candidates": "field_candidates"}  # fmt: skip
+        if not all(hasattr(fusion, v) for v in names.values()):
+            return None
+        got = cls(**{k: getattr(fusion, v) for k, v in names.items()})
+        return got if got.fuses or got.candidates > 0 else None
+
+    def short(self) -> str:
+        """The stage in a few characters."""
+        return (f"a {self.depth_weight:g} c {self.harmonic_weight:g} K2 {self.candidates} "
+                f"m {self.light_field_scale:.4g}/{self.depth_scale:.4g}/{self.harmonic_scale:.4g}")  # fmt: skip
+
+
+# --------------------------------------------------------------------------------------
+# The vectors of the bench models
+# --------------------------------------------------------------------------------------
+
+
+def _describer() -> tuple[Callable[[dict[str, Any]], NDArray[np.float32]], bytes]:
+    """The product's field vector of a cached shell
+    (:func:`shapedb.signature.field_vector.field_vector`) and its code (for the cache key)."""
+    from shapedb.config.field_vector import FieldVectorConfig
+    from shapedb.signature import field_vector as fd
+
+    cfg = FieldVectorConfig(enabled=True)
+
+    def product(z: dict[str, Any]) -> NDArray[np.float32]:
+        return np.asarray(fd.field_vector(as_inside(z), cfg), np.float32)
+
+    return product, Path(fd.__file__).read_bytes() + repr(cfg).encode()
+
+
+def set_vectors(name: str, split: str) -> NDArray[np.float32]:
+    """(n, 950) float32 field vectors of a set's split (its models in :func:`load`'s order).
+
+    Read from the cache, else computed from the study's cached shells (computing the
+    shells the cache lacks).
+    """
+    from bench.support.field_shells import shells
+
+    ds, _ = load(name, split)
+    fn, code = _describer()
+    keys = "\n".join(model_key(m) for m in ds.models)
+    key = hashlib.sha256(code + VERSION.encode() + keys.encode()).hexdigest()[:16]
+    path = FOLDER / f"{name}_{split}_{key}.npy"
+    if path.exists():
+        return np.load(path)
+    t = time.perf_counter()
+    out = np.stack([fn(z) for z in shells(ds)]).astype(np.float32)
+    if out.shape[1] != DEPTH_DIM + HARMONIC_DIM:
+        raise ValueError(f"{name} {split}: field vectors of {out.shape[1]} floats")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.save(path, out)
+    print(f"  {name} {split}: {len(out)} field vectors ({time.perf_counter() - t:.0f} s)",
+          flush=True)  # fmt: skip
+    return out
+
+
+def l1(x: NDArray[np.float32]) -> FloatArray:
+    """(n, n) float64 L1 distances of float32 rows (chunked)."""
+    x64 = np.asarray(x, np.float64)
+    out = np.empty((len(x64), len(x64)))
+    for lo in range(0, len(x64), 64):
+        out[lo : lo + 64] = np.abs(x64[lo : lo + 64, None, :] - x64[None, :, :]).sum(-1)
+    return out
+
+
+def parts(vectors: NDArray[np.float32]) -> tuple[FloatArray, FloatArray]:
+    """(n, n) L1 distances of the depth parts and of the harmonic parts of the vectors."""
+    return l1(vectors[:, :DEPTH_DIM]), l1(vectors[:, DEPTH_DIM:])
+
+
+def off_median(d: FloatArray) -> float:
+    """The median off-diagonal entry of a square matrix."""
+    return float(np.median(d[~np.eye(len(d), dtype=bool)]))
+
+
+# --------------------------------------------------------------------------------------
+# The stage's split
+# --------------------------------------------------------------------------------------
+
+
+def fuse(split: Split, names: Sequence[str], stage: FieldStage) -> Split:
+    """``split`` as the stage sees it: a shallow copy with ``dl`` the fused distance, ``dv``
+    the L1 distance of the scaled field vectors and ``stage`` set (``light`` keeps the
+    light field distance)."""
+    import copy
+
+    b, h = split_parts(split, names)
+    out = copy.copy(split)
+    light = split.light
+    ml, mb, mh = stage.light_field_scale, stage.depth_scale, stage.harmonic_scale
+    a, c = stage.depth_weight, stage.harmonic_weight
+    out.light = light
+    out.dl = ml * (light / ml + a * b / mb + c * h / mh) / (1.0 + a + c)
+    out.dv = scaled_distance(split, names, stage)
+    out.stage = stage
+    return out
+
+
+_PARTS: dict[tuple[str, tuple[str, ...]], tuple[FloatArray, FloatArray]] = {}
+
+
+def split_parts(split: Split, names: Sequence[str]) -> tuple[FloatArray, FloatArray]:
+    """(n, n) ``b`` and ``h`` over the split's shapes (its sets in ``names``' order), kept."""
+    key = (split.split, tuple(names))
+    if key not in _PARTS:
+        v = np.concatenate([set_vectors(n, split.split) for n in names])
+        if len(v) != len(split.labels):
+            raise ValueError(f"{len(v)} field vectors for {len(split.labels)} shapes")
+        _PARTS[key] = parts(v)
+    return _PARTS[key]
+
+
+def scaled_distance(split: Split, names: Sequence[str], stage: FieldStage) -> FloatArray:
+    """(n, n) L1 of ``[depth / m_b, harmonic / m_h]`` as float32 vectors (the index's)."""
+    v = np.concatenate([set_vectors(n, split.split) for n in names])
+    x = np.concatenate([v[:, :DEPTH_DIM] / np.float32(stage.depth_scale),
+                        v[:, DEPTH_DIM:] / np.float32(stage.harmonic_scale)], 1)  # fmt: skip
+    return l1(x.astype(np.float32))
+
+
+def union_order(order: NDArray[np.int64], dv: FloatArray, k: int, k2: int) -> tuple[
+        NDArray[np.int64], NDArray[np.int64]]:  # fmt: skip
+    """Each query's list: version 4's ``k`` then the ``k2`` nearest by ``dv`` not among them.
+
+    Parameters
+    ----------
+    order : (n, n) int
+        Each row's positions by the stored distance (ties by id).
+    dv : (n, n) float
+        The scaled field vectors' L1 distances.
+
+    Returns
+    -------
+    (n, n) int64, (n,) int64
+        Each row's positions, the union first in the stored distance's order, then the
+        rest in that order; and the size of each row's union.
+    """
+    n = len(order)
+    rows = np.arange(n)[:, None]
+    inside = np.zeros((n, n), bool)
+    inside[rows, order[:, :k]] = True
+    if k2 > 0:
+        near = np.lexsort((np.broadcast_to(np.arange(n), (n, n)), dv), axis=-1)[:, :k2]
+        inside[rows, near] = True
+    first = np.argsort(~np.take_along_axis(inside, order, 1), axis=1, kind="stable")
+    return np.take_along_axis(order, first, 1), inside.sum(1)
+
+
+# --------------------------------------------------------------------------------------
+# The analytic stores on the same distance
+# --------------------------------------------------------------------------------------
+
+
+def analytic_vectors(shapes: Sequence[tuple[str, Any]], config: Any) -> NDArray[np.float32]:
+    """(n, 950) field vectors of analytic shapes decomposed under ``config`` (their inside)."""
+    from shapedb.mdbd.decomposition import decompose
+
+    fn, _ = _describer()
+    out = []
+    for _, shape in shapes:
+        inside = decompose(shape, config=config.mdbd, keep_inside=True).inside
+        assert inside is not None, "decompose(keep_inside=True) keeps the inside"
+        out.append(fn({"shell": inside.shell, "cell": inside.cell,
+                       "centroid": inside.centroid, "count": inside.count}))  # fmt: skip
+    return np.stack(out)
+
+
+def analytic_distance(db: Any, shapes: Sequence[tuple[str, Any]], stage: FieldStage) -> Callable[
+        [int, NDArray[np.int64], FloatArray], FloatArray]:  # fmt: skip
+    """The fused distance of an analytic store (:func:`bench.studies.gate_checks.analytic_stores`):
+    ``f(query id, candidate ids, light field distances)``, for
+    :func:`bench.studies.gate_checks.analytic_gates`'s ``distance``."""
+    v = analytic_vectors(shapes, db.config)
+    t = db.store.shapes(["id", "name"])
+    pos = {int(i): [s for s, _ in shapes].index(n)
+           for i, n in zip(t.column("id").to_pylist(), t.column("name").to_pylist(), strict=True)}  # fmt: skip
+    ml, mb, mh = stage.light_field_scale, stage.depth_scale, stage.harmonic_scale
+    a, c = stage.depth_weight, stage.harmonic_weight
+
+    def f(q: int, ids: NDArray[np.int64], dl: FloatArray) -> FloatArray:
+        x = v[pos[int(q)]].astype(np.float64)
+        y = v[[pos[int(i)] for i in ids]].astype(np.float64)
+        b = np.abs(y[:, :DEPTH_DIM] - x[:DEPTH_DIM]).sum(1)
+        h = np.abs(y[:, DEPTH_DIM:] - x[DEPTH_DIM:]).sum(1)
+        return ml * (dl / ml + a * b / mb + c * h / mh) / (1.0 + a + c)
+
+    return f
+
+
+# --------------------------------------------------------------------------------------
+# The stage of a run, and the choice on validation
+# --------------------------------------------------------------------------------------
+
+#: The choice on validation (docs/results.md, "The field vectors in the stage"): the stage
+#: of ``--field-vectors`` when the product's fusion is off (its gate: ``contrast_ramp`` 0.05).
+CHOSEN = FieldStage(0.25, 0.25, 20.67, 6.045, 2.168, 200)
+
+
+def stage_of(args: argparse.Namespace) -> FieldStage | None:
+    """The field stage a gate bench run asks for (None: the light field alone).
+
+    ``--no-field-vectors``: None. No flag: the product's (``LightFieldFusionConfig()``'s
+    fields, None while it has none). ``--field-vectors`` or any ``--fv-*``: the
+    product's stage (:data:`CHOSEN` while it is off) with those values replaced.
+    """
+    from shapedb.config.core import Config
+
+    product = FieldStage.of(Config().lf_fusion)
+    on = getattr(args, "field_vectors", None)
+    given = {k: getattr(args, k, None) for k in ("fv_weights", "fv_scales", "fv_candidates")}
+    if on is False or (on is None and all(v is None for v in given.values())):
+        return None if on is False else product
+    stage = product or CHOSEN
+    if given["fv_weights"] is not None:
+        a, c = given["fv_weights"]
+        stage = dataclasses.replace(stage, depth_weight=a, harmonic_weight=c)
+    if given["fv_scales"] is not None:
+        ml, mb, mh = given["fv_scales"]
+        stage = dataclasses.replace(stage, light_field_scale=ml, depth_scale=mb, harmonic_scale=mh)
+    if given["fv_candidates"] is not None:
+        stage = dataclasses.replace(stage, candidates=int(given["fv_candidates"]))
+    return stage
