@@ -10,7 +10,6 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from shapedb.config.core import Config, FieldVectorConfig
-from shapedb.config.field_vector import FieldVectorConfig
 from shapedb.errors import ConfigError
 from shapedb.geometry.base import Grid
 from shapedb.geometry.implicit import Box, Sphere
