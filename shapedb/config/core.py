@@ -294,8 +294,7 @@ class CloudConfig:
     reconstruct_depth : int
         Octree depth of the reconstructions' Poisson solve (2^depth cells along the
         cloud's box at the finest level), in [4, 12]. Default 7 (chosen on the
-        validation splits, ``docs/results.md``, "Issue 26: the cost of a cloud
-        query"); stores that do not record it read 8.
+        validation splits, ``docs/results.md``, "Across representations"); stores that do not record it read 8.
     """
 
     view_cells: float = 0.0

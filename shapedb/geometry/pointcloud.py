@@ -10,7 +10,7 @@ the distance to the underlying surface (the nearest sample is offset sideways fr
 the true closest point); a fixed correction for the mean offset (``sqrt(d^2 - r^2)``,
 ``r = SPACING_CORRECTION * rho_k``, still used outside the solid where only the sign
 matters) centres the median but leaves the scatter, which the splats narrow
-(``docs/results.md``, "Point-cloud distance").
+(``docs/results.md``, "Across representations").
 
 The sign is the hard part. Poisson reconstruction and fixed-width shells leak on
 sparse clouds (the paper queries a random 20 % of a mesh's vertices), and point
@@ -449,7 +449,7 @@ class PointCloud(Geometry):
 
         Unlike a mesh's ``|winding number|``: the normals are oriented outwards, and the
         magnitude would add specks of inside beside single sheets, whose samples' signs
-        are a coin toss (docs/studies.md, "Which way a point cloud's sheets face").
+        are a coin toss (docs/studies.md, "Point clouds").
         """
         return self.winding_number(points) > 0.5
 

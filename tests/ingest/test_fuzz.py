@@ -1,4 +1,4 @@
-"""Property-based fuzzing of ingest (issue 24): mutated model files and hostile file names.
+"""Property-based fuzzing of ingest: mutated model files and hostile file names.
 
 Every example must end as a stored record or as a failure row, never as an exception
 out of ``ingest``, and the store must pass ``shapedb check`` afterwards. The default

@@ -1,4 +1,4 @@
-"""Ingest never aborts on one file (issue 24, cases 4 and 6): names, links, caps, counts."""
+"""Ingest never aborts on one file: names, links, caps, counts."""
 
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ def _names(db: database.Database) -> list[str]:
 
 
 def test_a_name_that_is_not_utf8_is_one_row_not_a_crash(tmp_db, tmp_path: Path) -> None:
-    """Issue 24, case 4: the good models of the batch are stored, and a re-run is clean."""
+    """the good models of the batch are stored, and a re-run is clean."""
     folder = tmp_path / "models"
     folder.mkdir()
     _write_obj(folder / "good one.obj")
@@ -78,7 +78,7 @@ def test_workers_must_be_a_positive_integer(tmp_db, tmp_path: Path, workers) -> 
 
 
 def test_obj_without_faces_is_a_point_cloud_said_in_the_report(tmp_db, tmp_path: Path) -> None:
-    """Issue 24, case 6: an OBJ cut before its faces is stored as a cloud, with a note."""
+    """an OBJ cut before its faces is stored as a cloud, with a note."""
     text = BOX.export(file_type="obj")
     pts = trimesh.creation.icosphere(subdivisions=2).vertices
     head = "".join(f"v {x} {y} {z}\n" for x, y, z in pts)
@@ -143,7 +143,7 @@ def test_ingest_into_a_folder_that_is_not_a_store_is_refused(tmp_path: Path) -> 
 
 
 def test_ingest_into_a_store_without_its_manifest_changes_nothing(tmp_db, tmp_path: Path) -> None:
-    """Issue 24, case 1, as the issue ran it: rm manifest.json; ingest --db base."""
+    """rm manifest.json; ingest --db base."""
     from shapedb.errors import StoreError
 
     tmp_db.ingest([_write_obj(tmp_path / "a.obj")], workers=1)

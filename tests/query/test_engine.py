@@ -129,7 +129,7 @@ def test_errors(tmp_db, tmp_path):
 
 @pytest.mark.parametrize("k", [0, -3, 3_000_000_000, 99999999999999999999, 2.5, "3", True])
 def test_k_out_of_range_is_a_query_error(tmp_db, k):
-    """Issue 24, case 5: k <= 0, absurd or not an integer is one clear error."""
+    """k <= 0, absurd or not an integer is one clear error."""
     with pytest.raises(QueryError, match="k"):
         search(tmp_db, "box0", k=k)
 

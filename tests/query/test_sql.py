@@ -152,7 +152,7 @@ def test_macros_weigh_by_a_learned_metric(tmp_db, tmp_path):
         sql(tmp_db, "SELECT 1", metric=other)
 
 
-# ---------------------------------------------------------------- the sandbox (issue 24, case 2)
+# ---------------------------------------------------------------- the sandbox
 def _files_on_disk(db):
     return sorted((p, p.stat().st_mtime_ns) for p in db.store.path.rglob("*") if p.is_file())
 

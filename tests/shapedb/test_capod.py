@@ -1,4 +1,4 @@
-"""Issue 2's checks on real models (CAPOD, ../shared/data): slow, run with ``-m slow``."""
+"""Checks on real models (CAPOD, ../shared/data): slow, run with ``-m slow``."""
 
 from __future__ import annotations
 
@@ -62,7 +62,7 @@ def test_balls_are_sorted_disjoint_and_inside(name: str) -> None:
 
 
 def test_similarity_transform_keeps_the_kernel() -> None:
-    """Issue 2: a rotated, moved and uniformly scaled copy has kernel >= 0.99.
+    """a rotated, moved and uniformly scaled copy has kernel >= 0.99.
 
     Meshes get their frame from their own (exact) moments and are queried through a
     copy rebuilt in that frame, so the copy's decomposition is the same up to
@@ -94,7 +94,7 @@ def test_similarity_transform_keeps_the_kernel() -> None:
     reason="open CAPOD meshes and their 20 % point clouds do not always bound the same "
     "solid, and several classes are one mesh in many poses: over all 180 models a cloud "
     "finds its own mesh first for 29 %, its own mesh or a re-posed copy of it for 56 % "
-    "(bench/representations.py; issue 2/6), and (ridge ties on their first cell) its own "
+    "(bench/representations.py), and (ridge ties on their first cell) its own "
     "model first among 20,000-sample clouds of the same surfaces no more often than its "
     "own mesh (34 % against 32 %, --against dense)",
 )

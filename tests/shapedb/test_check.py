@@ -58,7 +58,7 @@ def test_old_manifests_without_checksums_still_check(three: Store) -> None:
 
 
 def test_repair_rebuilds_a_lost_manifest(three: Store) -> None:
-    """Issue 24, case 1: the data of a store whose manifest was deleted comes back."""
+    """the data of a store whose manifest was deleted comes back."""
     before = three.shapes().to_pylist()
     (three.path / MANIFEST).unlink()
     with pytest.raises(StoreError, match="manifest.json is missing"):

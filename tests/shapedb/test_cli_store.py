@@ -1,4 +1,4 @@
-"""``shapedb check`` / ``repair`` and the CLI's guards on store input (issue 24)."""
+"""``shapedb check`` / ``repair`` and the CLI's guards on store input."""
 
 from __future__ import annotations
 

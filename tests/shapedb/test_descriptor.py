@@ -52,7 +52,7 @@ def test_every_version_has_its_length_and_ignores_similarity_transforms(version:
 
 def test_versions_differ_and_the_default_is_the_latest_chosen() -> None:
     # versions 5 (the ball-union block), 6 (without the pose blocks) and 7 (views of the
-    # ball union) are opt-in (issues 25, 26)
+    # ball union) are opt-in
     assert VERSION == 4 == DescriptorConfig().version and {5, 6, 7} <= set(LAYOUTS)
     g = _chain(40, 1.0)
     assert len({LAYOUTS[v] for v in LAYOUTS}) == len(LAYOUTS)

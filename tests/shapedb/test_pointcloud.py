@@ -1,4 +1,4 @@
-"""Point clouds bound the same solid as the mesh they were sampled from (issues #2/#6)."""
+"""Point clouds bound the same solid as the mesh they were sampled from."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Representation agnosticism on analytic shapes, judged by ranking (issue 2).
+"""Representation agnosticism on analytic shapes, judged by ranking.
 
 Each shape of a small gallery exists as an exact implicit solid, a triangle mesh
 (marching cubes), voxel occupancy grids (union of cubes at 96 cells, smooth surface

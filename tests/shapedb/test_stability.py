@@ -125,7 +125,7 @@ def figure_mesh() -> tuple[np.ndarray, np.ndarray]:
 
 
 def test_mesh_rotated_moved_and_scaled_keeps_the_kernel_at_one(figure_mesh: tuple) -> None:
-    """Issue 2 on a mesh: a new mesh on transformed vertices, not a moved copy."""
+    """On a mesh: a new mesh on transformed vertices, not a moved copy."""
     from shapedb.geometry.mesh import TriangleMesh
 
     v, f = figure_mesh

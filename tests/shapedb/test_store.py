@@ -348,7 +348,7 @@ def test_next_writer_removes_only_what_a_journal_proves(tmp_store: Store) -> Non
 
 
 def test_cleanup_never_runs_without_a_valid_manifest(tmp_store: Store) -> None:
-    """Issue 24, case 1: a missing or damaged manifest must not cost any data file."""
+    """a missing or damaged manifest must not cost any data file."""
     tmp_store.add([make_record("a"), make_record("b")])
     root = tmp_store.path
     on_disk = sorted(root.rglob("*.parquet"))
@@ -411,7 +411,7 @@ def test_store_is_created_only_in_a_missing_or_empty_folder(tmp_path: Path) -> N
 
 
 def test_commit_rereads_the_configuration_under_the_lock(tmp_path: Path) -> None:
-    """Issue 24, case 3: a store re-created with another configuration refuses old writers."""
+    """a store re-created with another configuration refuses old writers."""
     path = tmp_path / "race"
     first = Store.create(path, CONFIG)
     manifest = json.loads((path / MANIFEST).read_text())
@@ -489,7 +489,7 @@ def test_plain_duckdb_reads_through_the_manifest(
 
 
 def test_two_creators_never_mix_configurations(tmp_path: Path) -> None:
-    """Issue 24, case 3: connect(p, resolution=a) and (p, resolution=b) at the same moment."""
+    """connect(p, resolution=a) and (p, resolution=b) at the same moment."""
     import query.database as database
     from shapedb.geometry.implicit import Sphere
 
