@@ -398,24 +398,15 @@ def fit_metric(
     pairs = _pairs(x, v, y, sp, sizes)
     chosen, cv = _cross_validate(pairs, y, rng, folds=folds, regs=regs, temperature=temperature)
     weights = _final_weights(pairs, chosen, temperature)
+    n_classes = int(len(np.unique(y)))
     log.info(
         "fit_metric: %d shapes, %d classes, %d view queries; reg %s, weights %s",
-        len(x),
-        len(np.unique(y)),
-        pairs.n_extra,
-        chosen,
-        np.round(weights, 3).tolist(),
+        *(len(x), n_classes, pairs.n_extra, chosen, np.round(weights, 3).tolist()),
     )
+    layout = tuple((str(name), int(s)) for name, s in blocks)
     return LearnedMetric(
-        blocks=tuple((str(name), int(s)) for name, s in blocks),
-        weights=tuple(float(w) for w in weights),
-        fingerprint=fingerprint,
-        reg=chosen,
-        cv=cv,
-        n_shapes=len(x),
-        n_classes=int(len(np.unique(y))),
-        n_extra=pairs.n_extra,
-        label=label,
+        *(layout, tuple(float(w) for w in weights), fingerprint, chosen, cv, len(x)),
+        *(n_classes, pairs.n_extra, label),
     )
 
 
