@@ -329,10 +329,9 @@ def train_classifier(
     validation: float = 0.2,
     folds: int | str = "auto",
     callback: Callback | None = None,
-    budget: float | None = DEFAULT_BUDGET,
+    budget: float | Budget | None = DEFAULT_BUDGET,
     progress: Callable[[Progress], None] | None = None,
     resume: bool = True,
-    clock: Callable[[], float] | None = None,
     **options: Any,
 ) -> ShapeClassifier:
     """Choose and train a classifier on the labelled shapes of a database (``db.train_classifier``).
@@ -365,10 +364,10 @@ def train_classifier(
         Holdout fraction, or k folds ("auto": k-fold when a class has under 20 shapes).
     callback : callable, optional
         ``callback(epoch, epochs, metrics)`` per epoch of the final graph-CNN fit.
-    budget : float or None
+    budget : float, Budget or None
         Seconds for reading, choosing and fitting (default 300; None: no limit).
-    progress, clock : callable, optional
-        ``progress(Progress)`` at every fold and epoch; the budget's monotonic clock.
+    progress : callable, optional
+        ``progress(Progress)`` at every fold and epoch.
     resume : bool
         Reuse the folds that an earlier run with the same store and settings scored.
     **options
@@ -379,7 +378,7 @@ def train_classifier(
     ShapeClassifier
         Fitted, with ``selection_``, ``test_accuracy_`` and ``split_``.
     """
-    timer = Budget(budget, clock=clock)  # reading the store counts
+    timer = budget if isinstance(budget, Budget) else Budget(budget)  # reading counts
     methods, required = _candidates(methods, conv)
     seed = int(options.get("seed", 0))
     data = _training_data(db, label, methods, test, seed)

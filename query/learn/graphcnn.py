@@ -311,7 +311,7 @@ class GraphClassifier:
 
     def _datasets(
         self,
-        graphs: Sequence[Any],
+        graphs: list[Any],
         y: NDArray[np.int64],
         descriptors: Any,
         validation_data: tuple[Any, ...] | None,

@@ -365,8 +365,17 @@ def _score(run: _Run, name: str) -> CandidateScore:
         run.best_refit = fold * len(run.y) / max(len(run.parts[0][0]), 1) if graph else 0.0
     run.report(
         Progress(
-            *(name, run.order.index(name) + 1, len(run.order), len(done), len(run.parts)),
-            *(0, epochs, score.accuracy, run.budget.spent(), run.budget.left(), status),
+            candidate=name,
+            index=run.order.index(name) + 1,
+            candidates=len(run.order),
+            fold=len(done),
+            folds=len(run.parts),
+            epoch=0,
+            epochs=epochs,
+            score=score.accuracy,
+            spent=run.budget.spent(),
+            left=run.budget.left(),
+            done=status,
         )
     )
     return score
@@ -499,7 +508,8 @@ def select_classifier(
     -------
     (Selection, fitted estimator or None)
     """
-    settings = {"folds": folds, "validation": validation, "seed": seed, "clock": clock}
+    settings: dict[str, Any] = {"folds": folds, "validation": validation, "seed": seed}
+    settings["clock"] = clock
     settings.update(graph_options=graph_options, checkpoint=checkpoint)
     run = _start(graphs, descriptors, labels, candidates, required, budget, **settings)
     with ProgressLog(clock=run.budget.clock) as progress_log:
