@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from query.cli.common import (
     Subparsers,
@@ -16,6 +16,9 @@ from query.cli.common import (
     query_arg,
 )
 from shapedb.results import ShapeRef
+
+if TYPE_CHECKING:
+    from query.learn.budget import Progress
 
 __all__ = ["register", "train", "classify"]
 
@@ -109,11 +112,8 @@ class _Bar:
         if not self.terminal:
             logging.getLogger("query.learn.budget").setLevel(logging.INFO)
 
-    def __call__(self, p: Any) -> None:
-        where = f"fold {p.fold}/{p.folds}" if p.fold else "final fit"
-        if p.epochs:
-            where += f" epoch {p.epoch}/{p.epochs}"
-        self.bar.set_description(f"{p.candidate} ({p.index}/{p.candidates}) {where}")
+    def __call__(self, p: Progress) -> None:
+        self.bar.set_description(p.where())
         score = "n/a" if math.isnan(p.score) else f"{p.score:.3f}"
         left = "-" if math.isinf(p.left) else f"{max(p.left, 0):.0f}s"
         self.bar.set_postfix(val=score, left=left, refresh=False)

@@ -97,6 +97,13 @@ class Budget:
         return seconds <= self.left()
 
 
+def _time(spent: float, left: float) -> str:
+    """Seconds spent and left, as "95 s spent, 205 s left" (or "..., no limit")."""
+    return f"{spent:.0f} s spent, " + (
+        "no limit" if math.isinf(left) else f"{max(left, 0.0):.0f} s left"
+    )
+
+
 @dataclass(frozen=True)
 class Progress:
     """One snapshot of a selection.
@@ -130,18 +137,20 @@ class Progress:
     left: float
     done: str = ""
 
+    def where(self) -> str:
+        """The candidate and the step: "tag (6/9) fold 2/5 epoch 13/40"."""
+        if self.done:
+            step = f"{self.fold}/{self.folds} folds"
+        else:
+            step = f"fold {self.fold}/{self.folds}" if self.fold else "final fit"
+            step += f" epoch {self.epoch}/{self.epochs}" if self.epochs else ""
+        return f"{self.candidate} ({self.index}/{self.candidates}) {step}"
+
     def line(self) -> str:
-        """One human line: "tag (6/9) fold 2/5 epoch 13/40: validation 0.812; 95 s spent, 205 s left"."""
-        where = f"fold {self.fold}/{self.folds}" if self.fold else "final fit"
-        if self.epochs:
-            where += f" epoch {self.epoch}/{self.epochs}"
+        """One line: "tag (6/9) fold 2/5 epoch 13/40: validation 0.812; 95 s spent, 205 s left"."""
         score = "n/a" if math.isnan(self.score) else f"{self.score:.3f}"
-        left = "no limit" if math.isinf(self.left) else f"{max(self.left, 0.0):.0f} s left"
         state = f" [{self.done}]" if self.done else ""
-        return (
-            f"{self.candidate} ({self.index}/{self.candidates}) {where}: validation {score}"
-            f"{state}; {self.spent:.0f} s spent, {left}"
-        )
+        return f"{self.where()}: validation {score}{state}; {_time(self.spent, self.left)}"
 
 
 class ProgressLog:
@@ -190,9 +199,13 @@ class ProgressLog:
             now = self.clock()
             if self.latest is None or now - self.last_line < self.interval:
                 return False
-            late = now - self.seen
-            p = self.latest
-            self._emit(Progress(**{**p.__dict__, "spent": p.spent + late, "left": p.left - late}))
+            p, late = self.latest, now - self.seen
+            spent, left = p.spent + late, p.left - late
+            if p.done:  # between candidates (e.g. importing torch, building graph tensors)
+                self.last_line = now
+                self.logger.info("working after %s [%s]; %s", p.where(), p.done, _time(spent, left))
+            else:
+                self._emit(Progress(**{**p.__dict__, "spent": spent, "left": left}))
             return True
 
     def _emit(self, progress: Progress) -> None:

@@ -309,24 +309,29 @@ def _fold(run: _Run, name: str, fold: int, done: list[FoldScore]) -> FoldScore:
     model = run.model(name)
     epochs = int(getattr(model, "epochs", 0)) if _is_graph(model) else 0
     folds_after = len(run.parts) - fold - 1
+    inputs = run.inputs(model)  # graph tensors: built once, before the fold's clock starts
     t0 = run.budget.spent()
     run.progress(name, fold + 1, 0, epochs, done)
+    ends: list[float] = []  # the end of every epoch; the first also holds the fold's set-up
 
     def on_epoch(epoch: int, total: int, metrics: dict[str, float]) -> None:
-        per_epoch = (run.budget.spent() - t0) / epoch
-        run.epoch_seconds[name] = per_epoch
+        ends.append(run.budget.spent())
         run.progress(name, fold + 1, epoch, total, done)
+        if len(ends) < 2:  # no epoch time yet: stop only once over the budget
+            if not run.fits(name, 0.0, 0.0):
+                raise OutOfBudget(name)
+            return
+        per_epoch = run.epoch_seconds[name] = (ends[-1] - ends[0]) / (len(ends) - 1)
         rest = per_epoch * (total - epoch + total * folds_after)
         if epoch < total and not run.fits(name, rest, per_epoch * total):
             raise OutOfBudget(name)
 
-    inputs = run.inputs(model)
     pick = lambda idx, xs: [xs[i] for i in idx]  # noqa: E731
     fit_candidate(model, pick(train, inputs), run.x[train], run.y[train].tolist(), on_epoch)
     proba = predict_candidate(model, pick(val, inputs), run.x[val])
     pred = np.asarray(model.classes_)[proba.argmax(axis=1)]
     seconds = run.budget.spent() - t0
-    run.fold_seconds[name] = max(seconds, run.fold_seconds.get(name, 0.0))
+    run.fold_seconds[name] = seconds
     return int((pred == run.y[val]).sum()), len(val), seconds
 
 

@@ -242,7 +242,7 @@ def test_a_slow_graph_cnn_is_stopped_and_the_next_not_started(fake_cnns) -> None
     assert [s.status for s in sel.scores] == ["scored", "scored", "stopped", "skipped"]
     assert sel.score_of("tag").error and "budget" in sel.score_of("tag").error
     assert sel.chosen in ("1-nn", "3-nn") and not isinstance(model, FakeCNN)
-    assert fits == ["tag"] and clock.t == 5.0  # stopped after its first epoch
+    assert fits == ["tag"] and clock.t == 10.0  # stopped after its second epoch
     assert clock.t <= 1.1 * 100 and sel.budget == 100.0
     assert "tag n/a (stopped)" in sel.reason() and "arma n/a (skipped)" in sel.reason()
 
@@ -390,3 +390,17 @@ def test_learning_curves_report_accuracy_against_training_time() -> None:
     assert by_name["tag"][4] == pytest.approx(0.30)
     assert by_name["tag"][5] == pytest.approx(0.30 / (119.0 / 60))  # gain per extra minute
     assert np.isnan(by_name["1-nn"][5]) and [r[0] for r in curve] == ["1-nn", "tag", "chosen"]
+
+
+def test_between_candidates_the_heartbeat_does_not_repeat_a_finished_line(caplog) -> None:
+    from query.learn.budget import Progress, ProgressLog
+
+    clock = FakeClock()
+    plog = ProgressLog(10.0, clock=clock)
+    with caplog.at_level("INFO", logger="query.learn.budget"):
+        plog(Progress("boosting", 5, 9, 5, 5, 0, 0, 0.667, 8.0, 82.0, "scored"))
+        clock.t = 11.0  # e.g. importing torch before the first graph CNN
+        assert plog.tick()
+    said = [r.message for r in caplog.records]
+    assert said[0] == "boosting (5/9) 5/5 folds: validation 0.667 [scored]; 8 s spent, 82 s left"
+    assert said[1] == "working after boosting (5/9) 5/5 folds [scored]; 19 s spent, 71 s left"
