@@ -399,8 +399,10 @@ def _refit(
             callback(epoch, epochs, metrics)
 
     run.progress(name, 0, 0, int(getattr(model, "epochs", 0)) if _is_graph(model) else 0, [])
-    # the shapes' own graphs, so that the model checks and keeps their configuration
-    fit_candidate(model, run.graphs, run.x[every], run.y.tolist(), callback=on_epoch)
+    # the graph tensors carry no configuration: the shapes' own graphs unless it is given
+    known = (run.graph_options or {}).get("config") is not None and run.prepared is not None
+    graphs = run.inputs(model) if known else run.graphs
+    fit_candidate(model, graphs, run.x[every], run.y.tolist(), callback=on_epoch)
     return model
 
 

@@ -15,7 +15,13 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from query.learn.classify import GraphClassifier, ShapeClassifier, classify, train_classifier
+from query.learn.classify import (
+    GraphClassifier,
+    ShapeClassifier,
+    classify,
+    fingerprint_of,
+    train_classifier,
+)
 from query.learn.gnn import edge_arrays, node_features, stratified_split
 from query.learn.selection import make_candidate
 from shapedb.config.core import Config, MDBDConfig
@@ -405,17 +411,25 @@ def test_the_train_command_takes_a_budget_and_reports_seconds(
 def test_graph_tensors_are_built_once_for_every_fold(
     pyg: None, tiny: tuple[list, list], descriptors: np.ndarray, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    import dataclasses
+
     import query.learn.gnn as gnn
+    import query.learn.selection as selection
     from query.learn.selection import select_classifier
 
     graphs, labels = tiny
     calls = []
-    real = gnn.to_data
+    real, choose = gnn.to_data, selection._selection
     monkeypatch.setattr(gnn, "to_data", lambda g, *a, **k: calls.append(1) or real(g, *a, **k))
-    options = {"epochs": 1, "hidden": 8, "batch_size": 8}
-    sel, _ = select_classifier(
+    # whatever validates best, the final fit is of a graph CNN here
+    monkeypatch.setattr(
+        selection, "_selection", lambda *a: dataclasses.replace(choose(*a), chosen="tag")
+    )
+    options = {"epochs": 1, "hidden": 8, "batch_size": 8, "config": Config()}
+    sel, model = select_classifier(
         graphs, descriptors, labels, candidates=["tag", "tag+descriptor"], folds=3,
-        graph_options=options, refit=False,
+        graph_options=options, required=["tag"],
     )  # fmt: skip
     assert [s.status for s in sel.scores] == ["scored"] * 3
-    assert len(calls) == len(graphs)  # not once per fold, fit and prediction
+    assert len(calls) == len(graphs)  # not once per fold, fit, prediction and final fit
+    assert model.fingerprint_ == fingerprint_of(graphs[0])
