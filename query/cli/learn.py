@@ -108,7 +108,12 @@ class _Bar:
 
         self.terminal = not quiet and sys.stderr.isatty()
         total = None if math.isinf(budget) else round(budget)
-        self.bar = tqdm(desc="training", total=total, unit="s", disable=not self.terminal)
+        self.bar = tqdm(
+            desc="training",
+            total=total,
+            bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} s{postfix}",
+            disable=not self.terminal,
+        )
         if not self.terminal:
             logging.getLogger("query.learn.budget").setLevel(logging.INFO)
 

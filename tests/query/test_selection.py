@@ -139,6 +139,11 @@ def test_selection_report_round_trips_through_a_dict() -> None:
     sel, _ = select_classifier([None] * len(y), x, y, candidates=["5-nn"], refit=False)
     again = Selection.from_dict(sel.to_dict())
     assert again == sel and again.reason() == sel.reason()
+    older = sel.to_dict()  # a report written before the time budget
+    del older["budget"], older["seconds"]
+    for s in older["scores"]:
+        del s["status"]
+    assert Selection.from_dict(older).score_of("5-nn").status == "scored"
 
 
 def test_every_candidate_name_builds() -> None:
