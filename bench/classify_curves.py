@@ -15,7 +15,11 @@ the whole training part and tested on the held-out test part, on the meshes and,
 the same mesh-trained models, on point clouds of the test shapes. The "chosen" row is
 the candidate with the best validation accuracy (ties to the simplest), i.e. what
 ``shapedb train`` would have saved; its test accuracy is the one reported for it.
-The baseline of the same run is the 1-NN row.
+The baseline of the same run is the 1-NN row. Every row also gives the seconds to
+train (validation of the candidate and its final fit; for "chosen", every
+candidate's validation and the chosen one's fit, i.e. what ``shapedb train`` pays),
+and the learning curve sets test accuracy against that time: the accuracy gained over
+1-NN per extra minute of training.
 
 Sets (decompositions from the shared bench cache, as in :mod:`bench.classify`):
 
@@ -164,10 +168,12 @@ def run_candidate(
     val = sel.score_of(name)
     model = make_candidate(name, seed=0, graph_options=options)
     graph = hasattr(model, "conv")
+    t_fit = time.perf_counter()
     if graph:
         model.fit(pick(train, mesh), y[train].tolist(), descriptors=data["x_mesh"][train])
     else:
         model.fit(data["x_mesh"][train], y[train].tolist())
+    fit_seconds = time.perf_counter() - t_fit
 
     def accuracy(graphs: list[Any], x: NDArray[np.float64], truth: NDArray[Any]) -> float:
         if not len(x):
@@ -189,31 +195,87 @@ def run_candidate(
         "test_points": accuracy(pick(has, data["pointcloud"]), data["x_points"][has], y[has]),
         "n_test": len(test),
         "n_points_test": len(has),
+        "validation_seconds": val.seconds,
+        "fit_seconds": fit_seconds,
+        "train_seconds": val.seconds + fit_seconds,
         "seconds": time.perf_counter() - t0,
     }
 
 
 def chosen_row(results: list[dict[str, Any]]) -> dict[str, Any]:
-    """The candidate with the best validation accuracy, ties to the simplest."""
+    """The candidate with the best validation accuracy, ties to the simplest.
+
+    Its training time is what ``shapedb train`` pays: every candidate's validation
+    and the chosen one's final fit.
+    """
     ranked = sorted(results, key=lambda r: CANDIDATES.index(r["candidate"]))
     best = max(ranked, key=lambda r: r["validation_correct"])
-    return {**best, "candidate": "chosen", "name": best["candidate"]}
+    selection = sum(r.get("validation_seconds", 0.0) for r in results)
+    train = selection + best.get("fit_seconds", 0.0)
+    return {**best, "candidate": "chosen", "name": best["candidate"], "train_seconds": train}
 
 
-def run_set(name: str, args: argparse.Namespace) -> dict[str, Any]:
-    t0 = time.perf_counter()
-    data, splits = load_set(name, args.workers, args.points, args.capod_root)
+#: Columns of :func:`time_curve`.
+TIME_CURVE = ("classifier", "per class", "test mesh", "train s", "vs 1-NN", "per extra min")
+
+
+def time_curve(points: dict[int, list[dict[str, Any]]]) -> list[list[Any]]:
+    """Test accuracy against training time: what extra minutes buy over 1-NN.
+
+    Parameters
+    ----------
+    points : {models per class: rows of :func:`size_rows`}
+        Each row with "candidate", "test_mesh" and "train_seconds" (validation of
+        the candidate plus its final fit, seconds).
+
+    Returns
+    -------
+    list of [classifier, per class, test accuracy, training seconds, accuracy gain
+    over 1-NN, gain per extra minute over 1-NN (NaN when not slower, or without a
+    1-NN row)], by size, then by training time.
+    """
+    out = []
+    for n, rows in points.items():
+        base = next((r for r in rows if r["candidate"] == "1-nn"), None)
+        for r in sorted(rows, key=lambda r: r["train_seconds"]):
+            gain = extra = float("nan")
+            if base is not None:
+                gain = r["test_mesh"] - base["test_mesh"]
+                extra = r["train_seconds"] - base["train_seconds"]
+            per_minute = gain / (extra / 60) if extra > 0 else float("nan")
+            out.append([r["candidate"], n, r["test_mesh"], r["train_seconds"], gain, per_minute])
+    return out
+
+
+MEANS = ("validation_accuracy", "test_mesh", "test_points", "train_seconds", "seconds")
+
+
+def size_rows(per_fold: list[list[dict[str, Any]]]) -> list[dict[str, Any]]:
+    """One row per candidate and the chosen one, means over the splits of one size."""
+    folds = [[*rs, chosen_row(rs)] for rs in per_fold]
+    names = [r["candidate"] for r in folds[0][:-1]] + ["chosen"]
+    rows = []
+    for k, label in enumerate(names):
+        rs = [fr[k] for fr in folds]
+        rows.append(
+            {
+                "candidate": label,
+                "chosen": [r["name"] for r in rs] if label == "chosen" else None,
+                **{key: float(np.nanmean([r[key] for r in rs])) for key in MEANS},
+                "folds": rs,
+            }
+        )
+    return rows
+
+
+def _run_jobs(
+    args: argparse.Namespace, data: dict[str, Any], splits: list[dict[str, Any]], sizes: list[int]
+) -> dict[tuple[int, int, str], dict[str, Any]]:
+    """Every (size, split, candidate), in parallel processes; prints each as it ends."""
     labels = list(data["labels"])
-    sizes = [s for s in (args.per_class or SIZES[name])]
     options = {"epochs": args.epochs, "batch_size": 16}
-    print(
-        f"== {name}: {len(labels)} models, {len(set(labels))} classes, {len(splits)} split(s), "
-        f"sizes {sizes}, graph CNNs {args.epochs} epochs",
-        flush=True,
-    )
     jobs: dict[tuple[int, int, str], Any] = {}
-    ctx = get_context("spawn")
-    with ProcessPoolExecutor(max_workers=args.jobs, mp_context=ctx) as pool:
+    with ProcessPoolExecutor(max_workers=args.jobs, mp_context=get_context("spawn")) as pool:
         for n in sizes:
             for f, s in enumerate(splits):
                 train = subset(labels, s["train"], n)
@@ -225,56 +287,43 @@ def run_set(name: str, args: argparse.Namespace) -> dict[str, Any]:
             print(
                 f"  {n}/class split {f} {c}: validation {r['validation_accuracy']:.3f}, "
                 f"test mesh {r['test_mesh']:.3f}, points {r['test_points']:.3f} "
-                f"({r['seconds']:.0f} s)",
+                f"({r['train_seconds']:.0f} s to train)",
                 flush=True,
             )
+    return results
+
+
+def run_set(name: str, args: argparse.Namespace) -> dict[str, Any]:
+    t0 = time.perf_counter()
+    data, splits = load_set(name, args.workers, args.points, args.capod_root)
+    labels = list(data["labels"])
+    sizes = [s for s in (args.per_class or SIZES[name])]
+    print(
+        f"== {name}: {len(labels)} models, {len(set(labels))} classes, {len(splits)} split(s), "
+        f"sizes {sizes}, graph CNNs {args.epochs} epochs",
+        flush=True,
+    )
+    results = _run_jobs(args, data, splits, sizes)
     points: dict[int, Any] = {}
     for n in sizes:
-        per_fold = [[results[(n, f, c)] for c in args.candidates] for f in range(len(splits))]
-        rows = [*per_fold[0]] if len(splits) == 1 else []
-        folds = [[*rs, chosen_row(rs)] for rs in per_fold]
-        names = [r["candidate"] for r in folds[0][:-1]] + ["chosen"]
-        rows = []
-        for k, label in enumerate(names):
-            rs = [fr[k] for fr in folds]
-            rows.append(
-                {
-                    "candidate": label,
-                    "chosen": [r["name"] for r in rs] if label == "chosen" else None,
-                    **{
-                        key: float(np.nanmean([r[key] for r in rs]))
-                        for key in ("validation_accuracy", "test_mesh", "test_points", "seconds")
-                    },
-                    "folds": rs,
-                }
-            )
-        points[n] = rows
-        print(
-            format_table(
-                f"{name}, {n} training models per class: accuracy (validation on the training "
-                f"part; test on held-out meshes and point clouds)",
-                ("classifier", "validation", "test mesh", "test points", "seconds"),
-                [
-                    [
-                        r["candidate"]
-                        if r["chosen"] is None
-                        else f"chosen: {'/'.join(r['chosen'])}",
-                        r["validation_accuracy"],
-                        r["test_mesh"],
-                        r["test_points"],
-                        r["seconds"],
-                    ]
-                    for r in rows
-                ],  # fmt: skip
-            ),
-            flush=True,
+        rows = points[n] = size_rows(
+            [[results[(n, f, c)] for c in args.candidates] for f in range(len(splits))]
         )
-    curve_cols = ("classifier", *[f"{n}/class" for n in sizes])
-    curve = [
-        [row["candidate"], *[points[n][k]["test_mesh"] for n in sizes]]
-        for k, row in enumerate(points[sizes[0]])
-    ]
-    print(format_table(f"{name}: learning curve, test accuracy on meshes", curve_cols, curve))
+        title = f"{name}, {n} training models per class: accuracy (validation on the training "
+        title += "part; test on held-out meshes and point clouds) and seconds to train"
+        columns = ("classifier", "validation", "test mesh", "test points", "train s")
+        table = [
+            [
+                r["candidate"] if r["chosen"] is None else f"chosen: {'/'.join(r['chosen'])}",
+                *(r[k] for k in ("validation_accuracy", "test_mesh", "test_points")),
+                r["train_seconds"],
+            ]
+            for r in rows
+        ]
+        print(format_table(title, columns, table), flush=True)
+    curve = time_curve(points)
+    title = f"{name}: learning curve, test accuracy on meshes against training time"
+    print(format_table(title, TIME_CURVE, curve))
     return {
         "models": len(labels),
         "classes": len(set(labels)),
@@ -283,6 +332,7 @@ def run_set(name: str, args: argparse.Namespace) -> dict[str, Any]:
         "config": CONFIGS[name].__dict__,
         "epochs": args.epochs,
         "points": {str(n): rows for n, rows in points.items()},
+        "time_curve": [dict(zip(TIME_CURVE, row, strict=True)) for row in curve],
         "seconds": time.perf_counter() - t0,
     }
 

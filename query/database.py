@@ -544,6 +544,9 @@ class Database:
         dropout: float | None = None,
         weight_decay: float | None = None,
         warmup: int | None = None,
+        budget: float | None = 300.0,
+        progress: Callable[..., None] | None = None,
+        resume: bool = True,
     ) -> Classifier:
         """Train the classifier that validates best on the stored shapes (``shapedb[learn]``).
 
@@ -569,6 +572,15 @@ class Database:
             ``callback(epoch, epochs, metrics)`` after every epoch.
         epochs, rotate, seed, device, lr, batch_size, hidden, dropout, weight_decay, warmup
             Classifier settings (None: ``query.learn.classify.GraphClassifier``'s defaults).
+        budget : float or None
+            Seconds for choosing and fitting (``query.learn.budget.DEFAULT_BUDGET``;
+            None: no limit): cheapest candidates first, the graph CNNs only while it
+            allows unless named in ``methods``.
+        progress : callable, optional
+            ``progress(query.learn.budget.Progress)`` at every fold and epoch.
+        resume : bool
+            Continue from the folds an earlier run with the same store and settings
+            scored (``<out>.selection.json``).
 
         Returns
         -------
@@ -601,6 +613,9 @@ class Database:
             validation=validation,
             folds=folds,
             callback=callback,
+            budget=budget,
+            progress=progress,
+            resume=resume,
             **options,
         )
         return cast(Classifier, model)

@@ -19,13 +19,15 @@ from __future__ import annotations
 import logging
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from query.learn.budget import DEFAULT_BUDGET, Budget, Progress
+from query.learn.checkpoint import Checkpoint, checkpoint_path
 from query.learn.descriptor_classifiers import DESCRIPTOR_KINDS
 from query.learn.graphcnn import Callback, GraphClassifier, fingerprint_of
 from query.learn.model_file import is_model_file, read_model, write_model
@@ -224,6 +226,97 @@ def _labelled(db: Database, label: str) -> tuple[list[int], list[str]]:
     return [k[0] for k in keep], [k[1] for k in keep]
 
 
+def _training_data(
+    db: Database, label: str, methods: Sequence[str] | None, test: float, seed: int
+) -> dict[str, Any]:
+    """Labels, descriptors and (when a graph CNN may run) graphs of the labelled shapes, split.
+
+    Everything is read from the store in bulk (``stored_features``, ``stored_graphs``):
+    nothing is decomposed or converted here.
+    """
+    ids, labels = _labelled(db, label)
+    if test > 0:
+        train_idx, test_idx = stratified_split(labels, (1 - test, test), seed=seed)
+    else:
+        train_idx, test_idx = np.arange(len(ids)), np.zeros(0, dtype=np.int64)
+    graph_kinds = [m for m in (methods or GRAPH_CANDIDATES) if m in GRAPH_CANDIDATES]
+    graphs: list[Any] = stored_graphs(db, ids) if graph_kinds else [None] * len(ids)
+    return {
+        "ids": ids,
+        "labels": labels,
+        "x": stored_features(db, ids),
+        "graphs": graphs,
+        "train": train_idx,
+        "test": test_idx,
+    }
+
+
+def _checkpoint(
+    db: Database,
+    out: str | os.PathLike[str] | None,
+    resume: bool,
+    options: dict[str, Any],
+    **settings: Any,
+) -> Checkpoint:
+    """The selection checkpoint next to ``out`` (in memory only without ``out``).
+
+    Its key is the store (path, version, configuration) and every setting the
+    validation scores depend on; ``resume=False`` discards an earlier file.
+    """
+    path = None if out is None else checkpoint_path(out)
+    if path is not None and not resume:
+        path.unlink(missing_ok=True)
+    key = {
+        "store": str(Path(db.path).resolve()),
+        "version": db.store.version,
+        "fingerprint": db.config.fingerprint,
+        "options": {k: v for k, v in options.items() if k != "config"},
+        **settings,
+    }
+    return Checkpoint(path, key)
+
+
+def _finish(
+    result: ShapeClassifier,
+    data: dict[str, Any],
+    label: str,
+    out: str | os.PathLike[str] | None,
+    plot: str | os.PathLike[str] | None,
+) -> ShapeClassifier:
+    """Test accuracy on the held-out split; save the model and a graph CNN's training curve."""
+    pick = lambda idx, xs: [xs[i] for i in idx]  # noqa: E731
+    test_idx = data["test"]
+    result.test_accuracy_ = (
+        result.score(
+            pick(test_idx, data["graphs"]), data["x"][test_idx], pick(test_idx, data["labels"])
+        )
+        if len(test_idx)
+        else math.nan
+    )
+    result.split_ = {"train": len(data["train"]), "test": len(test_idx)}
+    log.info(
+        "%s classifier on %r: test accuracy %.3f (%s)",
+        *(result.kind, label, result.test_accuracy_, result.split_),
+    )
+    if out is not None:
+        result.save(out)
+        log.info("saved the classifier to %s", out)
+    if plot is None and out is not None and result.needs_graphs:
+        plot = Path(out).with_suffix(".png")
+    if plot is not None and result.needs_graphs:
+        plot_history(result.history_, plot, title=f"{result.kind} on {label!r}")
+    return result
+
+
+def _candidates(
+    methods: Sequence[str] | None, conv: str | None
+) -> tuple[Sequence[str] | None, list[str]]:
+    """The candidates, and those to score whatever the budget (the ones named)."""
+    if methods is None and conv is not None:
+        return ["1-nn", conv], ["1-nn", conv]
+    return methods, list(methods or [])
+
+
 def train_classifier(
     db: Database,
     *,
@@ -236,15 +329,17 @@ def train_classifier(
     validation: float = 0.2,
     folds: int | str = "auto",
     callback: Callback | None = None,
+    budget: float | Budget | None = DEFAULT_BUDGET,
+    progress: Callable[[Progress], None] | None = None,
+    resume: bool = True,
     **options: Any,
 ) -> ShapeClassifier:
     """Choose and train a classifier on the labelled shapes of a database (``db.train_classifier``).
 
     The labelled shapes are split, class by class, into train and test; the
-    candidates are scored on validation data drawn from the training part only
-    (see :func:`query.learn.selection.select_classifier`), the best is refitted on the
-    whole training part, and its test accuracy is logged and kept in
-    ``test_accuracy_``.
+    candidates are scored, cheapest first and within ``budget``, on validation data
+    from the training part only (:func:`query.learn.selection.select_classifier`);
+    the best is refitted on the whole training part and tested on the test part.
 
     Parameters
     ----------
@@ -252,77 +347,54 @@ def train_classifier(
     label : str
         The ``label`` column, or a metadata key holding the class.
     methods : sequence of str, optional
-        Candidates (:data:`query.learn.selection.CANDIDATES`); default all of them.
+        Candidates (:data:`query.learn.selection.CANDIDATES`), scored whatever the
+        budget; default all of them, the graph CNNs only while the budget allows.
         1-NN is always a candidate.
     conv : {"tag", "arma", "spline"}, optional
-        Earlier interface: with no ``methods``, the candidates are 1-NN and this
-        graph CNN.
+        Earlier interface: with no ``methods``, the candidates are 1-NN and this CNN.
     out : path, optional
         Where to save the classifier (a graph CNN's training curve goes next to it
-        with the suffix ``.png`` unless ``plot`` is given).
+        with the suffix ``.png`` unless ``plot`` is given); the finished validation
+        folds go to ``<out>.selection.json``.
     plot : path, optional
         Training-curve PNG (graph CNNs only).
     test : float
         Fraction held out for testing (0: train on every labelled shape).
     validation, folds
-        Validation protocol of the selection (holdout fraction, or k folds; "auto"
-        cross-validates when the smallest class has fewer than 20 shapes).
+        Holdout fraction, or k folds ("auto": k-fold when a class has under 20 shapes).
     callback : callable, optional
         ``callback(epoch, epochs, metrics)`` per epoch of the final graph-CNN fit.
+    budget : float, Budget or None
+        Seconds for reading, choosing and fitting (default 300; None: no limit).
+    progress : callable, optional
+        ``progress(Progress)`` at every fold and epoch.
+    resume : bool
+        Reuse the folds that an earlier run with the same store and settings scored.
     **options
-        :class:`~query.learn.graphcnn.GraphClassifier` settings of the graph CNNs (epochs,
-        lr, rotate, seed, ...).
+        :class:`~query.learn.graphcnn.GraphClassifier` settings (epochs, lr, seed, ...).
 
     Returns
     -------
     ShapeClassifier
         Fitted, with ``selection_``, ``test_accuracy_`` and ``split_``.
     """
-    if methods is None and conv is not None:
-        methods = ["1-nn", conv]
-    ids, labels = _labelled(db, label)
+    timer = budget if isinstance(budget, Budget) else Budget(budget)  # reading counts
+    methods, required = _candidates(methods, conv)
     seed = int(options.get("seed", 0))
-    if test > 0:
-        train_idx, test_idx = stratified_split(labels, (1 - test, test), seed=seed)
-    else:
-        train_idx, test_idx = np.arange(len(ids)), np.zeros(0, dtype=np.int64)
-    x = stored_features(db, ids)
-    graph_kinds = [m for m in (methods or GRAPH_CANDIDATES) if m in GRAPH_CANDIDATES]
-    graphs: list[Any] = stored_graphs(db, ids) if graph_kinds else [None] * len(ids)
-    pick = lambda idx, xs: [xs[i] for i in idx]  # noqa: E731
+    data = _training_data(db, label, methods, test, seed)
+    settings = {"label": label, "test": test, "validation": validation, "folds": folds}
+    checkpoint = _checkpoint(db, out, resume, n=len(data["ids"]), options=options, **settings)
     options.setdefault("config", db.config)
+    tr = data["train"]
     selection, model = select_classifier(
-        pick(train_idx, graphs),
-        x[train_idx],
-        pick(train_idx, labels),
-        candidates=methods,
-        folds=folds,
-        validation=validation,
-        seed=seed,
-        graph_options=options,
-        callback=callback,
-    )
-    result = ShapeClassifier(
-        selection.chosen, model, fingerprint=db.config.fingerprint, selection=selection
-    )
-    result.test_accuracy_ = (
-        result.score(pick(test_idx, graphs), x[test_idx], pick(test_idx, labels))
-        if len(test_idx)
-        else math.nan
-    )
-    result.split_ = {"train": len(train_idx), "test": len(test_idx)}
-    log.info(
-        "%s classifier on %r: test accuracy %.3f (%s)",
-        *(selection.chosen, label, result.test_accuracy_, result.split_),
-    )
-    if out is not None:
-        result.save(out)
-        log.info("saved the classifier to %s", out)
-    if plot is None and out is not None and result.needs_graphs:
-        plot = Path(out).with_suffix(".png")
-    if plot is not None and result.needs_graphs:
-        plot_history(result.history_, plot, title=f"{selection.chosen} on {label!r}")
-    return result
+        [data["graphs"][i] for i in tr], data["x"][tr], [data["labels"][i] for i in tr],
+        candidates=methods, required=required, folds=folds, validation=validation, seed=seed,
+        graph_options=options, callback=callback, budget=timer, progress=progress,
+        checkpoint=checkpoint,
+    )  # fmt: skip
+    result = ShapeClassifier(selection.chosen, model, fingerprint=db.config.fingerprint)
+    result.selection_ = selection
+    return _finish(result, data, label, out, plot)
 
 
 def _shape_inputs(db: Database, shapes: Sequence[Any], graphs: bool) -> tuple[list[Any], Any]:

@@ -269,49 +269,15 @@ def _spline_conv_class() -> type:
     return SplineConv1d
 
 
-def build_network(
-    conv: str,
-    n_classes: int,
-    *,
-    hidden: int = 128,
-    dropout: float = 0.5,
-    in_channels: int = 4,
-    graph_features: int = 0,
-) -> Any:
-    """The Figure 3 network as a :class:`torch.nn.Module`.
-
-    Parameters
-    ----------
-    conv : {"tag", "arma", "spline"}
-    n_classes : int
-    hidden : int
-        Channels of each graph convolution (128 in the paper); the pooled shape
-        vector has 2 * hidden entries (256).
-    dropout : float
-        Dropout before each fully connected layer.
-    in_channels : int
-        Node attributes (4: [c, r/r1]).
-    graph_features : int
-        Length d of the graph-level input ``data.u`` (B, d) read beside the pooled
-        vector; 0 for the paper's network.
-
-    Returns
-    -------
-    torch.nn.Module
-        ``forward(data)`` on a :class:`torch_geometric.data.Batch` returns logits
-        (B, n_classes); ``embed(data)`` returns the (B, 2 * hidden) shape vectors.
-    """
-    if conv not in CONVOLUTIONS:
-        raise ConfigError(f"conv={conv!r} is invalid: must be one of {CONVOLUTIONS}")
-    if n_classes < 2:
-        raise ConfigError(f"n_classes={n_classes} is invalid: need at least 2 classes")
+def _network_class() -> type:
+    """The Figure 3 network's module class (defined once torch is imported)."""
     _, pyg = import_torch()
     import torch
     from torch import nn
 
     gnn = pyg.nn
 
-    def make(cin: int, cout: int) -> nn.Module:
+    def make(conv: str, cin: int, cout: int) -> nn.Module:
         if conv == "tag":
             return gnn.TAGConv(cin, cout, K=3)
         if conv == "arma":
@@ -319,13 +285,21 @@ def build_network(
         return _spline_conv_class()(cin, cout, kernel_size=5)
 
     class MDBDNet(nn.Module):
-        def __init__(self) -> None:
+        def __init__(
+            self,
+            conv: str,
+            n_classes: int,
+            hidden: int,
+            dropout: float,
+            in_channels: int,
+            graph_features: int,
+        ) -> None:
             super().__init__()
             self.conv_name = conv
             self.graph_features = graph_features
-            self.conv1 = make(in_channels, hidden)
+            self.conv1 = make(conv, in_channels, hidden)
             self.bn1 = nn.BatchNorm1d(hidden)
-            self.conv2 = make(hidden, hidden)
+            self.conv2 = make(conv, hidden, hidden)
             self.bn2 = nn.BatchNorm1d(hidden)
             self.mlp = nn.Sequential(
                 nn.Linear(2 * hidden, 2 * hidden), nn.BatchNorm1d(2 * hidden), nn.ReLU()
@@ -364,7 +338,46 @@ def build_network(
                 h = torch.cat([h, data.u.reshape(h.shape[0], -1)], dim=1)
             return self.head(h)
 
-    return MDBDNet()
+    return MDBDNet
+
+
+def build_network(
+    conv: str,
+    n_classes: int,
+    *,
+    hidden: int = 128,
+    dropout: float = 0.5,
+    in_channels: int = 4,
+    graph_features: int = 0,
+) -> Any:
+    """The Figure 3 network as a :class:`torch.nn.Module`.
+
+    Parameters
+    ----------
+    conv : {"tag", "arma", "spline"}
+    n_classes : int
+    hidden : int
+        Channels of each graph convolution (128 in the paper); the pooled shape
+        vector has 2 * hidden entries (256).
+    dropout : float
+        Dropout before each fully connected layer.
+    in_channels : int
+        Node attributes (4: [c, r/r1]).
+    graph_features : int
+        Length d of the graph-level input ``data.u`` (B, d) read beside the pooled
+        vector; 0 for the paper's network.
+
+    Returns
+    -------
+    torch.nn.Module
+        ``forward(data)`` on a :class:`torch_geometric.data.Batch` returns logits
+        (B, n_classes); ``embed(data)`` returns the (B, 2 * hidden) shape vectors.
+    """
+    if conv not in CONVOLUTIONS:
+        raise ConfigError(f"conv={conv!r} is invalid: must be one of {CONVOLUTIONS}")
+    if n_classes < 2:
+        raise ConfigError(f"n_classes={n_classes} is invalid: need at least 2 classes")
+    return _network_class()(conv, n_classes, hidden, dropout, in_channels, graph_features)
 
 
 def count_parameters(model: Any) -> int:

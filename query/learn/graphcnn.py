@@ -217,6 +217,10 @@ class GraphClassifier:
         for k, g in enumerate(graphs):
             if hasattr(g, "edge_index"):  # already a torch_geometric Data
                 d = g.clone()
+                if u is not None:
+                    import torch
+
+                    d.u = torch.as_tensor(np.asarray(u[k], dtype=np.float32).reshape(1, -1))
             else:
                 d = to_data(_as_graph(g), u=None if u is None else u[k])
             if y is not None:
@@ -264,39 +268,13 @@ class GraphClassifier:
         classes = sorted(set(names))
         if len(classes) < 2:
             raise ConfigError(f"need at least 2 classes to train, got {classes}")
-        fps = {fingerprint_of(g) for g in graphs} - {None}
-        if len(fps) > 1:
-            raise ConfigError(
-                f"training graphs come from several configurations: {sorted(map(str, fps))}"
-            )
-        self.fingerprint_ = fps.pop() if fps else (self.config.fingerprint if self.config else None)
-        self.config_json_ = self.config.to_json() if self.config is not None else None
+        self._remember_config(graphs)
         self.classes_ = classes
         index = {c: k for k, c in enumerate(classes)}
         y = np.array([index[c] for c in names], dtype=np.int64)
         for attr in ("descriptor_mean_", "descriptor_scale_"):
             self.__dict__.pop(attr, None)
-        u = self._graph_inputs(graphs, descriptors)
-
-        if validation_data is not None:
-            vg, vl = list(validation_data[0]), [str(v) for v in validation_data[1]]
-            unknown = set(vl) - set(classes)
-            if unknown:
-                raise ConfigError(f"validation labels {sorted(unknown)} are not training classes")
-            train_idx = np.arange(len(graphs))
-            vd = validation_data[2] if len(validation_data) > 2 else None
-            vu = self._graph_inputs(vg, vd)
-            val_set = self._to_dataset(vg, np.array([index[c] for c in vl]), vu)
-        elif self.validation > 0:
-            train_idx, val_idx = stratified_split(
-                y, (1 - self.validation, self.validation), seed=self.seed
-            )
-            vu = None if u is None else u[val_idx]
-            val_set = self._to_dataset([graphs[i] for i in val_idx], y[val_idx], vu)
-        else:
-            train_idx, val_set = np.arange(len(graphs)), []
-        tu = None if u is None else u[train_idx]
-        train_set = self._to_dataset([graphs[i] for i in train_idx], y[train_idx], tu)
+        train_set, val_set = self._datasets(graphs, y, descriptors, validation_data)
 
         torch.manual_seed(self.seed)
         device = self._device()
@@ -320,6 +298,58 @@ class GraphClassifier:
             self.history_["val_accuracy"][self.best_epoch_],
         )
         return self
+
+    def _remember_config(self, graphs: Sequence[Any]) -> None:
+        """``fingerprint_`` and ``config_json_`` of the training graphs (one configuration)."""
+        fps = {fingerprint_of(g) for g in graphs} - {None}
+        if len(fps) > 1:
+            raise ConfigError(
+                f"training graphs come from several configurations: {sorted(map(str, fps))}"
+            )
+        self.fingerprint_ = fps.pop() if fps else (self.config.fingerprint if self.config else None)
+        self.config_json_ = self.config.to_json() if self.config is not None else None
+
+    def _datasets(
+        self,
+        graphs: list[Any],
+        y: NDArray[np.int64],
+        descriptors: Any,
+        validation_data: tuple[Any, ...] | None,
+    ) -> tuple[list[Any], list[Any]]:
+        """Training and model-selection sets of torch_geometric Data (with ``y``, ``u``)."""
+        u = self._graph_inputs(graphs, descriptors)
+        index = {c: k for k, c in enumerate(self.classes_)}
+        if validation_data is not None:
+            vg, vl = list(validation_data[0]), [str(v) for v in validation_data[1]]
+            unknown = set(vl) - set(self.classes_)
+            if unknown:
+                raise ConfigError(f"validation labels {sorted(unknown)} are not training classes")
+            train_idx = np.arange(len(graphs))
+            vd = validation_data[2] if len(validation_data) > 2 else None
+            vu = self._graph_inputs(vg, vd)
+            val_set = self._to_dataset(vg, np.array([index[c] for c in vl]), vu)
+        elif self.validation > 0:
+            train_idx, val_idx = stratified_split(
+                y, (1 - self.validation, self.validation), seed=self.seed
+            )
+            vu = None if u is None else u[val_idx]
+            val_set = self._to_dataset([graphs[i] for i in val_idx], y[val_idx], vu)
+        else:
+            train_idx, val_set = np.arange(len(graphs)), []
+        tu = None if u is None else u[train_idx]
+        return self._to_dataset([graphs[i] for i in train_idx], y[train_idx], tu), val_set
+
+    @staticmethod
+    def prepare(graphs: Sequence[Any]) -> list[Any]:
+        """The graphs as torch_geometric Data, to convert once and fit or predict many times.
+
+        ``fit`` and ``predict_proba`` accept the result in place of the graphs (each
+        use copies a Data before setting its label and descriptor). Data carry no
+        configuration: pass ``config`` to a model fitted on them.
+        """
+        from query.learn.gnn import to_data
+
+        return [to_data(_as_graph(g)) for g in graphs]
 
     def _network(self, n_classes: int) -> Any:
         from query.learn.gnn import build_network

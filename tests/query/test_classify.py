@@ -15,7 +15,13 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from query.learn.classify import GraphClassifier, ShapeClassifier, classify, train_classifier
+from query.learn.classify import (
+    GraphClassifier,
+    ShapeClassifier,
+    classify,
+    fingerprint_of,
+    train_classifier,
+)
 from query.learn.gnn import edge_arrays, node_features, stratified_split
 from query.learn.selection import make_candidate
 from shapedb.config.core import Config, MDBDConfig
@@ -339,3 +345,91 @@ def test_classify_many_shapes_with_one_load(tiny: tuple[list, list], tmp_path) -
     other = _decomposition(0, np.random.default_rng(2), MDBDConfig(resolution=64))
     with pytest.raises(ConfigError, match="configuration"):
         classify(db, model, [other])
+
+
+def test_training_continues_from_its_checkpoint_until_the_store_changes(
+    tiny: tuple[list, list], tmp_path
+) -> None:
+    graphs, labels = tiny
+    db = _store_db(tmp_path, graphs, labels, Config())
+    out = tmp_path / "nn.bin"
+    first = train_classifier(db, methods=["1-nn", "3-nn"], test=0, out=out, budget=60.0)
+    assert (tmp_path / "nn.bin.selection.json").is_file()
+    assert [s.status for s in first.selection_.scores] == ["scored", "scored"]
+    assert first.selection_.budget == 60.0
+    again = train_classifier(db, methods=["1-nn", "3-nn"], test=0, out=out)
+    assert [s.status for s in again.selection_.scores] == ["resumed", "resumed"]
+    assert [s.correct for s in again.selection_.scores] == [
+        s.correct for s in first.selection_.scores
+    ]
+    fresh = train_classifier(db, methods=["1-nn", "3-nn"], test=0, out=out, resume=False)
+    assert [s.status for s in fresh.selection_.scores] == ["scored", "scored"]
+    from shapedb.store.schema import ShapeRecord
+
+    g = graphs[0]
+    db.store.commit(
+        [
+            ShapeRecord(
+                name="extra",
+                decomposition=g,
+                feature=features(g, Config()).astype(np.float32),
+                config=Config(),
+                content_hash="extra",
+                representation="implicit",
+                label=labels[0],
+            )
+        ]
+    )
+    changed = train_classifier(db, methods=["1-nn", "3-nn"], test=0, out=out)
+    assert [s.status for s in changed.selection_.scores] == ["scored", "scored"]
+
+
+def test_the_train_command_takes_a_budget_and_reports_seconds(
+    tiny: tuple[list, list], tmp_path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import json
+
+    from query.cli import main
+
+    graphs, labels = tiny
+    _store_db(tmp_path, graphs, labels, Config())
+    out = tmp_path / "m.bin"
+    argv = ["train", "--db", str(tmp_path / "db"), "--methods", "1-nn", "5-nn"]
+    assert main([*argv, "--budget", "90s", "--test", "0", "--out", str(out), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)["selection"]
+    assert report["budget"] == 90.0 and report["seconds"] >= 0
+    assert [(s["name"], s["status"]) for s in report["scores"]] == [
+        ("1-nn", "scored"),
+        ("5-nn", "scored"),
+    ]
+    assert all(s["seconds"] >= 0 for s in report["scores"])
+    with pytest.raises(SystemExit):
+        main([*argv, "--budget", "5 parsecs", "--out", str(out)])
+    assert "budget '5 parsecs' is invalid" in capsys.readouterr().err
+
+
+def test_graph_tensors_are_built_once_for_every_fold(
+    pyg: None, tiny: tuple[list, list], descriptors: np.ndarray, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import dataclasses
+
+    import query.learn.gnn as gnn
+    import query.learn.selection as selection
+    from query.learn.selection import select_classifier
+
+    graphs, labels = tiny
+    calls = []
+    real, choose = gnn.to_data, selection._selection
+    monkeypatch.setattr(gnn, "to_data", lambda g, *a, **k: calls.append(1) or real(g, *a, **k))
+    # whatever validates best, the final fit is of a graph CNN here
+    monkeypatch.setattr(
+        selection, "_selection", lambda *a: dataclasses.replace(choose(*a), chosen="tag")
+    )
+    options = {"epochs": 1, "hidden": 8, "batch_size": 8, "config": Config()}
+    sel, model = select_classifier(
+        graphs, descriptors, labels, candidates=["tag", "tag+descriptor"], folds=3,
+        graph_options=options, required=["tag"],
+    )  # fmt: skip
+    assert [s.status for s in sel.scores] == ["scored"] * 3
+    assert len(calls) == len(graphs)  # not once per fold, fit, prediction and final fit
+    assert model.fingerprint_ == fingerprint_of(graphs[0])
