@@ -587,37 +587,17 @@ class Database:
         Classifier
             Fitted; ``test_accuracy_`` measured on the held-out test split.
         """
-        given = {
-            "epochs": epochs,
-            "rotate": rotate,
-            "seed": seed,
-            "device": device,
-            "lr": lr,
-            "batch_size": batch_size,
-            "hidden": hidden,
-            "dropout": dropout,
-            "weight_decay": weight_decay,
-            "warmup": warmup,
-        }
-        options = {key: value for key, value in given.items() if value is not None}
         from query.learn.classify import train_classifier
 
+        given = dict(epochs=epochs, rotate=rotate, seed=seed, device=device, lr=lr,
+                     batch_size=batch_size, hidden=hidden, dropout=dropout,
+                     weight_decay=weight_decay, warmup=warmup)  # fmt: skip
         model = train_classifier(
-            self,
-            label=label,
-            methods=methods,
-            conv=conv,
-            out=out,
-            plot=plot,
-            test=test,
-            validation=validation,
-            folds=folds,
-            callback=callback,
-            budget=budget,
-            progress=progress,
-            resume=resume,
-            **options,
-        )
+            self, label=label, methods=methods, conv=conv, out=out, plot=plot, test=test,
+            validation=validation, folds=folds, callback=callback, budget=budget,
+            progress=progress, resume=resume,
+            **{key: value for key, value in given.items() if value is not None},
+        )  # fmt: skip
         return cast(Classifier, model)
 
     def classify(
