@@ -31,7 +31,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from shapedb.errors import StoreLockedError
+from shapedb.errors import StoreError, StoreLockedError
 from shapedb.store.manifest import DATA, MANIFEST
 
 __all__ = [
@@ -123,8 +123,18 @@ class FileLock:
         return self._fd is not None
 
     def acquire(self, timeout: float, *, source: str) -> None:
-        """Take the lock, waiting up to ``timeout`` seconds; else StoreLockedError."""
-        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        """Take the lock, waiting up to ``timeout`` seconds; else StoreLockedError.
+
+        A lock file that cannot be opened or created (a read-only or missing folder)
+        is a :class:`StoreError` naming the reason.
+        """
+        try:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise StoreError(
+                f"cannot open the store's lock file {self.path.name} ({exc.strerror})",
+                source=source,
+            ) from exc
         deadline = time.monotonic() + max(timeout, 0.0)
         while True:
             try:
@@ -255,6 +265,8 @@ class Transaction:
         """Move the staged segments into place and swap the manifest; returns the version."""
         if self._staged:  # the journal names every file before any of them lands in data/
             self._journal([str(self._target(t, p).relative_to(self.root)) for t, p in self._staged])
+        for table in {t for t, _ in self._staged}:  # a store whose data/ was lost gets it back
+            (self.root / DATA / table).mkdir(parents=True, exist_ok=True)
         for table, path in self._staged:
             os.rename(path, self._target(table, path))
         for table in {t for t, _ in self._staged}:
