@@ -12,16 +12,17 @@ from __future__ import annotations
 
 import collections
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
 import pyarrow.parquet as pq
 
 from shapedb.errors import StoreError
-from shapedb.store.manifest import repair_hint
+from shapedb.store.manifest import check_sizes, read_manifest, repair_hint
 from shapedb.store.transaction import file_digest
 
-__all__ = ["segment_fault", "verify_segments"]
+__all__ = ["segment_fault", "verify_segments", "verified_files"]
 
 _CACHE_SIZE = 65536
 """Verdicts kept (one per segment file; far more than a store holds segments)."""
@@ -95,3 +96,27 @@ def verify_segments(root: Path, segments: list[dict[str, Any]]) -> None:
             _verified[key] = want
             while len(_verified) > _CACHE_SIZE:
                 _verified.popitem(last=False)
+
+
+def verified_files(root: Path, tables: tuple[str, ...]) -> dict[str, list[str]]:
+    """Absolute paths of the committed segments of ``tables``, from one manifest
+    version, each verified by :func:`verify_segments`.
+
+    Raises
+    ------
+    StoreError
+        A listed segment is missing (after re-reading the manifest) or damaged.
+    """
+    for attempt in range(5):
+        manifest = read_manifest(root)
+        try:
+            for table in tables:
+                verify_segments(root, manifest["tables"][table])
+        except FileNotFoundError:  # a writer retired it after we read the manifest
+            time.sleep(0.01 * (attempt + 1))
+            continue
+        return {t: [str(root / s["file"]) for s in manifest["tables"][t]] for t in tables}
+    manifest = read_manifest(root)
+    for table in tables:
+        check_sizes(root, manifest["tables"][table], missing=True)
+    raise StoreError("cannot read a consistent snapshot of the store", source=str(root))

@@ -487,10 +487,11 @@ def _repair(root: Path) -> RepairReport:
     found = {
         t: _readable(root, segs, lost, notes) for t, segs in _candidates(root, manifest).items()
     }
+    # ids of replaced (deleted) rows count too: they are never given out again
+    top = max([0, *(int(pc.max(t.column("id")).as_py()) for _, t in found["shapes"] if t.num_rows)])
     replaced = {f for tables in found.values() for _, t in tables for f in _replaces(t)}
     found = {t: [(n, x) for n, x in tables if n not in replaced] for t, tables in found.items()}
     config = _choose_config(manifest, found["shapes"])
-    top = max([0, *(int(pc.max(t.column("id")).as_py()) for _, t in found["shapes"] if t.num_rows)])
     floor = max(int(manifest["next_id"]) if manifest is not None else 1, top + 1)
     if manifest is not None and int(manifest["next_id"]) <= top:
         notes.append(f"next_id {manifest['next_id']} was at or below the largest id {top}")

@@ -40,12 +40,11 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.dataset as ds
-import pyarrow.parquet as pq
 from numpy.typing import NDArray
 
 from shapedb.config.core import Config
 from shapedb.errors import ConfigError, NotFoundError, QueryError, ShapeDBError, StoreError
-from shapedb.store.checksums import verify_segments
+from shapedb.store.checksums import verified_files
 from shapedb.store.manifest import (
     DATA,
     FORMAT_VERSION,
@@ -251,19 +250,7 @@ class Store:
         StoreError
             A listed segment is missing or its bytes differ; the message names it.
         """
-        for attempt in range(5):
-            snap = self._snapshot()
-            try:
-                for table in TABLES:
-                    verify_segments(self.path, snap.segments(table))
-            except FileNotFoundError:  # a writer retired it after we read the manifest
-                time.sleep(0.01 * (attempt + 1))
-                continue
-            return {t: [str(self.path / s["file"]) for s in snap.segments(t)] for t in TABLES}
-        snap = self._snapshot()
-        for table in TABLES:
-            check_sizes(self.path, snap.segments(table), missing=True)
-        raise StoreError("cannot read a consistent snapshot of the store", source=str(self.path))
+        return verified_files(self.path, TABLES)
 
     def _read(
         self,
@@ -503,7 +490,7 @@ class Store:
             txn = Transaction(self.path, snap.data)
             dim = int(snap.data["dim"])
             if delete_ids:
-                self._stage_deletions(txn, delete_ids, dim)
+                txn.delete(delete_ids, dim)
             if new:
                 txn.tables["shapes"].append(txn.stage("shapes", shapes_table(new, dim), "id"))
                 for table, t in (("balls", balls_table(new)), ("edges", edges_table(new))):
@@ -577,40 +564,6 @@ class Store:
         if len({r.id for r in new}) != len(new):
             raise StoreError("duplicate ids in one commit", source=str(self.path))
         return new, delete_ids, next_id
-
-    def _stage_deletions(self, txn: Transaction, delete_ids: set[int], dim: int) -> None:
-        """Copy-on-write deletion: rewrite every segment holding a deleted id."""
-        lo, hi = min(delete_ids), max(delete_ids)
-        doomed = pa.array(sorted(delete_ids), pa.int64())
-        for table, col in (("shapes", "id"), ("balls", "shape_id"), ("edges", "shape_id")):
-            kept = []
-            for seg in txn.tables[table]:
-                if "min_id" not in seg or seg["max_id"] < lo or seg["min_id"] > hi:
-                    kept.append(seg)
-                    continue
-                t = self._read_segment(seg, table, dim)
-                mask = pc.is_in(t.column(col), doomed)
-                if not pc.any(mask).as_py():
-                    kept.append(seg)
-                    continue
-                rest = t.filter(pc.invert(mask))
-                txn.retire([seg["file"]])
-                # even when empty: the new file says which one it replaces (for repair)
-                kept.append(txn.stage(table, rest, col, replaces=[seg["file"]]))
-            txn.tables[table] = kept
-
-    def _read_segment(self, seg: dict[str, Any], table: str, dim: int) -> pa.Table:
-        try:
-            check_sizes(self.path, [seg], missing=True)
-            return pq.read_table(
-                self.path / seg["file"],
-                schema=schema_for(table, dim),
-                page_checksum_verification=True,
-            )
-        except (pa.ArrowException, OSError) as exc:
-            if isinstance(exc, StoreError):
-                raise
-            raise unreadable(self.path, [seg], exc) from exc
 
     def _stage_failures(
         self,

@@ -32,7 +32,8 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from shapedb.errors import StoreError, StoreLockedError
-from shapedb.store.manifest import DATA, MANIFEST
+from shapedb.store.manifest import DATA, MANIFEST, check_sizes, unreadable
+from shapedb.store.schema import schema_for
 
 __all__ = [
     "FileLock",
@@ -253,6 +254,41 @@ class Transaction:
             seg["min_id"] = int(pc.min(ids).as_py())
             seg["max_id"] = int(pc.max(ids).as_py())
         return seg
+
+    def delete(self, ids: set[int], dim: int) -> None:
+        """Copy-on-write deletion: rewrite every segment holding one of ``ids`` without
+        them, and retire it (the new file names it in its ``shapedb.replaces``)."""
+        lo, hi = min(ids), max(ids)
+        doomed = pa.array(sorted(ids), pa.int64())
+        for table, col in (("shapes", "id"), ("balls", "shape_id"), ("edges", "shape_id")):
+            kept = []
+            for seg in self.tables[table]:
+                if "min_id" not in seg or seg["max_id"] < lo or seg["min_id"] > hi:
+                    kept.append(seg)
+                    continue
+                t = self._read_segment(seg, table, dim)
+                mask = pc.is_in(t.column(col), doomed)
+                if not pc.any(mask).as_py():
+                    kept.append(seg)
+                    continue
+                rest = t.filter(pc.invert(mask))
+                self.retire([seg["file"]])
+                # even when empty: the new file says which one it replaces (for repair)
+                kept.append(self.stage(table, rest, col, replaces=[seg["file"]]))
+            self.tables[table] = kept
+
+    def _read_segment(self, seg: dict[str, Any], table: str, dim: int) -> pa.Table:
+        try:
+            check_sizes(self.root, [seg], missing=True)
+            return pq.read_table(
+                self.root / seg["file"],
+                schema=schema_for(table, dim),
+                page_checksum_verification=True,
+            )
+        except (pa.ArrowException, OSError) as exc:
+            if isinstance(exc, StoreError):
+                raise
+            raise unreadable(self.root, [seg], exc) from exc
 
     def retire(self, files: list[str]) -> None:
         """Mark segments as replaced: kept for older readers, removed later."""
