@@ -534,11 +534,16 @@ def _rebuild(
         (root / DATA / t).mkdir(parents=True, exist_ok=True)
     old = {p for p in (root / DATA).rglob("*") if p.is_file()}
     txn = Transaction(root, base)
-    columns = {"shapes": "id", "balls": "shape_id", "edges": "shape_id", "failures": None}
+    columns: dict[str, str | None] = {
+        "shapes": "id",
+        "balls": "shape_id",
+        "edges": "shape_id",
+        "failures": None,
+    }
     for table, col in columns.items():
-        t = tables[table]
-        if t is not None and t.num_rows:
-            txn.tables[table].append(txn.stage(table, _conform(t, table, dim), col))
+        rows = tables[table]
+        if rows is not None and rows.num_rows:
+            txn.tables[table].append(txn.stage(table, _conform(rows, table, dim), col))
     txn.publish(next_id=next_id)
     return _move_aside(root, old)
 
