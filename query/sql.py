@@ -112,7 +112,7 @@ class InterruptHandle:
         self._con: Any = None
         self._requested = False
         self._expired: str | None = None
-        self._repeating = False
+        self._repeating: Any = None  # the connection being interrupted
 
     @property
     def interrupted(self) -> bool:
@@ -129,20 +129,23 @@ class InterruptHandle:
                 self._requested = True
             elif self._expired is None:
                 self._expired = expired
-            start = self._con is not None and not self._repeating
-            self._repeating = self._repeating or start
+            con = self._con
+            start = con is not None and self._repeating is not con
+            if start:
+                self._repeating = con
         if start:
-            threading.Thread(target=self._keep_interrupting, daemon=True).start()
+            threading.Thread(target=self._keep_interrupting, args=(con,), daemon=True).start()
 
-    def _keep_interrupting(self) -> None:
-        """Repeat ``interrupt()`` until the statement returns: one that lands before
+    def _keep_interrupting(self, con: Any) -> None:
+        """Repeat ``con.interrupt()`` until its statement returns: one that lands before
         DuckDB starts executing would otherwise be lost."""
         while True:
             with self._guard:
-                if self._con is None:
-                    self._repeating = False
+                if self._con is not con:
+                    if self._repeating is con:
+                        self._repeating = None
                     return
-                self._con.interrupt()
+                con.interrupt()
             time.sleep(_REPEAT_SECONDS)
 
     def _reason(self) -> str | None:
