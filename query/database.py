@@ -21,6 +21,7 @@ import numpy as np
 import pyarrow as pa
 from numpy.typing import NDArray
 
+from query.sql import DEFAULT_MEMORY_LIMIT, DEFAULT_TIMEOUT, InterruptHandle
 from shapedb.config.core import Config, PartConfig
 from shapedb.errors import ConfigError, NotFoundError, StoreError
 from shapedb.results import (
@@ -354,16 +355,34 @@ class Database:
         return cast("list[list[Hit]]", hits)
 
     def sql(
-        self, statement: str, *, metric: Metric | str | os.PathLike[str] | None = None
+        self,
+        statement: str,
+        *,
+        metric: Metric | str | os.PathLike[str] | None = None,
+        timeout: float | None = DEFAULT_TIMEOUT,
+        memory_limit: int = DEFAULT_MEMORY_LIMIT,
+        interrupt: InterruptHandle | None = None,
     ) -> pa.Table:
         """Run a DuckDB statement over the views ``shapes``, ``balls``, ``edges``, ``failures``.
 
         ``metric`` weighs the macros ``mdbd_distance`` / ``mdbd_kernel`` by a learned
-        similarity (``query.sql.sql``).
+        similarity. ``timeout`` (seconds; None: no limit) and ``memory_limit`` (bytes)
+        bound the statement, ``interrupt`` (``query.sql.InterruptHandle``) lets another
+        thread stop it: a stopped statement is a one-line ``QueryError`` (``query.sql.sql``).
         """
         from query.sql import sql
 
-        return cast(pa.Table, sql(self, statement, metric=metric))
+        return cast(
+            pa.Table,
+            sql(
+                self,
+                statement,
+                metric=metric,
+                timeout=timeout,
+                memory_limit=memory_limit,
+                interrupt=interrupt,
+            ),
+        )
 
     def match(
         self,

@@ -29,7 +29,10 @@ def check(args: argparse.Namespace) -> int:
         print(f"no checksum recorded: {file} (read in full: intact)")
     for file in report.unlisted:
         print(f"unlisted: {file} (not part of the store)")
+    for what, reason in report.conflicts:
+        print(f"id conflict: {what}: {reason}")
     verdict = "ok" if report.ok else f"{len(report.damaged)} damaged or missing segment(s)"
+    verdict += f", {len(report.conflicts)} id conflict(s)" if report.conflicts else ""
     print(f"{report.path}: {verdict} ({report.checked} verified by checksum)")
     if not report.ok:
         print(f"run `shapedb repair --db {args.db}` to rebuild the store from the intact segments")
@@ -52,6 +55,8 @@ def repair(args: argparse.Namespace) -> int:
     )
     for what, reason in report.lost:
         print(f"  not recovered: {what}: {reason}")
+    for note in report.notes:
+        print(f"  fixed: {note}")
     if report.moved_to:
         print(f"  previous files moved to {report.moved_to} (delete it once satisfied)")
     return 1 if report.lost else 0

@@ -3,16 +3,19 @@
 :func:`check` reads the manifest and verifies every segment it lists: the file exists,
 has the size and sha256 recorded at commit time, and its row count agrees. Segments
 of stores written before checksums were recorded are read instead, and reported as
-"no checksum recorded" (not as damage).
+"no checksum recorded" (not as damage). It also checks the ids: no id is held by two
+rows, and the manifest's ``next_id`` is above every stored id (ids are never reused).
 
 :func:`repair` rebuilds a manifest from the segments that are intact. Segments carry
 their ids (``id``, ``shape_id``) and each shape row its configuration, so a store
-whose manifest is lost or damaged can be rebuilt from ``data/`` alone: newest segments
-first (file names start with the commit version), each shape id taken once, balls and
-edges kept for the recovered shapes only, shapes whose balls or edges are lost
-dropped and reported. The recovered rows are written as new segments in one commit,
-and every file the old state held is *moved* to ``lost+found/<time>/`` (never
-deleted), so nothing is lost by repairing.
+whose manifest is lost or damaged can be rebuilt from ``data/`` alone. Segments are
+taken oldest first (file names start with the commit version), minus those a newer
+one says it replaces; every readable row is kept: a row claiming an id an older row
+holds gets a new id (a copy of the same record is kept once), each row takes its
+balls and edges from its own commit when it can, and shapes whose balls or edges are
+lost are dropped and reported. The recovered rows are written as new segments in one
+commit, ids continue above every id seen, and every file the old state held is
+*moved* to ``lost+found/<time>/`` (never deleted), so nothing is lost by repairing.
 """
 
 from __future__ import annotations
@@ -26,15 +29,18 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
+from numpy.typing import NDArray
 
 from shapedb.config.core import Config
 from shapedb.errors import StoreError
-from shapedb.store.manifest import DATA, new_manifest, read_manifest
+from shapedb.store.checksums import segment_fault
+from shapedb.store.manifest import DATA, MANIFEST, new_manifest, read_manifest
 from shapedb.store.schema import TABLES, schema_for
-from shapedb.store.transaction import REPLACES, FileLock, Transaction, file_digest
+from shapedb.store.transaction import REPLACES, FileLock, Transaction
 
 __all__ = ["check", "repair", "CheckReport", "RepairReport", "LOST_AND_FOUND"]
 
@@ -62,6 +68,10 @@ class CheckReport:
     unlisted : tuple[str, ...]
         Files under ``data/`` that the manifest neither lists nor retires (leftovers;
         not damage).
+    conflicts : tuple[tuple[str, str], ...]
+        ``(what, reason)`` of each way the ids break the rule that an id names one
+        shape and is never reused: an id held by more than one row, and a manifest
+        ``next_id`` at or below the largest stored id.
     """
 
     path: str
@@ -69,11 +79,12 @@ class CheckReport:
     damaged: tuple[tuple[str, str], ...] = ()
     unverified: tuple[str, ...] = ()
     unlisted: tuple[str, ...] = ()
+    conflicts: tuple[tuple[str, str], ...] = ()
 
     @property
     def ok(self) -> bool:
-        """True when no listed segment is missing or damaged."""
-        return not self.damaged
+        """True when no listed segment is missing or damaged and the ids are consistent."""
+        return not self.damaged and not self.conflicts
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready summary."""
@@ -84,6 +95,7 @@ class CheckReport:
             "damaged": [{"file": f, "reason": r} for f, r in self.damaged],
             "unverified": list(self.unverified),
             "unlisted": list(self.unlisted),
+            "conflicts": [{"what": w, "reason": r} for w, r in self.conflicts],
         }
 
 
@@ -108,6 +120,12 @@ class RepairReport:
         ``(file or shape, reason)`` of what could not be recovered.
     moved_to : str or None
         Folder the previous files were moved to (``lost+found/<time>``).
+    reassigned : tuple[tuple[int, int], ...]
+        ``(old id, new id)`` of each row that claimed an id an older row holds: both
+        rows were kept, the later one under a new id.
+    notes : tuple[str, ...]
+        What else was fixed without losing a row (ids reassigned, a ``next_id`` that
+        would have reused an id, a row count the manifest misrecorded).
     """
 
     path: str
@@ -117,6 +135,8 @@ class RepairReport:
     recovered: tuple[str, ...] = ()
     lost: tuple[tuple[str, str], ...] = ()
     moved_to: str | None = None
+    reassigned: tuple[tuple[int, int], ...] = ()
+    notes: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready summary."""
@@ -128,32 +148,59 @@ class RepairReport:
             "recovered": list(self.recovered),
             "lost": [{"what": w, "reason": r} for w, r in self.lost],
             "moved_to": self.moved_to,
+            "reassigned": [{"old": a, "new": b} for a, b in self.reassigned],
+            "notes": list(self.notes),
         }
 
 
 # ---------------------------------------------------------------- check
-def _verify(root: Path, seg: dict[str, Any]) -> str | None:
-    """None when the segment is intact, else the reason."""
-    path = root / seg["file"]
-    if not path.is_file():
-        return "missing"
-    if "sha256" in seg:
-        size, digest = file_digest(path)
-        if size != int(seg.get("bytes", size)):
-            return f"damaged: {size} bytes, the manifest records {seg['bytes']}"
-        if digest != seg["sha256"]:
-            return "damaged: checksum differs from the one recorded at commit"
+_NAMED = 20
+"""Conflicting ids a report names one by one; the rest are counted."""
+
+
+def _verify(root: Path, seg: dict[str, Any]) -> tuple[str | None, pa.Table | None]:
+    """``(None, rows)`` when the segment is intact, else ``(reason, rows or None)``."""
+    fault = segment_fault(root, seg)
+    if fault is not None:
+        return fault, None
     try:
-        t = pq.read_table(path, page_checksum_verification=True)
+        t = pq.read_table(root / seg["file"], page_checksum_verification=True)
     except Exception as exc:  # any unreadable file
-        return f"unreadable ({type(exc).__name__}: {' '.join(str(exc).split())[:120]})"
+        return f"unreadable ({type(exc).__name__}: {' '.join(str(exc).split())[:120]})", None
     if t.num_rows != int(seg["rows"]):
-        return f"damaged: {t.num_rows} rows, the manifest records {seg['rows']}"
-    return None
+        return f"damaged: {t.num_rows} rows, the manifest records {seg['rows']}", t
+    return None, t
+
+
+def _id_conflicts(
+    manifest: dict[str, Any], held: list[tuple[str, NDArray[np.int64]]]
+) -> list[tuple[str, str]]:
+    """Ids held by more than one row, and a ``next_id`` that would reuse one."""
+    out: list[tuple[str, str]] = []
+    if not held:
+        return out
+    every = np.concatenate([ids for _, ids in held])
+    values, counts = np.unique(every, return_counts=True)
+    twice = values[counts > 1]
+    for sid in twice[:_NAMED].tolist():
+        files = [f for f, ids in held for _ in range(int((ids == sid).sum()))]
+        out.append((f"id {sid}", f"held by {len(files)} rows ({', '.join(files)})"))
+    if len(twice) > _NAMED:
+        out.append((f"{len(twice) - _NAMED} more ids", "each held by more than one row"))
+    top = int(every.max()) if len(every) else 0
+    if int(manifest["next_id"]) <= top:
+        out.append(
+            (
+                "manifest.json",
+                f"next_id {manifest['next_id']} is at or below the largest id {top}: "
+                "a new shape would reuse an id",
+            )
+        )
+    return out
 
 
 def check(path: str | os.PathLike[str]) -> CheckReport:
-    """Verify every segment the manifest lists.
+    """Verify every segment the manifest lists, and the ids they hold.
 
     Parameters
     ----------
@@ -163,7 +210,8 @@ def check(path: str | os.PathLike[str]) -> CheckReport:
     Returns
     -------
     CheckReport
-        ``report.ok`` is False when a listed segment is missing or damaged.
+        ``report.ok`` is False when a listed segment is missing or damaged, or when
+        an id is held twice or the manifest's ``next_id`` would reuse one.
 
     Raises
     ------
@@ -173,15 +221,18 @@ def check(path: str | os.PathLike[str]) -> CheckReport:
     root = Path(path).absolute()
     manifest = read_manifest(root)
     damaged, unverified, checked = [], [], 0
+    held: list[tuple[str, NDArray[np.int64]]] = []
     for table in TABLES:
         for seg in manifest["tables"][table]:
-            reason = _verify(root, seg)
+            reason, t = _verify(root, seg)
             if reason is not None:
                 damaged.append((seg["file"], reason))
             elif "sha256" in seg:
                 checked += 1
             else:
                 unverified.append(seg["file"])
+            if table == "shapes" and t is not None:
+                held.append((seg["file"], t.column("id").to_numpy().astype(np.int64)))
     known = {s["file"] for t in TABLES for s in manifest["tables"][t]}
     known |= {r["file"] for r in manifest.get("retired", [])}
     unlisted = sorted(
@@ -197,40 +248,51 @@ def check(path: str | os.PathLike[str]) -> CheckReport:
         damaged=tuple(damaged),
         unverified=tuple(unverified),
         unlisted=tuple(unlisted),
+        conflicts=tuple(_id_conflicts(manifest, held)),
     )
 
 
 # ---------------------------------------------------------------- repair
 def _candidates(root: Path, manifest: dict[str, Any] | None) -> dict[str, list[dict[str, Any]]]:
-    """Segments to recover from, newest first: the manifest's, or every file in data/."""
+    """Segments to recover from, oldest first (file names start with the commit version):
+    the manifest's, or every file in data/; each file once."""
     if manifest is not None:
-        return {
-            t: sorted(manifest["tables"][t], key=lambda s: s["file"], reverse=True) for t in TABLES
-        }
-    out: dict[str, list[dict[str, Any]]] = {}
+        out = {}
+        for t in TABLES:
+            entries = {s["file"]: s for s in manifest["tables"][t]}
+            out[t] = [entries[f] for f in sorted(entries)]
+        return out
+    out = {}
     for t in TABLES:
         folder = root / DATA / t
-        files = sorted(folder.glob("*.parquet"), reverse=True) if folder.is_dir() else []
+        files = sorted(folder.glob("*.parquet")) if folder.is_dir() else []
         out[t] = [{"file": f"{DATA}/{t}/{f.name}"} for f in files]
     return out
 
 
 def _readable(
-    root: Path, segments: list[dict[str, Any]], lost: list[tuple[str, str]]
+    root: Path, segments: list[dict[str, Any]], lost: list[tuple[str, str]], notes: list[str]
 ) -> list[tuple[str, pa.Table]]:
+    """The rows of each segment whose bytes are intact; a misrecorded row count is noted."""
     out = []
     for seg in segments:
-        if "rows" in seg:
-            reason = _verify(root, seg)
-            if reason is not None:
-                lost.append((seg["file"], reason))
-                continue
-        try:
-            out.append(
-                (seg["file"], pq.read_table(root / seg["file"], page_checksum_verification=True))
+        fault = segment_fault(root, seg) if "sha256" in seg else None
+        if fault is None:
+            try:
+                t = pq.read_table(root / seg["file"], page_checksum_verification=True)
+            except FileNotFoundError:
+                fault = "missing"
+            except Exception as exc:  # any unreadable file
+                fault = f"unreadable ({type(exc).__name__})"
+        if fault is not None:
+            lost.append((seg["file"], fault))
+            continue
+        if "rows" in seg and t.num_rows != int(seg["rows"]):
+            notes.append(
+                f"{seg['file']}: the manifest recorded {seg['rows']} rows, the file holds "
+                f"{t.num_rows} intact ones: they were kept"
             )
-        except Exception as exc:  # any unreadable file
-            lost.append((seg["file"], f"unreadable ({type(exc).__name__})"))
+        out.append((seg["file"], t))
     return out
 
 
@@ -258,24 +320,115 @@ def _choose_config(manifest: dict[str, Any] | None, shapes: list[tuple[str, pa.T
     return Config.from_json(counts.most_common(1)[0][0])
 
 
-def _first_per_id(
-    tables: list[tuple[str, pa.Table]], column: str, keep: set[int] | None
-) -> tuple[pa.Table | None, list[str]]:
-    """Rows of each id from the newest segment holding it (and only ids in ``keep``)."""
-    seen: set[int] = set()
-    parts, used = [], []
+def _same_config(
+    shapes: list[tuple[str, pa.Table]], config: Config, lost: list[tuple[str, str]]
+) -> list[tuple[str, pa.Table]]:
+    """Each segment's rows built with ``config`` (others are left out and reported)."""
+    fingerprint = config.to_json()
+    out = []
+    for name, t in shapes:
+        if "config" in t.schema.names:
+            same = pc.equal(t.column("config"), fingerprint)
+            if not pc.all(same).as_py():
+                lost.append((name, "rows built with another configuration were left out"))
+                t = t.filter(same)
+        out.append((name, t))
+    return out
+
+
+def _assign_ids(
+    tables: list[tuple[str, pa.Table]], floor: int, notes: list[str]
+) -> tuple[pa.Table | None, list[tuple[int, int, str]]]:
+    """Give every readable shape row an id of its own, oldest segment first.
+
+    The first row to claim an id keeps it. A copy of a row already kept (same content
+    hash and creation time: one record in two files) is dropped. Any other row that
+    claims a taken id gets the next free one, from ``floor`` up, and is noted.
+
+    Returns
+    -------
+    shapes : pa.Table or None
+        The rows kept, with their ids.
+    origins : list of (old id, new id, file)
+        One per kept row.
+    """
+    claims: dict[int, list[tuple[Any, Any]]] = {}
+    parts, origins = [], []
+    next_free = floor
     for name, t in tables:
-        ids = t.column(column).to_numpy()
-        fresh = {int(i) for i in ids} - seen
-        if keep is not None:
-            fresh &= keep
-        if not fresh:
-            continue
-        t = t.filter(pc.is_in(t.column(column), pa.array(sorted(fresh), pa.int64())))
-        parts.append(t)
-        used.append(name)
-        seen |= fresh
-    return (pa.concat_tables(parts, promote_options="permissive") if parts else None), used
+        keep, ids = [], []
+        for sid, digest, made, label in zip(
+            *(t.column(c).to_pylist() for c in ("id", "content_hash", "created_at", "name")),
+            strict=True,
+        ):
+            held = claims.setdefault(int(sid), [])
+            keep.append((digest, made) not in held)
+            if not keep[-1]:
+                continue
+            new = int(sid) if not held else next_free
+            if held:
+                next_free += 1
+                notes.append(
+                    f"shape {label!r} in {name} claimed id {sid}, which an older row holds: "
+                    f"both were kept, it is now id {new}"
+                )
+            held.append((digest, made))
+            ids.append(new)
+            origins.append((int(sid), new, name))
+        t = t.filter(pa.array(keep, pa.bool_()))
+        column = t.schema.get_field_index("id")
+        parts.append(t.set_column(column, t.schema.field(column), pa.array(ids, pa.int64())))
+    shapes = pa.concat_tables(parts, promote_options="permissive") if parts else None
+    return shapes, origins
+
+
+def _commit(file: str) -> str:
+    """The commit version a segment's file name starts with."""
+    return Path(file).name.split("-", 1)[0]
+
+
+def _attach(
+    tables: list[tuple[str, pa.Table]], origins: list[tuple[int, int, str]]
+) -> tuple[pa.Table | None, list[str]]:
+    """The balls (or edges) of each kept shape row, each from one segment, under its new id.
+
+    A row takes them from a segment of its own commit when one holds its id, else from
+    the newest segment holding its id that no other row claiming that id has taken.
+
+    Returns
+    -------
+    rows : pa.Table or None
+    used : list of str
+        The segments rows were taken from.
+    """
+    holders: dict[int, list[int]] = {}
+    for k, (_, t) in enumerate(tables):
+        for sid in pc.unique(t.column("shape_id")).to_pylist():
+            holders.setdefault(int(sid), []).append(k)
+    taken: dict[int, set[int]] = collections.defaultdict(set)
+    picks: dict[int, dict[int, int]] = collections.defaultdict(dict)
+    placed: set[int] = set()
+    for own_commit_only in (True, False):
+        for old, new, origin in origins:
+            free = [k for k in holders.get(old, []) if k not in taken[old]]
+            if own_commit_only:
+                free = [k for k in free if _commit(tables[k][0]) == _commit(origin)]
+            if free and new not in placed:
+                taken[old].add(free[-1])  # holders are oldest first
+                picks[free[-1]][old] = new
+                placed.add(new)
+    parts = []
+    for k, mapping in sorted(picks.items()):
+        t = tables[k][1]
+        old_ids = pa.array(list(mapping), pa.int64())
+        t = t.filter(pc.is_in(t.column("shape_id"), old_ids))
+        moved = pc.take(
+            pa.array(list(mapping.values()), pa.int64()), pc.index_in(t.column("shape_id"), old_ids)
+        )
+        column = t.schema.get_field_index("shape_id")
+        parts.append(t.set_column(column, t.schema.field(column), moved))
+    rows = pa.concat_tables(parts, promote_options="permissive") if parts else None
+    return rows, [tables[k][0] for k in sorted(picks)]
 
 
 def repair(path: str | os.PathLike[str]) -> RepairReport:
@@ -294,22 +447,34 @@ def repair(path: str | os.PathLike[str]) -> RepairReport:
     Raises
     ------
     StoreError
-        Nothing to rebuild from (no readable shapes segment), or another writer holds
-        the store.
+        The folder holds no store (neither ``manifest.json`` nor ``data/``; it is left
+        untouched, no lock file is created), nothing to rebuild from (no readable
+        shapes segment), or another writer holds the store.
     """
     root = Path(path).absolute()
-    lock = FileLock(root / _LOCK)
     if not root.is_dir():
         raise StoreError("no such folder", source=str(root))
+    if not (root / MANIFEST).exists() and not (root / DATA).is_dir():
+        raise StoreError(
+            "no shapedb store here (neither manifest.json nor data/): nothing to repair",
+            source=str(root),
+        )
+    lock = FileLock(root / _LOCK)
+    fresh = not lock.path.exists()
     lock.acquire(0.0, source=str(root))
     try:
         return _repair(root)
+    except StoreError:
+        if fresh and not (root / MANIFEST).exists():
+            lock.path.unlink(missing_ok=True)  # refused: leave the folder as it was
+        raise
     finally:
         lock.release()
 
 
 def _repair(root: Path) -> RepairReport:
     lost: list[tuple[str, str]] = []
+    notes: list[str] = []
     problem = None
     try:
         manifest: dict[str, Any] | None = read_manifest(root)
@@ -319,56 +484,68 @@ def _repair(root: Path) -> RepairReport:
     if manifest is not None and check(root).ok:
         n = sum(int(s["rows"]) for s in manifest["tables"]["shapes"])
         return RepairReport(path=str(root), changed=False, shapes=n)
-    found = {t: _readable(root, segs, lost) for t, segs in _candidates(root, manifest).items()}
+    found = {
+        t: _readable(root, segs, lost, notes) for t, segs in _candidates(root, manifest).items()
+    }
+    # ids of replaced (deleted) rows count too: they are never given out again
+    top = max([0, *(int(pc.max(t.column("id")).as_py()) for _, t in found["shapes"] if t.num_rows)])
     replaced = {f for tables in found.values() for _, t in tables for f in _replaces(t)}
     found = {t: [(n, x) for n, x in tables if n not in replaced] for t, tables in found.items()}
     config = _choose_config(manifest, found["shapes"])
-    dim = config.dim
-    fingerprint = config.to_json()
-    shapes_in = []
-    for name, t in found["shapes"]:
-        if "config" in t.schema.names:
-            same = pc.equal(t.column("config"), fingerprint)
-            if not pc.all(same).as_py():
-                lost.append((name, "rows built with another configuration were left out"))
-                t = t.filter(same)
-        shapes_in.append((name, t))
-    shapes, used = _first_per_id(shapes_in, "id", None)
-    ids = set() if shapes is None else {int(i) for i in shapes.column("id").to_pylist()}
-    balls, used_b = _first_per_id(found["balls"], "shape_id", ids)
-    edges, used_e = _first_per_id(found["edges"], "shape_id", ids)
+    floor = max(int(manifest["next_id"]) if manifest is not None else 1, top + 1)
+    if manifest is not None and int(manifest["next_id"]) <= top:
+        notes.append(f"next_id {manifest['next_id']} was at or below the largest id {top}")
+    shapes, origins = _assign_ids(_same_config(found["shapes"], config, lost), floor, notes)
+    balls, used_b = _attach(found["balls"], origins)
+    edges, used_e = _attach(found["edges"], origins)
     shapes = _drop_incomplete(shapes, balls, edges, lost)
     ids = set() if shapes is None else {int(i) for i in shapes.column("id").to_pylist()}
-    balls, _ = _first_per_id(found["balls"], "shape_id", ids)
-    edges, _ = _first_per_id(found["edges"], "shape_id", ids)
-    failures = found["failures"][0][1] if found["failures"] else None
-
+    keep = pa.array(sorted(ids), pa.int64())
+    tables = {
+        "shapes": shapes,
+        "balls": None if balls is None else balls.filter(pc.is_in(balls.column("shape_id"), keep)),
+        "edges": None if edges is None else edges.filter(pc.is_in(edges.column("shape_id"), keep)),
+        "failures": found["failures"][-1][1] if found["failures"] else None,
+    }
     base = dict(manifest) if manifest is not None else new_manifest(config)
-    base["tables"] = {t: [] for t in TABLES}
-    base["retired"] = []
-    txn = Transaction(root, base)
-    for table, t, col in (
-        ("shapes", shapes, "id"),
-        ("balls", balls, "shape_id"),
-        ("edges", edges, "shape_id"),
-        ("failures", failures, None),
-    ):
-        if t is not None and t.num_rows:
-            txn.tables[table].append(txn.stage(table, _conform(t, table, dim), col))
-    old = {p for p in (root / DATA).rglob("*") if p.is_file()} if (root / DATA).is_dir() else set()
-    next_id = max([int(base.get("next_id", 1)), *(i + 1 for i in ids)])
-    txn.publish(next_id=next_id)
-    moved = _move_aside(root, old)
+    next_id = max([floor, *(i + 1 for i in ids)])
+    moved = _rebuild(root, base, tables, config.dim, next_id)
     log.info("repaired store %s: %d shapes, %d lost", root, len(ids), len(lost))
+    reassigned = tuple((old, new) for old, new, _ in origins if old != new and new in ids)
     return RepairReport(
         path=str(root),
         changed=True,
         manifest=problem,
         shapes=len(ids),
-        recovered=tuple(sorted(set(used) | set(used_b) | set(used_e))),
+        recovered=tuple(sorted({f for _, _, f in origins} | set(used_b) | set(used_e))),
         lost=tuple(lost),
         moved_to=moved,
+        reassigned=reassigned,
+        notes=tuple(notes),
     )
+
+
+def _rebuild(
+    root: Path, base: dict[str, Any], tables: dict[str, pa.Table | None], dim: int, next_id: int
+) -> str | None:
+    """Commit ``tables`` as the whole store; move every earlier file aside; returns where."""
+    base = dict(base, tables={t: [] for t in TABLES}, retired=[])
+    for t in TABLES:  # a store whose data/ was lost gets its folders back
+        (root / DATA / t).mkdir(parents=True, exist_ok=True)
+    old = {p for p in (root / DATA).rglob("*") if p.is_file()}
+    txn = Transaction(root, base)
+    columns: dict[str, str | None] = {
+        "shapes": "id",
+        "balls": "shape_id",
+        "edges": "shape_id",
+        "failures": None,
+    }
+    for table, col in columns.items():
+        rows = tables[table]
+        if rows is not None and rows.num_rows:
+            txn.tables[table].append(txn.stage(table, _conform(rows, table, dim), col))
+    txn.publish(next_id=next_id)
+    return _move_aside(root, old)
 
 
 def _conform(t: pa.Table, table: str, dim: int) -> pa.Table:

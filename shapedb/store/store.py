@@ -40,11 +40,11 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.dataset as ds
-import pyarrow.parquet as pq
 from numpy.typing import NDArray
 
 from shapedb.config.core import Config
-from shapedb.errors import ConfigError, NotFoundError, QueryError, StoreError
+from shapedb.errors import ConfigError, NotFoundError, QueryError, ShapeDBError, StoreError
+from shapedb.store.checksums import verified_files
 from shapedb.store.manifest import (
     DATA,
     FORMAT_VERSION,
@@ -182,16 +182,17 @@ class Store:
         # before the lock: refuse a foreign folder without leaving a lock file in it;
         # what a concurrent creator may have written so far is checked under the lock
         require_empty(root, ignore=(_LOCK, DATA, MANIFEST, "journal", "staging"))
-        root.mkdir(parents=True, exist_ok=True)
-        lock = FileLock(root / _LOCK)
-        lock.acquire(max(float(kwargs.get("lock_timeout", 0.0)), 5.0), source=str(root))
-        try:  # under the lock: a second creator sees this store, or an empty folder
-            require_empty(root, ignore=(_LOCK,))
-            for t in TABLES:
-                (root / DATA / t).mkdir(parents=True, exist_ok=True)
-            write_manifest(root, new_manifest(config))
-        finally:
-            lock.release()
+        with _writing(root, "create the store"):
+            root.mkdir(parents=True, exist_ok=True)
+            lock = FileLock(root / _LOCK)
+            lock.acquire(max(float(kwargs.get("lock_timeout", 0.0)), 5.0), source=str(root))
+            try:  # under the lock: a second creator sees this store, or an empty folder
+                require_empty(root, ignore=(_LOCK,))
+                for t in TABLES:
+                    (root / DATA / t).mkdir(parents=True, exist_ok=True)
+                write_manifest(root, new_manifest(config))
+            finally:
+                lock.release()
         log.info("created store %s (config %s)", root, config.fingerprint)
         return cls(root, **kwargs)
 
@@ -230,6 +231,26 @@ class Store:
         """Absolute paths of the committed Parquet files of ``table`` (for DuckDB)."""
         _check_table(table)
         return [str(self.path / s["file"]) for s in self._snapshot().segments(table)]
+
+    def verified_files(self) -> dict[str, list[str]]:
+        """The committed files of every table, from one manifest version, each verified.
+
+        For readers that do not check Parquet page checksums themselves (DuckDB): each
+        file's bytes are compared with the sha256 the manifest recorded at commit
+        (:func:`shapedb.store.checksums.verify_segments`; cached while the file is
+        unchanged, so an unchanged store is hashed once per process).
+
+        Returns
+        -------
+        dict
+            Table name -> absolute paths of its segments.
+
+        Raises
+        ------
+        StoreError
+            A listed segment is missing or its bytes differ; the message names it.
+        """
+        return verified_files(self.path, TABLES)
 
     def _read(
         self,
@@ -460,23 +481,23 @@ class Store:
         -------
         CommitResult
         """
-        with self.writer():
+        with self.writer(), _writing(self.path, "commit"):
             snap = self._snapshot()
             self._check_config(snap, records)
-            new, delete_ids, next_id = self._plan(records, delete)
+            new, delete_ids, next_id = self._plan(snap, records, delete)
             if not new and not delete_ids and not failures:
                 return CommitResult(version=snap.version)
             txn = Transaction(self.path, snap.data)
             dim = int(snap.data["dim"])
             if delete_ids:
-                self._stage_deletions(txn, delete_ids, dim)
+                txn.delete(delete_ids, dim)
             if new:
                 txn.tables["shapes"].append(txn.stage("shapes", shapes_table(new, dim), "id"))
                 for table, t in (("balls", balls_table(new)), ("edges", edges_table(new))):
                     if t.num_rows:
                         txn.tables[table].append(txn.stage(table, t, "shape_id"))
             self._stage_failures(txn, snap, failures, new)
-            version = txn.publish(next_id=max(next_id, int(snap.data["next_id"])))
+            version = txn.publish(next_id=next_id)
             if assigned is not None:
                 assigned.extend(new)
             log.info(
@@ -517,13 +538,19 @@ class Store:
                 )
 
     def _plan(
-        self, records: Sequence[ShapeRecord], delete: Iterable[int]
+        self, snap: _Snapshot, records: Sequence[ShapeRecord], delete: Iterable[int]
     ) -> tuple[list[ShapeRecord], set[int], int]:
-        """(records with their ids, live ids to delete, next free id) of one commit."""
+        """(records with their ids, live ids to delete, next free id) of one commit.
+
+        New ids start above the manifest's ``next_id`` and above every stored id (read
+        from the segments and their manifest entries), so an id is never reused even
+        when the manifest's ``next_id`` is wrong.
+        """
         delete_ids = {int(i) for i in delete}
         live_ids = set(self.ids().tolist()) if (delete_ids or records) else set()
         delete_ids &= live_ids
-        next_id = int(self._snapshot().data["next_id"])
+        recorded = (int(s.get("max_id", 0)) + 1 for s in snap.segments("shapes"))
+        next_id = max(int(snap.data["next_id"]), max(live_ids, default=0) + 1, *recorded)
         new: list[ShapeRecord] = []
         for r in records:
             if r.id is None:
@@ -537,40 +564,6 @@ class Store:
         if len({r.id for r in new}) != len(new):
             raise StoreError("duplicate ids in one commit", source=str(self.path))
         return new, delete_ids, next_id
-
-    def _stage_deletions(self, txn: Transaction, delete_ids: set[int], dim: int) -> None:
-        """Copy-on-write deletion: rewrite every segment holding a deleted id."""
-        lo, hi = min(delete_ids), max(delete_ids)
-        doomed = pa.array(sorted(delete_ids), pa.int64())
-        for table, col in (("shapes", "id"), ("balls", "shape_id"), ("edges", "shape_id")):
-            kept = []
-            for seg in txn.tables[table]:
-                if "min_id" not in seg or seg["max_id"] < lo or seg["min_id"] > hi:
-                    kept.append(seg)
-                    continue
-                t = self._read_segment(seg, table, dim)
-                mask = pc.is_in(t.column(col), doomed)
-                if not pc.any(mask).as_py():
-                    kept.append(seg)
-                    continue
-                rest = t.filter(pc.invert(mask))
-                txn.retire([seg["file"]])
-                # even when empty: the new file says which one it replaces (for repair)
-                kept.append(txn.stage(table, rest, col, replaces=[seg["file"]]))
-            txn.tables[table] = kept
-
-    def _read_segment(self, seg: dict[str, Any], table: str, dim: int) -> pa.Table:
-        try:
-            check_sizes(self.path, [seg], missing=True)
-            return pq.read_table(
-                self.path / seg["file"],
-                schema=schema_for(table, dim),
-                page_checksum_verification=True,
-            )
-        except (pa.ArrowException, OSError) as exc:
-            if isinstance(exc, StoreError):
-                raise
-            raise unreadable(self.path, [seg], exc) from exc
 
     def _stage_failures(
         self,
@@ -606,7 +599,7 @@ class Store:
         min_segments : int
             Only tables with at least this many segments are rewritten.
         """
-        with self.writer():
+        with self.writer(), _writing(self.path, "compact"):
             snap = self._snapshot()
             todo = [
                 t
@@ -623,6 +616,20 @@ class Store:
                 txn.retire(files)
                 txn.tables[table] = [txn.stage(table, t, col, replaces=files)]
             return CommitResult(version=txn.publish())
+
+
+@contextlib.contextmanager
+def _writing(root: Path, doing: str) -> Iterator[None]:
+    """Turn an operating-system error while writing (no such folder, read-only,
+    disk full) into one StoreError naming the store and the reason."""
+    try:
+        yield
+    except OSError as exc:
+        if isinstance(exc, ShapeDBError):
+            raise
+        raise StoreError(
+            f"cannot {doing} here ({exc.strerror or type(exc).__name__})", source=str(root)
+        ) from exc
 
 
 def _check_table(table: str) -> None:

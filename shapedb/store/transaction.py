@@ -31,8 +31,9 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from shapedb.errors import StoreLockedError
-from shapedb.store.manifest import DATA, MANIFEST
+from shapedb.errors import StoreError, StoreLockedError
+from shapedb.store.manifest import DATA, MANIFEST, check_sizes, unreadable
+from shapedb.store.schema import schema_for
 
 __all__ = [
     "FileLock",
@@ -123,8 +124,18 @@ class FileLock:
         return self._fd is not None
 
     def acquire(self, timeout: float, *, source: str) -> None:
-        """Take the lock, waiting up to ``timeout`` seconds; else StoreLockedError."""
-        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        """Take the lock, waiting up to ``timeout`` seconds; else StoreLockedError.
+
+        A lock file that cannot be opened or created (a read-only or missing folder)
+        is a :class:`StoreError` naming the reason.
+        """
+        try:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise StoreError(
+                f"cannot open the store's lock file {self.path.name} ({exc.strerror})",
+                source=source,
+            ) from exc
         deadline = time.monotonic() + max(timeout, 0.0)
         while True:
             try:
@@ -244,6 +255,41 @@ class Transaction:
             seg["max_id"] = int(pc.max(ids).as_py())
         return seg
 
+    def delete(self, ids: set[int], dim: int) -> None:
+        """Copy-on-write deletion: rewrite every segment holding one of ``ids`` without
+        them, and retire it (the new file names it in its ``shapedb.replaces``)."""
+        lo, hi = min(ids), max(ids)
+        doomed = pa.array(sorted(ids), pa.int64())
+        for table, col in (("shapes", "id"), ("balls", "shape_id"), ("edges", "shape_id")):
+            kept = []
+            for seg in self.tables[table]:
+                if "min_id" not in seg or seg["max_id"] < lo or seg["min_id"] > hi:
+                    kept.append(seg)
+                    continue
+                t = self._read_segment(seg, table, dim)
+                mask = pc.is_in(t.column(col), doomed)
+                if not pc.any(mask).as_py():
+                    kept.append(seg)
+                    continue
+                rest = t.filter(pc.invert(mask))
+                self.retire([seg["file"]])
+                # even when empty: the new file says which one it replaces (for repair)
+                kept.append(self.stage(table, rest, col, replaces=[seg["file"]]))
+            self.tables[table] = kept
+
+    def _read_segment(self, seg: dict[str, Any], table: str, dim: int) -> pa.Table:
+        try:
+            check_sizes(self.root, [seg], missing=True)
+            return pq.read_table(
+                self.root / seg["file"],
+                schema=schema_for(table, dim),
+                page_checksum_verification=True,
+            )
+        except (pa.ArrowException, OSError) as exc:
+            if isinstance(exc, StoreError):
+                raise
+            raise unreadable(self.root, [seg], exc) from exc
+
     def retire(self, files: list[str]) -> None:
         """Mark segments as replaced: kept for older readers, removed later."""
         self._retired.extend(files)
@@ -255,6 +301,8 @@ class Transaction:
         """Move the staged segments into place and swap the manifest; returns the version."""
         if self._staged:  # the journal names every file before any of them lands in data/
             self._journal([str(self._target(t, p).relative_to(self.root)) for t, p in self._staged])
+        for table in {t for t, _ in self._staged}:  # a store whose data/ was lost gets it back
+            (self.root / DATA / table).mkdir(parents=True, exist_ok=True)
         for table, path in self._staged:
             os.rename(path, self._target(table, path))
         for table in {t for t, _ in self._staged}:

@@ -517,3 +517,23 @@ def test_two_creators_never_mix_configurations(tmp_path: Path) -> None:
         store = Store.open(path)
         configs = set(store.shapes(["config"]).column("config").to_pylist())
         assert configs == {store.config.to_json()}
+
+
+def test_ids_are_never_reused_even_when_next_id_is_wrong(tmp_store: Store) -> None:
+    tmp_store.add([make_record("a"), make_record("b")])  # ids 1 and 2
+    manifest = json.loads((tmp_store.path / MANIFEST).read_text())
+    manifest["next_id"] = 1  # a manifest edited, or written by a broken tool
+    (tmp_store.path / MANIFEST).write_text(json.dumps(manifest))
+    added = tmp_store.add([make_record("c")])
+    assert added[0].id == 3
+    assert tmp_store.ids().tolist() == [1, 2, 3]
+
+
+@pytest.mark.parametrize("where", ["/proc/self/x.db", "/proc/self/x.db/inner"])
+def test_an_unwritable_path_is_one_store_error(where: str) -> None:
+    import query.database as database
+
+    for make in (lambda: Store.create(where, CONFIG), lambda: database.connect(where)):
+        with pytest.raises(StoreError, match="cannot create the store here") as info:
+            make()
+        assert "\n" not in str(info.value) and where in str(info.value)
