@@ -467,8 +467,15 @@ def _pairwise(
     sets_b = node_sets(qb.graph, us, cfg.hops)
     return [
         PartMatch(
-            qb.id, qb.name, qb.label, float(np.exp(-cfg.kernel.lam * d)),
-            tuple(int(x) for x in nb), tuple(int(x) for x in na), int(u), int(vv), float(d),
+            qb.id,
+            qb.name,
+            qb.label,
+            float(np.exp(-cfg.kernel.lam * d)),
+            tuple(int(x) for x in nb),
+            tuple(int(x) for x in na),
+            int(u),
+            int(vv),
+            float(d),
         )  # fmt: skip
         for vv, u, d, na, nb in zip(vs, us, ds, sets_a, sets_b, strict=True)
     ]

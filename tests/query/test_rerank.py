@@ -70,4 +70,3 @@ def test_a_scorer_of_a_users_own_is_passed_as_an_object() -> None:
     index, x = _index()
     got, _ = rerank.search(index, x[:2], 10, config=Config(), scorer=_Far(10))
     np.testing.assert_array_equal(got, index.search(x[:2], 10)[0][:, ::-1])
-
