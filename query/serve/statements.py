@@ -1,9 +1,9 @@
 """SQL statements of ``shapedb serve`` (``POST /api/sql``) that can be interrupted.
 
-A statement runs on its own sandboxed DuckDB connection (:func:`query.sql.connect`) in
-a worker thread; the server keeps a reference to that connection, so a statement whose
-client went away, or that is still running when the server stops, is interrupted
-(``DuckDBPyConnection.interrupt``) instead of holding a thread and a core until it ends.
+A statement runs through ``db.sql`` (its sandbox, checksums and limits) in a worker
+thread, with an interrupt handle the server keeps, so a statement whose client went away,
+or that is still running when the server stops, is interrupted instead of holding a
+thread and a core until it ends.
 """
 
 from __future__ import annotations
@@ -17,8 +17,6 @@ from typing import TYPE_CHECKING, Any
 import pyarrow as pa
 from starlette.concurrency import run_in_threadpool
 
-from shapedb.errors import QueryError
-
 if TYPE_CHECKING:
     from query.database import Database
 
@@ -30,7 +28,6 @@ log = logging.getLogger(__name__)
 #: server (an interrupt that lands before DuckDB starts the statement is repeated).
 _POLL_SECONDS = 0.2
 _SHOWN = 200  # characters of a statement named in an error
-_VIEWS = ("shapes", "balls", "edges", "failures")
 
 
 class ClientGone(Exception):
@@ -43,44 +40,24 @@ def _short(text: str) -> str:
 
 
 class Statement:
-    """One read-only SELECT over a store, run once on its own DuckDB connection.
+    """One read-only SELECT over a store, run once through ``db.sql`` with a handle the
+    server can interrupt it by (:class:`query.sql.InterruptHandle`).
 
     Parameters
     ----------
     db : shapedb.Database
     text : str
-        The statement; :meth:`run` checks that it is exactly one SELECT (DuckDB's parser).
+        The statement (``db.sql`` checks that it is exactly one SELECT).
     """
 
     def __init__(self, db: Database, text: str) -> None:
+        from query.sql import InterruptHandle
+
         self.db = db
         self.text = text
         self.source = _short(text)
         self.interrupted = False
-        self._con: Any = None
-        self._lock = threading.Lock()
-
-    def check(self) -> None:
-        """QueryError unless the statement is exactly one SELECT (DuckDB's parser)."""
-        import duckdb
-
-        if not self.text.strip():
-            raise QueryError("empty SQL statement", source=repr(self.text))
-        try:
-            parsed = duckdb.extract_statements(self.text)
-        except duckdb.Error as exc:
-            raise QueryError(
-                f"{type(exc).__name__}: {_short(str(exc))}", source=self.source
-            ) from exc
-        if len(parsed) != 1:
-            raise QueryError(
-                f"exactly one statement is allowed, got {len(parsed)}", source=self.source
-            )
-        if parsed[0].type != duckdb.StatementType.SELECT:
-            raise QueryError(
-                f"only read-only SELECT statements are allowed, not {parsed[0].type.name}",
-                source=self.source,
-            )
+        self._handle = InterruptHandle()
 
     def run(self) -> pa.Table:
         """Run the statement (blocking; call it in a worker thread) and return its result.
@@ -88,46 +65,17 @@ class Statement:
         Raises
         ------
         QueryError
-            Not exactly one SELECT, DuckDB refused or failed it, or it was interrupted.
+            Not exactly one SELECT, DuckDB refused or failed it, a limit was reached, or
+            it was interrupted.
         StoreError
-            One of the store's files cannot be read (damaged); as ``db.sql`` says it.
+            One of the store's files cannot be read (damaged).
         """
-        import duckdb
-
-        from query.sql import connect
-
-        self.check()
-        con = connect(self.db)
-        try:
-            with self._lock:
-                if self.interrupted:
-                    raise QueryError("the statement was interrupted", source=self.source)
-                self._con = con
-            rel = con.sql(self.text)
-            return pa.table({}) if rel is None else rel.to_arrow_table()
-        except duckdb.InterruptException as exc:
-            raise QueryError("the statement was interrupted", source=self.source) from exc
-        except duckdb.Error as exc:
-            text = " ".join(str(exc).split())
-            if any(path in text for path in self._store_files()):
-                self.db.sql(self.text)  # raises the store's own error, naming the segment
-            raise QueryError(f"{type(exc).__name__}: {text[:300]}", source=self.source) from exc
-        finally:
-            with self._lock:
-                self._con = None
-            con.close()
-
-    def _store_files(self) -> list[str]:
-        store = self.db.store
-        return [p for table in _VIEWS for p in store.files(table)]
+        return self.db.sql(self.text, interrupt=self._handle)
 
     def interrupt(self) -> None:
         """Stop the statement (now if it runs, or as soon as it would start); thread-safe."""
-        with self._lock:
-            self.interrupted = True
-            con = self._con
-        if con is not None:
-            con.interrupt()
+        self.interrupted = True
+        self._handle.interrupt()
 
 
 class Statements:
