@@ -37,11 +37,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ingest.ply import check_ply
 from shapedb.errors import (
     ConfigError,
     EmptyGeometryError,
     InvalidShapeError,
     LoadError,
+    NonFiniteGeometryError,
     ShapeDBError,
     UnsupportedFormatError,
 )
@@ -56,6 +58,8 @@ __all__ = [
     "VOXEL_FORMATS",
     "CAD_FORMATS",
     "SUPPORTED",
+    "MAX_COORDINATE",
+    "OUTLIER_RATIO",
 ]
 
 log = logging.getLogger(__name__)
@@ -80,6 +84,13 @@ CAD_FORMATS = {
 }
 SUPPORTED = {**MESH_FORMATS, **CLOUD_FORMATS, **VOXEL_FORMATS, **CAD_FORMATS}
 """Extension -> format name of every file type :func:`load` reads."""
+
+#: Largest coordinate magnitude read: 1e12 is a million km in mm, beyond any model;
+#: a corrupt value (1e30, 1e308) would otherwise squash the shape into one cell.
+MAX_COORDINATE = 1e12
+#: A cloud point this many times farther from the centre than 90% of the cloud is an
+#: outlier: the bulk would then span under one cell of a 256-cell grid (no model).
+OUTLIER_RATIO = 1e3
 
 _TEXT_FORMATS = {"obj", "off", "xyz", "pts", "gltf", "step", "iges"}
 #: Representations a file can be forced into (``load(path, as_=...)``).
@@ -187,11 +198,7 @@ def load(
     if fmt in _TEXT_FORMATS and b"\x00" in head:
         raise LoadError(f"binary junk in what should be a text {fmt.upper()} file", source=src)
     try:
-        if fmt in ("obj", "off"):
-            _check_faces(p, fmt, max_faces)
-        geometry = _LOADERS[fmt](p, head, size)
-        _check_cap(geometry, max_faces)
-        return _convert(geometry, as_, src)
+        return _convert(_read(p, fmt, head, size, max_faces), as_, src)
     except ShapeDBError as exc:
         if exc.source is None:  # name the file
             raise type(exc)(exc.reason, source=src) from exc
@@ -202,6 +209,24 @@ def load(
         raise LoadError(
             f"cannot parse as {fmt.upper()}: {type(exc).__name__}: {exc}", source=src
         ) from exc
+
+
+def _read(p: Path, fmt: str, head: bytes, size: int, max_faces: int | None) -> Geometry:
+    """Check what can be checked before parsing, parse, then check the result."""
+    header = None
+    if fmt in ("obj", "off"):
+        _check_faces(p, fmt, max_faces)
+    elif fmt == "ply":
+        header = check_ply(p, size, max_faces)
+    geometry = _LOADERS[fmt](p, head, size)
+    if header is not None:
+        got = len(getattr(geometry, "vertices", getattr(geometry, "points", ())))
+        if got != header.count("vertex"):
+            raise LoadError(
+                f"the PLY header announces {header.count('vertex')} vertices, the parser read {got}"
+            )
+    _check_cap(geometry, max_faces)
+    return geometry
 
 
 # ---------------------------------------------------------------- text mesh checks
@@ -294,22 +319,65 @@ def _check_obj(fh: Any, max_faces: int | None) -> None:
         raise LoadError(f"line {top_line}: face names vertex {top} but the file has {nv} vertices")
 
 
+# ---------------------------------------------------------------- coordinate checks
+def _check_coordinates(values: Any, what: str) -> NDArray[np.float64]:
+    """``values`` as float64, refused when NaN, infinite or beyond :data:`MAX_COORDINATE`."""
+    try:
+        a = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InvalidShapeError(f"{what} are not real numbers: {exc}") from None
+    finite = np.isfinite(a)
+    if not finite.all():
+        rows = int((~finite).reshape(len(a), -1).any(axis=1).sum()) if a.ndim else 1
+        raise NonFiniteGeometryError(
+            f"{rows} of {max(len(a), 1) if a.ndim else 1} {what} have NaN or infinite values"
+        )
+    top = float(np.abs(a).max()) if a.size else 0.0
+    if top > MAX_COORDINATE:
+        raise InvalidShapeError(
+            f"{what} reach {top:.3g}, beyond the limit {MAX_COORDINATE:.0e} "
+            "(a corrupt value, or units no model uses)"
+        )
+    return a
+
+
+def _check_outliers(points: NDArray[np.float64]) -> None:
+    """Refuse a cloud whose farthest points dwarf the rest (see :data:`OUTLIER_RATIO`)."""
+    if len(points) < 10:
+        return
+    d = np.linalg.norm(points - np.median(points, axis=0), axis=1)
+    bulk = float(np.quantile(d, 0.9))
+    far = np.flatnonzero(d > OUTLIER_RATIO * bulk)
+    if bulk > 0 and len(far):
+        i = int(far[np.argmax(d[far])])
+        raise InvalidShapeError(
+            f"{len(far)} of {len(points)} points lie over {OUTLIER_RATIO:g}x farther from "
+            f"the cloud's centre than 90% of the others (outliers: e.g. point {i} at "
+            f"{np.array2string(points[i], precision=3)})"
+        )
+
+
 # ---------------------------------------------------------------- constructors
 def _mesh(vertices: Any, faces: Any, src: str) -> Geometry:
     from shapedb.geometry.mesh import TriangleMesh
 
-    return TriangleMesh(vertices, faces, name=src)
+    return TriangleMesh(_check_coordinates(vertices, "vertices"), faces, name=src)
 
 
 def _cloud(points: Any, normals: Any, src: str) -> Geometry:
     from shapedb.geometry.pointcloud import PointCloud
 
-    return _construct(PointCloud, np.asarray(points, dtype=np.float64), normals=normals, name=src)
+    pts = _check_coordinates(points, "points")
+    if pts.ndim == 2 and pts.shape[1] == 3:
+        _check_outliers(pts)
+    return _construct(PointCloud, pts, normals=normals, name=src)
 
 
 def _voxels(occupancy: Any, origin: Any, pitch: Any, src: str, surface: str = "cubes") -> Geometry:
     from shapedb.geometry.voxels import VoxelGrid
 
+    origin = _check_coordinates(origin, "origin coordinates")
+    pitch = float(_check_coordinates(pitch, "voxel pitch values"))
     return _construct(VoxelGrid, occupancy, origin=origin, pitch=pitch, surface=surface, name=src)
 
 
@@ -443,7 +511,8 @@ def _load_text_cloud(p: Path, head: bytes, size: int) -> Geometry:
     pts, normals = a[:, :3], None
     if a.shape[1] >= 6:
         n = a[:, 3:6]
-        if np.all(np.isfinite(n)) and np.allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-2):
+        unit = np.all(np.abs(n) <= 1.5) and np.allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-2)
+        if unit:
             normals = n
     return _cloud(pts, normals, src)
 
