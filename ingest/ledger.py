@@ -47,13 +47,9 @@ class Ledger:
         return len(self._rows)
 
     def report(
-        self,
-        *,
-        seconds: float,
-        notes: list[tuple[str, str]],
-        labels_matched: int | None,
+        self, seconds: float, notes: list[tuple[str, str]], labels_matched: int | None
     ) -> IngestReport:
-        """The report of the inputs recorded so far, in input order."""
+        """The report of the inputs recorded so far (in input order), and these extras."""
         rows = [self._rows[k] for k in sorted(self._rows)]
         return IngestReport(
             ingested=tuple(self._ids[k] for k in sorted(self._ids)),

@@ -518,8 +518,28 @@ def _load_text_cloud(p: Path, head: bytes, size: int) -> Geometry:
 
 
 # ---------------------------------------------------------------- numpy
+def _check_npy(fh: Any, size: int, what: str) -> None:
+    """Refuse an NPY stream whose header announces more data than its ``size`` bytes hold."""
+    try:
+        version = np.lib.format.read_magic(fh)
+        if version == (1, 0):
+            shape, _, dtype = np.lib.format.read_array_header_1_0(fh)
+        else:
+            shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
+    except ValueError as exc:
+        raise LoadError(f"{what} has no valid NPY header: {exc}") from None
+    need = int(np.prod(shape, dtype=object)) * dtype.itemsize
+    if need > size:
+        raise LoadError(
+            f"truncated or corrupt shape: {what} announces an array of shape {shape} "
+            f"({need} bytes) in {size} bytes"
+        )
+
+
 def _load_npy(p: Path, head: bytes, size: int) -> Geometry:
     src = str(p)
+    with open(p, "rb") as fh:
+        _check_npy(fh, size, "the file")
     try:
         a = np.load(p, allow_pickle=False)
     except ValueError as exc:
@@ -545,6 +565,7 @@ def _from_array(a: NDArray[Any], src: str) -> Geometry:
 def _load_npz(p: Path, head: bytes, size: int) -> Geometry:
     src = str(p)
     try:
+        _check_npz(p)
         with np.load(p, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
     except (ValueError, OSError, EOFError) as exc:
@@ -572,6 +593,17 @@ def _load_npz(p: Path, head: bytes, size: int) -> Geometry:
         "'points' [+ 'normals'] or 'vertices' + 'faces'",
         source=src,
     )
+
+
+def _check_npz(p: Path) -> None:
+    """Refuse an NPZ archive holding an array whose header announces more than it holds."""
+    import zipfile
+
+    with zipfile.ZipFile(p) as z:
+        for info in z.infolist():
+            if info.filename.endswith(".npy"):
+                with z.open(info) as fh:
+                    _check_npy(fh, info.file_size, f"its array {info.filename!r}")
 
 
 def _load_cad(p: Path, head: bytes, size: int) -> Geometry:

@@ -197,22 +197,20 @@ def ingest(
 ) -> IngestReport:
     """Add files, folders and in-memory shapes to ``db``.
 
-    Every input ends in exactly one outcome, listed in the report: stored, unchanged
-    (its content is already stored), failed (with the reason: one bad file never
-    stops the others), or, for what walking a folder leaves out, ignored (with why).
+    Every input ends in one outcome of the report: stored, unchanged (content already
+    stored), failed (with the reason; one bad file never stops the others) or ignored.
 
     Parameters
     ----------
     db : shapedb.Database
         Target database; its configuration is used for every shape.
     inputs : path, Geometry, or a sequence / mapping of them
-        Files, folders (walked recursively, symlinked folders followed once; hidden
-        entries, companion files and files of no supported type are ignored),
-        Geometry objects, ``(name, geometry)`` pairs or a ``{name: geometry}`` mapping.
+        Files, folders (walked recursively, symlinked folders followed once; hidden,
+        companion and unsupported files ignored), Geometry objects,
+        ``(name, geometry)`` pairs or a ``{name: geometry}`` mapping.
     labels : path, mapping or LabelTable, optional
         A labels CSV (``path,label,...``; extra columns become metadata), or
-        ``{path: label}``. How many inputs it labelled is logged and reported; the
-        paths it lists that match no input are logged as a warning.
+        ``{path: label}``; the matches are counted, the unmatched logged.
     label_from_folder : bool
         Label each file by its parent folder's name (when the CSV gives none).
     as_ : {None, "mesh", "pointcloud", "smooth_voxels"}
@@ -226,16 +224,12 @@ def ingest(
     force : bool
         Rebuild shapes already in the store (they keep their ids).
     progress : bool or callable
-        True: a progress bar on a terminal, else a log line every few seconds (count,
-        rate, time left; :mod:`ingest.progress`); False: silent; a callable:
-        ``progress(done, total)`` after each input.
-    batch_size : int
-        Results per atomic commit.
-    commit_seconds : float
-        Commit a partial batch when this much time passed since the last commit.
+        True: a bar on a terminal, else log lines (:mod:`ingest.progress`); False:
+        silent; a callable: ``progress(done, total)`` after each input.
+    batch_size, commit_seconds : int, float
+        Results per atomic commit; a partial batch is committed this long after the last.
     max_bytes, max_faces : int, optional
-        Refuse (as a failure row) files larger than this many bytes, or meshes with
-        more faces, so one giant file cannot take the machine's memory.
+        Fail files of more bytes, or meshes of more faces (so one cannot take the memory).
 
     Returns
     -------
@@ -244,12 +238,31 @@ def ingest(
     Raises
     ------
     ConfigError
-        An argument is out of range (``workers`` < 1, ``batch_size`` < 1, ...), or the
-        labels match none of the inputs.
+        An argument is out of range (``workers`` < 1...); the labels match no input.
     """
     t_start = time.perf_counter()
     _check_arguments(as_, batch_size, workers, max_bytes, max_faces)
     ledger = Ledger()
+    entries = _entries(inputs, names, ledger)
+    table = _label_table(labels)
+    limits = {"as_": as_, "max_bytes": max_bytes, "max_faces": max_faces}
+    with db.store.writer():
+        plan = _plan(entries, db.store.hashes(), ledger, table=table, names=names,
+                     label_from_folder=label_from_folder, force=force, limits=limits)  # fmt: skip
+        committer = _Committer(db, plan.present, batch_size, commit_seconds, ledger)
+        committer.failures.extend(plan.failures)
+        _build(plan, committer, db.config, (workers, scheduler), progress, len(entries))
+        committer.flush()
+    assert len(ledger) == len(entries), "every input has one outcome"
+    report = ledger.report(time.perf_counter() - t_start, committer.notes, plan.labels_matched)
+    log.info("ingest done: %r", report)
+    return report
+
+
+def _entries(
+    inputs: Any, names: Sequence[str] | None, ledger: Ledger
+) -> list[tuple[str, Path | Geometry, bool, str | None]]:
+    """The inputs expanded (what folder walks leave out goes to the ledger as ignored)."""
     ignored: list[tuple[str, str]] = []
     entries = list(expand(inputs, ignored=ignored))
     if names is not None and len(names) != len(entries):
@@ -259,24 +272,7 @@ def ingest(
         )
     for path, why in ignored:
         ledger.ignore(path, why)
-    table = _label_table(labels)
-    limits = {"as_": as_, "max_bytes": max_bytes, "max_faces": max_faces}
-    with db.store.writer():
-        plan = _plan(entries, db.store.hashes(), ledger, table=table, names=names,
-                     label_from_folder=label_from_folder, force=force, limits=limits)  # fmt: skip
-        matched = None
-        if table is not None:
-            matched = summarise_matches(table, plan.looked_up, plan.matched, plan.unlabelled)
-        committer = _Committer(db, plan.present, batch_size, commit_seconds, ledger)
-        committer.failures.extend(plan.failures)
-        _build(plan, committer, db.config, (workers, scheduler), progress, len(entries))
-        committer.flush()
-    assert len(ledger) == len(entries), "every input has one outcome"
-    report = ledger.report(
-        seconds=time.perf_counter() - t_start, notes=committer.notes, labels_matched=matched
-    )
-    log.info("ingest done: %r", report)
-    return report
+    return entries
 
 
 def _build(
@@ -337,6 +333,7 @@ class _Plan:
     looked_up: int = 0
     matched: set[str] = field(default_factory=set)
     unlabelled: list[str] = field(default_factory=list)
+    labels_matched: int | None = None
 
 
 def _plan(
@@ -350,7 +347,10 @@ def _plan(
     force: bool,
     limits: Mapping[str, Any],
 ) -> _Plan:
-    """Hash every input, mark what the store holds unchanged, fail unreadable inputs."""
+    """Hash every input, mark what the store holds unchanged, fail unreadable inputs.
+
+    Raises :class:`ConfigError` when a label table matches none of the inputs.
+    """
     plan = _Plan(present=present)
     first: dict[str, _Item] = {}
     for k, (source, obj, explicit, given_label) in enumerate(entries):
@@ -379,6 +379,10 @@ def _plan(
         else:
             first[item.content_hash] = item
             plan.items.append(item)
+    if table is not None:  # raises when the labels match none of the inputs
+        plan.labels_matched = summarise_matches(
+            table, plan.looked_up, plan.matched, plan.unlabelled
+        )
     return plan
 
 

@@ -43,8 +43,8 @@ class Progress:
         a callable: ``progress(done, total)`` at the start and after each file.
     stream : file, optional
         Where the bar goes; default ``sys.stderr``.
-    seconds : float
-        Seconds between log lines (:data:`LOG_SECONDS`).
+    seconds : float, optional
+        Seconds between log lines; default :data:`LOG_SECONDS`.
     """
 
     def __init__(
@@ -54,7 +54,7 @@ class Progress:
         done: int = 0,
         progress: ProgressOption = True,
         stream: IO[str] | None = None,
-        seconds: float = LOG_SECONDS,
+        seconds: float | None = None,
     ) -> None:
         self.total, self.done, self._start_done = total, done, done
         self._t0 = time.monotonic()
@@ -73,7 +73,9 @@ class Progress:
             )
         elif progress:
             self._thread = threading.Thread(
-                target=self._heartbeat, args=(seconds,), name="shapedb-ingest-progress"
+                target=self._heartbeat,
+                args=(LOG_SECONDS if seconds is None else seconds,),
+                name="shapedb-ingest-progress",
             )
             self._thread.daemon = True
             self._thread.start()
