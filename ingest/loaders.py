@@ -38,12 +38,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ingest.ply import check_ply
+from ingest.shapes import (
+    MAX_COORDINATE,
+    OUTLIER_RATIO,
+    cloud_geometry,
+    mesh_geometry,
+    voxel_geometry,
+)
 from shapedb.errors import (
     ConfigError,
     EmptyGeometryError,
     InvalidShapeError,
     LoadError,
-    NonFiniteGeometryError,
     ShapeDBError,
     UnsupportedFormatError,
 )
@@ -84,13 +90,6 @@ CAD_FORMATS = {
 }
 SUPPORTED = {**MESH_FORMATS, **CLOUD_FORMATS, **VOXEL_FORMATS, **CAD_FORMATS}
 """Extension -> format name of every file type :func:`load` reads."""
-
-#: Largest coordinate magnitude read: 1e12 is a million km in mm, beyond any model;
-#: a corrupt value (1e30, 1e308) would otherwise squash the shape into one cell.
-MAX_COORDINATE = 1e12
-#: A cloud point this many times farther from the centre than 90% of the cloud is an
-#: outlier: the bulk would then span under one cell of a 256-cell grid (no model).
-OUTLIER_RATIO = 1e3
 
 _TEXT_FORMATS = {"obj", "off", "xyz", "pts", "gltf", "step", "iges"}
 #: Representations a file can be forced into (``load(path, as_=...)``).
@@ -319,89 +318,14 @@ def _check_obj(fh: Any, max_faces: int | None) -> None:
         raise LoadError(f"line {top_line}: face names vertex {top} but the file has {nv} vertices")
 
 
-# ---------------------------------------------------------------- coordinate checks
-def _check_coordinates(values: Any, what: str) -> NDArray[np.float64]:
-    """``values`` as float64, refused when NaN, infinite or beyond :data:`MAX_COORDINATE`."""
-    try:
-        a = np.asarray(values, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InvalidShapeError(f"{what} are not real numbers: {exc}") from None
-    finite = np.isfinite(a)
-    if not finite.all():
-        rows = int((~finite).reshape(len(a), -1).any(axis=1).sum()) if a.ndim else 1
-        raise NonFiniteGeometryError(
-            f"{rows} of {max(len(a), 1) if a.ndim else 1} {what} have NaN or infinite values"
-        )
-    top = float(np.abs(a).max()) if a.size else 0.0
-    if top > MAX_COORDINATE:
-        raise InvalidShapeError(
-            f"{what} reach {top:.3g}, beyond the limit {MAX_COORDINATE:.0e} "
-            "(a corrupt value, or units no model uses)"
-        )
-    return a
-
-
-def _check_outliers(points: NDArray[np.float64]) -> None:
-    """Refuse a cloud whose farthest points dwarf the rest (see :data:`OUTLIER_RATIO`)."""
-    if len(points) < 10:
-        return
-    d = np.linalg.norm(points - np.median(points, axis=0), axis=1)
-    bulk = float(np.quantile(d, 0.9))
-    far = np.flatnonzero(d > OUTLIER_RATIO * bulk)
-    if bulk > 0 and len(far):
-        i = int(far[np.argmax(d[far])])
-        raise InvalidShapeError(
-            f"{len(far)} of {len(points)} points lie over {OUTLIER_RATIO:g}x farther from "
-            f"the cloud's centre than 90% of the others (outliers: e.g. point {i} at "
-            f"{np.array2string(points[i], precision=3)})"
-        )
-
-
-# ---------------------------------------------------------------- constructors
-def _mesh(vertices: Any, faces: Any, src: str) -> Geometry:
-    from shapedb.geometry.mesh import TriangleMesh
-
-    return TriangleMesh(_check_coordinates(vertices, "vertices"), faces, name=src)
-
-
-def _cloud(points: Any, normals: Any, src: str) -> Geometry:
-    from shapedb.geometry.pointcloud import PointCloud
-
-    pts = _check_coordinates(points, "points")
-    if pts.ndim == 2 and pts.shape[1] == 3:
-        _check_outliers(pts)
-    return _construct(PointCloud, pts, normals=normals, name=src)
-
-
-def _voxels(occupancy: Any, origin: Any, pitch: Any, src: str, surface: str = "cubes") -> Geometry:
-    from shapedb.geometry.voxels import VoxelGrid
-
-    origin = _check_coordinates(origin, "origin coordinates")
-    pitch = float(_check_coordinates(pitch, "voxel pitch values"))
-    return _construct(VoxelGrid, occupancy, origin=origin, pitch=pitch, surface=surface, name=src)
-
-
-def _construct(cls: type, *args: Any, name: str, **kwargs: Any) -> Geometry:
-    """Call a representation's constructor, passing ``name`` when it accepts one."""
-    import inspect
-
-    try:
-        params = inspect.signature(cls).parameters
-    except (TypeError, ValueError):  # pragma: no cover
-        params = {}  # type: ignore[assignment]
-    if "name" in params:
-        kwargs["name"] = name
-    return cls(*args, **kwargs)  # type: ignore[no-any-return]
-
-
 def _convert(geometry: Geometry, as_: str | None, src: str) -> Geometry:
     if as_ is None or geometry.representation == as_:
         return geometry
     if as_ == "smooth_voxels" and geometry.representation == "voxels":
         g: Any = geometry
-        return _voxels(g.occupancy, g.origin, g.pitch, src, surface="smooth")
+        return voxel_geometry(g.occupancy, g.origin, g.pitch, src, surface="smooth")
     if as_ == "pointcloud" and geometry.representation in ("mesh", "brep"):
-        return _cloud(np.asarray(geometry.vertices), None, src)  # type: ignore[attr-defined]
+        return cloud_geometry(np.asarray(geometry.vertices), None, src)  # type: ignore[attr-defined]
     raise InvalidShapeError(f"cannot read a {geometry.representation} file as a {as_}", source=src)
 
 
@@ -426,12 +350,12 @@ def _load_trimesh(p: Path, head: bytes, size: int) -> Geometry:
             verts.append(np.asarray(m.vertices, dtype=np.float64))
             faces.append(np.asarray(m.faces, dtype=np.int64) + offset)
             offset += len(m.vertices)
-        return _mesh(np.concatenate(verts), np.concatenate(faces), src)
+        return mesh_geometry(np.concatenate(verts), np.concatenate(faces), src)
     bare = [g for g in parts if isinstance(g, trimesh.Trimesh) and len(g.vertices)]
     if clouds or (fmt == "ply" and bare):
         pts = np.concatenate([np.asarray(g.vertices) for g in clouds + bare])
         normals = _ply_normals(clouds[0]) if len(clouds) == 1 and not bare else None
-        return _cloud(pts, normals, src)
+        return cloud_geometry(pts, normals, src)
     raise EmptyGeometryError(
         f"no vertices or faces found: the file is empty, junk, or not a valid {fmt.upper()}",
         source=src,
@@ -479,7 +403,7 @@ def _load_pcd(p: Path, head: bytes, size: int) -> Geometry:
     if len(pts) == 0:
         raise LoadError("no points read: the PCD file is empty, truncated or junk", source=str(p))
     normals = np.asarray(pcd.normals) if pcd.has_normals() else None
-    return _cloud(pts, normals, str(p))
+    return cloud_geometry(pts, normals, str(p))
 
 
 def _load_text_cloud(p: Path, head: bytes, size: int) -> Geometry:
@@ -514,7 +438,7 @@ def _load_text_cloud(p: Path, head: bytes, size: int) -> Geometry:
         unit = np.all(np.abs(n) <= 1.5) and np.allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-2)
         if unit:
             normals = n
-    return _cloud(pts, normals, src)
+    return cloud_geometry(pts, normals, src)
 
 
 # ---------------------------------------------------------------- numpy
@@ -551,10 +475,10 @@ def _load_npy(p: Path, head: bytes, size: int) -> Geometry:
 
 def _from_array(a: NDArray[Any], src: str) -> Geometry:
     if a.ndim == 3 and (a.dtype == np.bool_ or np.issubdtype(a.dtype, np.integer)):
-        return _voxels(a.astype(bool), np.zeros(3), 1.0, src)
+        return voxel_geometry(a.astype(bool), np.zeros(3), 1.0, src)
     if a.ndim == 2 and a.shape[1] in (3, 6) and np.issubdtype(a.dtype, np.number):
         normals = a[:, 3:6] if a.shape[1] == 6 else None
-        return _cloud(a[:, :3], normals, src)
+        return cloud_geometry(a[:, :3], normals, src)
     raise LoadError(
         f"array of shape {a.shape} and dtype {a.dtype} is neither an (n, 3) point array "
         "nor a 3-D bool/uint8 occupancy grid",
@@ -575,7 +499,7 @@ def _load_npz(p: Path, head: bytes, size: int) -> Geometry:
     except Exception as exc:  # zipfile.BadZipFile and friends
         raise LoadError(f"not a readable NPZ archive: {exc}", source=src) from exc
     if "occupancy" in data:
-        return _voxels(
+        return voxel_geometry(
             data["occupancy"].astype(bool),
             data.get("origin", np.zeros(3)),
             float(np.asarray(data.get("pitch", 1.0))),
@@ -583,9 +507,9 @@ def _load_npz(p: Path, head: bytes, size: int) -> Geometry:
             str(np.asarray(data.get("surface", "cubes"))),
         )
     if "vertices" in data and "faces" in data:
-        return _mesh(data["vertices"], data["faces"], src)
+        return mesh_geometry(data["vertices"], data["faces"], src)
     if "points" in data:
-        return _cloud(data["points"], data.get("normals"), src)
+        return cloud_geometry(data["points"], data.get("normals"), src)
     if len(data) == 1:
         return _from_array(next(iter(data.values())), src)
     raise LoadError(
