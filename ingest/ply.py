@@ -20,9 +20,11 @@ loader compares the vertices it got with the header's count (:func:`vertex_count
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import IO
+
+import numpy as np
+from numpy.typing import NDArray
 
 from shapedb.errors import LoadError
 
@@ -183,29 +185,64 @@ def check_ply(path: str | os.PathLike[str], size: int, max_faces: int | None = N
     return header
 
 
-def _rows(fh: IO[bytes], first_line: int) -> Iterator[tuple[int, list[bytes]]]:
-    for k, line in enumerate(fh, first_line):
-        yield k, line.split()
-
-
 def _check_ascii_body(fh: IO[bytes], header: PlyHeader) -> None:
     first = header.body_offset  # line numbers: count the header's lines
     fh.seek(0)
     first_line = fh.read(first).count(b"\n") + 1
-    rows = _rows(fh, first_line)
+    lines = fh.read().split(b"\n")
     n_vertices = header.count("vertex")
+    at = 0
     for element in header.elements:
-        for r in range(element.count):
-            k, tokens = next(rows, (0, []))
-            if k == 0:
-                raise LoadError(
-                    f"truncated: the header announces {element.count} {element.name} rows, "
-                    f"the file ends after {r}"
-                )
-            _check_row(k, tokens, element, n_vertices)
-    for k, tokens in rows:
-        if tokens:
-            raise LoadError(f"line {k}: data after the last row the header announces")
+        rows = [line.split() for line in lines[at : at + element.count]]
+        if len(rows) < element.count:
+            raise LoadError(
+                f"truncated: the header announces {element.count} {element.name} rows, "
+                f"the file ends after {len(rows)}"
+            )
+        if not _rows_look_right(rows, element, n_vertices):  # say which row, and why
+            for r, tokens in enumerate(rows):
+                _check_row(first_line + at + r, tokens, element, n_vertices)
+        at += element.count
+    for r, line in enumerate(lines[at:]):
+        if line.strip():
+            raise LoadError(f"line {first_line + at + r}: data after the last row announced")
+
+
+def _rows_look_right(rows: list[list[bytes]], element: PlyElement, n_vertices: int) -> bool:
+    """Vectorised check of the common elements: numbers only, or one list of indices.
+
+    False when a row is wrong, or when the element has another layout (the caller
+    then checks row by row, which also says which row is wrong).
+    """
+    props = element.properties
+    if not rows:
+        return True
+    if all(not is_list for _, is_list in props):
+        if any(len(t) != len(props) for t in rows):
+            return False
+        return _numbers([x for t in rows for x in t]) is not None
+    if len(props) != 1:
+        return False
+    lengths = np.fromiter((len(t) for t in rows), dtype=np.int64, count=len(rows))
+    values = _numbers([x for t in rows for x in t])
+    if values is None or not np.all(lengths > 0):
+        return False
+    starts = np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    counts = values[starts]
+    if not np.array_equal(counts, lengths - 1):
+        return False
+    items = np.delete(values, starts)
+    if props[0][0] in _FACE_LISTS:
+        return bool(np.all((items >= 0) & (items < n_vertices) & (items == np.round(items))))
+    return True
+
+
+def _numbers(tokens: list[bytes]) -> NDArray[np.float64] | None:
+    """The tokens as floats, or None when one is not a number."""
+    try:
+        return np.array(tokens, dtype=np.bytes_).astype(np.float64)
+    except ValueError:
+        return None
 
 
 def _check_row(k: int, tokens: list[bytes], element: PlyElement, n_vertices: int) -> None:
@@ -217,9 +254,12 @@ def _check_row(k: int, tokens: list[bytes], element: PlyElement, n_vertices: int
                 at += 1
                 continue
             n = int(tokens[at])
-            values = [int(float(t)) for t in tokens[at + 1 : at + 1 + n]]
-            if n < 0 or len(values) != n:
+            floats = [float(t) for t in tokens[at + 1 : at + 1 + n]]
+            if n < 0 or len(floats) != n:
                 raise IndexError
+            if name in _FACE_LISTS and not all(v.is_integer() for v in floats):
+                raise ValueError
+            values = [int(v) for v in floats]
             if name in _FACE_LISTS and any(v < 0 or v >= n_vertices for v in values):
                 raise LoadError(
                     f"line {k}: face names vertices {values[:6]} but the file has "
@@ -232,7 +272,8 @@ def _check_row(k: int, tokens: list[bytes], element: PlyElement, n_vertices: int
         ) from None
     except (ValueError, OverflowError):
         raise LoadError(
-            f"line {k}: a {element.name} row holds a value that is not a number: "
+            f"line {k}: a {element.name} row holds a value that is not a number "
+            f"(or an index that is not an integer): "
             f"{b' '.join(tokens)[:60]!r}"
         ) from None
     if at != len(tokens):

@@ -204,8 +204,9 @@ def _fuzz(
     path = os.path.join(os.fsencode(case), fname)
     with open(path, "wb") as fh:
         fh.write(body)
-    report = db.ingest([os.fsdecode(path)], workers=1, max_bytes=4 << 20)
+    report = db.ingest([os.fsdecode(path)], workers=1, max_bytes=4 << 20, progress=False)
     assert len(report.ingested) + len(report.failed) + len(report.skipped) == 1, report
+    assert len(report.outcomes) == 1 and report.ignored == (), report
     assert all(isinstance(e, str) and e.encode("utf-8") for _, e in report.failed)
 
 
