@@ -20,8 +20,11 @@ extension                 read as                             with
 .brep .brp
 ========================  ==================================  ==================
 
-Every failure raises a :mod:`shapedb.errors` exception whose ``source`` is the path
-and whose message says why (empty, truncated, junk, NaN, zero volume, unsupported).
+Files are checked against themselves before a parser trusts them (OFF and OBJ face
+indices, binary STL and NPY sizes, PLY bodies against their headers: :mod:`ingest.ply`),
+and the shapes read against absurd coordinates (:mod:`ingest.shapes`). Every failure
+raises a :mod:`shapedb.errors` exception whose ``source`` is the path and whose
+one-line message says why (empty, truncated, junk, NaN, zero volume, unsupported).
 """
 
 from __future__ import annotations
@@ -168,13 +171,14 @@ def load(
     Raises
     ------
     LoadError
-        Missing, empty, truncated or unparsable file; an OFF whose header counts
-        disagree with its body; faces naming vertices the file does not have; a file
-        above ``max_bytes`` or ``max_faces``.
+        Missing, empty, truncated or unparsable file; an OFF or PLY whose header
+        counts disagree with its body; faces naming vertices the file does not have;
+        a file above ``max_bytes`` or ``max_faces``.
     UnsupportedFormatError
         No loader for this file type.
     InvalidShapeError
-        The content is no usable solid (no faces, NaN coordinates, zero volume...).
+        The content is no usable solid (no faces, NaN coordinates, coordinates beyond
+        :data:`MAX_COORDINATE`, cloud outliers, zero volume...).
     MissingDependencyError
         A CAD file without the ``cad`` extra (gmsh) installed.
     """

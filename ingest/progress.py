@@ -71,7 +71,7 @@ class Progress:
             self._bar = tqdm(
                 total=total, initial=done, unit="file", file=stream, dynamic_ncols=True
             )
-        elif progress:
+        elif progress and done < total:
             self._thread = threading.Thread(
                 target=self._heartbeat,
                 args=(LOG_SECONDS if seconds is None else seconds,),
