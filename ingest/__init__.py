@@ -4,8 +4,11 @@
 >>> db = shapedb.connect("shapes.db")                   # doctest: +SKIP
 >>> report = db.ingest(["models/"], label_from_folder=True)  # doctest: +SKIP
 
-``db.ingest`` is :func:`ingest.pipeline.ingest`, found by the core through the
-``shapedb.extensions`` entry points.
+``db.ingest`` (:mod:`query.database`) calls :func:`ingest.pipeline.ingest`, which
+reports one outcome for every input (stored, unchanged, failed or ignored) and shows
+progress (:mod:`ingest.progress`). The loaders (:mod:`ingest.loaders`) check what
+they read: PLY bodies against their headers (:mod:`ingest.ply`), and coordinates
+(:mod:`ingest.shapes`).
 """
 
 from __future__ import annotations

@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from ingest.loaders import SUPPORTED, detect_format
+from shapedb.errors import ShapeDBError
 from shapedb.geometry.base import Geometry
 from shapedb.store.schema import safe_text
 
@@ -51,7 +53,7 @@ COMPANION_SUFFIXES = frozenset(
         ".parquet",
     }
 )
-"""Files skipped silently while walking a folder (materials, textures, docs, tables)."""
+"""Files left out while walking a folder (materials, textures, docs, tables)."""
 
 
 # ---------------------------------------------------------------- hashing
@@ -95,15 +97,20 @@ def geometry_hash(geometry: Geometry) -> str:
 
 
 # ---------------------------------------------------------------- inputs
-def expand(inputs: Any) -> Iterator[tuple[str, Path | Geometry, bool, str | None]]:
+def expand(
+    inputs: Any, *, ignored: list[tuple[str, str]] | None = None
+) -> Iterator[tuple[str, Path | Geometry, bool, str | None]]:
     """Yield ``(source, path_or_geometry, explicit, label)`` for files, folders and shapes.
 
     Inputs are paths, Geometry objects, ``(name, geometry)`` or
     ``(name, label, geometry)`` tuples, or a ``{name: geometry}`` mapping. Folders are
-    walked recursively in sorted order; hidden files and companion files
-    (:data:`COMPANION_SUFFIXES`) found there are skipped. ``explicit`` is False for
-    files found by walking; ``label`` is set only by ``(name, label, geometry)``.
+    walked recursively in sorted order; hidden files and folders, companion files
+    (:data:`COMPANION_SUFFIXES`) and files of no supported type found there are left
+    out, and appended to ``ignored`` as ``(path, why)`` when it is given. ``explicit``
+    is False for files found by walking; ``label`` is set only by
+    ``(name, label, geometry)``.
     """
+    sink: list[tuple[str, str]] = [] if ignored is None else ignored
     if isinstance(inputs, (str, os.PathLike, Geometry)):
         inputs = [inputs]
     elif isinstance(inputs, Mapping):  # {name: geometry}
@@ -117,23 +124,24 @@ def expand(inputs: Any) -> Iterator[tuple[str, Path | Geometry, bool, str | None
         else:
             p = Path(entry).absolute()
             if p.is_dir():
-                for q in _walk(p):
+                for q in _walk(p, sink):
                     yield (str(q), q, False, None)
             else:
                 yield (str(p), p, True, None)
 
 
-def _walk(top: Path) -> Iterator[Path]:
+def _walk(top: Path, ignored: list[tuple[str, str]]) -> Iterator[Path]:
     """Files under ``top`` in sorted order, following symlinked folders, each folder once.
 
-    Hidden entries and companion files are skipped; a folder reached a second time
-    (a symlink loop, or two links to one folder) is skipped with a warning, and so
-    is a folder that cannot be listed.
+    Hidden entries, companion files and files of no supported type are left out and
+    appended to ``ignored`` with the reason; so is a folder reached a second time (a
+    symlink loop, or two links to one folder), and a folder that cannot be listed.
     """
     visited: set[tuple[int, int]] = set()
 
     def unreadable(exc: OSError) -> None:
         log.warning("cannot list %s: %s", safe_text(str(exc.filename)), exc.strerror)
+        ignored.append((safe_text(str(exc.filename)), f"cannot list the folder: {exc.strerror}"))
 
     for root, dirs, files in os.walk(top, followlinks=True, onerror=unreadable):
         try:
@@ -146,12 +154,35 @@ def _walk(top: Path) -> Iterator[Path]:
             log.warning(
                 "skipping %s: this folder was already walked (symlink loop?)", safe_text(root)
             )
+            ignored.append((safe_text(root), "folder already walked (a symlink loop?)"))
             dirs[:] = []
             continue
         visited.add(key)
+        for d in sorted(d for d in dirs if d.startswith(".")):
+            ignored.append((safe_text(os.path.join(root, d)), "hidden folder"))
         dirs[:] = sorted(d for d in dirs if not d.startswith("."))
         for f in sorted(files):
             q = Path(root) / f
-            if f.startswith(".") or q.suffix.lower() in COMPANION_SUFFIXES:
-                continue
-            yield q
+            why = _why_ignored(q)
+            if why is None:
+                yield q
+            else:
+                ignored.append((safe_text(str(q)), why))
+
+
+def _why_ignored(path: Path) -> str | None:
+    """Why a file found by walking a folder is not ingested, or None when it is."""
+    suffix = path.suffix.lower()
+    if path.name.startswith("."):
+        return "hidden file"
+    if suffix in COMPANION_SUFFIXES:
+        return f"companion file ({suffix})"
+    if suffix in SUPPORTED:
+        return None
+    try:
+        detect_format(path)  # a file that announces a supported format is read
+    except ShapeDBError:
+        return f"unsupported file type {suffix or '(no extension)'!r}"
+    except OSError as exc:
+        return f"unreadable: {exc.strerror or exc}"
+    return None

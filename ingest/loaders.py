@@ -20,8 +20,11 @@ extension                 read as                             with
 .brep .brp
 ========================  ==================================  ==================
 
-Every failure raises a :mod:`shapedb.errors` exception whose ``source`` is the path
-and whose message says why (empty, truncated, junk, NaN, zero volume, unsupported).
+Files are checked against themselves before a parser trusts them (OFF and OBJ face
+indices, binary STL and NPY sizes, PLY bodies against their headers: :mod:`ingest.ply`),
+and the shapes read against absurd coordinates (:mod:`ingest.shapes`). Every failure
+raises a :mod:`shapedb.errors` exception whose ``source`` is the path and whose
+one-line message says why (empty, truncated, junk, NaN, zero volume, unsupported).
 """
 
 from __future__ import annotations
@@ -37,6 +40,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ingest.ply import check_ply
+from ingest.shapes import (
+    MAX_COORDINATE,
+    OUTLIER_RATIO,
+    cloud_geometry,
+    mesh_geometry,
+    voxel_geometry,
+)
 from shapedb.errors import (
     ConfigError,
     EmptyGeometryError,
@@ -56,6 +67,8 @@ __all__ = [
     "VOXEL_FORMATS",
     "CAD_FORMATS",
     "SUPPORTED",
+    "MAX_COORDINATE",
+    "OUTLIER_RATIO",
 ]
 
 log = logging.getLogger(__name__)
@@ -158,13 +171,14 @@ def load(
     Raises
     ------
     LoadError
-        Missing, empty, truncated or unparsable file; an OFF whose header counts
-        disagree with its body; faces naming vertices the file does not have; a file
-        above ``max_bytes`` or ``max_faces``.
+        Missing, empty, truncated or unparsable file; an OFF or PLY whose header
+        counts disagree with its body; faces naming vertices the file does not have;
+        a file above ``max_bytes`` or ``max_faces``.
     UnsupportedFormatError
         No loader for this file type.
     InvalidShapeError
-        The content is no usable solid (no faces, NaN coordinates, zero volume...).
+        The content is no usable solid (no faces, NaN coordinates, coordinates beyond
+        :data:`MAX_COORDINATE`, cloud outliers, zero volume...).
     MissingDependencyError
         A CAD file without the ``cad`` extra (gmsh) installed.
     """
@@ -187,11 +201,7 @@ def load(
     if fmt in _TEXT_FORMATS and b"\x00" in head:
         raise LoadError(f"binary junk in what should be a text {fmt.upper()} file", source=src)
     try:
-        if fmt in ("obj", "off"):
-            _check_faces(p, fmt, max_faces)
-        geometry = _LOADERS[fmt](p, head, size)
-        _check_cap(geometry, max_faces)
-        return _convert(geometry, as_, src)
+        return _convert(_read(p, fmt, head, size, max_faces), as_, src)
     except ShapeDBError as exc:
         if exc.source is None:  # name the file
             raise type(exc)(exc.reason, source=src) from exc
@@ -202,6 +212,24 @@ def load(
         raise LoadError(
             f"cannot parse as {fmt.upper()}: {type(exc).__name__}: {exc}", source=src
         ) from exc
+
+
+def _read(p: Path, fmt: str, head: bytes, size: int, max_faces: int | None) -> Geometry:
+    """Check what can be checked before parsing, parse, then check the result."""
+    header = None
+    if fmt in ("obj", "off"):
+        _check_faces(p, fmt, max_faces)
+    elif fmt == "ply":
+        header = check_ply(p, size, max_faces)
+    geometry = _LOADERS[fmt](p, head, size)
+    if header is not None:
+        got = len(getattr(geometry, "vertices", getattr(geometry, "points", ())))
+        if got != header.count("vertex"):
+            raise LoadError(
+                f"the PLY header announces {header.count('vertex')} vertices, the parser read {got}"
+            )
+    _check_cap(geometry, max_faces)
+    return geometry
 
 
 # ---------------------------------------------------------------- text mesh checks
@@ -294,46 +322,14 @@ def _check_obj(fh: Any, max_faces: int | None) -> None:
         raise LoadError(f"line {top_line}: face names vertex {top} but the file has {nv} vertices")
 
 
-# ---------------------------------------------------------------- constructors
-def _mesh(vertices: Any, faces: Any, src: str) -> Geometry:
-    from shapedb.geometry.mesh import TriangleMesh
-
-    return TriangleMesh(vertices, faces, name=src)
-
-
-def _cloud(points: Any, normals: Any, src: str) -> Geometry:
-    from shapedb.geometry.pointcloud import PointCloud
-
-    return _construct(PointCloud, np.asarray(points, dtype=np.float64), normals=normals, name=src)
-
-
-def _voxels(occupancy: Any, origin: Any, pitch: Any, src: str, surface: str = "cubes") -> Geometry:
-    from shapedb.geometry.voxels import VoxelGrid
-
-    return _construct(VoxelGrid, occupancy, origin=origin, pitch=pitch, surface=surface, name=src)
-
-
-def _construct(cls: type, *args: Any, name: str, **kwargs: Any) -> Geometry:
-    """Call a representation's constructor, passing ``name`` when it accepts one."""
-    import inspect
-
-    try:
-        params = inspect.signature(cls).parameters
-    except (TypeError, ValueError):  # pragma: no cover
-        params = {}  # type: ignore[assignment]
-    if "name" in params:
-        kwargs["name"] = name
-    return cls(*args, **kwargs)  # type: ignore[no-any-return]
-
-
 def _convert(geometry: Geometry, as_: str | None, src: str) -> Geometry:
     if as_ is None or geometry.representation == as_:
         return geometry
     if as_ == "smooth_voxels" and geometry.representation == "voxels":
         g: Any = geometry
-        return _voxels(g.occupancy, g.origin, g.pitch, src, surface="smooth")
+        return voxel_geometry(g.occupancy, g.origin, g.pitch, src, surface="smooth")
     if as_ == "pointcloud" and geometry.representation in ("mesh", "brep"):
-        return _cloud(np.asarray(geometry.vertices), None, src)  # type: ignore[attr-defined]
+        return cloud_geometry(np.asarray(geometry.vertices), None, src)  # type: ignore[attr-defined]
     raise InvalidShapeError(f"cannot read a {geometry.representation} file as a {as_}", source=src)
 
 
@@ -358,12 +354,12 @@ def _load_trimesh(p: Path, head: bytes, size: int) -> Geometry:
             verts.append(np.asarray(m.vertices, dtype=np.float64))
             faces.append(np.asarray(m.faces, dtype=np.int64) + offset)
             offset += len(m.vertices)
-        return _mesh(np.concatenate(verts), np.concatenate(faces), src)
+        return mesh_geometry(np.concatenate(verts), np.concatenate(faces), src)
     bare = [g for g in parts if isinstance(g, trimesh.Trimesh) and len(g.vertices)]
     if clouds or (fmt == "ply" and bare):
         pts = np.concatenate([np.asarray(g.vertices) for g in clouds + bare])
         normals = _ply_normals(clouds[0]) if len(clouds) == 1 and not bare else None
-        return _cloud(pts, normals, src)
+        return cloud_geometry(pts, normals, src)
     raise EmptyGeometryError(
         f"no vertices or faces found: the file is empty, junk, or not a valid {fmt.upper()}",
         source=src,
@@ -411,7 +407,7 @@ def _load_pcd(p: Path, head: bytes, size: int) -> Geometry:
     if len(pts) == 0:
         raise LoadError("no points read: the PCD file is empty, truncated or junk", source=str(p))
     normals = np.asarray(pcd.normals) if pcd.has_normals() else None
-    return _cloud(pts, normals, str(p))
+    return cloud_geometry(pts, normals, str(p))
 
 
 def _load_text_cloud(p: Path, head: bytes, size: int) -> Geometry:
@@ -443,14 +439,35 @@ def _load_text_cloud(p: Path, head: bytes, size: int) -> Geometry:
     pts, normals = a[:, :3], None
     if a.shape[1] >= 6:
         n = a[:, 3:6]
-        if np.all(np.isfinite(n)) and np.allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-2):
+        unit = np.all(np.abs(n) <= 1.5) and np.allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-2)
+        if unit:
             normals = n
-    return _cloud(pts, normals, src)
+    return cloud_geometry(pts, normals, src)
 
 
 # ---------------------------------------------------------------- numpy
+def _check_npy(fh: Any, size: int, what: str) -> None:
+    """Refuse an NPY stream whose header announces more data than its ``size`` bytes hold."""
+    try:
+        version = np.lib.format.read_magic(fh)
+        if version == (1, 0):
+            shape, _, dtype = np.lib.format.read_array_header_1_0(fh)
+        else:
+            shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
+    except ValueError as exc:
+        raise LoadError(f"{what} has no valid NPY header: {exc}") from None
+    need = int(np.prod(shape, dtype=object)) * dtype.itemsize
+    if need > size:
+        raise LoadError(
+            f"truncated or corrupt shape: {what} announces an array of shape {shape} "
+            f"({need} bytes) in {size} bytes"
+        )
+
+
 def _load_npy(p: Path, head: bytes, size: int) -> Geometry:
     src = str(p)
+    with open(p, "rb") as fh:
+        _check_npy(fh, size, "the file")
     try:
         a = np.load(p, allow_pickle=False)
     except ValueError as exc:
@@ -462,10 +479,10 @@ def _load_npy(p: Path, head: bytes, size: int) -> Geometry:
 
 def _from_array(a: NDArray[Any], src: str) -> Geometry:
     if a.ndim == 3 and (a.dtype == np.bool_ or np.issubdtype(a.dtype, np.integer)):
-        return _voxels(a.astype(bool), np.zeros(3), 1.0, src)
+        return voxel_geometry(a.astype(bool), np.zeros(3), 1.0, src)
     if a.ndim == 2 and a.shape[1] in (3, 6) and np.issubdtype(a.dtype, np.number):
         normals = a[:, 3:6] if a.shape[1] == 6 else None
-        return _cloud(a[:, :3], normals, src)
+        return cloud_geometry(a[:, :3], normals, src)
     raise LoadError(
         f"array of shape {a.shape} and dtype {a.dtype} is neither an (n, 3) point array "
         "nor a 3-D bool/uint8 occupancy grid",
@@ -476,6 +493,7 @@ def _from_array(a: NDArray[Any], src: str) -> Geometry:
 def _load_npz(p: Path, head: bytes, size: int) -> Geometry:
     src = str(p)
     try:
+        _check_npz(p)
         with np.load(p, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
     except (ValueError, OSError, EOFError) as exc:
@@ -485,7 +503,7 @@ def _load_npz(p: Path, head: bytes, size: int) -> Geometry:
     except Exception as exc:  # zipfile.BadZipFile and friends
         raise LoadError(f"not a readable NPZ archive: {exc}", source=src) from exc
     if "occupancy" in data:
-        return _voxels(
+        return voxel_geometry(
             data["occupancy"].astype(bool),
             data.get("origin", np.zeros(3)),
             float(np.asarray(data.get("pitch", 1.0))),
@@ -493,9 +511,9 @@ def _load_npz(p: Path, head: bytes, size: int) -> Geometry:
             str(np.asarray(data.get("surface", "cubes"))),
         )
     if "vertices" in data and "faces" in data:
-        return _mesh(data["vertices"], data["faces"], src)
+        return mesh_geometry(data["vertices"], data["faces"], src)
     if "points" in data:
-        return _cloud(data["points"], data.get("normals"), src)
+        return cloud_geometry(data["points"], data.get("normals"), src)
     if len(data) == 1:
         return _from_array(next(iter(data.values())), src)
     raise LoadError(
@@ -503,6 +521,17 @@ def _load_npz(p: Path, head: bytes, size: int) -> Geometry:
         "'points' [+ 'normals'] or 'vertices' + 'faces'",
         source=src,
     )
+
+
+def _check_npz(p: Path) -> None:
+    """Refuse an NPZ archive holding an array whose header announces more than it holds."""
+    import zipfile
+
+    with zipfile.ZipFile(p) as z:
+        for info in z.infolist():
+            if info.filename.endswith(".npy"):
+                with z.open(info) as fh:
+                    _check_npy(fh, info.file_size, f"its array {info.filename!r}")
 
 
 def _load_cad(p: Path, head: bytes, size: int) -> Geometry:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import logging
 import os
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -22,8 +22,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ingest.inputs import COMPANION_SUFFIXES, content_hash, expand, geometry_hash
-from ingest.labels import LabelEntry, LabelTable, folder_label, read_labels
-from ingest.loaders import AS_OPTIONS, SUPPORTED, load
+from ingest.labels import LabelEntry, LabelTable, folder_label, read_labels, summarise_matches
+from ingest.ledger import Ledger
+from ingest.loaders import AS_OPTIONS, load
+from ingest.progress import Progress, ProgressOption
 from ingest.workers import executor, result, wait_any
 from shapedb.config.core import Config
 from shapedb.errors import ConfigError, LoadError, ShapeDBError
@@ -59,6 +61,7 @@ class _Item:
     geometry: Geometry | None = None
     as_: str | None = None
     label: str | None = None
+    label_key: str | None = None
     metadata: Mapping[str, str] = field(default_factory=dict)
     max_bytes: int | None = None
     max_faces: int | None = None
@@ -186,7 +189,7 @@ def ingest(
     workers: int | None = None,
     scheduler: Any = None,
     force: bool = False,
-    progress: bool | Callable[[int, int], None] = False,
+    progress: ProgressOption = True,
     batch_size: int = 32,
     commit_seconds: float = 30.0,
     max_bytes: int | None = None,
@@ -194,19 +197,20 @@ def ingest(
 ) -> IngestReport:
     """Add files, folders and in-memory shapes to ``db``.
 
-    Every input ends as a stored shape, a skipped duplicate or a failure row: one bad
-    file (unreadable, junk, a name that is not valid UTF-8...) never stops the others.
+    Every input ends in one outcome of the report: stored, unchanged (content already
+    stored), failed (with the reason; one bad file never stops the others) or ignored.
 
     Parameters
     ----------
     db : shapedb.Database
         Target database; its configuration is used for every shape.
     inputs : path, Geometry, or a sequence / mapping of them
-        Files, folders (walked recursively, symlinked folders followed once),
-        Geometry objects, ``(name, geometry)`` pairs or a ``{name: geometry}`` mapping.
+        Files, folders (walked recursively, symlinked folders followed once; hidden,
+        companion and unsupported files ignored), Geometry objects,
+        ``(name, geometry)`` pairs or a ``{name: geometry}`` mapping.
     labels : path, mapping or LabelTable, optional
         A labels CSV (``path,label,...``; extra columns become metadata), or
-        ``{path: label}``.
+        ``{path: label}``; the matches are counted, the unmatched logged.
     label_from_folder : bool
         Label each file by its parent folder's name (when the CSV gives none).
     as_ : {None, "mesh", "pointcloud", "smooth_voxels"}
@@ -220,14 +224,12 @@ def ingest(
     force : bool
         Rebuild shapes already in the store (they keep their ids).
     progress : bool or callable
-        ``progress(done, total)`` after each input; True logs progress.
-    batch_size : int
-        Results per atomic commit.
-    commit_seconds : float
-        Commit a partial batch when this much time passed since the last commit.
+        True: a bar on a terminal, else log lines (:mod:`ingest.progress`); False:
+        silent; a callable: ``progress(done, total)`` after each input.
+    batch_size, commit_seconds : int, float
+        Results per atomic commit; a partial batch is committed this long after the last.
     max_bytes, max_faces : int, optional
-        Refuse (as a failure row) files larger than this many bytes, or meshes with
-        more faces, so one giant file cannot take the machine's memory.
+        Fail files of more bytes, or meshes of more faces (so one cannot take the memory).
 
     Returns
     -------
@@ -236,50 +238,61 @@ def ingest(
     Raises
     ------
     ConfigError
-        An argument is out of range (``workers`` < 1, ``batch_size`` < 1, ...).
+        An argument is out of range (``workers`` < 1...); the labels match no input.
     """
     t_start = time.perf_counter()
     _check_arguments(as_, batch_size, workers, max_bytes, max_faces)
-    store = db.store
-    entries = list(expand(inputs))
+    ledger = Ledger()
+    entries = _entries(inputs, names, ledger)
+    table = _label_table(labels)
+    limits = {"as_": as_, "max_bytes": max_bytes, "max_faces": max_faces}
+    with db.store.writer():
+        plan = _plan(entries, db.store.hashes(), ledger, table=table, names=names,
+                     label_from_folder=label_from_folder, force=force, limits=limits)  # fmt: skip
+        committer = _Committer(db, plan.present, batch_size, commit_seconds, ledger)
+        committer.failures.extend(plan.failures)
+        _build(plan, committer, db.config, (workers, scheduler), progress, len(entries))
+        committer.flush()
+    assert len(ledger) == len(entries), "every input has one outcome"
+    report = ledger.report(time.perf_counter() - t_start, committer.notes, plan.labels_matched)
+    log.info("ingest done: %r", report)
+    return report
+
+
+def _entries(
+    inputs: Any, names: Sequence[str] | None, ledger: Ledger
+) -> list[tuple[str, Path | Geometry, bool, str | None]]:
+    """The inputs expanded (what folder walks leave out goes to the ledger as ignored)."""
+    ignored: list[tuple[str, str]] = []
+    entries = list(expand(inputs, ignored=ignored))
     if names is not None and len(names) != len(entries):
         raise ConfigError(
             f"names has {len(names)} entries but the inputs expand to "
             f"{len(entries)}; give one name per input file or shape"
         )
-    limits = {"as_": as_, "max_bytes": max_bytes, "max_faces": max_faces}
-    with store.writer():
-        plan = _plan(
-            entries,
-            store.hashes(),
-            table=_label_table(labels),
-            label_from_folder=label_from_folder,
-            names=names,
-            force=force,
-            limits=limits,
-        )
-        n_workers = min(int(workers or os.cpu_count() or 1), max(len(plan.items), 1))
-        committer = _Committer(db, plan.present, batch_size, commit_seconds)
-        committer.failures.extend(plan.failures)
-        notify = _progress(progress)
-        done = len(entries) - len(plan.items)
-        notify(done, len(entries))
-        for item, result in _dispatch(
-            plan.items, db.config, n_workers, scheduler, len(plan.skipped)
-        ):
-            committer.add(item, result)
-            done += 1
-            notify(done, len(entries))
-        committer.flush()
-    report = IngestReport(
-        ingested=tuple(committer.ingested[k] for k in sorted(committer.ingested)),
-        skipped=tuple(plan.skipped),
-        failed=tuple(plan.report_failed + committer.report_failed),
-        seconds=time.perf_counter() - t_start,
-        notes=tuple(committer.notes),
-    )
-    log.info("ingest done: %r", report)
-    return report
+    for path, why in ignored:
+        ledger.ignore(path, why)
+    return entries
+
+
+def _build(
+    plan: _Plan,
+    committer: _Committer,
+    config: Config,
+    where: tuple[int | None, Any],
+    progress: ProgressOption,
+    total: int,
+) -> None:
+    """Build the plan's items on ``where = (workers, scheduler)``, reporting progress."""
+    workers, scheduler = where
+    n_workers = min(int(workers or os.cpu_count() or 1), max(len(plan.items), 1))
+    done = total - len(plan.items) - sum(len(t) for t in plan.twins.values())
+    with Progress(total, done=done, progress=progress) as bar:
+        for item, result in _dispatch(plan.items, config, n_workers, scheduler, plan.unchanged):
+            twins = plan.twins.pop(item.content_hash, [])
+            committer.add(item, result, twins)
+            done += 1 + len(twins)
+            bar.update(done)
 
 
 def _check_arguments(
@@ -305,18 +318,28 @@ def _check_arguments(
 
 @dataclass
 class _Plan:
-    """What to build: items for the workers, and what was skipped or failed already."""
+    """What to build, and what the labels matched.
+
+    ``items`` go to the workers; ``twins`` holds, by content hash, later inputs with
+    the same content as an item, which take that item's outcome (a second copy of a
+    stored file is unchanged, of a failing file failed) without being built twice.
+    """
 
     present: dict[str, int]
     items: list[_Item] = field(default_factory=list)
-    skipped: list[str] = field(default_factory=list)
+    twins: dict[str, list[_Item]] = field(default_factory=dict)
     failures: list[Failure] = field(default_factory=list)
-    report_failed: list[tuple[str, str]] = field(default_factory=list)
+    unchanged: int = 0
+    looked_up: int = 0
+    matched: set[str] = field(default_factory=set)
+    unlabelled: list[str] = field(default_factory=list)
+    labels_matched: int | None = None
 
 
 def _plan(
     entries: list[tuple[str, Path | Geometry, bool, str | None]],
     present: dict[str, int],
+    ledger: Ledger,
     *,
     table: LabelTable | None,
     label_from_folder: bool,
@@ -324,39 +347,47 @@ def _plan(
     force: bool,
     limits: Mapping[str, Any],
 ) -> _Plan:
-    """Hash every input, skip what the store holds, turn unreadable inputs into failures."""
+    """Hash every input, mark what the store holds unchanged, fail unreadable inputs.
+
+    Raises :class:`ConfigError` when a label table matches none of the inputs.
+    """
     plan = _Plan(present=present)
-    seen: set[str] = set()
+    first: dict[str, _Item] = {}
     for k, (source, obj, explicit, given_label) in enumerate(entries):
         try:
-            item = _make_item(
-                k,
-                source,
-                obj,
-                explicit,
-                given_label,
-                table=table,
-                label_from_folder=label_from_folder,
-                name=names[k] if names is not None else None,
-                limits=limits,
-            )
+            item = _make_item(k, source, obj, explicit, given_label, table=table,
+                              label_from_folder=label_from_folder,
+                              name=names[k] if names is not None else None, limits=limits)  # fmt: skip
         except Exception as exc:  # any bad input becomes a failure row, never a crash
             if not isinstance(exc, (ShapeDBError, OSError)):
                 log.debug("unexpected error reading %s", safe_text(source), exc_info=True)
             f = Failure.from_exception(safe_text(source), exc)
             plan.failures.append(f)
-            plan.report_failed.append((f.source, f"{f.error}: {safe_text(f.message)}"))
+            ledger.failed(k, f.source, f"{f.error}: {safe_text(f.message)}")
             continue
-        if item.content_hash in seen or (item.content_hash in present and not force):
-            plan.skipped.append(item.source)
-            continue
-        seen.add(item.content_hash)
-        plan.items.append(item)
+        if table is not None:
+            plan.looked_up += 1
+            if item.label_key is None:
+                plan.unlabelled.append(item.source)
+            else:
+                plan.matched.add(item.label_key)
+        if item.content_hash in present and not force:
+            ledger.unchanged(k, item.source, "same content already stored")
+            plan.unchanged += 1
+        elif item.content_hash in first:
+            plan.twins.setdefault(item.content_hash, []).append(item)
+        else:
+            first[item.content_hash] = item
+            plan.items.append(item)
+    if table is not None:  # raises when the labels match none of the inputs
+        plan.labels_matched = summarise_matches(
+            table, plan.looked_up, plan.matched, plan.unlabelled
+        )
     return plan
 
 
 def _dispatch(
-    items: list[_Item], config: Config, n_workers: int, scheduler: Any, n_skipped: int
+    items: list[_Item], config: Config, n_workers: int, scheduler: Any, n_unchanged: int
 ) -> Iterator[tuple[_Item, ShapeRecord | Failure]]:
     """Build the items on workers; yield ``(item, record or failure)`` as they finish.
 
@@ -366,7 +397,7 @@ def _dispatch(
     if not items:
         return
     pool, close, how = executor(n_workers, scheduler)
-    log.info("ingesting %d input(s) with %s (%d skipped)", len(items), how, n_skipped)
+    log.info("ingesting %d input(s) with %s (%d unchanged)", len(items), how, n_unchanged)
     is_dask = scheduler is not None
     try:
         queue = iter(items)
@@ -392,26 +423,34 @@ class _Committer:
     """Collects results and commits them in batches (the store's lock held by the caller)."""
 
     def __init__(
-        self, db: Database, present: dict[str, int], batch_size: int, commit_seconds: float
+        self,
+        db: Database,
+        present: dict[str, int],
+        batch_size: int,
+        commit_seconds: float,
+        ledger: Ledger,
     ) -> None:
         self.db = db
         self.present = present
         self.batch_size = batch_size
         self.commit_seconds = commit_seconds
-        self.pending: list[tuple[int, ShapeRecord]] = []
+        self.ledger = ledger
+        self.pending: list[tuple[_Item, ShapeRecord]] = []
         self.failures: list[Failure] = []
-        self.report_failed: list[tuple[str, str]] = []
         self.notes: list[tuple[str, str]] = []
-        self.ingested: dict[int, int] = {}
         self.last_commit = time.monotonic()
 
-    def add(self, item: _Item, result: ShapeRecord | Failure) -> None:
-        """Queue one result; commit when the batch is full or old enough."""
+    def add(self, item: _Item, result: ShapeRecord | Failure, twins: Sequence[_Item] = ()) -> None:
+        """Queue one result (and its twins'); commit when the batch is full or old enough."""
         if isinstance(result, Failure):
-            self.failures.append(result)
-            self.report_failed.append((item.source, f"{result.error}: {result.message}"))
+            reason = f"{result.error}: {safe_text(result.message)}"
+            for it in (item, *twins):
+                self.failures.append(replace(result, source=it.source))
+                self.ledger.failed(it.index, it.source, reason)
         else:
-            self.pending.append((item.index, result))
+            self.pending.append((item, result))
+            for twin in twins:
+                self.ledger.unchanged(twin.index, twin.source, f"same content as {item.source}")
             note = _note(item, result)
             if note:
                 self.notes.append((item.source, note))
@@ -425,7 +464,7 @@ class _Committer:
         """Commit what is queued, as one atomic commit."""
         if not self.pending and not self.failures:
             return
-        self.pending.sort(key=lambda t: t[0])
+        self.pending.sort(key=lambda t: t[0].index)
         records, replace_ids = [], []
         for _, rec in self.pending:
             old = self.present.get(rec.content_hash)
@@ -434,9 +473,9 @@ class _Committer:
                 replace_ids.append(old)
             records.append(rec)
         _, committed = self.db.commit(records, failures=self.failures, delete=replace_ids)
-        for (index, _), rec in zip(self.pending, committed, strict=True):
+        for (item, _), rec in zip(self.pending, committed, strict=True):
             assert rec.id is not None  # the store numbers every record it commits
-            self.ingested[index] = int(rec.id)
+            self.ledger.stored(item.index, item.source, int(rec.id))
         self.pending, self.failures = [], []
         self.last_commit = time.monotonic()
 
@@ -470,14 +509,6 @@ def _submit(executor: Any, item: _Item, config: Config, dask: bool) -> Any:
     return executor.submit(build_record, item, config)
 
 
-def _progress(progress: bool | Callable[[int, int], None]) -> Callable[[int, int], None]:
-    if callable(progress):
-        return progress
-    if progress:
-        return lambda done, total: log.info("ingest: %d / %d", done, total)
-    return lambda done, total: None
-
-
 def _label_table(labels: Any) -> LabelTable | None:
     if labels is None or isinstance(labels, LabelTable):
         return labels
@@ -501,7 +532,8 @@ def _make_item(
     if isinstance(obj, Geometry):
         h = geometry_hash(obj)
         nm = safe_text(name or source or f"shape-{h[:8]}")
-        found = table.lookup(nm) if table is not None else None
+        key = table.match(nm) if table is not None else None
+        found = table.lookup(nm) if key is not None and table is not None else None
         return _Item(
             index=index,
             source=nm,
@@ -509,23 +541,21 @@ def _make_item(
             content_hash=h,
             geometry=obj,
             label=given_label if given_label is not None else (found.label if found else None),
+            label_key=key,
             metadata=dict(found.metadata) if found else {},
         )
     path = Path(obj)
     src = safe_text(str(path))
     if not path.is_file():
         raise LoadError("no such file" if not path.exists() else "not a regular file", source=src)
-    if not explicit and path.suffix.lower() not in SUPPORTED:
-        from ingest.loaders import detect_format
-
-        detect_format(path)  # raises UnsupportedFormatError unless the content tells
     max_bytes = limits.get("max_bytes")
     if max_bytes is not None and path.stat().st_size > max_bytes:
         raise LoadError(
             f"file has {path.stat().st_size} bytes, above the cap max_bytes={max_bytes}",
             source=src,
         )
-    entry: LabelEntry | None = table.lookup(path) if table is not None else None
+    key = table.match(path) if table is not None else None
+    entry: LabelEntry | None = table.lookup(path) if key is not None and table is not None else None
     label = entry.label if entry is not None else None
     if label is None and label_from_folder:
         label = folder_label(path)
@@ -538,6 +568,7 @@ def _make_item(
         path=str(path),
         as_=as_,
         label=None if label is None else safe_text(label),
+        label_key=key,
         metadata=dict(entry.metadata) if entry else {},
         max_bytes=max_bytes,
         max_faces=limits.get("max_faces"),

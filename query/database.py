@@ -191,7 +191,7 @@ class Database:
         workers: int | None = None,
         scheduler: str | object | None = None,
         force: bool = False,
-        progress: bool | Callable[[int, int], None] = False,
+        progress: bool | Callable[[int, int], None] = True,
         batch_size: int = 32,
         commit_seconds: float = 30.0,
         max_bytes: int | None = None,
@@ -219,7 +219,9 @@ class Database:
         force : bool
             Rebuild shapes already in the store (they keep their ids).
         progress : bool or callable
-            ``progress(done, total)`` after each input; True logs progress.
+            True: a progress bar on a terminal, else a log line every few seconds
+            (count, rate, time left); False: silent; a callable:
+            ``progress(done, total)`` after each input.
         batch_size : int
             Results per atomic commit.
         commit_seconds : float
@@ -231,8 +233,8 @@ class Database:
         Returns
         -------
         IngestReport
-            Ingested ids, skipped inputs, failed inputs with reasons
-            (:func:`ingest.pipeline.ingest`).
+            One outcome per input: stored (ids), unchanged, failed (with reasons),
+            ignored (with why) (:func:`ingest.pipeline.ingest`).
         """
         from ingest.pipeline import ingest
 

@@ -82,31 +82,59 @@ IngestInputs: TypeAlias = "ModelInput | Iterable[ModelInput] | Mapping[str, Geom
 
 @dataclass(frozen=True)
 class IngestReport:
-    """What an ingest did.
+    """What an ingest did, with one outcome for every input it was given.
 
     Attributes
     ----------
     ingested : tuple[int, ...]
         Ids of the shapes added, in input order.
     skipped : tuple[str, ...]
-        Inputs already in the store (same content and configuration).
+        Inputs left unchanged: their content is already stored (by an earlier run, or
+        by an identical input of this run), in input order.
     failed : tuple[tuple[str, str], ...]
-        ``(input, reason)`` of every input that could not be ingested.
+        ``(input, reason)`` of every input that could not be ingested, in input order;
+        identical failing files each appear.
     seconds : float
         Wall time.
     notes : tuple[tuple[str, str], ...]
         ``(input, note)`` of inputs stored with a caveat, e.g. a mesh file with
         vertices and no faces, stored as a point cloud.
+    ignored : tuple[tuple[str, str], ...]
+        ``(path, why)`` of what walking a folder left out: hidden files and folders,
+        companion files (textures, materials...), files of no supported type.
+    outcomes : tuple[tuple[str, str, str], ...]
+        ``(input, outcome, detail)`` for every input, in input order, then every
+        ignored path: ``outcome`` is one of :data:`OUTCOMES`; ``detail`` is the id
+        (stored), why (unchanged, ignored) or the reason (failed).
+    labels_matched : int or None
+        Inputs that took their label from the labels given, or None without labels.
 
     Every path in a report is valid text: bytes of a file name that are not UTF-8
     appear as ``\\xNN`` escapes.
     """
+
+    OUTCOMES = ("stored", "unchanged", "failed", "ignored")
 
     ingested: tuple[int, ...] = ()
     skipped: tuple[str, ...] = ()
     failed: tuple[tuple[str, str], ...] = ()
     seconds: float = 0.0
     notes: tuple[tuple[str, str], ...] = ()
+    ignored: tuple[tuple[str, str], ...] = ()
+    outcomes: tuple[tuple[str, str, str], ...] = ()
+    labels_matched: int | None = None
+
+    @property
+    def unchanged(self) -> tuple[str, ...]:
+        """Inputs whose content is already stored (the same as :attr:`skipped`)."""
+        return self.skipped
+
+    def counts(self) -> dict[str, int]:
+        """How many inputs ended in each outcome: ``{"stored": n, "unchanged": n, ...}``."""
+        out = dict.fromkeys(self.OUTCOMES, 0)
+        for _, outcome, _ in self.outcomes:
+            out[outcome] += 1
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         """``{"ingested": n, "skipped": n, "failed": [{"path", "error"}], "notes": [...]}``."""
@@ -118,9 +146,10 @@ class IngestReport:
         }
 
     def __repr__(self) -> str:
+        ignored = f", ignored={len(self.ignored)}" if self.ignored else ""
         return (
             f"IngestReport(ingested={len(self.ingested)}, skipped={len(self.skipped)}, "
-            f"failed={len(self.failed)}, seconds={self.seconds:.1f})"
+            f"failed={len(self.failed)}{ignored}, seconds={self.seconds:.1f})"
         )
 
 

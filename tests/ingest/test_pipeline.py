@@ -144,8 +144,13 @@ def test_in_memory_shapes_and_names(tmp_db: database.Database) -> None:
 
 def test_bad_input_folder(tmp_db: database.Database, bad_dir) -> None:  # type: ignore[no-untyped-def]
     folder, expected = bad_dir
+    # a file of no supported type found by walking a folder is ignored, not failed
+    assert expected.pop("model.fbx") == "UnsupportedFormatError"
     report = tmp_db.ingest(folder, workers=2)
     assert sorted(tmp_db.shapes(["name"]).column("name").to_pylist()) == ["good_box", "good_ico"]
+    assert [(Path(p).name, why) for p, why in report.ignored] == [
+        ("model.fbx", "unsupported file type '.fbx'")
+    ]
     failed = {Path(p).name: e for p, e in report.failed}
     assert set(failed) == set(expected)
     for name, error in failed.items():
