@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from query.search.index import keep_beside
 from query.search.versioned import POINTER, current, save_version
 from shapedb.config.core import PartConfig
 from shapedb.errors import NotFittedError, QueryError, StoreError, require
@@ -619,7 +620,7 @@ def open_parts_index(
             if len(new):
                 index.add(new, _graphs_from_store(db, new, cfg))
             action = f"updated (+{len(new)}, -{len(gone)})"
-        index.save(root, version=version)
+        keep_beside(index, root, version, "part index")
         log.info("part index %s at store version %s: %r", action, version, index)
         _CACHE[key] = index
         return index

@@ -43,7 +43,7 @@ if TYPE_CHECKING:
     from query.learn.metric import LearnedMetric
     from shapedb.config.core import Config
 
-__all__ = ["FeatureIndex", "open_index", "build_index", "on_commit", "INDEX_DIR"]
+__all__ = ["FeatureIndex", "open_index", "build_index", "on_commit", "keep_beside", "INDEX_DIR"]
 
 log = logging.getLogger(__name__)
 
@@ -567,10 +567,19 @@ def open_index(
                 action = "built"
             else:
                 action = index.sync(ids, feats)
-            index.save(directory, version=version)
+            keep_beside(index, directory, version, "feature index")
             log.info("feature index %s at store version %s: %r", action, version, index)
         _CACHE[key] = (config, index)
         return index
+
+
+def keep_beside(index: Any, directory: Path, version: int, what: str) -> None:
+    """Save a derived index beside its store; a store the process may not write (read-only
+    media, another user's files) keeps it in memory only, with one warning."""
+    try:
+        index.save(directory, version=version)
+    except OSError as exc:
+        log.warning("%s kept in memory only: cannot write %s (%s)", what, directory, exc.strerror)
 
 
 def _weights(config: Any, metric: LearnedMetric | None) -> tuple[NDArray[np.float64], str]:

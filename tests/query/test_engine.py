@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -184,3 +185,25 @@ def index_dir_name(root: Path) -> str:
     import json
 
     return json.loads((root / "current.json").read_text())["dir"]
+
+
+def test_a_store_the_process_cannot_write_still_searches(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Read-only media: the index is built in memory, with one warning, and search answers."""
+    import shutil
+
+    import shapedb
+    from query.search.index import FeatureIndex
+
+    pinned = Path(__file__).resolve().parents[1] / "data" / "pinned" / "store"
+    shutil.copytree(pinned, tmp_path / "ro")
+
+    def refuse(self: Any, *args: Any, **kwargs: Any) -> None:
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(FeatureIndex, "save", refuse)
+    db = shapedb.connect(tmp_path / "ro", create=False)
+    with caplog.at_level("WARNING", logger="query.search.index"):
+        hits = db.search(1, k=3)
+    assert hits[0].id == 1 and "kept in memory only" in caplog.text
