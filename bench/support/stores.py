@@ -30,7 +30,7 @@ from bench.support import cached, inside_fields
 from bench.support.cached import load
 from bench.support.features import kernel_features
 from bench.support.packings import light_field_balls
-from bench.support.tuning import parse_value, with_light_field
+from bench.support.tuning import OverlapFusion, parse_value, with_light_field
 from query.search.lightfield_spread import local_statistic, pooled
 from query.search.rerank_lightfield import LightFieldFusion
 from query.search.tuning import PRODUCT
@@ -436,14 +436,22 @@ def gate_statistic(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None)
     return s
 
 
-def gate_weights(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
+def gate_weights(
+    st: Store, f: Any, memo: dict[Any, FloatArray] | None = None, power: float = 0.0
+) -> FloatArray:
     """(n,) ``weight * g(q)`` of the stage's numbers ``f`` (a :class:`query.search.tuning.StageTuning`).
 
     ``g(q)`` is the product's gate (:meth:`query.search.rerank_lightfield.LightFieldFusion.gate`)
     on each query's candidates, reading the stored shapes' :func:`shape_statistics`.
     ``memo``: the pooled statistics already computed, by store and the fields they read.
+    ``power`` > 0: times the overlap gate of the stage before the spread ceiling
+    (:class:`bench.support.tuning.OverlapFusion`).
     """
-    scorer = LightFieldFusion(Config(), tuning=f)
+    scorer = (
+        OverlapFusion(Config(), tuning=f, power=power)
+        if power > 0
+        else LightFieldFusion(Config(), tuning=f)
+    )
     spreads = shape_statistics(st, f, memo) if f.ceiling > 0 and f.pool > 0 else None
     g = np.empty(len(st.rows))
     for q in range(len(g)):
