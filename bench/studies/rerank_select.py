@@ -257,7 +257,7 @@ def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
         got = db.evaluate()  # the store without the stage, as db.search ranks
         out["evaluate_without"] = {m: float(getattr(got, m)) for m in _MEASURES}
         x = np.asarray(index.features_, np.float64)
-        out["evaluate_with"] = ranking_scores(index, x, ds.labels[keep], cfg, stages["with"])
+        out["evaluate_with"] = ranking_scores(_index(v7), v7, ds.labels[keep], cfg, stages["with"])
         for label, e in (("without", out["evaluate_without"]), ("with", out["evaluate_with"])):
             print(f"  stage {label}: NN / 1-T / DCG "
                   f"{e['nn']:.3f} / {e['first_tier']:.3f} / {e['dcg']:.3f}")  # fmt: skip
