@@ -299,7 +299,7 @@ def check_product(datasets: Sequence[str], split: str) -> dict[str, Any]:
         _, balls = load(name, split)
         v4 = kernel_features(balls, Config())
         whole = configure(
-            Config().with_options(rerank="lightfield"), {"rerank_candidates": len(v4), **LEGACY}
+            Config().with_options(rerank="lightfield"), {"lf_candidates": len(v4), **LEGACY}
         )
         d4 = np.abs(v4[:, None, :] - v4[None, :, :]).sum(-1)
         d4 /= np.log(10.0) / sum(b[3] for b in LAYOUTS[4])
