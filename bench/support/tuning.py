@@ -36,6 +36,9 @@ __all__ = [
     "configure",
 ]
 
+Floats = NDArray[np.float64]
+Bools = NDArray[np.bool_]
+
 #: The fields of :class:`StageTuning`.
 TUNING_FIELDS = tuple(f.name for f in dataclasses.fields(StageTuning))
 
@@ -91,13 +94,7 @@ class OverlapFusion(LightFieldFusion):
         super().__init__(config, tuning=tuning)
         self.power = float(power)
 
-    def gate(
-        self,
-        d4: NDArray[np.float64],
-        dl: NDArray[np.float64],
-        own: NDArray[np.bool_],
-        spreads: NDArray[np.float64] | None,
-    ) -> float:
+    def gate(self, d4: Floats, dl: Floats, own: Bools, spreads: Floats | None) -> float:
         """``g(q)``: the product's gate times the overlap to the power ``power``."""
         g = super().gate(d4, dl, own, spreads)
         others = np.flatnonzero(~own)
