@@ -13,14 +13,15 @@ nearest by version 4's stored distance (ties by ascending id, as
 ``query.search.rerank.search`` hands them over; with the product's field vectors, and
 the union with their ``K2`` nearest) are re-ranked by the product's ``"lightfield"``
 stage at the product's numbers (:class:`query.search.rerank_lightfield.LightFieldFusion`
-at :data:`query.search.tuning.PRODUCT`, its gate the product's own), and scored (NN / 1-T / DCG) per set inside the store.
+at :data:`query.search.tuning.PRODUCT`, its gate the product's own), and scored (NN /
+1-T / DCG) per set inside the store.
 
 Rows, in the same run: version 4 alone (the descriptor, no stage); the stage's distance
 alone; an ungated rank fusion; on the fused distance, the stage before the field
 vectors; with ``--mesh-lfd``, the mesh light field descriptor (Chen et al. 2003) ranking
 every shape; the stage without and with its shared-neighbour term
-(:data:`bench.support.stores.STAGE_NOW`: the product, :data:`query.search.tuning.PRODUCT`). A row's "worst" is its
-largest loss against version 4, in queries of one set. Written to
+(:data:`bench.support.stores.STAGE_NOW`: the product, :data:`query.search.tuning.PRODUCT`).
+A row's "worst" is its largest loss against version 4, in queries of one set. Written to
 bench/results/rerank_<split>.json (``--out``). The grids and the gates before the
 product's are :mod:`bench.studies.lightfield_gate`.
 """

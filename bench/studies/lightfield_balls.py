@@ -304,7 +304,8 @@ def check_product(datasets: Sequence[str], split: str) -> dict[str, Any]:
         d4 = np.abs(v4[:, None, :] - v4[None, :, :]).sum(-1)
         d4 /= np.log(10.0) / sum(b[3] for b in LAYOUTS[4])
         f = whole.tuning
-        exact = np.stack([ball_light_field(b.centers, b.radii, whole.config.light_field, edges=b.edges)
+        spec = whole.config.light_field
+        exact = np.stack([ball_light_field(b.centers, b.radii, spec, edges=b.edges)
                           for b in balls])  # fmt: skip
         for kind, fields in (("float64", exact), ("float32", exact.astype(np.float32))):
             fields = fields.astype(np.float64)

@@ -51,9 +51,9 @@ distance fuses the light field distance with the L1 distances of the field's dep
 buffers and harmonics (fixed scales) and whose candidates are the union of version 4's
 K and the field vectors' K2 nearest, everywhere the stage uses the light field distance
 (ranks, the gate's statistics, the analytic stores); ``--fv-weights``, ``--fv-scales``,
-``--fv-candidates`` replace the product's values (:data:`query.search.tuning.PRODUCT`'s), and ``--no-field-vectors`` keeps the light field alone. Such a run also
-scores the stage before the field vectors (the light field distance, K alone) in the
-same run. ``--mesh-lfd``: the peer's row, every shape of each store ranked by the mesh
+``--fv-candidates`` replace the product's values (:data:`query.search.tuning.PRODUCT`'s),
+and ``--no-field-vectors`` keeps the light field alone. Such a run also scores the stage
+before the field vectors (the light field distance, K alone) in the same run. ``--mesh-lfd``: the peer's row, every shape of each store ranked by the mesh
 light field descriptor (:func:`bench.support.lightfield.lfd_split_matrix`, cached).
 ``--no-rigid-margin``: the ratio grid keeps the jointed margin alone.
 

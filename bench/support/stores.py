@@ -417,7 +417,7 @@ def shape_statistics(st: Store, f: Any, memo: dict[Any, FloatArray] | None = Non
 
 
 def gate_statistic(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
-    """(n,) ``s_q`` of the stage's numbers ``f`` (a :class:`query.search.tuning.StageTuning`) for every query.
+    """(n,) ``s_q`` of every query under the stage's numbers ``f`` (a ``StageTuning``).
 
     The shape's own local statistic (:func:`shape_statistics`), or with ``f.pool`` its
     ``pool_quantile`` over the first ``pool`` candidates (the product's
@@ -439,7 +439,7 @@ def gate_statistic(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None)
 def gate_weights(
     st: Store, f: Any, memo: dict[Any, FloatArray] | None = None, power: float = 0.0
 ) -> FloatArray:
-    """(n,) ``weight * g(q)`` of the stage's numbers ``f`` (a :class:`query.search.tuning.StageTuning`).
+    """(n,) ``weight * g(q)`` under the stage's numbers ``f`` (a ``StageTuning``).
 
     ``g(q)`` is the product's gate (:meth:`query.search.rerank_lightfield.LightFieldFusion.gate`)
     on each query's candidates, reading the stored shapes' :func:`shape_statistics`.
