@@ -53,7 +53,8 @@ K and the field vectors' K2 nearest, everywhere the stage uses the light field d
 (ranks, the gate's statistics, the analytic stores); ``--fv-weights``, ``--fv-scales``,
 ``--fv-candidates`` replace the product's values (:data:`query.search.tuning.PRODUCT`'s),
 and ``--no-field-vectors`` keeps the light field alone. Such a run also scores the stage
-before the field vectors (the light field distance, K alone) in the same run. ``--mesh-lfd``: the peer's row, every shape of each store ranked by the mesh
+before the field vectors (the light field distance, K alone) in the same run.
+``--mesh-lfd``: the peer's row, every shape of each store ranked by the mesh
 light field descriptor (:func:`bench.support.lightfield.lfd_split_matrix`, cached).
 ``--no-rigid-margin``: the ratio grid keeps the jointed margin alone.
 

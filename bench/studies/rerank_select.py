@@ -15,7 +15,8 @@ over the stored vectors (ids 0..n-1), and every shape queries it through
 candidates, exact re-ranking, the stage). Rows: version 4 (the index over v4
 vectors), version 7 (over v7 vectors, no stage), the views block alone (an index over
 that block), and the adaptive stage over version 7's vectors for each setting of the
-grid (:class:`bench.studies.adaptive_rerank.AdaptiveFusion`, passed as the scorer). The ranking of each query (itself left out) is scored with the PSB measures.
+grid (:class:`bench.studies.adaptive_rerank.AdaptiveFusion`, passed as the scorer). The
+ranking of each query (itself left out) is scored with the PSB measures.
 
 The chosen setting is the best objective (mean over the sets of (NN + 1-T + DCG) / 3)
 among those with no set's NN, 1-T or DCG more than two queries' worth below version 4
