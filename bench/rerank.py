@@ -12,15 +12,16 @@ generic + parts, all six). In each store every shape queries the others: its ``K
 nearest by version 4's stored distance (ties by ascending id, as
 ``query.search.rerank.search`` hands them over; with the product's field vectors, and
 the union with their ``K2`` nearest) are re-ranked by the product's ``"lightfield"``
-stage at its defaults (:class:`query.search.rerank_lightfield.LightFieldFusion`, its
-gate the product's own), and scored (NN / 1-T / DCG) per set inside the store.
+stage at the product's numbers (:class:`query.search.rerank_lightfield.LightFieldFusion`
+at :data:`query.search.tuning.PRODUCT`, its gate the product's own), and scored (NN /
+1-T / DCG) per set inside the store.
 
 Rows, in the same run: version 4 alone (the descriptor, no stage); the stage's distance
 alone; an ungated rank fusion; on the fused distance, the stage before the field
 vectors; with ``--mesh-lfd``, the mesh light field descriptor (Chen et al. 2003) ranking
 every shape; the stage without and with its shared-neighbour term
-(``"stage now (LightFieldFusionConfig defaults)"``: the product). A row's "worst" is its
-largest loss against version 4, in queries of one set. Written to
+(:data:`bench.support.stores.STAGE_NOW`: the product, :data:`query.search.tuning.PRODUCT`).
+A row's "worst" is its largest loss against version 4, in queries of one set. Written to
 bench/results/rerank_<split>.json (``--out``). The grids and the gates before the
 product's are :mod:`bench.studies.lightfield_gate`.
 """
@@ -51,7 +52,7 @@ from bench.support.stores import (
     shared_rows,
     split_stores,
 )
-from shapedb.config.core import Config
+from query.search.tuning import PRODUCT
 
 __all__ = ["mesh_lfd_row", "baseline_rows", "measure", "parser", "main"]
 
@@ -107,7 +108,7 @@ def baseline_rows(split: Split, datasets: Sequence[str], *, mesh_lfd: bool = Fal
         before.dl, before.dv = split.light, None
         plain = {k: Store(before, before.store(v)) for k, v in names.items()}
         rows["the stage before the field vectors (light field distance, K = 100)"] = score_row(
-            plain, {k: gate_weights(st, Config().lf_fusion) for k, st in plain.items()}, base
+            plain, {k: gate_weights(st, PRODUCT) for k, st in plain.items()}, base
         )
     if mesh_lfd:  # the peer: every shape ranked by the mesh LFD
         rows["mesh light field descriptor (every shape ranked)"] = mesh_lfd_row(
@@ -120,14 +121,14 @@ def measure(split_name: str, datasets: Sequence[str], *, mesh_lfd: bool = False)
     """The stage's rows on every store of ``datasets``' split; prints the table.
 
     Returns the JSON written by :func:`main`: the split, the rows (:func:`score_row`
-    entries by label), the product's fusion settings, its field vectors' stage and the
+    entries by label), the product's stage numbers, its field vectors' stage and the
     stores' sizes.
     """
     t0 = time.perf_counter()
     split = product_split(split_name, datasets)
     stores, base, rows = baseline_rows(split, datasets, mesh_lfd=mesh_lfd)
     print(f"  {len(split.sets)} shapes, {len(stores)} stores ({time.perf_counter() - t0:.0f} s)")
-    default = Config().lf_fusion
+    default = PRODUCT
     rows.update(shared_rows(stores, split, default, base))
     print(rows_table(
         f"the lightfield stage, {split_name} splits, each set and mix a store (NN / 1-T / DCG)",

@@ -5,7 +5,7 @@ Usage (from the repository root)::
     python -m bench.studies.contrast_surer                  # validation
     python -m bench.studies.contrast_surer --split test
 
-The contrast (:class:`shapedb.config.core.LightFieldFusionConfig`) keeps the light field out of
+The contrast (:class:`query.search.tuning.StageTuning`) keeps the light field out of
 a query whose stored distance sets its nearest apart: ``t_v``, the median stored distance
 of its ``neighbours`` nearest others over that of its ``contrast_depth``-th, below the floor.
 The light field's own contrast ``t_l`` (the same over the query's candidates ranked by the
@@ -38,7 +38,7 @@ from bench.support.stores import (
     score_row,
     shared_stores,
 )
-from shapedb.config.core import Config
+from query.search.tuning import PRODUCT
 
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 #: The ratios ``rho`` tried.
@@ -57,7 +57,7 @@ def contrasts(st: Store, f: Any) -> tuple[FloatArray, FloatArray]:
 
 def rows(split_name: str) -> dict[str, Any]:
     """The product's gate, the contrast off and the contrast opened at every ``rho``."""
-    f = Config().lf_fusion
+    f = PRODUCT
     split, stores, base = product_stores(split_name)
     term = shared_stores(stores, split, f)
     now = {n: gate_weights(st, f) for n, st in stores.items()}

@@ -46,7 +46,8 @@ from bench.support.stores import (
     gate_weights,
     score_row,
 )
-from shapedb.config.core import Config
+from bench.support.tuning import parse_value
+from query.search.tuning import PRODUCT
 
 FloatArray = NDArray[np.float64]
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
@@ -75,14 +76,14 @@ def choose(
 ) -> dict[str, Any]:
     """Every scale rule x :data:`WEIGHTS` x :data:`K2` at today's gate, on every set and mix.
 
-    Per setting: the rows of the product's gate (``LightFieldFusionConfig()``) on the
+    Per setting: the rows of the product's gate (:data:`query.search.tuning.PRODUCT`) on the
     fused distance with the union candidates, the two-queries rule against version 4,
     the analytic chain (shut) and rigid store (open) on the fused distance, and the
     jointed margin (:data:`bench.studies.gate_checks.MIN_MARGIN`; every rigid set's 95 % under the
     ceiling, which no setting keeps, nor today's product on the field's light fields, is
     reported, not required). Chosen: the best objective among
     the settings that keep all three; else the best by the rule and the chain.
-    ``gate``: a ``LightFieldFusionConfig`` in place of the product's.
+    ``gate``: a :class:`query.search.tuning.StageTuning` in place of the product's.
     """
     import tempfile
 
@@ -97,7 +98,7 @@ def choose(
                         for k, v in meds.items()]))  # fmt: skip
     rules = {"pooled": meds["pooled"], "median of the sets": meds["median of the sets"]}
     stores_of = {s: (s,) for s in names} | {k: v for k, v in MIXES.items() if set(v) <= set(names)}
-    f = Config().lf_fusion if gate is None else gate
+    f = PRODUCT if gate is None else gate
     tmp = tempfile.TemporaryDirectory(prefix="field_vectors_")
     analytic = analytic_stores(Path(tmp.name))
     shapes = analytic_shapes()
@@ -177,13 +178,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--choose", action="store_true",
                     help="the scales, weights and K2 at today's gate (validation)")  # fmt: skip
     ap.add_argument("--fusion", nargs="*", default=[], metavar="FIELD=VALUE",
-                    help="LightFieldFusionConfig fields of the gate (default: the product's)")  # fmt: skip
+                    help="StageTuning fields of the gate (default: the product's)")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
     if args.choose:
         pairs = dict(kv.split("=", 1) for kv in args.fusion)
-        gate = dataclasses.replace(Config().lf_fusion, **{k: float(v) if "." in v else int(v)
-                                                           for k, v in pairs.items()})  # fmt: skip
+        gate = dataclasses.replace(PRODUCT, **{k: parse_value(v) for k, v in pairs.items()})
         got = choose(args.split, gate=gate)
         out = args.out or RESULTS / f"field_vectors_choice_{args.split}.json"
     else:

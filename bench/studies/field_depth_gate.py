@@ -128,7 +128,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--grid", action="store_true",
                     help="validation: also the gate bench's selection grid on these distances")  # fmt: skip
     ap.add_argument("--fusion", nargs="*", default=[], metavar="FIELD=VALUE",
-                    help="LightFieldFusionConfig fields of the 'stage now' row")  # fmt: skip
+                    help="StageTuning fields of the 'stage now' row")  # fmt: skip
     ap.add_argument("--candidates", action="store_true",
                     help="the fused distance over other candidate sets (NN / 1-T), no gate")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None)

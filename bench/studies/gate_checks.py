@@ -7,7 +7,7 @@ A library of the gate's studies (not a script), used by the gate's selection (:m
   light field finds another pose and the gate must stay shut;
 * :func:`analytic_stores` and :func:`analytic_gates`: two small analytic stores (rigid
   boxes and rods; one chain in eight poses) and the product scorer's gate on them, at
-  any :class:`shapedb.config.core.LightFieldFusionConfig`;
+  any :class:`query.search.tuning.StageTuning`;
 * :func:`margin`: how far apart a gate statistic puts the jointed sets and the rigid ones
   (:func:`gate_margin`: of a gate's statistic on the bench's stores);
 * :data:`RATIO_GRID`, :data:`CEILINGS`, :func:`ratio_settings`: the ratio gate's grid.
@@ -15,7 +15,6 @@ A library of the gate's studies (not a script), used by the gate's selection (:m
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -156,8 +155,8 @@ def analytic_gates(
     The product's scorer (:class:`query.search.rerank_lightfield.LightFieldFusion`); ``s_q``
     NaN with ``f.pool`` 0.
 
-    ``f``: a :class:`shapedb.config.core.LightFieldFusionConfig` (the store's own light fields
-    and descriptor); the local statistics computed by
+    ``f``: the stage's numbers, a :class:`query.search.tuning.StageTuning` (the store's own
+    light fields and descriptor); the local statistics computed by
     :func:`query.search.lightfield_spread.local_spreads` under ``f``, every shape a candidate.
     ``distance``: the stage's distance in place of the light field's,
     ``distance(query id, candidate ids, light field distances)`` (the field vectors'
@@ -168,22 +167,22 @@ def analytic_gates(
     from query.search.lightfield_spread import calibration, local_spreads
     from query.search.rerank_lightfield import COLUMN, LightFieldFusion, stored_arrays
 
-    config = dataclasses.replace(db.config, lf_fusion=f)
+    config = db.config
     index, reader = open_index(db), stored_arrays(db)
     key = (str(db.store.path), f.spread_candidates, f.typical, f.ratio_weight,
            f.ratio_candidates if f.ratio_weight > 0 else 0, id(distance))  # fmt: skip
     if (memo is None or key not in memo) and distance is not None:
-        got = _fused_spreads(index, reader, config, distance)
+        got = _fused_spreads(index, reader, config, f, distance)
         if memo is None:
             memo = {}
         memo[key] = dict(zip(got[0].tolist(), got[1].tolist(), strict=True))
     elif memo is None or key not in memo:
-        got = local_spreads(index, reader, config)
+        got = local_spreads(index, reader, config, None, f)
         if memo is None:
             memo = {}
         memo[key] = dict(zip(got[0].tolist(), got[1].tolist(), strict=True))
     stat = memo[key]
-    scorer = LightFieldFusion(config)
+    scorer = LightFieldFusion(config, tuning=f)
     ids = np.sort(np.asarray(index.ids_, np.int64)[np.asarray(index.alive_, bool)])
     gates, pooled_s = [], []
     for sid in ids:
@@ -202,13 +201,12 @@ def analytic_gates(
     return np.asarray(gates), np.asarray(pooled_s, np.float64)
 
 
-def _fused_spreads(index: Any, reader: Any, config: Any,
+def _fused_spreads(index: Any, reader: Any, config: Any, f: Any,
                    distance: Distance) -> tuple[NDArray[np.int64], FloatArray]:  # fmt: skip
     """:func:`query.search.lightfield_spread.local_spreads` of every alive shape on ``distance``."""
     from query.search.lightfield_spread import calibration, local_statistic
     from query.search.rerank_lightfield import COLUMN
 
-    f = config.lf_fusion
     ids = np.sort(np.asarray(index.ids_, np.int64)[np.asarray(index.alive_, bool)])
     reach = max(f.spread_candidates, f.ratio_candidates if f.ratio_weight > 0 else 0)
     m = min(reach, len(ids) - 1)
@@ -220,7 +218,7 @@ def _fused_spreads(index: Any, reader: Any, config: Any,
         nb, d = near[0][keep][:m], dist[0][keep][:m]
         fields = reader(COLUMN, np.append(nb, sid))
         dl = light_field_distance(fields[-1][None], fields[:-1])[0]
-        out[k] = local_statistic(d / calibration(config), distance(int(sid), nb, dl), config)
+        out[k] = local_statistic(d / calibration(config), distance(int(sid), nb, dl), f)
     return ids, out
 
 

@@ -29,7 +29,7 @@ from bench.support.cached import CHOICES, load
 from bench.support.field_vectors import fuse, stage_of
 from bench.support.lightfield import lfd_split_matrix
 from bench.support.stores import Split, Store, gate_weights, shared_stores
-from shapedb.config.core import Config
+from query.search.tuning import PRODUCT
 
 __all__ = ["per_class", "main"]
 
@@ -45,7 +45,7 @@ def per_class(split: str, name: str, store: Sequence[str] | None = None) -> list
         raise ValueError(f"the store {sets} does not hold {name!r}")
     args = gate_parser().parse_args(["--split", split, "--no-grid", "--datasets", *sets])
     sp = fuse(Split(split, sets), sets, stage_of(args))
-    f = Config().lf_fusion
+    f = PRODUCT
     st = Store(sp, sp.store(sets), field_candidates=f.field_candidates)
     w = gate_weights(st, f)
     now = shared_stores({name: st}, sp, f)[name].measures(w)

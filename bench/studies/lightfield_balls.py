@@ -291,23 +291,27 @@ def check_product(datasets: Sequence[str], split: str) -> dict[str, Any]:
     """
     from bench.studies.lightfield_rerank import LEGACY, index_of, rankings
     from bench.support.features import kernel_features
+    from bench.support.tuning import configure
     from shapedb.signature.lightfield import ball_light_field
 
     out: dict[str, Any] = {}
     for name in datasets:
         _, balls = load(name, split)
         v4 = kernel_features(balls, Config())
-        whole = Config().with_options(rerank="lightfield", rerank_candidates=len(v4), **LEGACY)
+        whole = configure(
+            Config().with_options(rerank="lightfield"), {"lf_candidates": len(v4), **LEGACY}
+        )
         d4 = np.abs(v4[:, None, :] - v4[None, :, :]).sum(-1)
         d4 /= np.log(10.0) / sum(b[3] for b in LAYOUTS[4])
-        f = whole.lf_fusion
-        exact = np.stack([ball_light_field(b.centers, b.radii, whole.light_field, edges=b.edges)
+        f = whole.tuning
+        spec = whole.config.light_field
+        exact = np.stack([ball_light_field(b.centers, b.radii, spec, edges=b.edges)
                           for b in balls])  # fmt: skip
         for kind, fields in (("float64", exact), ("float32", exact.astype(np.float32))):
             fields = fields.astype(np.float64)
             study = np.argsort(
                 fuse("adrank", f.weight, d4, light_field_distance(fields), f.typical,
-                     f.neighbours, f.power, f.ceiling, f.ramp), axis=1, kind="stable",
+                     f.neighbours, whole.power, f.ceiling, f.ramp), axis=1, kind="stable",
             )  # fmt: skip
             got = rankings(index_of(v4), whole, fields)
             same = int(np.all(got == study, axis=1).sum())

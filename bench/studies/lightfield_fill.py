@@ -22,7 +22,7 @@ Three parts, each from the cached decompositions (:func:`bench.support.cached.lo
   with ``--n-balls N`` the split is decomposed with N balls (cached) instead;
 * ``--fused --n-balls N``: version 4 of today's balls fused with the light fields of
   today's balls and of the N-ball packing (the product's gated rank fusion, at
-  :class:`shapedb.config.core.LightFieldFusionConfig`'s defaults).
+  the numbers of :data:`query.search.tuning.PRODUCT`).
 
 Fills are ``plain``, ``edges`` (each contact edge fills the convex hull of its two
 balls), ``dilate<p>`` (discs grow by p pixels), ``close<p>`` (closing by a disc of p
@@ -429,9 +429,9 @@ def fused_longer(split: str, datasets: Sequence[str], n_balls: int) -> dict[str,
     """Version 4 of today's balls fused (``adrank 8``, the product's gate) with the light
     fields of a longer packing (``n_balls``), against the same fusion with today's."""
     from bench.studies.lightfield_balls import fuse, v4_distances
-    from shapedb.config.core import LightFieldFusionConfig
+    from query.search.tuning import PRODUCT
 
-    f = LightFieldFusionConfig()
+    f = PRODUCT
     table: dict[str, dict[str, Any]] = {"v4": {}, "fused, 512 balls": {},
                                         f"fused, {n_balls} balls": {}}  # fmt: skip
     for name in datasets:
@@ -447,7 +447,7 @@ def fused_longer(split: str, datasets: Sequence[str], n_balls: int) -> dict[str,
         order = [keep[m.name] for m in ds.models]
         dm = dm[np.ix_(order, order)]
         d4 = v4_distances(balls)
-        args = (f.typical, f.neighbours, f.power, f.ceiling, f.ramp)
+        args = (f.typical, f.neighbours, 0.0, f.ceiling, f.ramp)  # the product's power: 0
         table["v4"][name] = _scores(d4, ds.labels)
         table["fused, 512 balls"][name] = _scores(
             fuse("adrank", f.weight, d4, dl, *args), ds.labels

@@ -51,10 +51,10 @@ distance fuses the light field distance with the L1 distances of the field's dep
 buffers and harmonics (fixed scales) and whose candidates are the union of version 4's
 K and the field vectors' K2 nearest, everywhere the stage uses the light field distance
 (ranks, the gate's statistics, the analytic stores); ``--fv-weights``, ``--fv-scales``,
-``--fv-candidates`` replace the product's values (``LightFieldFusionConfig``'s, once it
-has them), and ``--no-field-vectors`` keeps the light field alone. Such a run also
-scores the stage before the field vectors (the light field distance, K alone) in the
-same run. ``--mesh-lfd``: the peer's row, every shape of each store ranked by the mesh
+``--fv-candidates`` replace the product's values (:data:`query.search.tuning.PRODUCT`'s),
+and ``--no-field-vectors`` keeps the light field alone. Such a run also scores the stage
+before the field vectors (the light field distance, K alone) in the same run.
+``--mesh-lfd``: the peer's row, every shape of each store ranked by the mesh
 light field descriptor (:func:`bench.support.lightfield.lfd_split_matrix`, cached).
 ``--no-rigid-margin``: the ratio grid keeps the jointed margin alone.
 
@@ -97,6 +97,7 @@ from bench.studies.gate_checks import (
 from bench.support.stores import (
     CHOICES,
     SETS,
+    STAGE_NOW,
     Split,
     Store,
     gate_statistic,
@@ -107,7 +108,8 @@ from bench.support.stores import (
     shared_rows,
     shared_stores,
 )
-from shapedb.config.core import Config
+from bench.support.tuning import parse_value
+from query.search.tuning import PRODUCT
 
 __all__ = [
     "GRID",
@@ -141,7 +143,7 @@ def _setting(label: str) -> dict[str, Any]:
     return dict(ast.literal_eval(label[label.index(": {") + 2 :]))
 
 
-#: The grid of the selection (``LightFieldFusionConfig`` fields; power 0, neighbours 5).
+#: The grid of the selection (:class:`query.search.tuning.StageTuning` fields; neighbours 5).
 GRID = {
     "weight": (2.0, 4.0, 8.0),
     "ceiling": (0.11, 0.13, 0.15),
@@ -158,8 +160,11 @@ AROUND = {"weight": (2.0, 8.0), "ceiling": (0.09, 0.13, 0.15), "pool": (5, 10, 4
 #: The gate before the ratio: the pooled median of the local spread over 5.
 SPREAD_GATE = {"weight": 4.0, "ceiling": 0.11, "ramp": 0.02, "spread_candidates": 5, "pool": 20,
                "contrast_ramp": 0.05, "ratio_weight": 0.0, "pool_quantile": 0.5}  # fmt: skip
-LEGACY = {"weight": 8.0, "power": 3.0, "ceiling": 0.09, "spread_candidates": 100, "pool": 0,
+#: The gate before the pooled spread: the query's own spread over 100, times the overlap of
+#: its nearest by either distance to the power :data:`LEGACY_POWER`.
+LEGACY = {"weight": 8.0, "ceiling": 0.09, "spread_candidates": 100, "pool": 0,
           "contrast_floor": 0.0, "ramp": 0.02, "ratio_weight": 0.0}  # fmt: skip
+LEGACY_POWER = 3.0
 
 
 #: The shared-neighbour grid of ``--shared-grid``: ``k`` x ``beta``.
@@ -220,11 +225,10 @@ def select(args: argparse.Namespace, split: Split | None = None,
     stores, base, rows = baseline_rows(split, args.datasets,
                                        mesh_lfd=getattr(args, "mesh_lfd", False))  # fmt: skip
     print(f"  {len(split.sets)} shapes, {len(stores)} stores ({time.perf_counter() - t0:.0f} s)")
-    default = Config().lf_fusion
+    default = PRODUCT
     if args.fusion:  # the "stage now" row at other values (a setting chosen elsewhere)
         pairs = dict(kv.split("=", 1) for kv in args.fusion)
-        default = dataclasses.replace(default, **{k: float(v) if "." in v else int(v)
-                                                  for k, v in pairs.items()})  # type: ignore[arg-type]  # fmt: skip
+        default = dataclasses.replace(default, **{k: parse_value(v) for k, v in pairs.items()})
     if getattr(args, "shared", None):  # the term of the "stage now" row, not the product's
         default = dataclasses.replace(default, shared_neighbours=int(args.shared[0]),
                                       shared_weight=float(args.shared[1]))  # fmt: skip
@@ -232,7 +236,7 @@ def select(args: argparse.Namespace, split: Split | None = None,
     margins: dict[str, dict[str, float]] = {}
     legacy = dataclasses.replace(default, **LEGACY)  # type: ignore[arg-type]
     rows["stage before (overlap^3, own spread over 100)"] = score_row(
-        stores, {k: gate_weights(st, legacy) for k, st in stores.items()}, base
+        stores, {k: gate_weights(st, legacy, power=LEGACY_POWER) for k, st in stores.items()}, base
     )
     spread_gate = dataclasses.replace(default, **SPREAD_GATE)  # type: ignore[arg-type]
     rows["spread gate (pooled median spread, the default before the ratio)"] = score_row(
@@ -277,17 +281,17 @@ def select(args: argparse.Namespace, split: Split | None = None,
             shared_stores(stores, split, default) if getattr(args, "grid_term", False) else stores
         )
         for s in settings:
-            f = dataclasses.replace(default, power=0.0, **s)  # type: ignore[arg-type]
+            f = dataclasses.replace(default, **s)  # type: ignore[arg-type]
             grid.append((s, score_row(scored, {k: gate_weights(st, f, memo)
                                           for k, st in stores.items()}, base)))  # fmt: skip
         passing = [g for g in grid if g[1]["passes"]]
         n_rule = len(passing)
-        passing = [g for g in passing if closed(dataclasses.replace(default, power=0.0, **g[0]))]  # type: ignore[arg-type]
+        passing = [g for g in passing if closed(dataclasses.replace(default, **g[0]))]  # type: ignore[arg-type]
         n_chain, chain_shut = len(passing), passing
 
         def wide(g: tuple[dict[str, Any], Any]) -> bool:
             """Both margins: the jointed sets well above the ceiling, the rigid ones below."""
-            f = dataclasses.replace(default, power=0.0, **g[0])  # type: ignore[arg-type]
+            f = dataclasses.replace(default, **g[0])  # type: ignore[arg-type]
             m = gate_margin(stores, f, memo)
             rigid = m["rigid_95"] <= f.ceiling or not args.rigid_margin
             return bool(m["jointed_min"] >= args.min_margin * f.ceiling and rigid)
@@ -302,18 +306,18 @@ def select(args: argparse.Namespace, split: Split | None = None,
             top = max(chain_shut, key=lambda g: g[1]["objective"])
             label = f"best keeping the chain shut, any margin: {top[0]}"
             rows[label] = top[1]
-            f = dataclasses.replace(default, power=0.0, **top[0])  # type: ignore[arg-type]
+            f = dataclasses.replace(default, **top[0])  # type: ignore[arg-type]
             margins[label] = gate_margin(stores, f, memo)
         for label, keep in subsets:
             sub = [g for g in passing if keep(g[0])]
             if sub:
                 top = max(sub, key=lambda g: g[1]["objective"])
                 rows[f"best with {label}: {top[0]}"] = top[1]
-                f = dataclasses.replace(default, power=0.0, **top[0])  # type: ignore[arg-type]
+                f = dataclasses.replace(default, **top[0])  # type: ignore[arg-type]
                 margins[f"best with {label}: {top[0]}"] = gate_margin(stores, f, memo)
         if best is not None:
             rows[f"best of the grid: {best[0]}"] = best[1]
-            f = dataclasses.replace(default, power=0.0, **best[0])  # type: ignore[arg-type]
+            f = dataclasses.replace(default, **best[0])  # type: ignore[arg-type]
             margins[f"best of the grid: {best[0]}"] = gate_margin(stores, f, memo)
     shared = list(itertools.product(*SHARED_GRID)) if getattr(args, "shared_grid", False) else []
     rows.update(shared_rows(stores, split, default, base, shared,
@@ -330,10 +334,10 @@ def select(args: argparse.Namespace, split: Split | None = None,
                 rows[f"defaults, {field} {v:g}"] = score_row(
                     stores, {k: gate_weights(st, f) for k, st in stores.items()}, base
                 )
-    margins["stage now (LightFieldFusionConfig defaults)"] = gate_margin(stores, default, memo)
+    margins[STAGE_NOW] = gate_margin(stores, default, memo)
     for label, m in margins.items():
         f = default if ": {" not in label else dataclasses.replace(
-            default, power=0.0, **_setting(label))  # fmt: skip
+            default, **_setting(label))  # fmt: skip
         if label.startswith("spread gate"):
             f = spread_gate
         m["chain_min"] = float(np.nanmin(gates("chain", f)[1]))
@@ -468,7 +472,7 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--lf-set", nargs="*", default=[], metavar="FIELD=VALUE",
                     help="LightFieldConfig fields of the light fields (e.g. resolution=128)")  # fmt: skip
     ap.add_argument("--fusion", nargs="*", default=[], metavar="FIELD=VALUE",
-                    help="LightFieldFusionConfig fields of the 'stage now' row")  # fmt: skip
+                    help="StageTuning fields of the 'stage now' row")  # fmt: skip
     ap.add_argument("--mesh-lfd", action="store_true",
                     help="the peer's row: every shape ranked by the mesh light field descriptor")  # fmt: skip
     ap.add_argument("--field-vectors", action=argparse.BooleanOptionalAction, default=None,

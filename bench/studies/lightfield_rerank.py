@@ -14,10 +14,10 @@ n`` (the product's search path), its own id given, as ``db.search(id)`` does. Ro
 the same run:
 
 * ``v4``: the default store (version 4's vector, no stage);
-* ``adaptive (v7)``: version 7's vector with the adaptive views stage at
-  :class:`shapedb.config.core.RerankConfig`'s defaults (``rerank="adaptive"``);
-* ``lightfield``: version 4's vector with ``rerank="lightfield"`` at its defaults
-  (:class:`shapedb.config.core.LightFieldFusionConfig`, K = 100), the candidates' light
+* ``adaptive (v7)``: version 7's vector with the adaptive views stage at its grid's
+  choice (:class:`bench.studies.adaptive_rerank.AdaptiveFusion`);
+* ``lightfield``: version 4's vector with ``rerank="lightfield"`` at the product's
+  numbers (:data:`query.search.tuning.PRODUCT`, K = 100), the candidates' light
   fields read by id as a store keeps them (float32,
   :func:`shapedb.signature.lightfield.record_light_field` of the balls), and the stored local
   spreads computed over the set as a store computes them
@@ -28,7 +28,8 @@ the same run:
 * ``lightfield (spread gate)``: the same with the gate before the ratio (the pooled
   local spread alone, :data:`SPREAD_GATE`), without the field vectors;
 * ``lightfield (before)``: the same with the stage's settings before the pooled spread
-  and the contrast floor (what a store written then reads), without the field vectors.
+  and the contrast floor (:data:`LEGACY`, its overlap gate
+  :class:`bench.support.tuning.OverlapFusion`), without the field vectors.
 
 With ``--baselines``, in the same run: the balls' light fields alone (``light fields
 (balls)``, :func:`shapedb.signature.lightfield.light_field_distance` of the stored light fields),
@@ -42,10 +43,13 @@ That the scorer ranks as the study's formula does is checked by the study
 ``rerank="lightfield"`` without the field vectors (:data:`NO_FIELD`), with them (the
 fused distance and the union candidates at the defaults, or :data:`FIELD_STAGE`), the
 same with the shared-neighbour term (the default's, or k 3, beta 0.8) and with
-:data:`SPREAD_GATE`, v7 with ``rerank="adaptive"``), times the lightfield stores' local
-statistics and shared-neighbour lists (the index-time tables), then ``db.search(id,
+:data:`SPREAD_GATE`; each store committed and searched under its numbers,
+:func:`query.search.tuning.tuned`), times computing the lightfield stores' local
+statistics and shared-neighbour lists (the tables a commit writes), then ``db.search(id,
 k=10)`` for every shape, interleaved, and prints medians and ratios to the plain store;
-and the first search on a fresh copy of the stores with and without the term (cold).
+and the first search on a fresh copy of the stores with and without the term (cold: the
+store as committed, its tables written). The adaptive stage is no store's any more: its
+cost is :mod:`bench.studies.rerank_select`'s ``--cost``.
 ``--lf-source field`` (and ``--lf-set FIELD=VALUE``): the ``lightfield`` rows read the
 light fields of the field's inside (cached by :mod:`bench.support.inside_fields`).
 Written to bench/results/studies/lightfield_rerank_<split>.json (``lightfield_rerank_cost.json``).
@@ -65,10 +69,12 @@ from typing import Any
 import numpy as np
 
 from bench.common import class_nn, format_table, retrieval_scores, write_json
+from bench.studies.adaptive_rerank import AdaptiveFusion
 from bench.support import inside_fields
 from bench.support.cached import CHOICES, load
 from bench.support.features import kernel_features
 from bench.support.packings import light_field_balls
+from bench.support.tuning import Setting, configure, parse_value
 from query.search import rerank
 from query.search.field_fusion import FIELD, FieldFusion
 from query.search.field_index import FieldIndex
@@ -76,6 +82,7 @@ from query.search.index import FeatureIndex
 from query.search.lightfield_neighbours import NEIGHBOURS, stage_lists
 from query.search.lightfield_spread import local_spreads
 from query.search.rerank_lightfield import COLUMN, SPREAD, LightFieldFusion
+from query.search.tuning import PRODUCT, StageTuning, tuned
 from shapedb.config.core import Config
 from shapedb.signature.lightfield import light_field_distance, record_light_field
 
@@ -83,7 +90,8 @@ RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 SETS = ("web", "generic", "capod", "figures", "parts", "people")
 _MEASURES = ("nn", "first_tier", "dcg")
 _CHUNK = 32
-#: The stage's gate before the ratio (the pooled spread and contrast floor).
+#: The stage's gate before the ratio (the pooled spread and contrast floor): flat settings
+#: (:func:`bench.support.tuning.configure`), the stage's numbers as ``lf_<field>``.
 SPREAD_GATE = {"lf_weight": 4.0, "lf_ceiling": 0.11, "lf_ramp": 0.02, "lf_spread_candidates": 5,
                "lf_pool": 20, "lf_contrast_ramp": 0.05, "lf_ratio_weight": 0.0,
                "lf_pool_quantile": 0.5}  # fmt: skip
@@ -113,9 +121,15 @@ class Arrays:
     field vector index."""
 
     def __init__(
-        self, lf: np.ndarray, index: FeatureIndex, config: Config, fv: np.ndarray | None = None
+        self,
+        lf: np.ndarray,
+        index: FeatureIndex,
+        config: Config,
+        fv: np.ndarray | None = None,
+        tuning: StageTuning = PRODUCT,
     ) -> None:
         self.lf, self.index, self.config, self.fv = lf, index, config, fv
+        self.tuning = tuning
         self._spreads: np.ndarray | None = None
         self._lists: np.ndarray | None = None
         self._field_index: FieldIndex | None = None
@@ -127,11 +141,11 @@ class Arrays:
             return np.asarray(self.fv[ids], np.float64)
         if name == SPREAD:
             if self._spreads is None:
-                self._spreads = local_spreads(self.index, self, self.config)[1]
+                self._spreads = local_spreads(self.index, self, self.config, None, self.tuning)[1]
             return self._spreads[ids]
-        if name == NEIGHBOURS and self.config.lf_fusion.shares_neighbours:
+        if name == NEIGHBOURS and self.tuning.shares_neighbours:
             if self._lists is None:
-                stage = LightFieldFusion(self.config)
+                stage = LightFieldFusion(self.config, tuning=self.tuning)
                 self._lists = stage_lists(self.index, self, self.config, stage)[1]
             return np.asarray(self._lists[ids], np.float64)
         return None
@@ -139,7 +153,7 @@ class Arrays:
     def field_index(self) -> FieldIndex:
         """The field vector index of the store (empty without field vectors)."""
         if self._field_index is None:
-            fusion = FieldFusion.from_config(self.config)
+            fusion = FieldFusion.from_config(self.config, self.tuning)
             fv = np.zeros((0, 1)) if self.fv is None else self.fv
             self._field_index = FieldIndex(np.arange(len(fv)), fusion.scaled(fv))
         return self._field_index
@@ -162,18 +176,31 @@ def field_vectors(ds: Any, config: Config) -> np.ndarray:
 
 
 def rankings(
-    index: FeatureIndex, config: Config, lf: np.ndarray | None = None, fv: np.ndarray | None = None
+    index: FeatureIndex,
+    config: Config | Setting,
+    lf: np.ndarray | None = None,
+    fv: np.ndarray | None = None,
+    scorer: rerank.Scorer | None = None,
 ) -> np.ndarray:
-    """(n, n) ids in the order the product returns them, every shape querying by its id."""
+    """(n, n) ids in the order the product returns them, every shape querying by its id.
+
+    ``config``: the store's, at the product's numbers, or a :class:`Setting` (its
+    numbers and gate). ``scorer``: the stage in place of the setting's (e.g. the adaptive
+    stage); without light fields (``lf`` None) and ``scorer`` the index's order.
+    """
+    setting = config if isinstance(config, Setting) else Setting(config)
     x = np.asarray(index.features_, np.float64)
     n = len(x)
     out = np.empty((n, n), np.int64)
-    arrays = None if lf is None else Arrays(lf, index, config, fv)
+    arrays = None if lf is None else Arrays(lf, index, setting.config, fv, setting.tuning)
+    if scorer is None and lf is not None:
+        scorer = setting.scorer()
     for lo in range(0, n, _CHUNK):
         q = slice(lo, min(lo + _CHUNK, n))
         out[q], _ = rerank.search(
-            index, x[q], n, config=config, query_ids=np.arange(n)[q], arrays=arrays
-        )
+            index, x[q], n, config=setting.config, query_ids=np.arange(n)[q], arrays=arrays,
+            scorer=scorer,
+        )  # fmt: skip
     return out
 
 
@@ -213,12 +240,12 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     lf_cfg = Config().with_options(rerank="lightfield")
     if args.lf_source is not None:
         lf_cfg = lf_cfg.with_options(lf_source=args.lf_source)
-    for kv in args.lf_set:
-        k, v = kv.split("=", 1)
-        lf_cfg = lf_cfg.with_options(**{f"lf_{k}": float(v) if "." in v else int(v)})
-    adaptive = Config().with_options(descriptor=7, rerank="adaptive")
-    before = lf_cfg.with_options(**{**LEGACY, **NO_FIELD})
-    spread = lf_cfg.with_options(**SPREAD_GATE, **NO_FIELD)
+    lf_set = {f"lf_{k}": parse_value(v) for k, v in (kv.split("=", 1) for kv in args.lf_set)}
+    product = configure(lf_cfg, lf_set)  # the light fields' fields, or the stage's numbers
+    lf_cfg = product.config
+    adaptive = Config().with_options(descriptor=7, rerank="none")
+    before = configure(lf_cfg, {**LEGACY, **NO_FIELD}, product.tuning)
+    spread = configure(lf_cfg, {**SPREAD_GATE, **NO_FIELD}, product.tuning)
     table: dict[str, dict[str, Any]] = {
         "v4": {}, "adaptive (v7)": {}, "lightfield": {}, "lightfield (spread gate)": {},
         "lightfield (before)": {},
@@ -249,8 +276,14 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         add("v4", name, _ranks(rankings(i4, Config())), labels)
         if not args.no_adaptive:
             v7 = kernel_features(balls, Config().with_options(descriptor=7))
-            add("adaptive (v7)", name, _ranks(rankings(index_of(v7), adaptive)), labels)
-        add("lightfield", name, _ranks(rankings(i4, lf_cfg, lf, fv)), labels)
+            stage = AdaptiveFusion(adaptive)
+            add(
+                "adaptive (v7)",
+                name,
+                _ranks(rankings(index_of(v7), adaptive, scorer=stage)),
+                labels,
+            )
+        add("lightfield", name, _ranks(rankings(i4, product, lf, fv)), labels)
         add("lightfield (spread gate)", name, _ranks(rankings(i4, spread, lf)), labels)
         add("lightfield (before)", name, _ranks(rankings(i4, before, lf)), labels)
         if args.baselines:
@@ -282,101 +315,125 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     return {"split": args.split, "table": table, "per_kind_nn": per_kind}
 
 
+def _cost_store(root: Path, ds: Any, balls: Sequence[Any], setting: Setting) -> Any:
+    """A store of ``ds``'s shapes at ``setting``, committed under its numbers (a commit
+    writes the stage's tables), its index built."""
+    import shapedb
+    from query.search.index import open_index
+    from shapedb.signature.kernel import features
+    from shapedb.store.schema import ShapeRecord
+
+    cfg = setting.config
+    x = np.stack([features(b.decomposition(), cfg) for b in balls])
+    lf = light_fields(balls, cfg) if cfg.stores_light_fields else None
+    fv = field_vectors(ds, cfg) if cfg.stores_field_vectors else None
+    db = shapedb.connect(root, config=cfg)
+    with tuned(setting.tuning):
+        db.commit([
+            ShapeRecord(name=m.name, decomposition=b.decomposition(),
+                        feature=x[j].astype(np.float32), config=cfg,
+                        content_hash=hashlib.sha256(m.name.encode()).hexdigest(),
+                        representation="mesh", label=m.label,
+                        light_field=None if lf is None else lf[j],
+                        field_vector=None if fv is None else fv[j])
+            for j, (m, b) in enumerate(zip(ds.models, balls, strict=True))
+        ])  # fmt: skip
+        open_index(db)
+    return db
+
+
+def _table_times(db: Any, setting: Setting, label: str) -> dict[str, float]:
+    """Seconds to compute ``db``'s local statistics and shared-neighbour lists at ``setting``
+    (what its commit wrote), each timed alone."""
+    from query.search.index import open_index
+    from query.search.rerank_lightfield import stored_arrays
+
+    out: dict[str, float] = {}
+    index, reader, n = open_index(db), stored_arrays(db), len(db.store.features()[0])
+    t = time.perf_counter()
+    local_spreads(index, reader, setting.config, None, setting.tuning)
+    out[f"spreads_s {label}"] = time.perf_counter() - t
+    print(f"  local statistics of {n} shapes, {label}: {out[f'spreads_s {label}']:.2f} s")
+    if setting.tuning.shares_neighbours:
+        stage = LightFieldFusion(setting.config, tuning=setting.tuning)
+        t = time.perf_counter()
+        stage_lists(index, reader, setting.config, stage)
+        out[f"lists_s {label}"] = time.perf_counter() - t
+        print(f"  shared-neighbour lists of {n} shapes, {label}: {out[f'lists_s {label}']:.2f} s")
+    return out
+
+
 def cost(args: argparse.Namespace, repeats: int = 3, cold: int = 8) -> dict[str, Any]:
     """Median per-query ``db.search`` seconds of web validation stores, same run.
 
     Warm: every store's index, statistics and lists computed, ``repeats`` x n queries
     interleaved. Cold (the stage with and without the shared-neighbour term): the first
-    ``db.search`` on a fresh copy of each store as committed (its index built, nothing
-    else computed), for ``cold`` queries, paired.
+    ``db.search`` on a fresh copy of each store as committed (its index built, its tables
+    written), for ``cold`` queries, paired.
     """
     import shutil
 
     import shapedb
-    from query.search.index import open_index
-    from query.search.lightfield_neighbours import neighbour_table, store_neighbours
-    from query.search.lightfield_spread import store_spreads
+    from query.search.lightfield_neighbours import neighbour_table
     from query.search.rerank_lightfield import stored_arrays
-    from shapedb.signature.kernel import features
-    from shapedb.store.schema import ShapeRecord
 
     ds, balls = load("web", "validation")
-    product = Config().with_options(rerank="lightfield", fv_enabled=True)
-    if not product.lf_fusion.field_candidates:  # the stage's field options, if not the default
-        product = product.with_options(**FIELD_STAGE)
-    if not product.lf_fusion.shares_neighbours:  # the term, if not the default
-        product = product.with_options(lf_shared_neighbours=3, lf_shared_weight=0.8)
+    product = Setting(Config().with_options(rerank="lightfield", fv_enabled=True))
+    if not product.tuning.field_candidates:  # the stage's field numbers, if not the default
+        product = configure(product.config, FIELD_STAGE, product.tuning)
+    if not product.tuning.shares_neighbours:  # the term, if not the default
+        product = configure(product.config, {"lf_shared_neighbours": 3, "lf_shared_weight": 0.8},
+                            product.tuning)  # fmt: skip
     shared, fused = "lightfield + field vectors + shared (v4)", "lightfield + field vectors (v4)"
-    configs = {
-        "none (v4)": Config().with_options(rerank="none"),
-        "lightfield (v4)": Config().with_options(rerank="lightfield", **NO_FIELD),
-        fused: product.with_options(lf_shared_neighbours=0),
+    plain = Config().with_options(rerank="lightfield")
+    settings = {
+        "none (v4)": Setting(Config().with_options(rerank="none")),
+        "lightfield (v4)": configure(plain, NO_FIELD),
+        fused: configure(product.config, {"lf_shared_neighbours": 0}, product.tuning),
         shared: product,
-        "lightfield, spread gate (v4)": Config().with_options(
-            rerank="lightfield", **SPREAD_GATE, **NO_FIELD
-        ),
-        "adaptive (v7)": Config().with_options(descriptor=7, rerank="adaptive"),
+        "lightfield, spread gate (v4)": configure(plain, {**SPREAD_GATE, **NO_FIELD}),
     }
     out: dict[str, Any] = {"models": len(balls)}
     with tempfile.TemporaryDirectory() as tmp:
         dbs = {}
-        for k, (label, cfg) in enumerate(configs.items()):
-            x = np.stack([features(b.decomposition(), cfg) for b in balls])
-            lf = light_fields(balls, cfg) if cfg.stores_light_fields else None
-            fv = field_vectors(ds, cfg) if cfg.stores_field_vectors else None
-            db = shapedb.connect(Path(tmp) / f"s{k}", config=cfg)
-            db.commit([
-                ShapeRecord(name=m.name, decomposition=b.decomposition(),
-                            feature=x[j].astype(np.float32), config=cfg,
-                            content_hash=hashlib.sha256(m.name.encode()).hexdigest(),
-                            representation="mesh", label=m.label,
-                            light_field=None if lf is None else lf[j],
-                            field_vector=None if fv is None else fv[j])
-                for j, (m, b) in enumerate(zip(ds.models, balls, strict=True))
-            ])  # fmt: skip
-            dbs[label] = db
-            if cfg.rerank.scorer == "lightfield":  # the index-time statistic, timed alone
-                open_index(db)
+        for k, (label, st) in enumerate(settings.items()):
+            dbs[label] = _cost_store(Path(tmp) / f"s{k}", ds, balls, st)
+            if st.config.rerank.scorer == "lightfield":  # the index-time tables, timed alone
                 if label in (shared, fused):  # the store as committed, for the cold queries
-                    shutil.copytree(db.store.path, Path(tmp) / f"fresh{k}")
-                t = time.perf_counter()
-                store_spreads(db, stored_arrays(db))
-                out[f"spreads_s {label}"] = time.perf_counter() - t
-                print(f"  local statistics of {len(balls)} shapes, {label}: "
-                      f"{out[f'spreads_s {label}']:.2f} s")  # fmt: skip
-                if cfg.lf_fusion.shares_neighbours:
-                    t = time.perf_counter()
-                    store_neighbours(db, stored_arrays(db), LightFieldFusion(cfg))
-                    out[f"lists_s {label}"] = time.perf_counter() - t
-                    print(f"  shared-neighbour lists of {len(balls)} shapes, {label}: "
-                          f"{out[f'lists_s {label}']:.2f} s")  # fmt: skip
-            got = db.evaluate()
+                    shutil.copytree(dbs[label].store.path, Path(tmp) / f"fresh{k}")
+                out.update(_table_times(dbs[label], st, label))
+            with tuned(st.tuning):
+                got = dbs[label].evaluate()
             out[f"evaluate {label}"] = {m: float(getattr(got, m)) for m in _MEASURES}
             print(f"  db.evaluate {label}: {got.nn:.3f} / {got.first_tier:.3f} / {got.dcg:.3f}")
         ids = [int(i) for i in dbs["none (v4)"].store.features()[0]]
-        for db in dbs.values():
-            db.search(ids[0], k=10)  # warm: index built and loaded
+        for label, db in dbs.items():
+            with tuned(settings[label].tuning):
+                db.search(ids[0], k=10)  # warm: index built and loaded
         times: dict[str, list[float]] = {label: [] for label in dbs}
         for _ in range(repeats):
             for sid in ids:  # interleaved, so load changes hit every store alike
                 for label, db in dbs.items():
-                    t = time.perf_counter()
-                    db.search(sid, k=10)
-                    times[label].append(time.perf_counter() - t)
+                    with tuned(settings[label].tuning):
+                        t = time.perf_counter()
+                        db.search(sid, k=10)
+                        times[label].append(time.perf_counter() - t)
         first: dict[str, list[float]] = {fused: [], shared: []}
-        computed: list[int] = []  # lists the cold query computed
+        computed: list[int] = []  # lists the cold query read or computed
         sample = ids[:: max(1, len(ids) // cold)][:cold]
         for n, sid in enumerate(sample):  # cold: a fresh copy per query and store
             for label in (fused, shared) if n % 2 == 0 else (shared, fused):
-                k = list(configs).index(label)
+                k = list(settings).index(label)
                 root = Path(tmp) / f"cold{k}-{n}"
                 shutil.copytree(Path(tmp) / f"fresh{k}", root)
                 fresh = shapedb.connect(root)
-                t = time.perf_counter()
-                fresh.search(sid, k=10)
-                first[label].append(time.perf_counter() - t)
+                with tuned(settings[label].tuning):
+                    t = time.perf_counter()
+                    fresh.search(sid, k=10)
+                    first[label].append(time.perf_counter() - t)
                 if label == shared:
-                    table = neighbour_table(fresh, stored_arrays(fresh), LightFieldFusion(product))
+                    stage = LightFieldFusion(product.config, tuning=product.tuning)
+                    table = neighbour_table(fresh, stored_arrays(fresh), stage)
                     computed.append(len(table.values))
             print(f"  cold query {sid}: {first[fused][-1]:.2f} s without the term, "
                   f"{first[shared][-1]:.2f} s with it ({computed[-1]} lists)", flush=True)  # fmt: skip
@@ -422,11 +479,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--baselines", action="store_true",
                     help="the balls' light fields alone, mesh LFD and D2 in the same run")  # fmt: skip
     ap.add_argument("--per-kind", action="store_true", help="every row's NN per class")
-    ap.add_argument("--cost", action="store_true", help="only time db.search of three stores")
+    ap.add_argument("--cost", action="store_true", help="only time db.search of the stores")
     ap.add_argument("--lf-source", default=None, choices=["balls", "field"],
                     help="what the light fields see (not with --cost)")  # fmt: skip
     ap.add_argument("--lf-set", nargs="*", default=[], metavar="FIELD=VALUE",
-                    help="other LightFieldConfig fields (e.g. resolution=128)")  # fmt: skip
+                    help="other LightFieldConfig fields (e.g. resolution=128), or StageTuning's")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
     if args.cost:

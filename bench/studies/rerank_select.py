@@ -1,4 +1,4 @@
-"""Choose and measure the adaptive re-ranking stage (:mod:`query.search.rerank`) through the index.
+"""Choose and measure the adaptive re-ranking stage (the study's own) through the index.
 
 Usage (from the repository root)::
 
@@ -15,16 +15,19 @@ over the stored vectors (ids 0..n-1), and every shape queries it through
 candidates, exact re-ranking, the stage). Rows: version 4 (the index over v4
 vectors), version 7 (over v7 vectors, no stage), the views block alone (an index over
 that block), and the adaptive stage over version 7's vectors for each setting of the
-grid. The ranking of each query (itself left out) is scored with the PSB measures.
+grid (:class:`bench.studies.adaptive_rerank.AdaptiveFusion`, passed as the scorer). The
+ranking of each query (itself left out) is scored with the PSB measures.
 
 The chosen setting is the best objective (mean over the sets of (NN + 1-T + DCG) / 3)
 among those with no set's NN, 1-T or DCG more than two queries' worth below version 4
 (the "two-queries rule"); the table also says whether it beats version 4's objective
 on every set. ``--lfd`` adds the light field descriptor (:mod:`bench.support.lightfield`,
-meshes; descriptors cached). ``--cost`` times ``db.search`` on a store of the web
-validation shapes (version 7) with the stage and without it, queries interleaved, and
-scores both stores with ``db.evaluate`` (which must reproduce the web rows of the
-validation table).
+meshes; descriptors cached). ``--cost`` times the search of a store of the web
+validation shapes (version 7) with the stage and without it, queries interleaved: the
+store's index through :func:`query.search.rerank.search`, the stage passed as its scorer
+(the adaptive stage is no store's any more, so ``db.search`` cannot run it); and scores
+the store with ``db.evaluate`` (the v7 web row of the validation table) and the stage
+through the same path (the web row of its setting).
 Written to bench/results/studies/rerank_select_<split>.json (``rerank_cost.json``).
 """
 
@@ -43,6 +46,7 @@ import numpy as np
 
 from bench.common import decompose_all, format_table, retrieval_scores, write_json
 from bench.sets.datasets import CACHE_DIR, Dataset, articulated, capod, generic, parts, people, web
+from bench.studies.adaptive_rerank import AdaptiveFusion, AdaptiveSettings, block_slice
 from bench.support.lightfield import lfd_matrix
 from query.search import rerank
 from query.search.index import FeatureIndex
@@ -103,15 +107,20 @@ def descriptors(
 
 
 def ranking_scores(
-    index: FeatureIndex, x: np.ndarray, labels: np.ndarray, config: Config
+    index: FeatureIndex,
+    x: np.ndarray,
+    labels: np.ndarray,
+    config: Config,
+    scorer: rerank.Scorer | None = None,
 ) -> dict[str, float]:
-    """PSB measures of every shape querying ``index`` through :func:`query.search.rerank.search`."""
+    """PSB measures of every shape querying ``index`` through :func:`query.search.rerank.search`
+    (re-ranked by ``scorer``; None: the index's order)."""
     n = len(x)
     ids = np.arange(n)
     ranks = np.empty((n, n))
     for lo in range(0, n, _QUERY_CHUNK):
         q = slice(lo, min(lo + _QUERY_CHUNK, n))
-        got, _ = rerank.search(index, x[q], n, config=config, query_ids=ids[q])
+        got, _ = rerank.search(index, x[q], n, config=config, query_ids=ids[q], scorer=scorer)
         np.put_along_axis(ranks[q], got, np.broadcast_to(np.arange(n, dtype=float), got.shape), 1)
     return retrieval_scores(-ranks, labels)
 
@@ -154,7 +163,7 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
         data[name] = {"labels": ds.labels[keep], "v4": v4, "v7": v7, "ds": ds, "keep": keep,
                       "index7": _index(v7)}  # fmt: skip
         print(f"  {name}: {len(keep)} models", flush=True)
-    views = rerank.block_slice(Config().with_options(descriptor=7), "views")
+    views = block_slice(Config().with_options(descriptor=7), "views")
     grid = RATIO_GRID if args.grid == "ratio" else GRID
     settings = [dict(zip(grid, c, strict=True)) for c in itertools.product(*grid.values())]
     if args.setting:
@@ -177,9 +186,9 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
                 xv = np.ascontiguousarray(d["v7"][:, views])
                 s = ranking_scores(_index(xv), xv, d["labels"], Config())
             else:
-                options = {f"rerank_{k}": v for k, v in setting.items()}  # type: ignore[union-attr]
-                cfg = Config().with_options(descriptor=7, rerank="adaptive", **options)
-                s = ranking_scores(d["index7"], d["v7"], d["labels"], cfg)
+                cfg = Config().with_options(descriptor=7, rerank="none")
+                stage = AdaptiveFusion(cfg, AdaptiveSettings(**setting))  # type: ignore[arg-type]
+                s = ranking_scores(d["index7"], d["v7"], d["labels"], cfg, stage)
             entry[name] = s
         entry["objective"] = _objective(entry, list(data))
         table.append(entry)
@@ -221,51 +230,53 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def cost(args: argparse.Namespace, repeats: int = 3) -> dict[str, Any]:
-    """Median per-query ``db.search`` seconds with and without the stage, one store, same run."""
+    """Median per-query search seconds with and without the stage, one store, same run."""
     import tempfile
 
     import shapedb
+    from query.search.index import open_index
     from shapedb.store.schema import ShapeRecord
 
     ds = web().split("validation")
     balls = decompose_all(ds.models, "mesh", MDBDConfig(), workers=args.workers)
     keep, v7 = descriptors(ds, 7, args.workers, "validation")
     setting = dict(zip(GRID, args.setting or (10, 0.0, 16.0, 100, 0.35), strict=True))
-    options = {f"rerank_{k}": type(GRID[k][0])(v) for k, v in setting.items()}
-    out: dict[str, Any] = {"models": len(keep), "setting": options}
+    setting = {k: type(GRID[k][0])(v) for k, v in setting.items()}
+    out: dict[str, Any] = {"models": len(keep), "setting": setting}
+    cfg = Config().with_options(descriptor=7, rerank="none")
+    stages = {"without": None, "with": AdaptiveFusion(cfg, AdaptiveSettings(**setting))}  # type: ignore[arg-type]
     with tempfile.TemporaryDirectory() as tmp:
-        dbs = {}
-        for label, extra in (("without", {}), ("with", {"rerank": "adaptive", **options})):
-            cfg = Config().with_options(descriptor=7, **extra)
-            db = shapedb.connect(Path(tmp) / label, config=cfg)
-            db.commit([
-                ShapeRecord(name=ds.models[i].name, decomposition=balls[i].decomposition(),  # type: ignore[union-attr]
-                            feature=v7[j].astype(np.float32), config=cfg,
-                            content_hash=hashlib.sha256(ds.models[i].name.encode()).hexdigest(),
-                            representation="mesh", label=ds.models[i].label)
-                for j, i in enumerate(keep)
-            ])  # fmt: skip
-            dbs[label] = db
-        ids = [int(i) for i in dbs["with"].store.features()[0]]
-        for label, db in dbs.items():  # db.evaluate ranks as db.search does
-            got = db.evaluate()
-            out[f"evaluate_{label}"] = {m: float(getattr(got, m)) for m in _MEASURES}
-            print(f"  db.evaluate, stage {label}: NN / 1-T / DCG "
-                  f"{got.nn:.3f} / {got.first_tier:.3f} / {got.dcg:.3f}")  # fmt: skip
-        for db in dbs.values():
-            db.search(ids[0], k=10)  # warm: index built and loaded
+        db = shapedb.connect(Path(tmp) / "v7", config=cfg)
+        db.commit([
+            ShapeRecord(name=ds.models[i].name, decomposition=balls[i].decomposition(),  # type: ignore[union-attr]
+                        feature=v7[j].astype(np.float32), config=cfg,
+                        content_hash=hashlib.sha256(ds.models[i].name.encode()).hexdigest(),
+                        representation="mesh", label=ds.models[i].label)
+            for j, i in enumerate(keep)
+        ])  # fmt: skip
+        index = open_index(db)
+        got = db.evaluate()  # the store without the stage, as db.search ranks
+        out["evaluate_without"] = {m: float(getattr(got, m)) for m in _MEASURES}
+        x = np.asarray(index.features_, np.float64)
+        out["evaluate_with"] = ranking_scores(_index(v7), v7, ds.labels[keep], cfg, stages["with"])
+        for label, e in (("without", out["evaluate_without"]), ("with", out["evaluate_with"])):
+            print(f"  stage {label}: NN / 1-T / DCG "
+                  f"{e['nn']:.3f} / {e['first_tier']:.3f} / {e['dcg']:.3f}")  # fmt: skip
+        ids = [int(i) for i in db.store.features()[0]]
         times: dict[str, list[float]] = {"with": [], "without": []}
         for _ in range(repeats):
             for sid in ids:  # interleaved, so load changes hit both alike
-                for label, db in dbs.items():
+                q = x[index.lookup(np.array([sid]))]
+                for label, stage in stages.items():
                     t = time.perf_counter()
-                    db.search(sid, k=10)
+                    rerank.search(index, q, 10, config=cfg, query_ids=np.array([sid]),
+                                  scorer=stage)  # fmt: skip
                     times[label].append(time.perf_counter() - t)
     med = {k: float(np.median(v)) for k, v in times.items()}
     out.update({f"median_s_{k}": v for k, v in med.items()})
     out["ratio"] = med["with"] / med["without"]
     print(format_table(
-        f"db.search per query, k = 10, {len(ids)} stored web shapes (v7), {repeats} x {len(ids)} queries",
+        f"search per query, k = 10, {len(ids)} stored web shapes (v7), {repeats} x {len(ids)} queries",
         ("stage", "median ms", "ratio"),
         [["none", f"{med['without'] * 1e3:.2f}", "1.00"],
          [f"adaptive ({_setting(setting)})", f"{med['with'] * 1e3:.2f}", f"{out['ratio']:.2f}"]],
@@ -286,7 +297,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--grid", default="overlap", choices=["overlap", "ratio"],
                     help="overlap: k x p x w x K (ratio off); ratio: with the spread ceiling")  # fmt: skip
     ap.add_argument("--lfd", action="store_true", help="add the light field descriptor's row")
-    ap.add_argument("--cost", action="store_true", help="only time db.search with and without")
+    ap.add_argument(
+        "--cost", action="store_true", help="only time the search with and without the stage"
+    )
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)

@@ -33,14 +33,14 @@ from bench.support.stores import (
     score_row,
     shared_stores,
 )
-from shapedb.config.core import Config
+from query.search.tuning import PRODUCT
 
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 
 
 def rows(split_name: str, k: int | None = None, beta: float | None = None) -> dict[str, Any]:
     """The three rows on every store of the split (the product's k and beta unless given)."""
-    f = Config().lf_fusion
+    f = PRODUCT
     if k is not None and beta is not None:
         f = dataclasses.replace(f, shared_neighbours=int(k), shared_weight=float(beta))
     split, stores, base = product_stores(split_name)

@@ -17,7 +17,7 @@ spherical-harmonic energies of the same inside (Kazhdan, on an angle grid: 32 sh
 harmonic parts, ``m_*`` fixed scales, ``a`` and ``c`` the weights: the fields
 ``field_depth_weight``, ``field_harmonic_weight``, ``light_field_scale``,
 ``field_depth_scale``, ``field_harmonic_scale`` of
-:class:`shapedb.config.core.LightFieldFusionConfig`), and its candidates are version 4's ``K``
+:class:`query.search.tuning.StageTuning`), and its candidates are version 4's ``K``
 nearest followed by those of the ``K2`` nearest by the L1 distance of the scaled vectors
 ``[depth / m_b, harmonic / m_h]`` (``field_candidates``) that are not among them, in the
 stored distance's order.
@@ -66,7 +66,7 @@ HARMONIC_DIM = 32 * 16
 
 @dataclasses.dataclass(frozen=True)
 class FieldStage:
-    """The field vectors' part of the stage (the fields of ``LightFieldFusionConfig``).
+    """The field vectors' part of the stage (the fields of ``StageTuning``).
 
     Attributes
     ----------
@@ -92,7 +92,7 @@ class FieldStage:
 
     @classmethod
     def of(cls, fusion: Any) -> FieldStage | None:
-        """The stage of a ``LightFieldFusionConfig`` (None when it has no field vectors)."""
+        """The stage of a ``StageTuning`` (None when it has no field vectors)."""
         names = {"depth_weight": "field_depth_weight",
                  "harmonic_weight": "field_harmonic_weight",
                  "light_field_scale": "light_field_scale", "depth_scale": "field_depth_scale",
@@ -298,13 +298,13 @@ CHOSEN = FieldStage(0.25, 0.25, 20.67, 6.045, 2.168, 200)
 def stage_of(args: argparse.Namespace) -> FieldStage | None:
     """The field stage a gate bench run asks for (None: the light field alone).
 
-    ``--no-field-vectors``: None. No flag: the product's (``LightFieldFusionConfig()``'s
+    ``--no-field-vectors``: None. No flag: the product's (:data:`query.search.tuning.PRODUCT`'s
     fields, None while it has none). ``--field-vectors`` or any ``--fv-*``: the
     product's stage (:data:`CHOSEN` while it is off) with those values replaced.
     """
-    from shapedb.config.core import Config
+    from query.search.tuning import PRODUCT
 
-    product = FieldStage.of(Config().lf_fusion)
+    product = FieldStage.of(PRODUCT)
     on = getattr(args, "field_vectors", None)
     given = {k: getattr(args, k, None) for k in ("fv_weights", "fv_scales", "fv_candidates")}
     if on is False or (on is None and all(v is None for v in given.values())):

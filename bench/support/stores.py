@@ -6,7 +6,7 @@ stage's distance (the light fields', or its fusion with the field vectors:
 (version 4's K, and with the field vectors the union with their K2 nearest) and its
 rankings at per-query weights; :func:`gate_weights` the product's own gate
 (:meth:`query.search.rerank_lightfield.LightFieldFusion.gate`, at any
-:class:`shapedb.config.core.LightFieldFusionConfig`) on a store; :func:`score_row` a row
+:class:`query.search.tuning.StageTuning`) on a store; :func:`score_row` a row
 of scores against version 4 with the two-queries rule. Used by :mod:`bench.rerank` (the
 product's stage at its defaults) and by the studies that tune it
 (:mod:`bench.studies.lightfield_gate`, :mod:`bench.studies.field_choice`, ...).
@@ -30,8 +30,10 @@ from bench.support import cached, inside_fields
 from bench.support.cached import load
 from bench.support.features import kernel_features
 from bench.support.packings import light_field_balls
+from bench.support.tuning import OverlapFusion, parse_value, with_light_field
 from query.search.lightfield_spread import local_statistic, pooled
 from query.search.rerank_lightfield import LightFieldFusion
+from query.search.tuning import PRODUCT
 from shapedb.config.core import Config
 from shapedb.signature import lightfield, lightfield_descriptor
 from shapedb.signature.descriptor import LAYOUTS
@@ -40,6 +42,7 @@ from shapedb.signature.lightfield import light_field_distance, record_light_fiel
 __all__ = [
     "SETS",
     "MIXES",
+    "STAGE_NOW",
     "CHOICES",
     "MEASURES",
     "Split",
@@ -72,6 +75,8 @@ MIXES = {
 #: Sets a run may name: the six, and the held-out ones :mod:`bench.support.cached` knows (``webplus``).
 CHOICES = tuple(getattr(cached, "CHOICES", SETS))
 MEASURES = ("nn", "first_tier", "dcg")
+#: The row of the stage at the tuning a run scores (the product's unless a study says).
+STAGE_NOW = "stage now (the product's StageTuning)"
 
 
 class Split:
@@ -116,10 +121,7 @@ class Split:
             kv
         ) in lf_set:  # other light-field settings (the field's: bench.support.inside_fields.cut)
             k, v = kv.split("=", 1)
-            value: Any = (
-                v if not v.replace(".", "", 1).isdigit() else float(v) if "." in v else int(v)
-            )
-            cfg = cfg.with_options(**{f"lf_{k}": value})
+            cfg = with_light_field(cfg, **{k: parse_value(v)})
         lf_n_balls = cfg.light_field.n_balls
         for name in names:
             ds, balls = load(name, split)
@@ -386,11 +388,6 @@ class Store:
         return out
 
 
-def _with_fusion(f: Any) -> Config:
-    """The default configuration with ``f`` as its ``lf_fusion`` (what the product's gate reads)."""
-    return dataclasses.replace(Config(), lf_fusion=f)
-
-
 def local_spreads(st: Store, candidates: int, typical: float, ratio_weight: float = 0.0,
                   ratio_candidates: int = 100) -> FloatArray:  # fmt: skip
     """(n,) each stored shape's local statistic over its nearest others in the store.
@@ -400,11 +397,10 @@ def local_spreads(st: Store, candidates: int, typical: float, ratio_weight: floa
     ``ratio_candidates``, of each shape's nearest others by the stored distance
     (:meth:`Store.nearest`).
     """
-    f = dataclasses.replace(Config().lf_fusion, spread_candidates=candidates, typical=typical,
+    f = dataclasses.replace(PRODUCT, spread_candidates=candidates, typical=typical,
                             ratio_weight=ratio_weight, ratio_candidates=ratio_candidates)  # fmt: skip
-    config = _with_fusion(f)
     d, ll = st.nearest(max(candidates, ratio_candidates) if ratio_weight > 0 else candidates)
-    return np.array([local_statistic(d[i], ll[i], config) for i in range(len(d))])
+    return np.array([local_statistic(d[i], ll[i], f) for i in range(len(d))])
 
 
 def shape_statistics(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
@@ -421,7 +417,7 @@ def shape_statistics(st: Store, f: Any, memo: dict[Any, FloatArray] | None = Non
 
 
 def gate_statistic(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
-    """(n,) ``s_q`` of :class:`shapedb.config.core.LightFieldFusionConfig` ``f`` for every query.
+    """(n,) ``s_q`` of every query under the stage's numbers ``f`` (a ``StageTuning``).
 
     The shape's own local statistic (:func:`shape_statistics`), or with ``f.pool`` its
     ``pool_quantile`` over the first ``pool`` candidates (the product's
@@ -440,14 +436,22 @@ def gate_statistic(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None)
     return s
 
 
-def gate_weights(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
-    """(n,) ``weight * g(q)`` of :class:`shapedb.config.core.LightFieldFusionConfig` ``f``.
+def gate_weights(
+    st: Store, f: Any, memo: dict[Any, FloatArray] | None = None, power: float = 0.0
+) -> FloatArray:
+    """(n,) ``weight * g(q)`` under the stage's numbers ``f`` (a ``StageTuning``).
 
     ``g(q)`` is the product's gate (:meth:`query.search.rerank_lightfield.LightFieldFusion.gate`)
     on each query's candidates, reading the stored shapes' :func:`shape_statistics`.
     ``memo``: the pooled statistics already computed, by store and the fields they read.
+    ``power`` > 0: times the overlap gate of the stage before the spread ceiling
+    (:class:`bench.support.tuning.OverlapFusion`).
     """
-    scorer = LightFieldFusion(_with_fusion(f))
+    scorer = (
+        OverlapFusion(Config(), tuning=f, power=power)
+        if power > 0
+        else LightFieldFusion(Config(), tuning=f)
+    )
     spreads = shape_statistics(st, f, memo) if f.ceiling > 0 and f.pool > 0 else None
     g = np.empty(len(st.rows))
     for q in range(len(g)):
@@ -502,7 +506,7 @@ def shared_rows(stores: dict[str, Store], split: Split, f: Any,
 
     With ``f``'s shared-neighbour term on, first the same stage without it; then the stage
     at every ``(k, beta)`` of ``grid`` (a study's); last the stage at ``f``
-    (``"stage now (LightFieldFusionConfig defaults)"``). ``within``: where ``N_k`` is taken
+    (:data:`STAGE_NOW`). ``within``: where ``N_k`` is taken
     (:meth:`Store.with_shared`).
     """
     gated = {k: gate_weights(st, f) for k, st in stores.items()}
@@ -513,9 +517,7 @@ def shared_rows(stores: dict[str, Store], split: Split, f: Any,
         g = dataclasses.replace(f, shared_neighbours=k, shared_weight=beta)
         rows[f"stage now, shared k {k} beta {beta:g}"] = score_row(
             shared_stores(stores, split, g, within), gated, base)  # fmt: skip
-    rows["stage now (LightFieldFusionConfig defaults)"] = score_row(
-        shared_stores(stores, split, f, within), gated, base
-    )
+    rows[STAGE_NOW] = score_row(shared_stores(stores, split, f, within), gated, base)
     return rows
 
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from bench.support.field_vectors import FieldStage, union_order
 from bench.support.stores import Store, gate_weights
-from shapedb.config.core import Config
+from query.search.tuning import PRODUCT
 
 
 def _split(n: int = 40, seed: int = 5) -> SimpleNamespace:
@@ -36,7 +36,7 @@ def test_the_union_is_the_k_then_the_field_vectors_extras_in_stored_order() -> N
 
 def test_no_extras_leave_the_store_as_it_was() -> None:
     split = _split()
-    f = Config().lf_fusion
+    f = PRODUCT
     plain = Store(split, np.arange(40), candidates=10)  # type: ignore[arg-type]
     within = Store(split, np.arange(40), candidates=10, field_candidates=0)  # type: ignore[arg-type]
     w = np.full(40, 4.0)
@@ -77,7 +77,7 @@ def test_the_analytic_gates_on_the_light_field_distance_are_the_product_s(tmp_pa
     from bench.support.field_vectors import analytic_distance
 
     stores = analytic_stores(tmp_path)
-    f = Config().lf_fusion
+    f = PRODUCT
     for name, db in stores.items():
         want = analytic_gates(db, f, {})  # the product's local spreads and gate
         got = analytic_gates(db, f, {}, lambda q, ids, dl: dl)  # the bench's, same distance
@@ -99,7 +99,7 @@ def test_a_run_s_stage_is_the_product_s_unless_flags_say_otherwise() -> None:
     from bench.studies.lightfield_gate import parser
     from bench.support.field_vectors import CHOSEN, stage_of
 
-    product = FieldStage.of(Config().lf_fusion)
+    product = FieldStage.of(PRODUCT)
     assert stage_of(parser().parse_args([])) == product
     assert stage_of(parser().parse_args(["--no-field-vectors"])) is None
     got = stage_of(parser().parse_args(["--fv-candidates", "200", "--fv-weights", "0.25", "0.3"]))

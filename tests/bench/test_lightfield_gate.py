@@ -10,6 +10,7 @@ import pytest
 from bench.studies.lightfield_rerank import index_of, rankings
 from bench.support.features import kernel_features
 from bench.support.stores import Split, Store, gate_weights
+from query.search.tuning import PRODUCT
 from shapedb.config.core import Config
 
 
@@ -25,15 +26,15 @@ def test_the_gate_bench_ranks_the_parts_and_people_as_the_product() -> None:
     # the product's light fields without the field vectors (the split fuses none), the
     # shared-neighbour term on; a shape's N_k among its candidates, as the product's table
     config = Config().with_options(rerank="lightfield", fv_enabled=False)
-    assert config.lf_fusion.shares_neighbours
+    assert PRODUCT.shares_neighbours
     split = Split("validation", ("parts", "people"))
     for name in ("parts", "people"):
         st = Store(split, split.store([name]))
         ds, balls = load(name, "validation")
         lf = inside_fields.light_fields(name, "validation", ds, config.light_field)
         got = rankings(index_of(kernel_features(balls, Config())), config, lf.astype(np.float64))
-        weights = gate_weights(st, config.lf_fusion)
-        want = shared_stores({name: st}, split, config.lf_fusion, "candidates")[name]
+        weights = gate_weights(st, PRODUCT)
+        want = shared_stores({name: st}, split, PRODUCT, "candidates")[name]
         assert np.array_equal(got, want.rankings(weights)), name
         # the term moves rigid parts; the people's gate is shut, so it moves none of them
         moved = not np.array_equal(want.rankings(weights), st.rankings(weights))
@@ -89,6 +90,7 @@ def test_a_store_s_nearest_others_are_its_candidates_without_itself() -> None:
 
 
 def test_the_bench_s_shared_term_ranks_as_the_product() -> None:
+    import dataclasses
     from types import SimpleNamespace
 
     from bench.studies.lightfield_rerank import Arrays
@@ -96,6 +98,7 @@ def test_the_bench_s_shared_term_ranks_as_the_product() -> None:
     from query.search import rerank
     from query.search.index import FeatureIndex
     from query.search.lightfield_spread import calibration
+    from query.search.rerank_lightfield import LightFieldFusion
     from shapedb.signature.kernel import weights
     from shapedb.signature.lightfield import light_field_distance
 
@@ -104,10 +107,10 @@ def test_the_bench_s_shared_term_ranks_as_the_product() -> None:
     lf = rng.random((4, 3, 10, 46))[np.arange(n) % 4] + 0.3 * rng.random((n, 3, 10, 46))
     dl = light_field_distance(lf)
     # every shape a candidate, the gate open: the light field's rank and the term decide
-    config = Config().with_options(
-        rerank="lightfield", rerank_candidates=n, fv_enabled=False, lf_power=0.0,
-        lf_ceiling=0.0, lf_contrast_floor=0.0, lf_pool=0, lf_shared_neighbours=3,
-        lf_shared_weight=0.8, lf_typical=float(np.median(dl)),
+    config = Config().with_options(rerank="lightfield", fv_enabled=False)
+    tuning = dataclasses.replace(
+        PRODUCT, candidates=n, ceiling=0.0, contrast_floor=0.0, pool=0, shared_neighbours=3,
+        shared_weight=0.8, typical=float(np.median(dl)),
     )  # fmt: skip
     x = rng.random((n, config.dim)).astype(np.float32)
     index = FeatureIndex(kind="flat").fit(np.arange(n), x, weights(config))
@@ -116,9 +119,10 @@ def test_the_bench_s_shared_term_ranks_as_the_product() -> None:
     split = SimpleNamespace(labels=np.arange(n) % 4, sets=np.zeros(n), d4=d4, dl=dl)
     st = Store(split, np.arange(n), candidates=n)  # type: ignore[arg-type]
     got, _ = rerank.search(index, xs, n, config=config, query_ids=np.arange(n),
-                           arrays=Arrays(lf, index, config))  # fmt: skip
-    w = gate_weights(st, config.lf_fusion)
-    want = shared_stores({"s": st}, split, config.lf_fusion)["s"].rankings(w)  # type: ignore[arg-type]
+                           scorer=LightFieldFusion(config, tuning=tuning),
+                           arrays=Arrays(lf, index, config, tuning=tuning))  # fmt: skip
+    w = gate_weights(st, tuning)
+    want = shared_stores({"s": st}, split, tuning)["s"].rankings(w)  # type: ignore[arg-type]
     assert np.array_equal(got, want)
     assert not np.array_equal(want, st.rankings(w))  # the term moved some rankings
     assert np.array_equal(want[:, :2], st.rankings(w)[:, :2])  # never the first result
@@ -142,7 +146,7 @@ def test_the_contrast_grid_scores_every_setting_with_the_term() -> None:
     st = Store(split, np.arange(n), candidates=30)  # type: ignore[arg-type]
     stores = {"web": st}
     base = {"web": st.per_set(st.measures(np.zeros(n)))}
-    f = dataclasses.replace(Config().lf_fusion, ceiling=0.0, pool=0)
+    f = dataclasses.replace(PRODUCT, ceiling=0.0, pool=0)
     rows = contrast_rows(stores, split, f, base)  # type: ignore[arg-type]
     floors, ramps, depths = CONTRAST_GRID
     assert len(rows) == 1 + (len(floors) - 1) * len(ramps) * len(depths) + 1

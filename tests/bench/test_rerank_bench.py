@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from bench.rerank import baseline_rows
-from bench.support.stores import shared_rows
-from shapedb.config.core import Config
+from bench.support.stores import STAGE_NOW, shared_rows
+from query.search.tuning import PRODUCT
 
 
 class _Split:
@@ -37,5 +37,5 @@ def test_the_rows_compare_the_stage_with_version_4_on_every_store() -> None:
     assert v4["stores"] == base
     alone = rows["light fields alone (K = 100)"]
     assert alone["objective"] > v4["objective"]  # the stage's distance knows the classes
-    rows.update(shared_rows(stores, split, Config().lf_fusion, base))  # type: ignore[arg-type]
-    assert "stage now (LightFieldFusionConfig defaults)" in rows
+    rows.update(shared_rows(stores, split, PRODUCT, base))  # type: ignore[arg-type]
+    assert STAGE_NOW in rows
