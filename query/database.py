@@ -160,24 +160,32 @@ class Database:
         return result, committed
 
     def _notify(self, result: CommitResult) -> None:
-        """Bring the derived state up to date: the indexes already built, and the re-ranking
-        stage's side tables (the one place that writes them)."""
+        """Bring the derived state already on disk up to date: the indexes, and the re-ranking
+        stage's side tables (their writers: this and the end of :meth:`ingest`)."""
         from query.parts import index as parts_index
-        from query.search import index, lightfield_neighbours, lightfield_spread
-        from query.search.rerank_lightfield import stored_arrays
-        from query.search.stage import scorer_for
+        from query.search import index
 
         try:
             index.on_commit(self, result)
             parts_index.on_commit(self, result)
-            stage = scorer_for(self.config)
-            if stage is not None:  # the stage's side tables, computed and written here
-                lightfield_spread.on_commit(self, stored_arrays(self))
-                lightfield_neighbours.on_commit(self, stored_arrays(self), stage)
+            self._write_side_tables(create=False)
         except Exception:  # derived state only: the commit itself stands
             log.warning(
                 "updating the indexes failed after version %d", result.version, exc_info=True
             )
+
+    def _write_side_tables(self, *, create: bool) -> None:
+        """Compute and write the stage's side tables (spreads, shared-neighbour lists) at the
+        store's version: those already written (``create`` False), or all of them."""
+        from query.search import lightfield_neighbours, lightfield_spread
+        from query.search.rerank_lightfield import stored_arrays
+        from query.search.stage import scorer_for
+
+        stage = scorer_for(self.config)
+        if stage is None or not len(self.store):
+            return
+        lightfield_spread.on_commit(self, stored_arrays(self), create=create)
+        lightfield_neighbours.on_commit(self, stored_arrays(self), stage, create=create)
 
     # ---------------------------------------------------------------- ingest
     def ingest(
@@ -254,6 +262,10 @@ class Database:
             max_bytes=max_bytes,
             max_faces=max_faces,
         )
+        try:  # once per ingest, not per batch: the stage's tables for later processes
+            self._write_side_tables(create=True)
+        except Exception:  # derived state only: what was ingested stands
+            log.warning("writing the re-ranking tables failed after ingest", exc_info=True)
         return cast(IngestReport, report)
 
     def delete(self, ids_or_names: int | str | Iterable[int | str]) -> int:

@@ -36,6 +36,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Iterator
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
@@ -45,6 +46,7 @@ from query.search.field_fusion import FieldFusion
 from query.search.rerank import Candidates, stage_batch
 from query.search.shape_table import ShapeTable, index_version, shared_table
 from query.search.tuning import PRODUCT, StageTuning
+from query.search.versioned import POINTER
 
 if TYPE_CHECKING:
     from query.database import Database
@@ -323,17 +325,22 @@ def store_neighbours(db: Database, fields: ArrayReader, scorer: StageRows) -> di
     return dict(table.values)
 
 
-def on_commit(db: Database, fields: ArrayReader, scorer: StageRows) -> None:
+def on_commit(
+    db: Database, fields: ArrayReader, scorer: StageRows, *, create: bool = False
+) -> None:
     """Bring the lists up to date after a commit, for a store whose stage reads them.
 
     Only a store with the ``"lightfield"`` scorer and the term on
     (:attr:`query.search.tuning.StageTuning.shares_neighbours`) whose lists cost at most
-    :data:`FULL_AT_COMMIT` stage distances (:func:`commit_distances`): the table is
-    computed and written here, the one place that writes it; a larger store's searches
-    compute the lists they read, in memory.
+    :data:`FULL_AT_COMMIT` stage distances (:func:`commit_distances`), and whose table
+    was written before unless ``create`` (the end of an ingest): the table is computed and
+    written here, the one place that writes it; other stores' searches compute the lists
+    they read, in memory.
     """
     cfg = db.config
     if cfg.rerank.scorer != "lightfield" or not scorer.tuning.shares_neighbours:
+        return
+    if not create and not (Path(db.store.path) / NEIGHBOUR_DIR / POINTER).exists():
         return
     table = neighbour_table(db, fields, scorer)
     if commit_distances(table.n_alive, cfg, scorer.tuning) <= FULL_AT_COMMIT:

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import logging
 import threading
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -47,6 +48,7 @@ from numpy.typing import NDArray
 from query.search.field_fusion import FieldFusion
 from query.search.shape_table import ShapeTable, index_version, shared_table
 from query.search.tuning import PRODUCT, StageTuning, active
+from query.search.versioned import POINTER
 
 if TYPE_CHECKING:
     from query.database import Database
@@ -303,16 +305,19 @@ def store_spreads(
     return dict(table.values)
 
 
-def on_commit(db: Database, fields: ArrayReader) -> None:
+def on_commit(db: Database, fields: ArrayReader, *, create: bool = False) -> None:
     """Bring the spreads up to date after a commit, for a store whose stage pools them.
 
     Only a store with the ``"lightfield"`` scorer whose statistics cost at most
-    :data:`FULL_AT_COMMIT` light field distances (:func:`commit_distances`): the table
-    is computed and written here, the one place that writes it; a larger store's
-    searches compute the spreads they pool, in memory.
+    :data:`FULL_AT_COMMIT` light field distances (:func:`commit_distances`), and whose
+    table was written before unless ``create`` (the end of an ingest): the table is
+    computed and written here, the one place that writes it; other stores' searches
+    compute the spreads they pool, in memory.
     """
     tuning = active()
     if db.config.rerank.scorer != "lightfield" or tuning.pool <= 0:
+        return
+    if not create and not (Path(db.store.path) / SPREAD_DIR / POINTER).exists():
         return
     table = spread_table(db, fields, tuning)
     if commit_distances(int(np.count_nonzero(table.index.alive_)), tuning) <= FULL_AT_COMMIT:
