@@ -48,9 +48,7 @@ const d = ctx.getImageData(0, 0, c.width, c.height).data;
 let n = 0;
 for (let i = 0; i < d.length; i += 4) {
   const [r, g, b] = [d[i], d[i + 1], d[i + 2]];
-  if (mode === 'red' ? (r > 150 && g < 90 && b < 90)
-      : mode === 'solid' ? (r + g + b) / 3 < 200
-      : (r < 235 || g < 235 || b < 235)) n++;
+  if (mode === 'red' ? (r > 150 && g < 90 && b < 90) : (r < 235 || g < 235 || b < 235)) n++;
 }
 return n;
 """
@@ -82,6 +80,20 @@ HTMLCanvasElement.prototype.getContext = function (type, ...rest) {
   if (ctx && type.startsWith('webgl') && !window.__webgl.includes(ctx)) window.__webgl.push(ctx);
   return ctx;
 };
+"""
+# The mean brightness (0-255) of a canvas's non-white pixels, and how many there are.
+INK_MEAN = """
+const canvas = arguments[0];
+const c = document.createElement('canvas');
+c.width = canvas.width; c.height = canvas.height;
+const ctx = c.getContext('2d');
+ctx.drawImage(canvas, 0, 0);
+const d = ctx.getImageData(0, 0, c.width, c.height).data;
+let [n, sum] = [0, 0];
+for (let i = 0; i < d.length; i += 4) {
+  if (d[i] < 235 || d[i + 1] < 235 || d[i + 2] < 235) { n++; sum += (d[i] + d[i + 1] + d[i + 2]) / 3; }
+}
+return [n ? sum / n : 255, n];
 """
 ACTIVE_CONTEXTS = "return window.__webgl.filter((g) => !g.isContextLost()).length"
 
@@ -403,7 +415,8 @@ def test_the_surface_is_solid_when_the_balls_are_hidden(searched, shots):
     balls.click()  # balls off
     assert searched.execute_script(view + ".balls.visible") is False
     canvas = _canvas(searched, "query-view")
-    shaded = searched.execute_script(PIXELS, canvas, "solid")
-    assert shaded > 5000, shaded  # the box drawn solid, not a faint outline
+    mean, ink = searched.execute_script(INK_MEAN, canvas)
+    assert ink > 5000 and mean < 150, (mean, ink)  # the box drawn solid, not a faint veil
+    assert searched.execute_script(view + ".surface.material.opacity") == 1
     _shot(searched, shots, "10-surface-only")
     balls.click()

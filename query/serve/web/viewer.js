@@ -6,7 +6,7 @@ import { OrbitControls } from "three/addons/OrbitControls.js";
 const BALL = new THREE.Color(0x4c9bd6);
 const FAINT = new THREE.Color(0xc8c8c8);
 const HIT = new THREE.Color(0xd62728);
-const SURFACE = 0x8a96a3;
+const SURFACE = 0xa7b1bc;
 const FILL = 1.04; // camera distance over the one that makes the bounding ball touch the view
 
 // The surface as a light veil over the balls, or solid and shaded when the balls are hidden.
@@ -14,6 +14,7 @@ function setSolid(surf, solid) {
   const m = surf.material;
   m.transparent = !solid;
   m.opacity = solid ? 1 : (surf.isPoints ? 0.6 : 0.35);
+  if (surf.isPoints) m.size = surf.userData.size * (solid ? 2.5 : 1);
   m.depthWrite = solid;
   m.needsUpdate = true;
 }
@@ -109,6 +110,7 @@ export function buildShape(shape, surface, { highlight = null, faint = false } =
     surf = new THREE.Points(g, new THREE.PointsMaterial({
       color: 0x666666, size: boundsOf(shape).size / 250, transparent: true, opacity: 0.6,
     }));
+    surf.userData.size = surf.material.size;
   }
   if (surf) group.add(surf);
   return { group, balls, graph, surface: surf };
