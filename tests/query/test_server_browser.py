@@ -37,39 +37,52 @@ CHROME_FLAGS = [
     "--window-size=1280,900",
 ]
 
-# Pixels of a canvas that are not (nearly) white, and those that are the highlight red.
-PIXELS = """
-const [canvas, mode] = arguments;
+# A copy of the canvas arguments[0]'s pixels: d (RGBA bytes), c (its width and height).
+_READ = """
 const c = document.createElement('canvas');
-c.width = canvas.width; c.height = canvas.height;
+c.width = arguments[0].width; c.height = arguments[0].height;
 const ctx = c.getContext('2d');
-ctx.drawImage(canvas, 0, 0);
+ctx.drawImage(arguments[0], 0, 0);
 const d = ctx.getImageData(0, 0, c.width, c.height).data;
+const ink = (i) => d[i] < 235 || d[i + 1] < 235 || d[i + 2] < 235;
+"""
+
+# Pixels of a canvas that are not (nearly) white, and those that are the highlight red.
+PIXELS = (
+    _READ
+    + """
 let n = 0;
 for (let i = 0; i < d.length; i += 4) {
   const [r, g, b] = [d[i], d[i + 1], d[i + 2]];
-  if (mode === 'red' ? (r > 150 && g < 90 && b < 90) : (r < 235 || g < 235 || b < 235)) n++;
+  if (arguments[1] === 'red' ? (r > 150 && g < 90 && b < 90) : ink(i)) n++;
 }
 return n;
 """
+)
 
 # The box of a canvas's non-white pixels, as fractions of its width and height.
-INK_BOX = """
-const canvas = arguments[0];
-const c = document.createElement('canvas');
-c.width = canvas.width; c.height = canvas.height;
-const ctx = c.getContext('2d');
-ctx.drawImage(canvas, 0, 0);
-const d = ctx.getImageData(0, 0, c.width, c.height).data;
+INK_BOX = (
+    _READ
+    + """
 let [x0, y0, x1, y1] = [c.width, c.height, -1, -1];
 for (let y = 0; y < c.height; y++) for (let x = 0; x < c.width; x++) {
-  const i = 4 * (y * c.width + x);
-  if (d[i] < 235 || d[i + 1] < 235 || d[i + 2] < 235) {
+  if (ink(4 * (y * c.width + x))) {
     x0 = Math.min(x0, x); x1 = Math.max(x1, x); y0 = Math.min(y0, y); y1 = Math.max(y1, y);
   }
 }
 return x1 < 0 ? [0, 0] : [(x1 - x0 + 1) / c.width, (y1 - y0 + 1) / c.height];
 """
+)
+
+# The mean brightness (0-255) of a canvas's non-white pixels, and how many there are.
+INK_MEAN = (
+    _READ
+    + """
+let [n, sum] = [0, 0];
+for (let i = 0; i < d.length; i += 4) if (ink(i)) { n++; sum += (d[i] + d[i + 1] + d[i + 2]) / 3; }
+return [n ? sum / n : 255, n];
+"""
+)
 
 # Counts the WebGL contexts the page makes, and keeps them to see which are still active.
 COUNT_CONTEXTS = """
@@ -80,20 +93,6 @@ HTMLCanvasElement.prototype.getContext = function (type, ...rest) {
   if (ctx && type.startsWith('webgl') && !window.__webgl.includes(ctx)) window.__webgl.push(ctx);
   return ctx;
 };
-"""
-# The mean brightness (0-255) of a canvas's non-white pixels, and how many there are.
-INK_MEAN = """
-const canvas = arguments[0];
-const c = document.createElement('canvas');
-c.width = canvas.width; c.height = canvas.height;
-const ctx = c.getContext('2d');
-ctx.drawImage(canvas, 0, 0);
-const d = ctx.getImageData(0, 0, c.width, c.height).data;
-let [n, sum] = [0, 0];
-for (let i = 0; i < d.length; i += 4) {
-  if (d[i] < 235 || d[i + 1] < 235 || d[i + 2] < 235) { n++; sum += (d[i] + d[i + 1] + d[i + 2]) / 3; }
-}
-return [n ? sum / n : 255, n];
 """
 ACTIVE_CONTEXTS = "return window.__webgl.filter((g) => !g.isContextLost()).length"
 
