@@ -36,7 +36,7 @@ export function webglAvailable() {
   return webgl;
 }
 
-// The smallest ball around the balls (and the surface's points): {centre, radius}.
+// A ball around the balls and the surface's points, centred on their box: {centre, radius}.
 function sphereOf(shape, surface) {
   const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
   const points = surface ? (surface.kind === "mesh" ? surface.vertices : surface.points || []) : [];
@@ -123,7 +123,7 @@ function lights(scene) {
   scene.add(sun);
 }
 
-// The camera of the thumbnails (matplotlib's elevation 20, azimuth -60, z up).
+// The camera of the thumbnails (elevation 20°, azimuth -60°, z up).
 const VIEW = new THREE.Vector3(0.47, -0.814, 0.342);
 
 // Point the camera at the shape from the thumbnails' side, near enough that the bounding
