@@ -4,7 +4,8 @@
 stages it calls (ingest, search, SQL, matching, evaluation, learning) sit below it, in
 ``ingest`` and ``query``; each method imports the function it calls, so a reader follows
 any call by its imports. After every commit the derived state that was already built
-(the faiss indexes and the re-ranking stage's side tables) is brought up to date.
+(the faiss indexes and the re-ranking stage's side tables) is brought up to date, and the
+web page's thumbnails of the new shapes are drawn.
 ``shapedb.connect`` and ``shapedb.Database`` are lazy re-exports of this module.
 """
 
@@ -157,7 +158,18 @@ class Database:
         result = self.store.commit(records, failures=failures, delete=delete, assigned=committed)
         if result.added or result.deleted:
             self._notify(result)
+            self._draw_thumbnails(committed, result.deleted)
         return result, committed
+
+    def _draw_thumbnails(self, committed: Sequence[ShapeRecord], deleted: Sequence[int]) -> None:
+        """Draw the web page's thumbnails of the committed shapes (derived state: a failure
+        is logged and the commit stands; a few milliseconds a shape)."""
+        from query.serve.thumbnails import draw_committed
+
+        try:
+            draw_committed(self.path, committed, deleted)
+        except Exception:  # noqa: BLE001 - the page draws a missing one at its first view
+            log.warning("drawing thumbnails failed after a commit", exc_info=True)
 
     def _notify(self, result: CommitResult) -> None:
         """Bring the derived state already on disk up to date: the indexes, and the re-ranking

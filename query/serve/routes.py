@@ -177,7 +177,7 @@ class Api:
         return json_response(payload)
 
     def thumbnail(self, id: str) -> FileResponse:
-        """A small picture of the shape's balls, drawn at the first request and cached."""
+        """A small picture of the shape's balls, drawn when it was committed (else now, once)."""
         from query.serve.thumbnails import thumbnail as draw
 
         path = draw(self.db, self.service.resolve_id(id))

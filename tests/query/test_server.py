@@ -8,12 +8,13 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 pytest.importorskip("fastapi", reason="the serve extra is not installed")
 pytest.importorskip("httpx", reason="TestClient needs httpx (dev extra)")
 
-from server_helpers import build_store, client  # noqa: E402
+from server_helpers import OPTIONS, build_store, client, write_models  # noqa: E402
 
 from query.serve.server import create_app, is_loopback, serve  # noqa: E402
 from shapedb.errors import ConfigError  # noqa: E402
@@ -183,6 +184,48 @@ def test_shape_record_balls_edges_and_surface(api, store):
     surface = api.get(f"/api/shapes/{rec.id}/surface").json()
     assert surface["kind"] == "mesh" and len(surface["faces"]) == 12  # a box: 12 triangles
     assert api.get("/api/shapes/4242").status_code == 404
+
+
+def test_a_commit_draws_thumbnails_and_a_failure_there_never_fails_it(
+    tmp_path, monkeypatch, caplog
+):
+    import shapedb
+    from query.serve import thumbnails
+    from query.serve.viewer import stored_record
+
+    models = write_models(tmp_path / "models")
+    db = shapedb.connect(tmp_path / "store", **OPTIONS)
+    db.ingest([models["box0"]], workers=1, progress=False)
+    sid = int(db.store.resolve("box0"))
+    drawn = list((db.path / "thumbnails").glob(f"{sid}-*.png"))
+    assert drawn == [thumbnails.thumbnail_path(db.path, stored_record(db, sid))]
+    assert drawn[0].read_bytes().startswith(b"\x89PNG")
+
+    def broken(*args: Any) -> None:
+        raise OSError("no space left on device")
+
+    monkeypatch.setattr(thumbnails, "draw_committed", broken)
+    db.ingest([models["box1"]], workers=1, progress=False)
+    assert "drawing thumbnails failed" in caplog.text  # logged, and the commit stands:
+    other = int(db.store.resolve("box1"))
+    assert not list((db.path / "thumbnails").glob(f"{other}-*.png"))
+    monkeypatch.undo()
+    assert thumbnails.thumbnail(db, other).is_file()  # drawn at its first view instead
+    db.delete("box0")
+    assert not list((db.path / "thumbnails").glob(f"{sid}-*.png"))
+
+
+def test_a_thumbnail_is_the_balls_filling_the_picture():
+    from query.serve.thumbnails import SIZE, render_balls
+
+    assert (render_balls(np.zeros((0, 3)), np.zeros(0)) == 255).all()
+    one = render_balls([[1.0, 2.0, 3.0]], [0.5])
+    assert one.shape == (SIZE, SIZE, 3) and one.dtype == np.uint8
+    ink = (one < 235).any(axis=2)
+    rows, cols = np.flatnonzero(ink.any(axis=1)), np.flatnonzero(ink.any(axis=0))
+    assert (rows[-1] - rows[0]) / SIZE > 0.9 and (cols[-1] - cols[0]) / SIZE > 0.9
+    centre = one[SIZE // 2, SIZE // 2].astype(int)
+    assert centre[2] > centre[0] + 60  # blue, as the balls of the 3-D view
 
 
 def test_thumbnail_is_drawn_once_and_cached_beside_the_store(api, store):

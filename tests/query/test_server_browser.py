@@ -37,21 +37,67 @@ CHROME_FLAGS = [
     "--window-size=1280,900",
 ]
 
-# Pixels of a canvas that are not (nearly) white, and those that are the highlight red.
-PIXELS = """
-const [canvas, mode] = arguments;
+# A copy of the canvas arguments[0]'s pixels: d (RGBA bytes), c (its width and height).
+_READ = """
 const c = document.createElement('canvas');
-c.width = canvas.width; c.height = canvas.height;
+c.width = arguments[0].width; c.height = arguments[0].height;
 const ctx = c.getContext('2d');
-ctx.drawImage(canvas, 0, 0);
+ctx.drawImage(arguments[0], 0, 0);
 const d = ctx.getImageData(0, 0, c.width, c.height).data;
+const ink = (i) => d[i] < 235 || d[i + 1] < 235 || d[i + 2] < 235;
+"""
+
+# Pixels of a canvas that are not (nearly) white, and those that are the highlight red.
+PIXELS = (
+    _READ
+    + """
 let n = 0;
 for (let i = 0; i < d.length; i += 4) {
   const [r, g, b] = [d[i], d[i + 1], d[i + 2]];
-  if (mode === 'red' ? (r > 150 && g < 90 && b < 90) : (r < 235 || g < 235 || b < 235)) n++;
+  if (arguments[1] === 'red' ? (r > 150 && g < 90 && b < 90) : ink(i)) n++;
 }
 return n;
 """
+)
+
+# The box of a canvas's non-white pixels, as fractions of its width and height.
+INK_BOX = (
+    _READ
+    + """
+let [x0, y0, x1, y1] = [c.width, c.height, -1, -1];
+for (let y = 0; y < c.height; y++) for (let x = 0; x < c.width; x++) {
+  if (ink(4 * (y * c.width + x))) {
+    x0 = Math.min(x0, x); x1 = Math.max(x1, x); y0 = Math.min(y0, y); y1 = Math.max(y1, y);
+  }
+}
+return x1 < 0 ? [0, 0] : [(x1 - x0 + 1) / c.width, (y1 - y0 + 1) / c.height];
+"""
+)
+
+# The mean brightness (0-255) of a canvas's non-white pixels, and how many there are.
+INK_MEAN = (
+    _READ
+    + """
+let [n, sum] = [0, 0];
+for (let i = 0; i < d.length; i += 4) if (ink(i)) { n++; sum += (d[i] + d[i + 1] + d[i + 2]) / 3; }
+return [n ? sum / n : 255, n];
+"""
+)
+
+# Counts the WebGL contexts the page makes, and keeps them to see which are still active.
+COUNT_CONTEXTS = """
+window.__webgl = [];
+const getContext = HTMLCanvasElement.prototype.getContext;
+HTMLCanvasElement.prototype.getContext = function (type, ...rest) {
+  const ctx = getContext.call(this, type, ...rest);
+  if (ctx && type.startsWith('webgl') && !window.__webgl.includes(ctx)) window.__webgl.push(ctx);
+  return ctx;
+};
+"""
+ACTIVE_CONTEXTS = "return window.__webgl.filter((g) => !g.isContextLost()).length"
+
+#: Thumbnail files (name -> modification time, ns) of the test store as ingest left them.
+BUILT_THUMBNAILS: dict[str, int] = {}
 
 
 def _browser_or_skip() -> tuple[str, str]:
@@ -80,6 +126,8 @@ def shots(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Any, dict[str, Path]]]:
     chromium, _ = _browser_or_skip()
     db, models = build_store(tmp_path_factory.mktemp("browser"))
+    for png in (db.path / "thumbnails").glob("*.png"):
+        BUILT_THUMBNAILS[png.name] = png.stat().st_mtime_ns
     with live_server(create_app(db)) as url:
         yield url, db, models
 
@@ -98,6 +146,7 @@ def browser(site: Any) -> Iterator[Any]:
     options.set_capability("goog:loggingOptions", {"browser": "ALL"})
     d = webdriver.Chrome(service=Service(driver), options=options)
     d.set_page_load_timeout(60)
+    d.execute_cdp_cmd("Page.addScriptToEvaluateOnNewDocument", {"source": COUNT_CONTEXTS})
     try:
         yield d
     finally:
@@ -145,12 +194,49 @@ def test_the_page_loads(page, shots):
     _shot(page, shots, "01-loaded")
 
 
+def test_a_card_shows_a_placeholder_until_its_thumbnail_loads(page, shots, monkeypatch):
+    from selenium.webdriver.common.by import By
+
+    from query.serve import thumbnails
+    from shapedb.errors import NotFoundError
+
+    def not_yet(db: Any, id_or_name: Any) -> Any:
+        raise NotFoundError("no thumbnail yet", source=id_or_name)
+
+    monkeypatch.setattr(thumbnails, "thumbnail", not_yet)  # the server runs in this process
+    box = page.find_element(By.ID, "pick-name")
+    box.clear()
+    box.send_keys("box1")
+    page.find_element(By.CSS_SELECTOR, "#pick button").click()
+    _wait(page, lambda d: len(d.find_elements(By.CSS_SELECTOR, "#results .card")) == 6)
+    cards = page.find_elements(By.CSS_SELECTOR, "#results .card")
+    for card in cards:
+        name = card.find_element(By.CSS_SELECTOR, ".name").text
+        holder = card.find_element(By.CSS_SELECTOR, ".placeholder")
+        assert holder.is_displayed() and name in holder.text
+        grey = page.execute_script("return getComputedStyle(arguments[0]).backgroundColor", holder)
+        assert grey not in ("rgba(0, 0, 0, 0)", "rgb(255, 255, 255)"), grey
+    _shot(page, shots, "01b-placeholders")
+    monkeypatch.undo()  # the thumbnails come: the page asks again and they replace the boxes
+    _wait(
+        page,
+        lambda d: d.execute_script(
+            "return [...document.querySelectorAll('#results .pic')]"
+            ".every(p => !p.classList.contains('loading') && p.querySelector('img').naturalWidth)"
+        ),
+        30,
+    )
+    assert not any(c.find_element(By.CSS_SELECTOR, ".placeholder").is_displayed() for c in cards)
+
+
 @pytest.fixture(scope="module")
 def searched(page: Any, site: Any) -> Any:
     from selenium.webdriver.common.by import By
 
     _, _, models = site
     page.find_element(By.ID, "file").send_keys(str(models["capsule1"]))
+    title = "Nearest to capsule1.obj"
+    _wait(page, lambda d: d.find_element(By.ID, "results-title").text == title)
     _wait(page, lambda d: len(d.find_elements(By.CSS_SELECTOR, "#results .card")) == 6)
     _wait(  # every thumbnail drawn and loaded
         page,
@@ -175,6 +261,23 @@ def test_an_uploaded_model_gets_results_and_its_3d_view_draws(searched, shots):
     _shot(searched, shots, "02-results")
 
 
+def test_results_show_thumbnails_drawn_when_the_shapes_were_committed(searched, site):
+    from selenium.webdriver.common.by import By
+
+    _, db, _ = site
+    assert len(BUILT_THUMBNAILS) == 6  # drawn by the ingest's commit, before any page view
+    now = {p.name: p.stat().st_mtime_ns for p in (db.path / "thumbnails").glob("*.png")}
+    assert now == BUILT_THUMBNAILS  # none drawn (again) when the results were shown
+    images = searched.find_elements(By.CSS_SELECTOR, "#results .card img")
+    assert len(images) == 6 and all(i.is_displayed() for i in images)
+
+
+def test_the_query_fills_its_3d_view(searched):
+    _wait(searched, lambda d: d.execute_script(PIXELS, _canvas(d, "query-view"), "ink") > 2000)
+    width, height = searched.execute_script(INK_BOX, _canvas(searched, "query-view"))
+    assert max(width, height) > 0.75, (width, height)
+
+
 def test_a_part_click_highlights_matches(searched, shots):
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
@@ -196,6 +299,27 @@ def test_a_part_click_highlights_matches(searched, shots):
     assert "matched in 6 results" in status
     time.sleep(0.2)
     _shot(searched, shots, "03-part-match")
+
+
+def test_a_click_beside_the_balls_says_so(searched):
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    canvas = _canvas(searched, "query-view")
+    rect = searched.execute_script("return arguments[0].getBoundingClientRect().toJSON()", canvas)
+    corner = (round(-rect["width"] / 2 + 6), round(-rect["height"] / 2 + 6))
+    ActionChains(searched).move_to_element_with_offset(canvas, *corner).click().perform()
+    _wait(searched, lambda d: "no ball there" in d.find_element(By.ID, "status").text, 10)
+    assert "click on a ball" in searched.find_element(By.ID, "status").text
+
+
+def test_one_webgl_context_checks_the_browser(searched):
+    # the two views and the shared renderer of the matched parts, and one check (released)
+    made = searched.execute_script("return window.__webgl.length")
+    assert made <= 4, made
+    assert searched.execute_script(ACTIVE_CONTEXTS) <= 3
+    logs = [e["message"] for e in searched.get_log("browser")]
+    assert not [m for m in logs if "Too many active WebGL contexts" in m]
 
 
 def test_clicking_a_result_opens_its_3d_view(searched, shots):
@@ -277,3 +401,21 @@ def test_picking_a_stored_shape_searches_it(searched, shots):
     assert first == "box1"
     _wait(searched, lambda d: d.execute_script(PIXELS, _canvas(d, "query-view"), "ink") > 2000)
     _shot(searched, shots, "09-stored-query")
+
+
+def test_the_surface_is_solid_when_the_balls_are_hidden(searched, shots):
+    from selenium.webdriver.common.by import By
+
+    view = "return window.shapedb.queryView.current"
+    _wait(searched, lambda d: d.execute_script(view + ".surface !== null"))  # box1's mesh
+    balls = searched.find_element(
+        By.CSS_SELECTOR, ".toggles[data-for='query-view'] [data-layer='balls']"
+    )
+    balls.click()  # balls off
+    assert searched.execute_script(view + ".balls.visible") is False
+    canvas = _canvas(searched, "query-view")
+    mean, ink = searched.execute_script(INK_MEAN, canvas)
+    assert ink > 5000 and mean < 150, (mean, ink)  # the box drawn solid, not a faint veil
+    assert searched.execute_script(view + ".surface.material.opacity") == 1
+    _shot(searched, shots, "10-surface-only")
+    balls.click()

@@ -42,7 +42,12 @@ function el(tag, attrs = {}, ...children) {
 }
 
 // ------------------------------------------------------------------ views
-const queryView = new Viewer($("#query-view"), { onPick: (node, point) => matchPart(node, point) });
+const queryView = new Viewer($("#query-view"), {
+  onPick: (node, point) => matchPart(node, point),
+  onMiss: () => status(state.query
+    ? "no ball there — click on a ball to find similar parts"
+    : "search first, then click a ball of the query to find similar parts"),
+});
 const shapeView = new Viewer($("#shape-view"));
 state.queryView = queryView;
 state.shapeView = shapeView;
@@ -51,11 +56,27 @@ for (const box of document.querySelectorAll(".toggles")) {
   box.addEventListener("change", (e) => { if (e.target.dataset.layer) view.setLayer(e.target.dataset.layer, e.target.checked); });
 }
 
+// A thumbnail, with a placeholder (the shape's name, a spinner) until it has loaded; one
+// still being drawn (a shape committed a moment ago) is asked for again a few times.
+const THUMB_TRIES = 5; // over about 10 s
+function picture(hit) {
+  const pic = el("div", { class: "pic loading" },
+    el("div", { class: "placeholder" }, el("span", { class: "spinner" }), el("span", {}, hit.name)));
+  const src = `/api/shapes/${hit.id}/thumbnail.png`;
+  const img = el("img", { src, alt: hit.name, loading: "lazy" });
+  let tries = 1;
+  img.addEventListener("load", () => pic.classList.remove("loading", "missing"));
+  img.addEventListener("error", () => {
+    if (tries >= THUMB_TRIES) { pic.classList.add("missing"); return; }
+    setTimeout(() => { img.src = `${src}?try=${tries}`; tries++; }, 1000 * tries);
+  });
+  pic.append(img, el("canvas"));
+  return pic;
+}
+
 function card(hit, onClick) {
-  const img = el("img", { src: `/api/shapes/${hit.id}/thumbnail.png`, alt: hit.name, loading: "lazy" });
-  const canvas = el("canvas");
   const c = el("div", { class: "card", "data-id": String(hit.id), onclick: onClick },
-    el("div", { class: "pic" }, img, canvas),
+    picture(hit),
     el("div", { class: "name", title: hit.name }, hit.name),
     el("div", { class: "meta" }, el("span", {}, hit.label ?? "—"),
       el("span", {}, hit.similarity !== undefined ? hit.similarity.toFixed(3) : `#${hit.id}`)));

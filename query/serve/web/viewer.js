@@ -6,14 +6,53 @@ import { OrbitControls } from "three/addons/OrbitControls.js";
 const BALL = new THREE.Color(0x4c9bd6);
 const FAINT = new THREE.Color(0xc8c8c8);
 const HIT = new THREE.Color(0xd62728);
+const SURFACE = 0xa7b1bc;
+const FILL = 1.04; // camera distance over the one that makes the bounding ball touch the view
 
+// The surface as a light veil over the balls, or solid and shaded when the balls are hidden.
+function setSolid(surf, solid) {
+  const m = surf.material;
+  m.transparent = !solid;
+  m.opacity = solid ? 1 : (surf.isPoints ? 0.6 : 0.35);
+  if (surf.isPoints) m.size = surf.userData.size * (solid ? 2.5 : 1);
+  m.depthWrite = solid;
+  m.needsUpdate = true;
+}
+
+// Whether the browser draws WebGL: checked once, on one context that is released at once
+// (a context per check makes the browser warn "Too many active WebGL contexts").
+let webgl = null;
 export function webglAvailable() {
+  if (webgl !== null) return webgl;
   try {
     const c = document.createElement("canvas");
-    return !!(c.getContext("webgl2") || c.getContext("webgl"));
+    const gl = c.getContext("webgl2") || c.getContext("webgl");
+    webgl = !!gl;
+    const lose = gl && gl.getExtension("WEBGL_lose_context");
+    if (lose) lose.loseContext();
   } catch (e) {
-    return false;
+    webgl = false;
   }
+  return webgl;
+}
+
+// A ball around the balls and the surface's points, centred on their box: {centre, radius}.
+function sphereOf(shape, surface) {
+  const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+  const points = surface ? (surface.kind === "mesh" ? surface.vertices : surface.points || []) : [];
+  shape.centers.forEach((c, i) => {
+    for (let k = 0; k < 3; k++) {
+      lo[k] = Math.min(lo[k], c[k] - shape.radii[i]);
+      hi[k] = Math.max(hi[k], c[k] + shape.radii[i]);
+    }
+  });
+  for (const p of points) for (let k = 0; k < 3; k++) { lo[k] = Math.min(lo[k], p[k]); hi[k] = Math.max(hi[k], p[k]); }
+  if (!(lo[0] <= hi[0])) { const b = boundsOf(shape); return { centre: b.centre, radius: b.size / 2 }; }
+  const centre = new THREE.Vector3((lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2);
+  let radius = 0;
+  shape.centers.forEach((c, i) => { radius = Math.max(radius, centre.distanceTo(new THREE.Vector3(...c)) + shape.radii[i]); });
+  for (const p of points) radius = Math.max(radius, centre.distanceTo(new THREE.Vector3(...p)));
+  return { centre, radius: radius || 1 };
 }
 
 function boundsOf(shape) {
@@ -63,7 +102,7 @@ export function buildShape(shape, surface, { highlight = null, faint = false } =
     g.setIndex(surface.faces.flat());
     g.computeVertexNormals();
     surf = new THREE.Mesh(g, new THREE.MeshStandardMaterial({
-      color: 0x9a9a9a, transparent: true, opacity: 0.35, side: THREE.DoubleSide, depthWrite: false,
+      color: SURFACE, roughness: 0.7, flatShading: true, side: THREE.DoubleSide,
     }));
   } else if (surface && surface.kind === "points") {
     const g = new THREE.BufferGeometry();
@@ -71,6 +110,7 @@ export function buildShape(shape, surface, { highlight = null, faint = false } =
     surf = new THREE.Points(g, new THREE.PointsMaterial({
       color: 0x666666, size: boundsOf(shape).size / 250, transparent: true, opacity: 0.6,
     }));
+    surf.userData.size = surf.material.size;
   }
   if (surf) group.add(surf);
   return { group, balls, graph, surface: surf };
@@ -83,15 +123,20 @@ function lights(scene) {
   scene.add(sun);
 }
 
-// The camera of the thumbnails (matplotlib's elevation 20, azimuth -60, z up).
+// The camera of the thumbnails (elevation 20°, azimuth -60°, z up).
 const VIEW = new THREE.Vector3(0.47, -0.814, 0.342);
 
-function frame(camera, shape) {
-  const { centre, size } = boundsOf(shape);
-  camera.near = size / 100;
-  camera.far = size * 100;
+// Point the camera at the shape from the thumbnails' side, near enough that the bounding
+// ball of its balls and surface just fills the view's narrower side.
+function frame(camera, shape, surface = null) {
+  const { centre, radius } = sphereOf(shape, surface);
+  const half = THREE.MathUtils.degToRad(camera.fov / 2);
+  const fit = Math.min(half, Math.atan(Math.tan(half) * camera.aspect));
+  const distance = (FILL * radius) / Math.sin(fit);
+  camera.near = radius / 100;
+  camera.far = distance * 100;
   camera.up.set(0, 0, 1);
-  camera.position.copy(centre).add(VIEW.clone().multiplyScalar(2.3 * size));
+  camera.position.copy(centre).add(VIEW.clone().multiplyScalar(distance));
   camera.lookAt(centre);
   camera.updateProjectionMatrix();
   return centre;
@@ -99,9 +144,10 @@ function frame(camera, shape) {
 
 // An interactive view in a container element; onPick(node, point) on a click on a ball.
 export class Viewer {
-  constructor(container, { onPick = null } = {}) {
+  constructor(container, { onPick = null, onMiss = null } = {}) {
     this.container = container;
     this.onPick = onPick;
+    this.onMiss = onMiss; // a click that hit nothing
     this.layers = { surface: true, balls: true, graph: false };
     this.current = null;
     if (!webglAvailable()) {
@@ -149,7 +195,7 @@ export class Viewer {
     this.shape = shape;
     this.current = buildShape(shape, surface, options);
     this.scene.add(this.current.group);
-    this.controls.target.copy(frame(this.camera, shape));
+    this.controls.target.copy(frame(this.camera, shape, surface));
     this.controls.update();
     this.apply();
   }
@@ -173,7 +219,10 @@ export class Viewer {
     if (!this.current) return;
     this.current.balls.visible = this.layers.balls;
     this.current.graph.visible = this.layers.graph;
-    if (this.current.surface) this.current.surface.visible = this.layers.surface;
+    if (this.current.surface) {
+      this.current.surface.visible = this.layers.surface;
+      setSolid(this.current.surface, !this.layers.balls);
+    }
     this.render();
   }
 
@@ -192,7 +241,10 @@ export class Viewer {
     const targets = [this.current.balls];
     if (!this.layers.balls && this.current.surface) targets[0] = this.current.surface;
     const hit = this.raycaster.intersectObjects(targets, false)[0];
-    if (!hit) return;
+    if (!hit) {
+      if (this.onMiss) this.onMiss();
+      return;
+    }
     const node = hit.instanceId !== undefined ? hit.instanceId : null;
     this.onPick(node, hit.point.toArray());
   }
