@@ -13,10 +13,10 @@ from __future__ import annotations
 import logging
 import os
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,7 +34,27 @@ from shapedb.results import IngestReport  # defined there, re-exported here
 from shapedb.store.schema import Failure, ShapeRecord, safe_text
 
 if TYPE_CHECKING:
-    from query.database import Database
+    from shapedb.store.store import CommitResult, Store
+
+
+class IngestTarget(Protocol):
+    """What ingest needs of a database (``query.database.Database`` is one): its store, its
+    configuration, and a commit that also brings the derived state up to date."""
+
+    @property
+    def store(self) -> Store: ...
+
+    @property
+    def config(self) -> Config: ...
+
+    def commit(
+        self,
+        records: Sequence[ShapeRecord] = (),
+        *,
+        failures: Sequence[Failure] = (),
+        delete: Iterable[int] = (),
+    ) -> tuple[CommitResult, list[ShapeRecord]]: ...
+
 
 __all__ = [
     "ingest",
@@ -179,7 +199,7 @@ def _view_feature(geometry: Any, decomposition: Any, config: Config) -> NDArray[
 
 # ---------------------------------------------------------------- driver
 def ingest(
-    db: Database,
+    db: IngestTarget,
     inputs: Any,
     *,
     labels: str | os.PathLike[str] | Mapping[str, str] | LabelTable | None = None,
@@ -424,7 +444,7 @@ class _Committer:
 
     def __init__(
         self,
-        db: Database,
+        db: IngestTarget,
         present: dict[str, int],
         batch_size: int,
         commit_seconds: float,

@@ -164,7 +164,7 @@ class Database:
     def _draw_thumbnails(self, committed: Sequence[ShapeRecord], deleted: Sequence[int]) -> None:
         """Draw the web page's thumbnails of the committed shapes (derived state: a failure
         is logged and the commit stands; a few milliseconds a shape)."""
-        from query.serve.thumbnails import draw_committed
+        from query.thumbnails import draw_committed
 
         try:
             draw_committed(self.path, committed, deleted)

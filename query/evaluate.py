@@ -36,7 +36,7 @@ from shapedb.errors import QueryError
 from shapedb.results import MEASURES, RetrievalScores  # defined there, re-exported here
 
 if TYPE_CHECKING:
-    from query.database import Database
+    from shapedb.store.handle import StoreHandle
 
 __all__ = ["RetrievalScores", "retrieval_scores", "evaluate", "MEASURES", "E_MEASURE_K"]
 
@@ -216,7 +216,7 @@ def _per_class(
 
 
 def evaluate(
-    db: Database,
+    db: StoreHandle,
     *,
     label: str = "label",
     method: str | Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
@@ -272,7 +272,7 @@ def evaluate(
     return scores
 
 
-def _checked_metric(db: Database, metric: Any, method: Any) -> Any:
+def _checked_metric(db: StoreHandle, metric: Any, method: Any) -> Any:
     """The learned metric to rank by (None for the default), checked against the store.
 
     Raises :class:`QueryError` when a metric comes with a callable ``method``.
@@ -290,7 +290,7 @@ def _checked_metric(db: Database, metric: Any, method: Any) -> Any:
 
 
 def _labelled_features(
-    db: Database, label: str
+    db: StoreHandle, label: str
 ) -> tuple[NDArray[np.int64], NDArray[Any], NDArray[np.float64]]:
     """Ids (n,), labels (n,) and stored features (n, d) of the labelled shapes.
 
@@ -309,7 +309,7 @@ def _labelled_features(
 
 
 def _kernel_distance_rows(
-    db: Database, ids: NDArray[np.int64], x: NDArray[np.float64], learned: Any
+    db: StoreHandle, ids: NDArray[np.int64], x: NDArray[np.float64], learned: Any
 ) -> Callable[[], Iterator[tuple[NDArray[np.intp], NDArray[np.float64]]]]:
     """Chunks of rows of the Eq. 2 distance matrix between the shapes ``ids``, as search ranks.
 

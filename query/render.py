@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 from shapedb.errors import QueryError, require
 
 if TYPE_CHECKING:
-    from query.database import Database
+    from shapedb.store.handle import StoreHandle
 
 __all__ = ["render_model", "render_matches", "render_part_matches", "draw_model"]
 
@@ -275,7 +275,7 @@ def render_matches(
 
 
 def render_part_matches(
-    db: Database | None,
+    db: StoreHandle | None,
     query: Any,
     matches: Sequence[Any],
     out: str | os.PathLike[str],
@@ -310,7 +310,7 @@ def render_part_matches(
     return render_matches(q.graph, matches, targets, out, query_geometry=qg, **options)
 
 
-def show(db: Database | None, model: Any, out: str | os.PathLike[str], **options: Any) -> Path:
+def show(db: StoreHandle | None, model: Any, out: str | os.PathLike[str], **options: Any) -> Path:
     """Draw ``model`` (a path, Geometry, or stored id/name) with its MDBD balls.
 
     The ``shapedb.extensions`` entry point behind ``shapedb show``. A stored shape is

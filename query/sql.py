@@ -59,7 +59,7 @@ from shapedb.errors import QueryError, ShapeDBError, StoreError, require
 from shapedb.store.manifest import repair_hint
 
 if TYPE_CHECKING:
-    from query.database import Database
+    from shapedb.store.handle import StoreHandle
 
 __all__ = [
     "sql",
@@ -256,7 +256,9 @@ def _quote(text: str) -> str:
     return "'" + text.replace("'", "''") + "'"
 
 
-def connect(db: Database, metric: Any = None, *, memory_limit: int = DEFAULT_MEMORY_LIMIT) -> Any:
+def connect(
+    db: StoreHandle, metric: Any = None, *, memory_limit: int = DEFAULT_MEMORY_LIMIT
+) -> Any:
     """A new in-memory DuckDB connection with the store's views and macros.
 
     Parameters
@@ -342,7 +344,7 @@ def _one_select(statement: str, source: str) -> None:
         )
 
 
-def _metric(db: Database, metric: Any) -> Any:
+def _metric(db: StoreHandle, metric: Any) -> Any:
     from query.learn.metric import as_metric
 
     learned = as_metric(metric)
@@ -351,7 +353,7 @@ def _metric(db: Database, metric: Any) -> Any:
     return learned
 
 
-def script(db: Database, metric: Any = None) -> str:
+def script(db: StoreHandle, metric: Any = None) -> str:
     """SQL that sets up a plain ``duckdb`` session like :func:`connect` does.
 
     The views name the files of the store's current version explicitly (absolute
@@ -379,7 +381,7 @@ def script(db: Database, metric: Any = None) -> str:
 
 
 def sql(
-    db: Database,
+    db: StoreHandle,
     statement: str,
     *,
     metric: Any = None,
@@ -434,7 +436,7 @@ def sql(
 
 
 def _run(
-    db: Database,
+    db: StoreHandle,
     con: Any,
     statement: str,
     handle: InterruptHandle,
@@ -494,7 +496,7 @@ def _collect(rel: Any, limit: int, source: str) -> pa.Table:
     return pa.Table.from_batches(batches, schema=reader.schema)
 
 
-def _error(db: Database, exc: Exception, source: str, failed: str = "") -> ShapeDBError:
+def _error(db: StoreHandle, exc: Exception, source: str, failed: str = "") -> ShapeDBError:
     """QueryError (its message starting with ``failed``), or StoreError when DuckDB could
     not read one of the store's own files."""
     import duckdb
@@ -520,7 +522,7 @@ def _short(statement: str, limit: int = 200) -> str:
 _CONNECTIONS: dict[str, tuple[int, Any]] = {}
 
 
-def allowed_ids(db: Database, where: str) -> NDArray[np.int64]:
+def allowed_ids(db: StoreHandle, where: str) -> NDArray[np.int64]:
     """Ids of the shapes satisfying an SQL predicate over ``shapes``.
 
     Parameters

@@ -185,7 +185,7 @@ FLOORS: tuple[tuple[str, ...], ...] = (
     ("query.search",),
     ("query.parts",),
     ("query.evaluate",),
-    ("query.render",),
+    ("query.render", "query.thumbnails"),
     ("query.serve",),
     ("query.database", "query"),
     ("query.cli",),

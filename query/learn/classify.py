@@ -37,7 +37,7 @@ from shapedb.errors import ConfigError, LoadError, NotFittedError
 from shapedb.results import Classification  # defined there, re-exported here
 
 if TYPE_CHECKING:
-    from query.database import Database
+    from shapedb.store.handle import StoreHandle
 
 __all__ = [
     "GraphClassifier",
@@ -207,7 +207,7 @@ class ShapeClassifier:
         return f"ShapeClassifier(kind={self.kind!r}, classes={n})"
 
 
-def _labelled(db: Database, label: str) -> tuple[list[int], list[str]]:
+def _labelled(db: StoreHandle, label: str) -> tuple[list[int], list[str]]:
     """Ids and labels of the stored shapes that have ``label`` (a column or metadata key)."""
     store = db.store
     fp = db.config.fingerprint
@@ -227,7 +227,7 @@ def _labelled(db: Database, label: str) -> tuple[list[int], list[str]]:
 
 
 def _training_data(
-    db: Database, label: str, methods: Sequence[str] | None, test: float, seed: int
+    db: StoreHandle, label: str, methods: Sequence[str] | None, test: float, seed: int
 ) -> dict[str, Any]:
     """Labels, descriptors and (when a graph CNN may run) graphs of the labelled shapes, split.
 
@@ -252,7 +252,7 @@ def _training_data(
 
 
 def _checkpoint(
-    db: Database,
+    db: StoreHandle,
     out: str | os.PathLike[str] | None,
     resume: bool,
     options: dict[str, Any],
@@ -318,7 +318,7 @@ def _candidates(
 
 
 def train_classifier(
-    db: Database,
+    db: StoreHandle,
     *,
     label: str = "label",
     methods: Sequence[str] | None = None,
@@ -343,7 +343,7 @@ def train_classifier(
 
     Parameters
     ----------
-    db : Database
+    db : StoreHandle
     label : str
         The ``label`` column, or a metadata key holding the class.
     methods : sequence of str, optional
@@ -397,7 +397,7 @@ def train_classifier(
     return _finish(result, data, label, out, plot)
 
 
-def _shape_inputs(db: Database, shapes: Sequence[Any], graphs: bool) -> tuple[list[Any], Any]:
+def _shape_inputs(db: StoreHandle, shapes: Sequence[Any], graphs: bool) -> tuple[list[Any], Any]:
     """Contact graphs (or None entries) and descriptors (n, d) of the shapes to classify."""
     from shapedb.geometry.base import Geometry
     from shapedb.mdbd.decomposition import decompose
@@ -434,7 +434,7 @@ def _shape_inputs(db: Database, shapes: Sequence[Any], graphs: bool) -> tuple[li
 
 
 def classify(
-    db: Database,
+    db: StoreHandle,
     model_or_path: ShapeClassifier | GraphClassifier | str | os.PathLike[str],
     shapes: Any,
 ) -> Classification | list[Classification]:
@@ -442,7 +442,7 @@ def classify(
 
     Parameters
     ----------
-    db : Database
+    db : StoreHandle
         Supplies the configuration the shapes are decomposed with.
     model_or_path : ShapeClassifier, GraphClassifier, or the path of a saved one
         Loaded once; must have been trained on a store of the database's

@@ -10,12 +10,12 @@ from numpy.typing import NDArray
 from shapedb.errors import QueryError
 
 if TYPE_CHECKING:
-    from query.database import Database
+    from shapedb.store.handle import StoreHandle
 
 __all__ = ["stored_labels"]
 
 
-def stored_labels(db: Database, label: str) -> tuple[NDArray[np.int64], NDArray[Any]]:
+def stored_labels(db: StoreHandle, label: str) -> tuple[NDArray[np.int64], NDArray[Any]]:
     """Ids and labels of every stored shape.
 
     Parameters

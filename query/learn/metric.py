@@ -52,7 +52,7 @@ from shapedb.config.core import Config
 from shapedb.errors import ConfigError, LoadError, QueryError
 
 if TYPE_CHECKING:
-    from query.database import Database
+    from shapedb.store.handle import StoreHandle
 
 __all__ = ["LearnedMetric", "block_layout", "fit_metric", "fit_store_metric", "as_metric"]
 
@@ -584,7 +584,7 @@ def _final_weights(pairs: _Pairs, chosen: float | None, temperature: float) -> N
     return weights
 
 
-def fit_store_metric(db: Database, *, label: str = "label", **options: Any) -> LearnedMetric:
+def fit_store_metric(db: StoreHandle, *, label: str = "label", **options: Any) -> LearnedMetric:
     """``db.fit_metric``: :func:`fit_metric` on a store's labelled shapes.
 
     In a store with sparse views (``CloudConfig.view_cells``) the pairs follow the

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from shapedb.config.core import Config
 
 if TYPE_CHECKING:
-    from query.database import Database
+    from shapedb.store.handle import StoreHandle
 
 __all__ = [
     "stratified_split",
@@ -105,12 +105,12 @@ class StoredGraph:
     config: Config
 
 
-def stored_graphs(db: Database, ids: Sequence[int]) -> list[StoredGraph]:
+def stored_graphs(db: StoreHandle, ids: Sequence[int]) -> list[StoredGraph]:
     """The contact graphs of stored shapes, read in bulk from the Arrow tables.
 
     Parameters
     ----------
-    db : Database
+    db : StoreHandle
     ids : sequence of int, length k
 
     Returns
@@ -175,12 +175,12 @@ def plot_history(
     return path
 
 
-def stored_features(db: Database, ids: Sequence[int]) -> NDArray[np.float64]:
+def stored_features(db: StoreHandle, ids: Sequence[int]) -> NDArray[np.float64]:
     """The stored descriptors (the store's ``feature`` column) of shapes, in bulk.
 
     Parameters
     ----------
-    db : Database
+    db : StoreHandle
     ids : sequence of int, length k
 
     Returns

@@ -53,7 +53,7 @@ from shapedb.errors import NotFittedError, QueryError, StoreError, require
 from shapedb.signature.subgraph import neighbourhood_features_many, part_dim, part_weights
 
 if TYPE_CHECKING:
-    from query.database import Database
+    from shapedb.store.handle import StoreHandle
 
 __all__ = ["PartIndex", "open_parts_index", "on_commit", "read_part_config", "PARTS_DIR"]
 
@@ -538,7 +538,7 @@ _LOCK = threading.Lock()
 
 
 def _graphs_from_store(
-    db: Database, ids: NDArray[np.int64], cfg: PartConfig
+    db: StoreHandle, ids: NDArray[np.int64], cfg: PartConfig
 ) -> list[tuple[Any, Any]]:
     """(radii, edges) of each stored shape ``ids`` (ascending), read in one go.
 
@@ -570,7 +570,7 @@ def _graphs_from_store(
 
 
 def open_parts_index(
-    db: Database, config: PartConfig | None = None, *, rebuild: bool = False, **params: Any
+    db: StoreHandle, config: PartConfig | None = None, *, rebuild: bool = False, **params: Any
 ) -> PartIndex:
     """The store's part index for ``config``, loaded, brought up to date, or built.
 
@@ -626,7 +626,7 @@ def open_parts_index(
         return index
 
 
-def on_commit(db: Database, *args: Any, **kwargs: Any) -> None:
+def on_commit(db: StoreHandle, *args: Any, **kwargs: Any) -> None:
     """Commit hook: bring every part index already built for this store up to date."""
     base = Path(os.fspath(db.store.path)) / PARTS_DIR
     if not base.is_dir():
@@ -641,7 +641,7 @@ def on_commit(db: Database, *args: Any, **kwargs: Any) -> None:
             open_parts_index(db, cfg)
 
 
-def _forget(db: Database) -> None:  # drop a store's in-process cache entries (tests)
+def _forget(db: StoreHandle) -> None:  # drop a store's in-process cache entries (tests)
     path = os.fspath(db.store.path)
     for key in [k for k in _CACHE if k[0] == path]:
         _CACHE.pop(key, None)

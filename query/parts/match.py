@@ -61,7 +61,7 @@ from shapedb.signature.subgraph import (
 )
 
 if TYPE_CHECKING:
-    from query.database import Database
+    from shapedb.store.handle import StoreHandle
 
 __all__ = [
     "PartMatch",
@@ -129,7 +129,7 @@ class PartGeometry:
 
 # ------------------------------------------------------------------ resolving inputs
 def resolve(
-    db: Database | None,
+    db: StoreHandle | None,
     x: Any,
     *,
     complement: bool = False,
@@ -146,7 +146,7 @@ def resolve(
     return replace(model, graph=part_graph(model.decomposition, part))
 
 
-def _resolve(db: Database | None, x: Any, *, complement: bool, padding: float) -> Model:
+def _resolve(db: StoreHandle | None, x: Any, *, complement: bool, padding: float) -> Model:
     from shapedb.geometry.base import Geometry
     from shapedb.mdbd.decomposition import Decomposition, decompose
     from shapedb.store.schema import ShapeRecord
@@ -385,7 +385,7 @@ def match_pairs(
 
 
 def match(
-    db: Database | None,
+    db: StoreHandle | None,
     a: Any,
     b: Any = None,
     *,
@@ -482,7 +482,7 @@ def _pairwise(
 
 
 def _corpus(
-    db: Database,
+    db: StoreHandle,
     feat: NDArray[np.float64],
     qnodes: NDArray[np.int64],
     v: int,
@@ -527,7 +527,7 @@ def _corpus(
 
 
 def match_brute_force(
-    db: Database,
+    db: StoreHandle,
     a: Any,
     *,
     node: int | None = None,

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 if TYPE_CHECKING:
-    from query.database import Database
+    from shapedb.store.handle import StoreHandle
 
 __all__ = ["Catalog", "catalog", "forget"]
 
@@ -58,7 +58,7 @@ class Catalog:
 _CATALOGS: dict[str, tuple[int | None, Catalog]] = {}
 
 
-def catalog(db: Database, version: int | None) -> Catalog:
+def catalog(db: StoreHandle, version: int | None) -> Catalog:
     """The catalog of ``db`` at ``version`` (read from the store unless kept)."""
     key = os.fspath(db.store.path)
     cached = _CATALOGS.get(key)

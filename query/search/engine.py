@@ -56,7 +56,7 @@ from shapedb.errors import ConfigError, NotFoundError, QueryError, ShapeDBError
 from shapedb.results import Hit  # defined there, re-exported here
 
 if TYPE_CHECKING:
-    from query.database import Database
+    from shapedb.store.handle import StoreHandle
 
 __all__ = ["Hit", "search", "search_batch", "query_features", "checked_k", "MAX_K"]
 
@@ -64,7 +64,7 @@ log = logging.getLogger(__name__)
 
 
 def search(
-    db: Database, query: Any, *, k: int = 10, where: str | None = None, metric: Any = None
+    db: StoreHandle, query: Any, *, k: int = 10, where: str | None = None, metric: Any = None
 ) -> list[Hit]:
     """The k stored shapes most similar to ``query``, best first.
 
@@ -100,7 +100,7 @@ def search(
 
 
 def search_batch(
-    db: Database,
+    db: StoreHandle,
     queries: Sequence[Any],
     *,
     k: int = 10,
@@ -201,7 +201,7 @@ def checked_k(k: Any) -> int:
     return int(k)
 
 
-def query_features(db: Database, query: Any, *, index: Any = None) -> NDArray[np.float64]:
+def query_features(db: StoreHandle, query: Any, *, index: Any = None) -> NDArray[np.float64]:
     """The feature vector of a query, computed with the store's configuration.
 
     Parameters
@@ -246,7 +246,7 @@ class _Query:
         return self.view
 
 
-def _stored_arrays(db: Database, resolved: list[_Query]) -> tuple[Any, Any]:
+def _stored_arrays(db: StoreHandle, resolved: list[_Query]) -> tuple[Any, Any]:
     """The per-record array reader and the queries' own arrays a store's scorer reads.
 
     Only a store that keeps light fields (``Config.stores_light_fields``) has any: its
@@ -278,7 +278,7 @@ def _stored_arrays(db: Database, resolved: list[_Query]) -> tuple[Any, Any]:
     return stored_arrays(db), out
 
 
-def _resolve(db: Database, query: Any, index: Any) -> _Query:
+def _resolve(db: StoreHandle, query: Any, index: Any) -> _Query:
     from shapedb.geometry.base import Geometry
     from shapedb.geometry.view import is_sparse
     from shapedb.mdbd.decomposition import Decomposition
@@ -368,7 +368,7 @@ def _vector(value: Any, dim: int, *, source: str) -> NDArray[np.float64]:
     return v
 
 
-def _stored(db: Database, sid: int, index: Any) -> _Query:
+def _stored(db: StoreHandle, sid: int, index: Any) -> _Query:
     from query.search.index import open_index
     from shapedb.geometry.view import is_sparse
 
@@ -403,7 +403,7 @@ def _featurise(decomposition: Any, config: Any) -> NDArray[np.float64]:
     return np.asarray(features(decomposition, config), dtype=np.float64)
 
 
-def _from_geometry(db: Database, geometry: Any) -> _Query:
+def _from_geometry(db: StoreHandle, geometry: Any) -> _Query:
     from shapedb.geometry.view import is_sparse, view_geometry
     from shapedb.mdbd.decomposition import decompose
 
@@ -438,7 +438,7 @@ def _from_geometry(db: Database, geometry: Any) -> _Query:
     )
 
 
-def _from_file(db: Database, path: Path) -> _Query:
+def _from_file(db: StoreHandle, path: Path) -> _Query:
     import ingest  # the public API only: ingest.load(path) -> Geometry
 
     geometry = ingest.load(path)
@@ -447,7 +447,7 @@ def _from_file(db: Database, path: Path) -> _Query:
 
 
 def _search_with_views(
-    db: Database,
+    db: StoreHandle,
     index: Any,
     queries: list[_Query],
     k: int,

@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from query.search.field_fusion import FIELD, FieldFusion
 
 if TYPE_CHECKING:
-    from query.database import Database
+    from shapedb.store.handle import StoreHandle
 
 __all__ = ["FieldIndex", "field_index", "SCAN_MAX"]
 
@@ -153,7 +153,7 @@ _KEEP = 4
 _LOCK = threading.Lock()
 
 
-def field_index(db: Database) -> FieldIndex:
+def field_index(db: StoreHandle) -> FieldIndex:
     """The shared :class:`FieldIndex` of ``db``'s store at its current version.
 
     Built from the ``field_vector`` column, scaled by ``db.config``'s fusion
@@ -186,7 +186,7 @@ def field_index(db: Database) -> FieldIndex:
     return index
 
 
-def _dim(db: Database, rows: list[NDArray[np.float32]]) -> int:
+def _dim(db: StoreHandle, rows: list[NDArray[np.float32]]) -> int:
     if rows:
         return int(rows[0].shape[0])
     if not FieldFusion.from_config(db.config).stored:

@@ -39,9 +39,9 @@ from query.search.versioned import POINTER, current, save_version
 from shapedb.errors import ConfigError, NotFittedError, QueryError, StoreError, require
 
 if TYPE_CHECKING:
-    from query.database import Database
     from query.learn.metric import LearnedMetric
     from shapedb.config.core import Config
+    from shapedb.store.handle import StoreHandle
 
 __all__ = ["FeatureIndex", "open_index", "build_index", "on_commit", "keep_beside", "INDEX_DIR"]
 
@@ -497,12 +497,12 @@ _CACHE: dict[str, tuple[Config, FeatureIndex]] = {}
 _LOCK = threading.Lock()
 
 
-def _store_key(db: Database) -> str:
+def _store_key(db: StoreHandle) -> str:
     return os.fspath(db.store.path)
 
 
 def open_index(
-    db: Database,
+    db: StoreHandle,
     *,
     kind: str | None = None,
     rebuild: bool = False,
@@ -608,12 +608,12 @@ def _load(root: Path) -> FeatureIndex | None:
         return None
 
 
-def build_index(db: Database, *, kind: str = "auto", **params: Any) -> FeatureIndex:
+def build_index(db: StoreHandle, *, kind: str = "auto", **params: Any) -> FeatureIndex:
     """Rebuild the store's index from scratch with the given settings."""
     return open_index(db, kind=kind, rebuild=True, **params)
 
 
-def on_commit(db: Database, *args: Any, **kwargs: Any) -> None:
+def on_commit(db: StoreHandle, *args: Any, **kwargs: Any) -> None:
     """Store commit hook (entry point ``on_commit``): update an existing index.
 
     Only an index that was already built is updated (incrementally when possible);
@@ -626,7 +626,7 @@ def on_commit(db: Database, *args: Any, **kwargs: Any) -> None:
             open_index(db, view=view)
 
 
-def _forget(db: Database) -> None:  # drop a store's in-process cache entries (tests)
+def _forget(db: StoreHandle) -> None:  # drop a store's in-process cache entries (tests)
     root = _store_key(db)
     for key in [k for k in _CACHE if k == root or k.startswith(root + "#")]:
         _CACHE.pop(key, None)

@@ -49,9 +49,9 @@ from query.search.tuning import PRODUCT, StageTuning
 from query.search.versioned import POINTER
 
 if TYPE_CHECKING:
-    from query.database import Database
     from query.search.rerank import ArrayReader
     from shapedb.config.core import Config
+    from shapedb.store.handle import StoreHandle
 
 __all__ = [
     "NEIGHBOURS",
@@ -280,7 +280,7 @@ class NeighbourTable(ShapeTable):
     file = "neighbours.npy"
     what = "shared-neighbour lists"
 
-    def __init__(self, db: Database, fields: ArrayReader, scorer: StageRows,
+    def __init__(self, db: StoreHandle, fields: ArrayReader, scorer: StageRows,
                  meta: dict[str, Any] | None = None) -> None:  # fmt: skip
         self.fields, self.scorer = fields, scorer
         self.k = int(scorer.tuning.shared_neighbours)
@@ -306,7 +306,7 @@ class NeighbourTable(ShapeTable):
         return np.stack(rows) if rows else np.zeros((0, self.k), np.int64)
 
 
-def neighbour_table(db: Database, fields: ArrayReader, scorer: StageRows) -> NeighbourTable:
+def neighbour_table(db: StoreHandle, fields: ArrayReader, scorer: StageRows) -> NeighbourTable:
     """The shared :class:`NeighbourTable` of ``db``'s store at its index's current version."""
     return shared_table(  # type: ignore[no-any-return]
         _CACHE, _LOCK, db, lambda v: _meta(db.config, v, scorer.tuning),
@@ -314,7 +314,7 @@ def neighbour_table(db: Database, fields: ArrayReader, scorer: StageRows) -> Nei
     )  # fmt: skip
 
 
-def store_neighbours(db: Database, fields: ArrayReader, scorer: StageRows) -> dict[int, Any]:
+def store_neighbours(db: StoreHandle, fields: ArrayReader, scorer: StageRows) -> dict[int, Any]:
     """Every stored shape's list at the store's current version, by id ((k,) int64 each).
 
     Read from ``<store>/index_neighbours/`` when it holds this version's lists under the
@@ -326,7 +326,7 @@ def store_neighbours(db: Database, fields: ArrayReader, scorer: StageRows) -> di
 
 
 def on_commit(
-    db: Database, fields: ArrayReader, scorer: StageRows, *, create: bool = False
+    db: StoreHandle, fields: ArrayReader, scorer: StageRows, *, create: bool = False
 ) -> None:
     """Bring the lists up to date after a commit, for a store whose stage reads them.
 

@@ -51,9 +51,9 @@ from query.search.tuning import PRODUCT, StageTuning, active
 from query.search.versioned import POINTER
 
 if TYPE_CHECKING:
-    from query.database import Database
     from query.search.rerank import ArrayReader
     from shapedb.config.core import Config
+    from shapedb.store.handle import StoreHandle
 
 __all__ = [
     "SPREAD_DIR",
@@ -262,7 +262,7 @@ class SpreadTable(ShapeTable):
 
     def __init__(
         self,
-        db: Database,
+        db: StoreHandle,
         fields: ArrayReader,
         meta: dict[str, Any] | None = None,
         tuning: StageTuning = PRODUCT,
@@ -284,7 +284,9 @@ class SpreadTable(ShapeTable):
         return np.array([np.nan if v is None else float(v) for v in values], np.float64)
 
 
-def spread_table(db: Database, fields: ArrayReader, tuning: StageTuning = PRODUCT) -> SpreadTable:
+def spread_table(
+    db: StoreHandle, fields: ArrayReader, tuning: StageTuning = PRODUCT
+) -> SpreadTable:
     """The shared :class:`SpreadTable` of ``db``'s store at its index's current version."""
     return shared_table(  # type: ignore[no-any-return]
         _CACHE, _LOCK, db, lambda v: _meta(db.config, v, tuning),
@@ -293,7 +295,7 @@ def spread_table(db: Database, fields: ArrayReader, tuning: StageTuning = PRODUC
 
 
 def store_spreads(
-    db: Database, fields: ArrayReader, tuning: StageTuning = PRODUCT
+    db: StoreHandle, fields: ArrayReader, tuning: StageTuning = PRODUCT
 ) -> dict[int, float]:
     """Every stored shape's local spread at the store's current version, by id.
 
@@ -305,7 +307,7 @@ def store_spreads(
     return dict(table.values)
 
 
-def on_commit(db: Database, fields: ArrayReader, *, create: bool = False) -> None:
+def on_commit(db: StoreHandle, fields: ArrayReader, *, create: bool = False) -> None:
     """Bring the spreads up to date after a commit, for a store whose stage pools them.
 
     Only a store with the ``"lightfield"`` scorer whose statistics cost at most

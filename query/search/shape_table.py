@@ -27,14 +27,14 @@ from numpy.typing import NDArray
 from query.search.versioned import POINTER, current, save_version
 
 if TYPE_CHECKING:
-    from query.database import Database
+    from shapedb.store.handle import StoreHandle
 
 __all__ = ["ShapeTable", "index_version", "shared_table"]
 
 log = logging.getLogger(__name__)
 
 
-def index_version(db: Database) -> int:
+def index_version(db: StoreHandle) -> int:
     """The store version of ``db``'s index (the store's when the index has none)."""
     from query.search.index import open_index
 
@@ -61,7 +61,7 @@ class ShapeTable:
     file: ClassVar[str]
     what: ClassVar[str] = "values"
 
-    def __init__(self, db: Database, meta: dict[str, Any]) -> None:
+    def __init__(self, db: StoreHandle, meta: dict[str, Any]) -> None:
         from query.search.index import open_index
 
         self.db = db
@@ -140,7 +140,7 @@ class ShapeTable:
 def shared_table(
     cache: dict[tuple[str, int], Any],
     lock: threading.Lock,
-    db: Database,
+    db: StoreHandle,
     meta: Callable[[int], dict[str, Any]],
     make: Callable[[dict[str, Any]], ShapeTable],
 ) -> Any:

@@ -178,9 +178,10 @@ class Api:
 
     def thumbnail(self, id: str) -> FileResponse:
         """A small picture of the shape's balls, drawn when it was committed (else now, once)."""
-        from query.serve.thumbnails import thumbnail as draw
+        from query.serve.viewer import stored_record
+        from query.thumbnails import thumbnail as draw
 
-        path = draw(self.db, self.service.resolve_id(id))
+        path = draw(self.db.path, stored_record(self.db, self.service.resolve_id(id)))
         return FileResponse(path, media_type="image/png", headers={"Cache-Control": "max-age=60"})
 
     # ------------------------------------------------------------ search

@@ -190,7 +190,7 @@ def test_a_commit_draws_thumbnails_and_a_failure_there_never_fails_it(
     tmp_path, monkeypatch, caplog
 ):
     import shapedb
-    from query.serve import thumbnails
+    from query import thumbnails
     from query.serve.viewer import stored_record
 
     models = write_models(tmp_path / "models")
@@ -210,13 +210,15 @@ def test_a_commit_draws_thumbnails_and_a_failure_there_never_fails_it(
     other = int(db.store.resolve("box1"))
     assert not list((db.path / "thumbnails").glob(f"{other}-*.png"))
     monkeypatch.undo()
-    assert thumbnails.thumbnail(db, other).is_file()  # drawn at its first view instead
+    assert thumbnails.thumbnail(
+        db.path, stored_record(db, other)
+    ).is_file()  # drawn at its first view instead
     db.delete("box0")
     assert not list((db.path / "thumbnails").glob(f"{sid}-*.png"))
 
 
 def test_a_thumbnail_is_the_balls_filling_the_picture():
-    from query.serve.thumbnails import SIZE, render_balls
+    from query.thumbnails import SIZE, render_balls
 
     assert (render_balls(np.zeros((0, 3)), np.zeros(0)) == 255).all()
     one = render_balls([[1.0, 2.0, 3.0]], [0.5])

@@ -197,11 +197,11 @@ def test_the_page_loads(page, shots):
 def test_a_card_shows_a_placeholder_until_its_thumbnail_loads(page, shots, monkeypatch):
     from selenium.webdriver.common.by import By
 
-    from query.serve import thumbnails
+    from query import thumbnails
     from shapedb.errors import NotFoundError
 
-    def not_yet(db: Any, id_or_name: Any) -> Any:
-        raise NotFoundError("no thumbnail yet", source=id_or_name)
+    def not_yet(root: Any, record: Any) -> Any:
+        raise NotFoundError("no thumbnail yet", source=record.id)
 
     monkeypatch.setattr(thumbnails, "thumbnail", not_yet)  # the server runs in this process
     box = page.find_element(By.ID, "pick-name")

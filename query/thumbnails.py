@@ -27,13 +27,10 @@ import zlib
 from collections.abc import Iterable
 from datetime import timezone
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-
-if TYPE_CHECKING:
-    from query.database import Database
 
 __all__ = [
     "THUMBNAIL_DIR",
@@ -212,25 +209,19 @@ def draw_committed(
         _replace(root, record)
 
 
-def thumbnail(db: Database, id_or_name: int | str) -> Path:
-    """The thumbnail of a stored shape, drawn now if it is not there yet.
+def thumbnail(root: str | os.PathLike[str], record: Any) -> Path:
+    """The thumbnail of a stored record, drawn now if it is not there yet.
 
     Parameters
     ----------
-    db : shapedb.Database
-    id_or_name : int or str
+    root : path
+        The store's folder.
+    record : ShapeRecord
+        A stored shape with its id and decomposition.
 
     Returns
     -------
     Path
         The PNG under ``<store>/thumbnails/``.
-
-    Raises
-    ------
-    NotFoundError
-        No such shape.
     """
-    from query.serve.viewer import stored_record
-
-    sid = id_or_name if isinstance(id_or_name, int) else db.store.resolve(id_or_name)
-    return _replace(db.path, stored_record(db, sid))
+    return _replace(root, record)
