@@ -186,8 +186,8 @@ FLOORS: tuple[tuple[str, ...], ...] = (
     ("query.parts",),
     ("query.evaluate",),
     ("query.render", "query.thumbnails"),
-    ("query.serve",),
     ("query.database", "query"),
+    ("query.serve",),
     ("query.cli",),
 )
 #: The one import that runs down-up on purpose: ``shapedb.connect`` and
@@ -216,6 +216,21 @@ def test_every_import_runs_down_the_floors() -> None:
         if floor_of(b) > floor_of(a) and (a, b) not in LAZY_FACADE
     )
     assert upward == []
+
+
+def test_typing_imports_run_down_the_floors_too() -> None:
+    """Even an ``if TYPE_CHECKING`` import runs down: a stage types the database it is given
+    by a protocol (``shapedb.store.handle.StoreHandle``), not by the facade above it."""
+    modules = _project_modules(ROOT, ("shapedb", "ingest", "query"))
+    upward = []
+    for module, path in modules.items():
+        for base, name, line, typing_only in _imports(path, module):
+            if not typing_only or base.split(".")[0] not in ("shapedb", "ingest", "query"):
+                continue
+            target = f"{base}.{name}" if name and f"{base}.{name}" in modules else base
+            if floor_of(target) > floor_of(module):
+                upward.append(f"{path.relative_to(ROOT)}:{line} {target}")
+    assert sorted(upward) == []
 
 
 def test_the_core_never_imports_a_downstream_package_but_for_the_facade() -> None:
