@@ -57,7 +57,8 @@ from numpy.typing import NDArray
 from bench.common import Balls, decompose_all, format_table, write_json
 from bench.sets.datasets import Model
 from shapedb import examples
-from shapedb.config.core import MDBDConfig, PartConfig
+from shapedb.config.core import MDBDConfig
+from shapedb.config.part import PartConfig
 from shapedb.geometry.complement import Complement
 from shapedb.geometry.implicit import Box, Cylinder
 from shapedb.mdbd.decomposition import decompose

@@ -45,7 +45,8 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from bench.common import format_table, write_json
-from shapedb.config.core import Config, PartConfig
+from shapedb.config.core import Config
+from shapedb.config.part import PartConfig
 from shapedb.mdbd.decomposition import Decomposition
 from shapedb.mdbd.graph import ContactGraph
 from shapedb.signature.kernel import features

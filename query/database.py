@@ -23,7 +23,8 @@ import pyarrow as pa
 from numpy.typing import NDArray
 
 from query.sql import DEFAULT_MEMORY_LIMIT, DEFAULT_TIMEOUT, InterruptHandle
-from shapedb.config.core import Config, PartConfig
+from shapedb.config.core import Config
+from shapedb.config.part import PartConfig
 from shapedb.errors import ConfigError, NotFoundError, StoreError
 from shapedb.results import (
     Classification,

@@ -14,14 +14,8 @@ from __future__ import annotations
 from types import ModuleType
 from typing import Any
 
-from shapedb.config.core import (
-    CloudConfig,
-    Config,
-    DescriptorConfig,
-    KernelConfig,
-    MDBDConfig,
-    PartConfig,
-)
+from shapedb.config.core import CloudConfig, Config, DescriptorConfig, KernelConfig, MDBDConfig
+from shapedb.config.part import PartConfig
 from shapedb.errors import (
     ConfigError,
     DegenerateGeometryError,

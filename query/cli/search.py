@@ -206,7 +206,7 @@ def print_balls(db: Database | None, model: str | int, *, complement: bool) -> N
     """Print the balls of ``model``: number, centre, radius, and contacts in the graph
     that part matching uses (the balls ``match --hops 1`` adds around it)."""
     from query.parts.match import resolve
-    from shapedb.config.core import PartConfig
+    from shapedb.config.part import PartConfig
 
     graph = resolve(db, model, complement=complement, part=PartConfig()).graph
     balls = zip(graph.centers.tolist(), graph.radii.tolist(), graph.degrees.tolist(), strict=True)

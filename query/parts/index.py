@@ -48,7 +48,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from query.search.index import keep_beside
 from query.search.versioned import POINTER, current, save_version
-from shapedb.config.core import PartConfig
+from shapedb.config.part import PartConfig
 from shapedb.errors import NotFittedError, QueryError, StoreError, require
 from shapedb.signature.subgraph import neighbourhood_features_many, part_dim, part_weights
 

@@ -46,7 +46,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from query.search.catalog import catalog
-from shapedb.config.core import PartConfig
+from shapedb.config.part import PartConfig
 from shapedb.errors import ConfigError, InvalidShapeError, NotFoundError, QueryError
 from shapedb.mdbd.graph import ContactGraph
 from shapedb.results import PartMatch  # defined there, re-exported here

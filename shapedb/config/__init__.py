@@ -17,10 +17,10 @@ from shapedb.config.core import (
     KernelConfig,
     LightFieldConfig,
     MDBDConfig,
-    PartConfig,
     RerankConfig,
     parse_options,
 )
+from shapedb.config.part import PartConfig
 
 __all__ = [
     "Config",

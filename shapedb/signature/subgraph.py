@@ -55,7 +55,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
-from shapedb.config.core import PartConfig
+from shapedb.config.part import PartConfig
 from shapedb.errors import ConfigError, InvalidShapeError
 from shapedb.mdbd.graph import ContactGraph
 

@@ -15,7 +15,7 @@ from query.parts.match import (
     nearest_ball,
     part_geometry,
 )
-from shapedb.config.core import PartConfig
+from shapedb.config.part import PartConfig
 from shapedb.errors import NotFoundError, QueryError
 from shapedb.geometry.implicit import Capsule
 from shapedb.mdbd.graph import ContactGraph

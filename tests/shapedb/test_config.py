@@ -16,11 +16,11 @@ from shapedb.config.core import (
     KernelConfig,
     LightFieldConfig,
     MDBDConfig,
-    PartConfig,
     RerankConfig,
     parse_options,
     with_options,
 )
+from shapedb.config.part import PartConfig
 from shapedb.errors import ConfigError
 
 

@@ -19,9 +19,9 @@ from shapedb.config.core import (
     KernelConfig,
     LightFieldConfig,
     MDBDConfig,
-    PartConfig,
     RerankConfig,
 )
+from shapedb.config.part import PartConfig
 from shapedb.errors import ConfigError
 
 STORE_LAYOUT1 = Path(__file__).resolve().parents[1] / "data" / "store_layout1"

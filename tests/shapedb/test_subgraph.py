@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from shapedb.config.core import PartConfig
+from shapedb.config.part import PartConfig
 from shapedb.errors import ConfigError, InvalidShapeError
 from shapedb.geometry.complement import Complement
 from shapedb.geometry.implicit import Box, Cylinder
@@ -212,7 +212,7 @@ def test_complement_in_the_exact_box_isolates_through_holes() -> None:
 
 def test_part_graph_rebuilds_contacts_at_the_part_tolerance() -> None:
     """Two spheres one cell apart touch at 1.5 cells, not at 0.5; 0 keeps the stored graph."""
-    from shapedb.config.core import PartConfig
+    from shapedb.config.part import PartConfig
     from shapedb.mdbd.decomposition import Decomposition
     from shapedb.signature.subgraph import part_graph
 
