@@ -55,6 +55,7 @@ from numpy.typing import NDArray
 from bench.classify import generated, graphs_of
 from bench.common import format_table, write_json
 from bench.sets.datasets import CAPOD_ROOT, capod
+from query.learn.budget import DEFAULT_BUDGET
 from query.learn.selection import CANDIDATES, make_candidate, select_classifier
 from query.learn.training_data import stratified_folds, stratified_split
 from shapedb.config.core import Config, MDBDConfig
@@ -202,6 +203,36 @@ def run_candidate(
     }
 
 
+def budget_row(
+    data: dict[str, Any], train: NDArray[np.int64], test: NDArray[np.int64],
+    options: dict[str, Any], budget: float,
+) -> dict[str, Any]:  # fmt: skip
+    """What ``shapedb train --budget`` saves on this split: the product's own selection
+    within ``budget`` seconds (cheapest candidates first), refitted, and its test accuracy."""
+    import torch
+
+    torch.set_num_threads(1)
+    y = np.asarray(data["labels"])
+    mesh = data["mesh"]
+    t0 = time.perf_counter()
+    sel, model = select_classifier(
+        [mesh[i] for i in train], data["x_mesh"][train], y[train].tolist(),
+        graph_options=options, budget=budget,
+    )  # fmt: skip
+    seconds = time.perf_counter() - t0
+    if hasattr(model, "conv"):
+        pred = model.predict([mesh[i] for i in test], descriptors=data["x_mesh"][test])
+    else:
+        pred = model.predict(data["x_mesh"][test])
+    return {
+        "candidate": f"budget {budget:.0f} s",
+        "name": sel.chosen,
+        "test_mesh": float(np.mean(np.asarray(pred) == y[test])),
+        "train_seconds": seconds,
+        "statuses": {s.name: s.status for s in sel.scores},
+    }
+
+
 def chosen_row(results: list[dict[str, Any]]) -> dict[str, Any]:
     """The candidate with the best validation accuracy, ties to the simplest.
 
@@ -293,6 +324,34 @@ def _run_jobs(
     return results
 
 
+def _budget_rows(
+    args: argparse.Namespace,
+    data: dict[str, Any],
+    splits: list[dict[str, Any]],
+    n: int,
+    rows: list[dict[str, Any]],
+) -> list[dict[str, Any]]:
+    """The budgeted selection on every split at ``n`` a class, beside the full choice."""
+    if not args.budget:
+        return []
+    labels = list(data["labels"])
+    options = {"epochs": args.epochs, "batch_size": 16}
+    got = [
+        budget_row(data, subset(labels, s["train"], n), s["test"], options, args.budget)
+        for s in splits
+    ]
+    full = next(r for r in rows if r["chosen"] is not None)
+    test = float(np.mean([r["test_mesh"] for r in got]))
+    table = [
+        ["full choice: " + "/".join(full["chosen"]), full["test_mesh"], full["train_seconds"]],
+        [f"within {args.budget:.0f} s: " + "/".join(sorted({r["name"] for r in got})), test,
+         float(np.median([r["train_seconds"] for r in got]))],
+    ]  # fmt: skip
+    title = f"{n} a class: shapedb train within its budget against the full choice"
+    print(format_table(title, ("selection", "test mesh", "train s"), table), flush=True)
+    return got
+
+
 def run_set(name: str, args: argparse.Namespace) -> dict[str, Any]:
     t0 = time.perf_counter()
     data, splits = load_set(name, args.workers, args.points, args.capod_root)
@@ -324,6 +383,7 @@ def run_set(name: str, args: argparse.Namespace) -> dict[str, Any]:
     curve = time_curve(points)
     title = f"{name}: learning curve, test accuracy on meshes against training time"
     print(format_table(title, TIME_CURVE, curve))
+    budgets = _budget_rows(args, data, splits, max(sizes), points[max(sizes)])
     return {
         "models": len(labels),
         "classes": len(set(labels)),
@@ -333,6 +393,7 @@ def run_set(name: str, args: argparse.Namespace) -> dict[str, Any]:
         "epochs": args.epochs,
         "points": {str(n): rows for n, rows in points.items()},
         "time_curve": [dict(zip(TIME_CURVE, row, strict=True)) for row in curve],
+        "budget": budgets,
         "seconds": time.perf_counter() - t0,
     }
 
@@ -348,6 +409,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--jobs", type=int, default=2, help="candidates trained in parallel")
     p.add_argument("--capod-root", type=Path, default=CAPOD_ROOT, help="the CAPOD folder")
     p.add_argument("--out-dir", type=Path, default=RESULTS)
+    p.add_argument(
+        "--budget", type=float, default=DEFAULT_BUDGET,
+        help="seconds of shapedb train's budget for the budget row (0: no row)",
+    )  # fmt: skip
     args = p.parse_args(argv)
     for name in args.sets:
         out = {
