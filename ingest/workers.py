@@ -10,7 +10,10 @@ import concurrent.futures as cf
 import logging
 import multiprocessing
 import os
+import sys
 from collections.abc import Callable, Iterable
+from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
 from typing import Any
 
 from shapedb.errors import MissingDependencyError, ShapeDBError
@@ -84,13 +87,26 @@ def wait_any(futures: Iterable[Any], dask: bool) -> set[Any]:
     return done
 
 
+def _script_hint() -> str:
+    """A hint for the commonest cause when ingest runs from a user's script: the workers start
+    by importing that script, which must not ingest again at import time."""
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if not path or Path(path).name in ("shapedb", "__main__.py", "pytest"):
+        return ""
+    return (
+        f" (if {Path(path).name} calls ingest at its top level, put that under "
+        "`if __name__ == '__main__':`: each worker process imports the script)"
+    )
+
+
 def result(fut: Any, item: Any) -> ShapeRecord | Failure:
     try:
         return fut.result()  # type: ignore[no-any-return]
-    except cf.process.BrokenProcessPool as exc:
+    except BrokenProcessPool as exc:
         raise ShapeDBError(
             f"a worker process died while ingesting {item.source}; "
-            "the batches committed so far are kept: re-run to continue"
+            f"the batches committed so far are kept: re-run to continue{_script_hint()}"
         ) from exc
     except Exception as exc:  # an unexpected error inside the worker
         log.warning("ingesting %s failed unexpectedly", item.source, exc_info=True)

@@ -155,3 +155,25 @@ def test_ingest_into_a_store_without_its_manifest_changes_nothing(tmp_db, tmp_pa
             [_write_obj(tmp_path / "b.obj", trimesh.creation.icosphere())]
         )
     assert sorted(root.rglob("*.parquet")) == files
+
+
+def test_a_dead_worker_under_a_users_script_names_the_likely_cause(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Workers import the caller's script: one that ingests at its top level kills them."""
+    import sys
+    import types
+    from concurrent.futures.process import BrokenProcessPool
+
+    from ingest.workers import result
+    from shapedb.errors import ShapeDBError
+
+    class Dead:
+        def result(self) -> None:
+            raise BrokenProcessPool("terminated abruptly")
+
+    monkeypatch.setitem(sys.modules, "__main__", types.SimpleNamespace(__file__="/w/measure.py"))
+    item = types.SimpleNamespace(source="/w/models/a.ply")
+    with pytest.raises(ShapeDBError, match="measure.py.*if __name__ == '__main__'") as err:
+        result(Dead(), item)
+    assert "a.ply" in str(err.value) and "\n" not in str(err.value)
