@@ -47,10 +47,13 @@ def _cloud(mesh, seed: int):  # type: ignore[no-untyped-def]
 
 @pytest.mark.parametrize("name", MODELS)
 def test_balls_are_sorted_disjoint_and_inside(name: str) -> None:
-    from shapedb.mdbd.decomposition import decompose
+    """Inside the solid the MDBD packs: the mesh, with its sheets thickened into slabs."""
+    from shapedb.config.core import MDBDConfig
+    from shapedb.mdbd.decomposition import decompose, prepare_field
 
     mesh = _mesh(name)
     d = decompose(mesh, **OPTIONS)
+    packed = prepare_field(mesh, MDBDConfig(**OPTIONS))
     tol = 0.02 * d.spacing
     assert d.n_balls > 10
     assert np.all(np.diff(d.radii) <= 1e-12)
@@ -58,7 +61,9 @@ def test_balls_are_sorted_disjoint_and_inside(name: str) -> None:
     gap -= d.radii[:, None] + d.radii[None]
     np.fill_diagonal(gap, np.inf)
     assert gap.min() >= -tol
-    assert np.all(mesh.signed_distance(d.centers) >= d.radii - tol)
+    rotation, centre = packed.frame[:3, :3], packed.frame[:3, 3]
+    local = (d.centers - centre) @ rotation / packed.scale  # the packed solid's own frame
+    assert np.all(packed.local.signed_distance(local) * packed.scale >= d.radii - tol)
 
 
 def test_similarity_transform_keeps_the_kernel() -> None:
