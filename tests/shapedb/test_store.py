@@ -388,7 +388,14 @@ def test_damaged_segment_is_one_store_error_naming_it(tmp_store: Store) -> None:
     tmp_store.add([make_record("a")])
     seg = Path(tmp_store.files("shapes")[0])
     data = bytearray(seg.read_bytes())
-    data[len(data) // 2 : len(data) // 2 + 64] = b"\xff" * 64  # same size, garbage inside
+    meta = pq.ParquetFile(seg).metadata.row_group(0)
+    (chunk,) = [
+        meta.column(c)
+        for c in range(meta.num_columns)
+        if meta.column(c).path_in_schema == "feature.list.element"
+    ]
+    mid = chunk.data_page_offset + chunk.total_compressed_size // 2  # a page shapes() reads
+    data[mid : mid + 16] = b"\xff" * 16  # same size, garbage inside
     seg.write_bytes(bytes(data))
     with pytest.raises(StoreError, match=f"segment data/shapes/{seg.name}"):
         tmp_store.shapes()
@@ -537,3 +544,32 @@ def test_an_unwritable_path_is_one_store_error(where: str) -> None:
         with pytest.raises(StoreError, match="cannot create the store here") as info:
             make()
         assert "\n" not in str(info.value) and where in str(info.value)
+
+
+def test_segments_split_floating_point_columns_and_read_back(tmp_path: Path) -> None:
+    """Float columns (numbers and lists of numbers) are byte-stream split, the rest
+    dictionary-encoded; pyarrow and DuckDB read the rows back exactly."""
+    store = Store.create(tmp_path / "s", CONFIG)
+    records = [make_record(f"r{i}", 40, seed=i) for i in range(5)]
+    store.commit(records)
+    for table, column, split in (
+        ("balls", "x", True),
+        ("balls", "r_norm", True),
+        ("shapes", "feature", True),
+        ("shapes", "name", False),
+        ("edges", "i", False),
+    ):
+        (path,) = [tmp_path / "s" / f for f in store.files(table)]
+        meta = pq.ParquetFile(path).metadata.row_group(0)
+        col = next(
+            meta.column(c)
+            for c in range(meta.num_columns)
+            if meta.column(c).path_in_schema.split(".")[0] == column
+        )
+        assert ("BYTE_STREAM_SPLIT" in col.encodings) == split, (table, column, col.encodings)
+    balls = store.balls().sort_by([("shape_id", "ascending"), ("ball", "ascending")])
+    got = np.concatenate([np.asarray(r.decomposition.centers)[:, 0] for r in records])
+    np.testing.assert_array_equal(balls.column("x").to_numpy(), got)
+    files = [str(tmp_path / "s" / f) for f in store.files("balls")]
+    ((total,),) = duckdb.sql(f"select sum(x) from read_parquet({files!r})").fetchall()
+    assert total == pytest.approx(float(got.sum()))
