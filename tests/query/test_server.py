@@ -197,8 +197,9 @@ def test_a_commit_draws_thumbnails_and_a_failure_there_never_fails_it(
     db = shapedb.connect(tmp_path / "store", **OPTIONS)
     db.ingest([models["box0"]], workers=1, progress=False)
     sid = int(db.store.resolve("box0"))
-    drawn = list((db.path / "thumbnails").glob(f"{sid}-*.png"))
-    assert drawn == [thumbnails.thumbnail_path(db.path, stored_record(db, sid))]
+    path = thumbnails.thumbnail_path(db.path, stored_record(db, sid))
+    drawn = list(path.parent.glob(f"{sid}-*.png"))
+    assert drawn == [path] and path.parent.parent == db.path / "thumbnails"
     assert drawn[0].read_bytes().startswith(b"\x89PNG")
 
     def broken(*args: Any) -> None:
@@ -208,13 +209,36 @@ def test_a_commit_draws_thumbnails_and_a_failure_there_never_fails_it(
     db.ingest([models["box1"]], workers=1, progress=False)
     assert "drawing thumbnails failed" in caplog.text  # logged, and the commit stands:
     other = int(db.store.resolve("box1"))
-    assert not list((db.path / "thumbnails").glob(f"{other}-*.png"))
+    assert not list((db.path / "thumbnails").rglob(f"{other}-*.png"))
     monkeypatch.undo()
     assert thumbnails.thumbnail(
         db.path, stored_record(db, other)
     ).is_file()  # drawn at its first view instead
     db.delete("box0")
-    assert not list((db.path / "thumbnails").glob(f"{sid}-*.png"))
+    assert not list((db.path / "thumbnails").rglob(f"{sid}-*.png"))
+
+
+def test_a_bulk_commit_leaves_thumbnails_to_the_page(tmp_path, monkeypatch):
+    """More than DRAWN_AT_COMMIT shapes in one commit: none drawn there (one folder a
+    thousand ids), each drawn at its first view."""
+    from dataclasses import replace
+
+    import shapedb
+    from query import thumbnails
+    from query.serve.viewer import stored_record
+
+    models = write_models(tmp_path / "models")
+    db = shapedb.connect(tmp_path / "store", **OPTIONS)
+    db.ingest([models["box0"]], workers=1, progress=False)
+    record = db.get("box0")
+    monkeypatch.setattr(thumbnails, "DRAWN_AT_COMMIT", 2)
+    copies = [replace(record, id=None, name=f"copy{i}", content_hash=f"c{i}") for i in range(3)]
+    _, committed = db.commit(copies)
+    assert not any(
+        thumbnails.thumbnail_path(db.path, stored_record(db, int(r.id))).exists() for r in committed
+    )
+    path = thumbnails.thumbnail(db.path, stored_record(db, int(committed[0].id)))
+    assert path.is_file() and path.parent.name == f"{int(committed[0].id) // 1000:05d}"
 
 
 def test_a_thumbnail_is_the_balls_filling_the_picture():
@@ -236,7 +260,7 @@ def test_thumbnail_is_drawn_once_and_cached_beside_the_store(api, store):
     r = api.get(f"/api/shapes/{sid}/thumbnail.png")
     assert r.status_code == 200 and r.headers["content-type"] == "image/png"
     assert r.content.startswith(b"\x89PNG")
-    cached = list((db.path / "thumbnails").glob(f"{sid}-*.png"))
+    cached = list((db.path / "thumbnails").rglob(f"{sid}-*.png"))
     assert len(cached) == 1
     stamp = cached[0].stat().st_mtime_ns
     assert api.get(f"/api/shapes/{sid}/thumbnail.png").content == r.content

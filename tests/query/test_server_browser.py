@@ -126,7 +126,7 @@ def shots(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Any, dict[str, Path]]]:
     chromium, _ = _browser_or_skip()
     db, models = build_store(tmp_path_factory.mktemp("browser"))
-    for png in (db.path / "thumbnails").glob("*.png"):
+    for png in (db.path / "thumbnails").rglob("*.png"):
         BUILT_THUMBNAILS[png.name] = png.stat().st_mtime_ns
     with live_server(create_app(db)) as url:
         yield url, db, models
@@ -266,7 +266,7 @@ def test_results_show_thumbnails_drawn_when_the_shapes_were_committed(searched, 
 
     _, db, _ = site
     assert len(BUILT_THUMBNAILS) == 6  # drawn by the ingest's commit, before any page view
-    now = {p.name: p.stat().st_mtime_ns for p in (db.path / "thumbnails").glob("*.png")}
+    now = {p.name: p.stat().st_mtime_ns for p in (db.path / "thumbnails").rglob("*.png")}
     assert now == BUILT_THUMBNAILS  # none drawn (again) when the results were shown
     images = searched.find_elements(By.CSS_SELECTOR, "#results .card img")
     assert len(images) == 6 and all(i.is_displayed() for i in images)
