@@ -8,6 +8,7 @@
                    [--max-faces N] [--quiet] [--json]
     shapedb info --db DIR [--config] [--json]
     shapedb delete ID_OR_NAME... --db DIR [--lock-timeout S]
+    shapedb compact --db DIR [--lock-timeout S] [--json]
     shapedb check --db DIR [--json]
     shapedb repair --db DIR [--json]
     shapedb search QUERY --db DIR [-k 10] [--where SQL] [--metric JSON] [--json]
@@ -81,6 +82,12 @@ COMMANDS: tuple[Command, ...] = (
     ),
     Command("info", "shapes, labels, size and build of a store", store.info_arguments, store.info),
     Command("delete", "remove shapes by id or name", store.delete_arguments, store.delete),
+    Command(
+        "compact",
+        "merge runs of small segments (many small commits) into larger ones",
+        store.compact_arguments,
+        store.compact,
+    ),
     Command(
         "check",
         "verify every segment against the size and checksum in the manifest",

@@ -94,6 +94,13 @@ def delete_arguments(s: argparse.ArgumentParser) -> None:
     _lock_timeout(s)
 
 
+def compact_arguments(s: argparse.ArgumentParser) -> None:
+    """The arguments of ``compact``."""
+    add_db_argument(s)
+    _lock_timeout(s)
+    s.add_argument("--json", action="store_true")
+
+
 def _lock_timeout(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--lock-timeout",
@@ -225,6 +232,21 @@ def build_line(path: Path) -> str:
         f"version {manifest['version']}, created {when('created_at')}, "
         f"updated {when('updated_at')}"
     )
+
+
+def compact(args: argparse.Namespace) -> int:
+    """``shapedb compact``: merge runs of small segments (``Store.compact``)."""
+    db = open_store(args.db, create=False, lock_timeout=args.lock_timeout)
+    tables = ("shapes", "balls", "edges")
+    before = {t: len(db.store.files(t)) for t in tables}
+    result = db.store.compact()
+    after = {t: len(db.store.files(t)) for t in tables}
+    if args.json:
+        print_json({"version": result.version, "before": before, "after": after})
+        return 0
+    counts = ", ".join(f"{t} {before[t]} -> {after[t]}" for t in tables)
+    print(f"segments: {counts} (store version {result.version})")
+    return 0
 
 
 def delete(args: argparse.Namespace) -> int:

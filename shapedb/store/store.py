@@ -45,6 +45,7 @@ from numpy.typing import NDArray
 from shapedb.config.core import Config
 from shapedb.errors import ConfigError, NotFoundError, QueryError, ShapeDBError, StoreError
 from shapedb.store.checksums import verified_files
+from shapedb.store.compaction import TARGET_SHAPES, merge_runs
 from shapedb.store.manifest import (
     DATA,
     FORMAT_VERSION,
@@ -591,30 +592,50 @@ class Store:
                 [txn.stage("failures", merged, None)] if merged.num_rows else []
             )
 
-    def compact(self, *, min_segments: int = 2) -> CommitResult:
-        """Merge each table's segments into one, in one commit (readers unaffected).
+    def compact(self, *, target_shapes: int = TARGET_SHAPES) -> CommitResult:
+        """Merge runs of small segments into segments of about ``target_shapes`` shapes, in
+        one commit (readers unaffected; the merged files are retired, not removed).
+
+        Each table's runs are planned on its own rows (:func:`shapedb.store.compaction.merge_runs`;
+        ``balls`` and ``edges`` scaled by their rows per shape) and read one run at a
+        time, so memory holds one merged segment, never the table. Segments already
+        that large are left alone: compacting again does nothing.
 
         Parameters
         ----------
-        min_segments : int
-            Only tables with at least this many segments are rewritten.
+        target_shapes : int
+            Shapes of a full segment.
         """
+        if int(target_shapes) < 1:
+            raise ConfigError("must be >= 1", source=f"target_shapes={target_shapes!r}")
         with self.writer(), _writing(self.path, "compact"):
             snap = self._snapshot()
-            todo = [
-                t
-                for t in ("shapes", "balls", "edges")
-                if len(snap.segments(t)) >= max(min_segments, 2)
-            ]
-            if not todo:
-                return CommitResult(version=snap.version)
             txn = Transaction(self.path, snap.data)
-            for table in todo:
+            shapes = max(sum(int(s.get("rows", 0)) for s in snap.segments("shapes")), 1)
+            merged = False
+            for table in ("shapes", "balls", "edges"):
+                segments = snap.segments(table)
+                per_shape = sum(int(s.get("rows", 0)) for s in segments) / shapes
+                target = max(int(target_shapes * max(per_shape, 1.0)), 1)
                 col = "id" if table == "shapes" else "shape_id"
-                t = self._read(table, snapshot=snap).sort_by(col)
-                files = [s["file"] for s in snap.segments(table)]
-                txn.retire(files)
-                txn.tables[table] = [txn.stage(table, t, col, replaces=files)]
+                kept: list[dict[str, Any]] = []
+                runs = {run[0]: run for run in merge_runs(segments, target)}
+                k = 0
+                while k < len(segments):
+                    run = runs.get(k)
+                    if run is None:
+                        kept.append(segments[k])
+                        k += 1
+                        continue
+                    parts = [txn.read_segment(segments[j], table, self.dim) for j in run]
+                    files = [segments[j]["file"] for j in run]
+                    t = pa.concat_tables(parts).sort_by(col)
+                    txn.retire(files)
+                    kept.append(txn.stage(table, t, col, replaces=files))
+                    merged, k = True, run[-1] + 1
+                txn.tables[table] = kept
+            if not merged:
+                return CommitResult(version=snap.version)
             return CommitResult(version=txn.publish())
 
 

@@ -286,7 +286,7 @@ class Transaction:
                 if "min_id" not in seg or seg["max_id"] < lo or seg["min_id"] > hi:
                     kept.append(seg)
                     continue
-                t = self._read_segment(seg, table, dim)
+                t = self.read_segment(seg, table, dim)
                 mask = pc.is_in(t.column(col), doomed)
                 if not pc.any(mask).as_py():
                     kept.append(seg)
@@ -297,7 +297,9 @@ class Transaction:
                 kept.append(self.stage(table, rest, col, replaces=[seg["file"]]))
             self.tables[table] = kept
 
-    def _read_segment(self, seg: dict[str, Any], table: str, dim: int) -> pa.Table:
+    def read_segment(self, seg: dict[str, Any], table: str, dim: int) -> pa.Table:
+        """One committed segment of ``table``, its size and page checksums verified
+        (a damaged file is one :class:`StoreError` naming it)."""
         try:
             check_sizes(self.root, [seg], missing=True)
             return pq.read_table(

@@ -47,6 +47,20 @@ def test_check_and_repair_through_the_cli(base: Path, capsys: pytest.CaptureFixt
     assert "nothing to repair" in capsys.readouterr().out
 
 
+def test_compact_through_the_cli(
+    base: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    trimesh.creation.box(extents=(2, 1, 1)).export(tmp_path / "later.obj")
+    assert main(["ingest", str(tmp_path / "later.obj"), "--db", str(base), "--workers", "1"]) == 0
+    capsys.readouterr()
+    assert main(["compact", "--db", str(base)]) == 0
+    assert "segments: shapes 2 -> 1" in capsys.readouterr().out
+    assert main(["compact", "--db", str(base), "--json"]) == 0
+    assert '"shapes": 1' in capsys.readouterr().out
+    assert main(["sql", "SELECT count(*) FROM shapes", "--db", str(base)]) == 0
+    assert main(["compact", "--db", str(base / "missing")]) == 1
+
+
 def test_missing_manifest_is_one_line_and_repairable(
     base: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -573,3 +573,31 @@ def test_segments_split_floating_point_columns_and_read_back(tmp_path: Path) -> 
     files = [str(tmp_path / "s" / f) for f in store.files("balls")]
     ((total,),) = duckdb.sql(f"select sum(x) from read_parquet({files!r})").fetchall()
     assert total == pytest.approx(float(got.sum()))
+
+
+def test_merge_runs_cuts_runs_of_small_segments_at_the_target() -> None:
+    from shapedb.store.compaction import merge_runs
+
+    rows = [3, 3, 3, 10, 2, 2, 4, 1]
+    runs = merge_runs([{"rows": r} for r in rows], target_rows=6)
+    assert runs == [[0, 1], [4, 5], [6, 7]]  # [2] alone, [3] full: neither rewritten
+    assert merge_runs([{"rows": 10}, {"rows": 10}], target_rows=6) == []
+
+
+def test_compaction_merges_runs_one_at_a_time_and_again_does_nothing(tmp_path: Path) -> None:
+    store = Store.create(tmp_path / "s", CONFIG)
+    for k in range(7):
+        store.add([make_record(f"r{k}", 5 + k, seed=k)])
+    store.delete([int(store.resolve("r3"))])  # an emptied-out segment among them
+    before = (store.shapes(), store.balls(), store.edges())
+    with pytest.raises(ConfigError, match="target_shapes"):
+        store.compact(target_shapes=0)
+    version = store.compact(target_shapes=3).version
+    assert len(store.files("shapes")) == 2  # rows [1, 1, 1, 0 | 1, 1, 1]
+    assert all(2 <= len(store.files(t)) < 7 for t in ("balls", "edges"))
+    for a, b in zip(before, (store.shapes(), store.balls(), store.edges()), strict=True):
+        assert a.equals(b)
+    assert store.compact(target_shapes=3).version == version  # nothing left to merge
+    manifest = json.loads((store.path / MANIFEST).read_text())
+    assert len(manifest["retired"]) >= 7  # the merged files are kept for older readers
+    assert all((store.path / r["file"]).exists() for r in manifest["retired"])
