@@ -378,7 +378,9 @@ def build(root: Path, manifest: dict[str, Any], column: str, directory: Path) ->
     # a ".tmp-" folder a dead builder leaves is swept by a later save_version
     staging = Path(tempfile.mkdtemp(prefix=".tmp-build-", dir=directory))
     try:
-        ids, valid, chunks = [], [], []
+        ids: list[NDArray[np.int64]] = []
+        valid: list[NDArray[np.bool_]] = []
+        chunks: list[NDArray[np.float32]] = []
         for lo in range(0, len(segments), _BUILD_SEGMENTS):
             paths = [root / s["file"] for s in segments[lo : lo + _BUILD_SEGMENTS]]
             got_ids, got_valid, flat = _column_rows(paths, dim, column)
