@@ -417,13 +417,14 @@ def build(root: Path, manifest: dict[str, Any], column: str, directory: Path) ->
 
 # ------------------------------------------------------------------ store glue
 _OPEN: dict[tuple[str, str], ColumnCache] = {}
-_WARNED: set[str] = set()
+_WARNED: set[tuple[str, str]] = set()
 _LOCK = threading.Lock()
 
 
 def _warn_once(path: str, message: str, *args: Any) -> None:
-    if path not in _WARNED:
-        _WARNED.add(path)
+    """Log ``message`` once per process and cache directory."""
+    if (path, message) not in _WARNED:
+        _WARNED.add((path, message))
         log.warning(message, *args)
 
 

@@ -83,6 +83,7 @@ def test_a_commit_updates_the_cache_in_place_of_a_rebuild(
 ) -> None:
     stored_arrays(db)(COLUMN, _asked(db))
     stored_arrays(db)(FIELD, _asked(db))
+    first = _chunk_inode(db)
     monkeypatch.setattr(array_cache, "build", _no_build)
     ids = db.store.ids()
     rebuilt = replace(db.store.get(int(ids[3])), light_field=None)  # same id, new record
@@ -96,8 +97,17 @@ def test_a_commit_updates_the_cache_in_place_of_a_rebuild(
     assert cache is not None and int(ids[0]) not in set(cache.ids.tolist())
     _same(db)
     assert stored_arrays(db)(COLUMN, ids[3:4]) is None  # its new record has none
+    assert _chunk_inode(db) == first  # linked into the new version, not rewritten
+    db.store.compact()  # every row copied into one segment: only re-pointed
+    _same(db)
     forget(db)  # as a new process: read back from disk
     _same(db)
+
+
+def _chunk_inode(db: Any) -> int:
+    root = db.store.path / CACHE_DIR / COLUMN
+    meta = json.loads((root / "current.json").read_text())
+    return (root / meta["dir"] / "chunk-0.npy").stat().st_ino
 
 
 def _no_build(*args: Any) -> None:
@@ -136,12 +146,12 @@ def test_a_read_only_store_still_reads_its_rows(
     db.commit(_copies(db, range(20, 24), tag="ro"))
     with caplog.at_level(logging.WARNING, logger="query.search.array_cache"):
         _same(db)  # the update kept in memory
-        assert "kept in memory only" in caplog.text
+        assert "array cache of light_field kept in memory only" in caplog.text
         shutil.rmtree(db.store.path / CACHE_DIR)
         forget(db)
         _same(db)  # no cache and none can be written: the store's own read
         assert open_column(db, COLUMN) is None
-        assert "reading the store" in caplog.text
+        assert "no array cache of light_field" in caplog.text
 
 
 @pytest.mark.parametrize("victim", ["ids.npy", "chunk-0.npy", "current.json"])
