@@ -173,14 +173,16 @@ class Database:
             log.warning("drawing thumbnails failed after a commit", exc_info=True)
 
     def _notify(self, result: CommitResult) -> None:
-        """Bring the derived state already on disk up to date: the indexes, and the re-ranking
-        stage's side tables (their writers: this and the end of :meth:`ingest`)."""
+        """Bring the derived state already on disk up to date: the indexes, the array caches
+        (:mod:`query.search.array_cache`), and the re-ranking stage's side tables (their
+        writers: this and the end of :meth:`ingest`)."""
         from query.parts import index as parts_index
-        from query.search import index
+        from query.search import array_cache, index
 
         try:
             index.on_commit(self, result)
             parts_index.on_commit(self, result)
+            array_cache.on_commit(self)
             self._write_side_tables(create=False)
         except Exception:  # derived state only: the commit itself stands
             log.warning(

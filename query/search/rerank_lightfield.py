@@ -45,6 +45,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from query.search.array_cache import ColumnCache, open_column
+from query.search.array_cache import forget as forget_columns
 from query.search.field_fusion import FIELD, FieldFusion, stores_field_vectors
 from query.search.lightfield_neighbours import (
     NEIGHBOURS,
@@ -372,12 +374,15 @@ class StoredArrays:
     """Reads a store's per-record array columns by ids (an ``ArrayReader``).
 
     The columns are ``light_field`` (:data:`COLUMN`) and, in a store with field vectors,
-    ``field_vector`` (:data:`query.search.field_fusion.FIELD`). Rows read are kept (float32)
-    for the store's manifest version, shared by every reader of that store
-    (:func:`stored_arrays`): later searches read only ids not seen yet, and a commit (a
-    new version) starts afresh. Memory: at most the whole columns (``n_fields * 10 * 46
-    * 4`` bytes per record for the light fields, 5,520 at the defaults; 4 per number of
-    a field vector).
+    ``field_vector`` (:data:`query.search.field_fusion.FIELD`). They are read from the
+    store's memory-mapped array cache (:func:`query.search.array_cache.open_column`,
+    opened at a column's first call, built or brought up to the store's version then).
+    Where there is none (a read-only store never cached), rows read from the store are
+    kept (float32) for the store's manifest version, shared by every reader of that
+    store (:func:`stored_arrays`): later searches read only ids not seen yet, and a commit
+    (a new version) starts afresh. Memory then: at most the whole columns (``n_fields *
+    10 * 46 * 4`` bytes per record for the light fields, 5,520 at the defaults; 4 per
+    number of a field vector).
 
     Parameters
     ----------
@@ -397,6 +402,7 @@ class StoredArrays:
         self._shape = {COLUMN: (int(db.config.light_field.n_fields), 10, -1), FIELD: (-1,)}
         self._field_index: Any = None
         self._stage: LightFieldFusion | None = None
+        self._mapped: dict[str, ColumnCache | None] = {}
 
     def _read(self, column: str, ids: list[int] | None) -> None:
         t = self.db.store.shapes(["id", column], ids=ids)
@@ -450,6 +456,12 @@ class StoredArrays:
         if name not in self._columns:
             return None
         ids = np.asarray(ids, np.int64)
+        if name not in self._mapped:
+            self._mapped[name] = open_column(self.db, name)
+        mapped = self._mapped[name]
+        if mapped is not None:
+            rows = mapped.get(ids)
+            return None if rows is None else rows.reshape(len(ids), *self._shape[name])
         cache = self._cache[name]
         if name not in self._complete:
             missing = sorted({int(i) for i in ids} - set(cache) - self._absent[name])
@@ -476,6 +488,7 @@ def forget(path: str) -> None:
     """Drop the shared readers of the store at ``path`` (its files changed under one version)."""
     for key in [k for k in _READERS if k[0] == path]:
         _READERS.pop(key, None)
+    forget_columns(path)
 
 
 def stored_arrays(db: Any, *, preload: bool = False) -> StoredArrays:
