@@ -1,0 +1,260 @@
+"""A store at 10^4, 10^5 and 10^6 shapes: storage, commits, search, SQL, parts and ingest.
+
+``python -m bench.scale --sizes 10000 100000 1000000`` grows ONE store through the
+product's write path (``Database.commit`` of 10,000-shape batches) and measures it at
+each size. The records are made from the real records of a seed store (by default the
+CAPOD models of ``../shared/data/capod``, ingested once into ``--seed-store``) by
+perturbing centres, radii and ball counts and mixing descriptors, light fields and field
+vectors within a class (:mod:`bench.support.synthetic_records` says exactly how), so
+every record has real-shaped balls, edges and vectors.
+
+At each size (:mod:`bench.support.scale_measures`):
+
+* **store**: table bytes per shape and those of the derived folders (indexes, tables),
+  open time, segments, ``shapedb check``; latency of a 1,000-shape commit, the store's
+  own and the whole ``db.commit``;
+* **search**: ``db.search(id)``: the first search of a process (indexes loaded or built)
+  and p50 / p99 of the next; the same over HTTP in ``shapedb serve`` (a child process),
+  with its peak resident set; recall@100 of the feature index's candidates against an
+  exact scan; recall@10 of the whole default path against the exact default ranking
+  (exact indexes, side tables computed fresh: a child process, ``--reference-queries``
+  queries, skipped past ``--reference-max`` shapes);
+* **SQL**: group by label, an aggregate over every ball, a join of shapes and balls and
+  an ``mdbd_distance`` ranking of every shape, through ``db.sql``; plain DuckDB and a
+  pyarrow scan over the same Parquet files as baselines;
+* **parts**: the part index (``shapedb match``) up to ``--part-max`` shapes: build,
+  memory, p50 / p99, recall@10 against its exact scan;
+* **ingest**: one real file into the grown store against the same into an empty store.
+
+Writes ``bench/results/scale.json`` after every size (a long run keeps what it measured)
+and prints the table at the end. The store lives in ``--dir`` (default a folder under
+the system's temporary directory; check the free disk: about 30 KB a shape for the
+tables, more for the indexes). ``--keep`` keeps it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.common import format_table, write_json
+from bench.support import scale_measures as m
+from bench.support.synthetic_records import RecordMaker
+
+log = logging.getLogger("bench.scale")
+
+RESULTS = Path(__file__).parent / "results" / "scale.json"
+CAPOD = Path(__file__).resolve().parents[2] / "shared" / "data" / "capod"
+#: Shapes per commit while the store grows.
+GROW_BATCH = 10_000
+#: 1,000-shape commits timed at the end of each growth.
+TIMED_COMMITS = 3
+
+
+def seed_records(seed_store: Path) -> list[Any]:
+    """The records of the seed store, ingesting CAPOD into it first when it is missing."""
+    import shapedb
+
+    if not (seed_store / "manifest.json").exists():
+        if not CAPOD.is_dir():
+            raise SystemExit(f"no seed store at {seed_store} and no CAPOD models at {CAPOD}")
+        log.info("ingesting the CAPOD models into %s (once)", seed_store)
+        db = shapedb.connect(seed_store)
+        db.ingest([CAPOD], labels=CAPOD / "labels.csv", progress=False)
+    db = shapedb.connect(seed_store, create=False)
+    return [db.store.get(int(i)) for i in db.store.ids()]
+
+
+def probe_model(folder: Path, seeds: list[Any], n: int) -> Path:
+    """A real model file not in the store: a seed's source, scaled by a size-dependent
+    factor so its content (and hash) is new."""
+    import trimesh
+
+    source = next(Path(s.source) for s in seeds if s.source and Path(s.source).is_file())
+    mesh = trimesh.load(source, force="mesh")
+    mesh.apply_scale(1.0 + 1e-3 * (1 + np.log10(max(n, 1))))
+    out = folder / f"probe-{n}.obj"
+    mesh.export(out)
+    return out
+
+
+def grow(db: Any, maker: RecordMaker, target: int, made: int) -> tuple[int, float, dict[str, Any]]:
+    """Commit synthetic records until the store holds ``target``: batches of
+    :data:`GROW_BATCH`, the last :data:`TIMED_COMMITS` of 1,000 shapes timed. Returns the
+    records made so far, the seconds and the commit figures (empty when the store
+    already held ``target``)."""
+    t = time.perf_counter()
+    timed_from = target - TIMED_COMMITS * 1000
+    while len(db) < min(timed_from, target):
+        count = min(GROW_BATCH, timed_from - len(db))
+        db.commit(maker.batch(made, count))
+        made += count
+        log.info("%d shapes (%.0f s)", len(db), time.perf_counter() - t)
+    batches = []
+    while len(db) + 1000 * len(batches) < target:
+        count = min(1000, target - len(db) - 1000 * len(batches))
+        batches.append(maker.batch(made, count))
+        made += count
+    figures = m.commit_figures(db, batches) if batches else {}
+    return made, time.perf_counter() - t, figures
+
+
+def serve_figures(root: Path, ids: np.ndarray) -> dict[str, Any]:
+    """``GET /api/search?id=`` in ``shapedb serve``: p50 / p99 after a warm-up, peak RSS."""
+    from bench.serve import Server, get_timed
+
+    server = Server(root)
+    try:
+        conn = server.connection()
+        t, _ = m.timed(lambda: get_timed(conn, f"/api/search?id={int(ids[0])}&k=10"))
+        for sid in ids[1:6]:
+            get_timed(conn, f"/api/search?id={int(sid)}&k=10")
+        times = []
+        for sid in ids[6:]:
+            dt, (status, _, _) = m.timed(
+                lambda s=int(sid): get_timed(conn, f"/api/search?id={s}&k=10")
+            )
+            if status == 200:
+                times.append(dt)
+        return {
+            "serve_first_s": t,
+            **{f"serve_{k}": v for k, v in m.percentiles(times).items()},
+            "serve_peak_mb": m.rss_mb(server.proc.pid, "VmHWM"),
+        }
+    finally:
+        server.stop()
+
+
+def measure(db: Any, args: argparse.Namespace, seeds: list[Any],
+            rng: np.random.Generator) -> dict[str, Any]:  # fmt: skip
+    """Every figure at the store's current size."""
+    n = len(db)
+    ids = db.store.ids()
+    out: dict[str, Any] = {"shapes": n}
+    out.update(m.store_figures(db))
+    if n <= args.tables_max:
+        out.update(m.table_figures(db))
+    sample = rng.choice(db.store.ids(), args.queries + 6, replace=False)
+    searched = m.search_figures(db, sample)
+    results = searched.pop("results")
+    out.update(searched)
+    out.update(m.candidate_recall(db, sample[:50]))
+    if n <= args.reference_max:
+        wanted = [int(i) for i in list(results)[: args.reference_queries]]
+        ref = m.reference_ranks(db, wanted, timeout=args.reference_timeout)
+        if ref is not None:
+            got = [len(set(results[i]) & set(ref[i])) / 10 for i in wanted]
+            out["recall@10"] = float(np.mean(got))
+    out.update(serve_figures(Path(db.path), rng.choice(ids, args.queries + 6, replace=False)))
+    out.update(m.sql_figures(db, int(ids[0])))
+    if n <= args.part_max:
+        out.update(m.part_figures(db, rng))
+    with tempfile.TemporaryDirectory(prefix="scale-model-") as tmp:
+        out.update(m.ingest_figures(db, probe_model(Path(tmp), seeds, n), db.config))
+    return out
+
+
+_COLUMNS = [
+    ("shapes", "shapes", "{:,}"),
+    ("KB/shape tables", "table_bytes_per_shape", "{:.1f}", 1e-3),
+    ("KB/shape derived", "derived_bytes_per_shape", "{:.1f}", 1e-3),
+    ("open s", "open_s", "{:.2f}"),
+    ("check s", "check_s", "{:.1f}"),
+    ("commit 1k s (store / db)", ("store_commit_s", "db_commit_s"), "{:.2f} / {:.2f}"),
+    ("side tables s", "tables_s", "{:.0f}"),
+    ("first search s", "first_search_s", "{:.1f}"),
+    ("search p50 / p99 ms", ("p50_ms", "p99_ms"), "{:.1f} / {:.1f}"),
+    ("serve p50 / p99 ms", ("serve_p50_ms", "serve_p99_ms"), "{:.1f} / {:.1f}"),
+    ("serve peak MB", "serve_peak_mb", "{:,.0f}"),
+    ("cand. recall@100", "candidate_recall@100", "{:.3f}"),
+    ("recall@10", "recall@10", "{:.3f}"),
+    ("SQL label s (duckdb)", ("sql_group_by_label_s", "duckdb_group_by_label_s"),
+     "{:.2f} ({:.2f})"),
+    ("SQL balls s (duckdb / pyarrow)",
+     ("sql_balls_aggregate_s", "duckdb_balls_aggregate_s", "pyarrow_balls_aggregate_s"),
+     "{:.1f} ({:.1f} / {:.1f})"),
+    ("SQL join s", "sql_shapes_join_balls_s", "{:.1f}"),
+    ("SQL mdbd rank s", "sql_mdbd_distance_rank_s", "{:.1f}"),
+    ("parts p50 / p99 ms", ("part_p50_ms", "part_p99_ms"), "{:.1f} / {:.1f}"),
+    ("parts recall@10", "part_recall@10", "{:.3f}"),
+    ("parts MB", "part_rss_mb", "{:,.0f}"),
+    ("ingest 1 file s (empty store)", ("ingest_one_s", "ingest_one_empty_s"),
+     "{:.1f} ({:.1f})"),
+]  # fmt: skip
+
+
+def _cell(row: dict[str, Any], key: Any, fmt: str, scale: float = 1.0) -> str:
+    keys = key if isinstance(key, tuple) else (key,)
+    if any(k not in row for k in keys):
+        return "-"
+    return fmt.format(*(row[k] * scale if scale != 1.0 else row[k] for k in keys))
+
+
+def report(rows: list[dict[str, Any]]) -> str:
+    """The table: one column per size, one row per figure."""
+    header = ["figure"] + [f"{r['shapes']:,}" for r in rows]
+    lines = []
+    for title, key, fmt, *scale in _COLUMNS[1:]:
+        lines.append([title] + [_cell(r, key, fmt, *scale) for r in rows])
+    return format_table("bench.scale", header, lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    p.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000, 1_000_000])
+    p.add_argument("--dir", type=Path, help="the grown store's folder (default: a temp folder)")
+    p.add_argument(
+        "--seed-store", type=Path, default=Path(tempfile.gettempdir()) / "shapedb-scale-seed"
+    )
+    p.add_argument("--queries", type=int, default=200, help="searches timed at each size")
+    p.add_argument("--reference-queries", type=int, default=20)
+    p.add_argument("--reference-max", type=int, default=100_000)
+    p.add_argument("--reference-timeout", type=float, default=3600.0)
+    p.add_argument("--part-max", type=int, default=100_000)
+    p.add_argument("--tables-max", type=int, default=100_000,
+                   help="build the ranking stage's side tables up to this size")
+    p.add_argument("--grow-only", action="store_true", help="grow the store, measure nothing")
+    p.add_argument("--keep", action="store_true", help="keep the grown store (a --dir that "
+                   "already holds a store is kept, and grown further)")
+    p.add_argument("--out", type=Path, default=RESULTS)
+    args = p.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
+    import shapedb
+
+    seeds = seed_records(args.seed_store)
+    root = args.dir or Path(tempfile.mkdtemp(prefix="shapedb-scale-")) / "store"
+    resumed = (root / "manifest.json").exists()
+    db = shapedb.connect(root, config=None if resumed else seeds[0].config)
+    made = int(db.store.ids().max()) + 1 if len(db) else 0
+    maker, rng = RecordMaker(seeds), np.random.default_rng(0)
+    rows: list[dict[str, Any]] = []
+    t0 = time.perf_counter()
+    try:
+        for size in sorted(args.sizes):
+            made, grow_s, commits = grow(db, maker, size, made)
+            if args.grow_only:
+                continue
+            row = {**measure(db, args, seeds, rng), **commits}
+            row["grow_s"] = grow_s
+            row["elapsed_s"] = time.perf_counter() - t0
+            rows.append(row)
+            write_json(args.out, {"seeds": len(seeds), "sizes": rows, "load": os.getloadavg()})
+            print(report(rows), flush=True)
+    finally:
+        if not args.keep and not resumed:
+            shutil.rmtree(root.parent if args.dir is None else root, ignore_errors=True)
+    print(json.dumps({"elapsed_s": time.perf_counter() - t0}))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
