@@ -62,7 +62,7 @@ OVERSAMPLE = 2
 #: HNSW graph degree and build beam (M=32, efConstruction=80 built 10^5 x 950 in 17 s
 #: on 2 cores; M=16, efConstruction=40: 13 s but recall@200 0.88, bench.studies.field_index_recall).
 HNSW_M = 32
-_EF_CONSTRUCTION = 80
+EF_CONSTRUCTION = 80
 #: A graph more than this fraction dead is rebuilt from its live vectors (as FeatureIndex).
 _REBUILD_DEAD_FRACTION = 0.2
 #: An update is written to disk once the changes since the saved index pass this fraction
@@ -204,7 +204,7 @@ class FieldIndex:
             return out_i, out_d
         rows = np.flatnonzero(ok)
         q32 = np.ascontiguousarray(q[rows], np.float32)
-        found = self._propose(q32, k) if self.approximate else self._scan(q32, k)
+        found = self.propose(q32, k) if self.approximate else self._scan(q32, k)
         for at, row in enumerate(rows):
             cand = found[at][found[at] >= 0]
             out_i[row], out_d[row] = self._exact(q[row], cand, k)
@@ -223,8 +223,10 @@ class FieldIndex:
             found[at] = np.argpartition(d, n_cand - 1)[:n_cand]
         return found
 
-    def _propose(self, q32: NDArray[np.float32], k: int) -> NDArray[np.int64]:
-        """(q, c) positions the HNSW graph proposes, -1 for none or dead."""
+    def propose(self, q32: NDArray[np.float32], k: int) -> NDArray[np.int64]:
+        """(q, c) positions the HNSW graph proposes for ``k`` neighbours of the float32
+        queries (q, d): ``c = OVERSAMPLE * (k + 16)``, more when some are dead; -1 for
+        none or dead. Builds the graph at its first call."""
         faiss = _faiss()
         graph = self._index()
         n_total, n_live = len(self.ids_), len(self)
@@ -368,7 +370,7 @@ class FieldIndex:
 def _new_graph(dim: int) -> Any:
     faiss = _faiss()
     graph = faiss.IndexHNSWFlat(dim, HNSW_M, faiss.METRIC_L1)
-    graph.hnsw.efConstruction = _EF_CONSTRUCTION
+    graph.hnsw.efConstruction = EF_CONSTRUCTION
     return graph
 
 
@@ -430,7 +432,9 @@ def _up_to_date(
         _sync(index, snap, fusion, dim)
     index.settle()
     index.segments_, index.version_, index.scales_ = snap.files, snap.version, _scales(fusion)
-    log.info("field vector index %s at store version %d: %d shapes", action, snap.version, len(index))
+    log.info(
+        "field vector index %s at store version %d: %d shapes", action, snap.version, len(index)
+    )
     if index.unsaved_ > _RESAVE_FRACTION * len(index.ids_):
         keep_beside(index, snap.root / INDEX_DIR, snap.version, "field vector index")
     return index
