@@ -56,13 +56,13 @@ _MARGIN = 16
 #: search is slower per vector than numpy's at the field vector's length); beyond, the
 #: HNSW graph.
 SCAN_MAX = 65_536
-#: HNSW proposals per wanted candidate (k + 16), efSearch the same: recall@200 0.98 at 10^5
-#: clustered 950-d vectors (python -m bench.studies.field_index_recall).
+#: HNSW proposals per wanted candidate (k + 16), efSearch the same: recall@200 0.998 at 10^5
+#: clustered 950-d vectors (0.994 at 1, 0.999 at 4; bench.studies.field_index_recall).
 OVERSAMPLE = 2
-#: HNSW graph degree and build beam (M=32, efConstruction=80 built 10^5 x 950 in 17 s
-#: on 2 cores; M=16, efConstruction=40: 13 s but recall@200 0.88, bench.studies.field_index_recall).
+#: HNSW graph degree and build beam: efConstruction 160 built 10^5 x 950 in 433 s on 2 busy
+#: cores (80: 180 s, recall@200 0.98; bench.studies.field_index_recall).
 HNSW_M = 32
-EF_CONSTRUCTION = 80
+EF_CONSTRUCTION = 160
 #: A graph more than this fraction dead is rebuilt from its live vectors (as FeatureIndex).
 _REBUILD_DEAD_FRACTION = 0.2
 #: An update is written to disk once the changes since the saved index pass this fraction
@@ -459,20 +459,43 @@ def _build(snap: field_rows.Snapshot, fusion: FieldFusion, dim: int) -> FieldInd
 
 
 def _sync(index: FieldIndex, snap: field_rows.Snapshot, fusion: FieldFusion, dim: int) -> None:
-    """Read the segments ``index`` has not; add new or changed rows, tombstone the gone."""
+    """Read the segments ``index`` has not; add new or changed rows, tombstone the gone.
+
+    Their rows are new shapes, copies of kept ones (a deletion rewrites its segment), or
+    shapes stored again under their id; the changes are applied every
+    :data:`_ADD_BLOCK` rows, so the id lookup is not rebuilt at every batch.
+    """
     unread = snap.only(set(snap.files) - set(index.segments_))
     index.remove(np.setdiff1d(index.ids_[index.alive_], field_rows.read_ids(snap)))
+    gone: list[NDArray[np.int64]] = []
+    new: list[tuple[NDArray[np.int64], NDArray[np.float32]]] = []
     for rows, ids, vectors in field_rows.read_rows(unread, fusion, dim):
         pos = index.lookup(rows)
-        has = np.isin(rows, ids)
-        index.remove(rows[(pos >= 0) & ~has])  # re-stored without a field vector
-        pos = index.lookup(ids)
+        has = np.isin(rows, ids)  # ids are the rows with a field vector, in order
+        gone.append(rows[(pos >= 0) & ~has])  # stored again without one
+        pos = pos[has]
         same = pos >= 0
-        if same.any():  # copies of kept rows (a deletion rewrote their segment), or changed
-            same[same] = np.all(index.vectors_[pos[same]] == vectors[same], axis=1)
-        index.remove(ids[~same])
-        index.add(ids[~same], vectors[~same])
+        same[same] = np.all(index.vectors_[pos[same]] == vectors[same], axis=1)
+        gone.append(ids[(pos >= 0) & ~same])  # stored again with another one
+        new.append((ids[~same], vectors[~same]))
         index.unsaved_ += len(rows)
+        if sum(len(i) for i, _ in new) >= _ADD_BLOCK:
+            _apply(index, gone, new)
+    _apply(index, gone, new)
+
+
+def _apply(
+    index: FieldIndex,
+    gone: list[NDArray[np.int64]],
+    new: list[tuple[NDArray[np.int64], NDArray[np.float32]]],
+) -> None:
+    """Tombstone ``gone``, then add ``new``; empties both lists."""
+    if gone:
+        index.remove(np.concatenate(gone))
+    if new:
+        index.add(np.concatenate([i for i, _ in new]), np.concatenate([v for _, v in new]))
+    gone.clear()
+    new.clear()
 
 
 def _load(directory: Path, scales: list[Any]) -> FieldIndex | None:
@@ -483,7 +506,10 @@ def _load(directory: Path, scales: list[Any]) -> FieldIndex | None:
     except StoreError as exc:
         log.warning("rebuilding the field vector index: %s", exc)
         return None
-    return index if index.scales_ == scales else None
+    if index.scales_ != scales:
+        return None
+    index.settle()  # as this process's SCAN_MAX has it
+    return index
 
 
 def _scales(fusion: FieldFusion) -> list[Any]:

@@ -99,7 +99,9 @@ def _batches(snap: Snapshot, columns: list[str]) -> Iterator[pa.RecordBatch]:
     try:
         paths = [str(snap.root / s["file"]) for s in segs]
         dataset = ds.dataset(paths, schema=shapes_schema(snap.dim), format=_PARQUET)
-        yield from dataset.to_batches(columns=columns, batch_size=READ_BATCH)
+        yield from dataset.to_batches(
+            columns=columns, batch_size=READ_BATCH, batch_readahead=1, fragment_readahead=1
+        )
     except FileNotFoundError:
         raise
     except (pa.ArrowException, OSError) as exc:
