@@ -345,10 +345,8 @@ class FieldIndex:
     def load(cls, directory: str | os.PathLike[str]) -> FieldIndex:
         """Read the index ``<directory>/current.json`` points to (StoreError when damaged)."""
         root = Path(directory)
+        meta, sub = _pointer(root)
         try:
-            meta, sub = current(root)
-            if meta.get("format") != _FORMAT:
-                raise StoreError(f"unknown field index format {meta.get('format')!r}", source=root)
             ids, alive = np.load(sub / "ids.npy"), np.load(sub / "alive.npy")
             index = cls(np.empty(0, np.int64), np.zeros((0, int(meta["dim"])), np.float32))
             if (sub / "graph.faiss").exists():
@@ -365,6 +363,17 @@ class FieldIndex:
         index.segments_, index.version_ = tuple(meta["segments"]), meta["version"]
         index.scales_ = meta["scales"]
         return index
+
+
+def _pointer(root: Path) -> tuple[dict[str, Any], Path]:
+    """The saved index's metadata and directory (StoreError when unreadable or foreign)."""
+    try:
+        meta, sub = current(root)
+    except (OSError, ValueError, KeyError) as exc:
+        raise StoreError(f"cannot read the field vector index: {exc}", source=root) from exc
+    if meta.get("format") != _FORMAT:
+        raise StoreError(f"unknown field index format {meta.get('format')!r}", source=root)
+    return meta, sub
 
 
 def _new_graph(dim: int) -> Any:
