@@ -256,3 +256,89 @@ def test_the_field_index_is_exact_with_ties_by_id_and_filters(
     real = got[0][got[0] >= 0]
     assert set(real.tolist()) == set(allowed.tolist())
     assert index.search(np.full((1, 6), np.nan), 3)[0].tolist() == [[-1, -1, -1]]
+
+
+def _clustered(n: int, d: int = 24, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    centres = rng.random((max(n // 100, 4), d))
+    label = rng.integers(0, len(centres), n)
+    return (centres[label] + 0.1 * rng.standard_normal((n, d))).astype(np.float32)
+
+
+def _brute(ids: np.ndarray, v: np.ndarray, q: np.ndarray, k: int) -> list[int]:
+    d = np.abs(v.astype(np.float64) - q).sum(1)
+    return ids[np.lexsort((ids, d))[:k]].tolist()
+
+
+@pytest.fixture
+def small_scan(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The graph proposes above 500 vectors, 8 times k + 16 of them."""
+    monkeypatch.setattr("query.search.field_index.SCAN_MAX", 500)
+    monkeypatch.setattr("query.search.field_index.OVERSAMPLE", 8)
+
+
+def test_the_graph_proposes_and_the_exact_scan_orders(small_scan: None) -> None:
+    v = _clustered(2000)
+    ids = np.arange(2000) * 3 + 1
+    index = FieldIndex(ids, v)
+    assert index.approximate
+    rng = np.random.default_rng(1)
+    queries = v[rng.choice(2000, 15, replace=False)] + 0.02 * rng.standard_normal((15, 24))
+    got, d = index.search(queries, 40)
+    for row, q in enumerate(queries):
+        assert got[row].tolist() == _brute(ids, v, q, 40)
+    assert np.all(np.diff(d, axis=1) >= 0)
+    allowed = ids[::7]
+    got, _ = index.search(queries[:2], 5, allowed=allowed)
+    assert got[0].tolist() == _brute(allowed, v[::7], queries[0], 5)
+
+
+def test_tombstones_and_additions_keep_the_graph_exact(small_scan: None) -> None:
+    v = _clustered(2400, seed=3)
+    ids = np.arange(2400)
+    index = FieldIndex(ids[:2000], v[:2000])
+    index.settle()  # builds the graph
+    gone = np.arange(0, 2000, 9)
+    assert index.remove(gone) == len(gone) and index.remove(gone) == 0
+    index.add(ids[2000:], v[2000:])
+    index.settle()
+    live = np.setdiff1d(ids, gone)
+    assert len(index) == len(live) and index.approximate
+    queries = np.concatenate([v[gone[:5]], v[2000:2005]]).astype(np.float64)
+    got, _ = index.search(queries, 30)
+    assert not np.isin(got, gone).any()
+    for row, q in enumerate(queries):
+        assert got[row].tolist() == _brute(live, v[live], q, 30)
+    assert got[5:, 0].tolist() == list(range(2000, 2005))  # the new vectors are found
+
+
+def test_an_index_shrunk_below_the_scan_threshold_is_a_fresh_one(small_scan: None) -> None:
+    v = _clustered(900, seed=4)
+    index = FieldIndex(np.arange(900), v)
+    index.settle()
+    index.remove(np.arange(0, 900, 2))
+    index.add([2001, 1999], v[:2])
+    index.settle()
+    assert not index.approximate
+    fresh = FieldIndex(np.r_[np.arange(1, 900, 2), 1999, 2001], np.r_[v[1::2], v[1:2], v[:1]])
+    assert index.ids_.tolist() == fresh.ids_.tolist()
+    assert np.array_equal(index.vectors_, fresh.vectors_) and index.alive_.all()
+    q = _clustered(3, seed=9).astype(np.float64)
+    for a, b in zip(index.search(q, 12), fresh.search(q, 12), strict=True):
+        assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("n", [300, 1200])  # a flat index, a graph
+def test_a_saved_index_loads_the_same(small_scan: None, tmp_path: Any, n: int) -> None:
+    v = _clustered(n, seed=5)
+    index = FieldIndex(np.arange(n), v)
+    index.settle()
+    index.remove([3, 4])
+    index.segments_, index.scales_ = ("a.parquet",), [1.0]
+    index.save(tmp_path / "idx", version=7)
+    back = FieldIndex.load(tmp_path / "idx")
+    assert (back.segments_, back.scales_, back.version_) == (("a.parquet",), [1.0], 7)
+    assert back.approximate == (n > 500) and len(back) == n - 2
+    q = v[:6].astype(np.float64)
+    for a, b in zip(index.search(q, 20), back.search(q, 20), strict=True):
+        assert np.array_equal(a, b)
