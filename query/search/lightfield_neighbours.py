@@ -324,8 +324,9 @@ def neighbour_table(db: StoreHandle, fields: ArrayReader, scorer: StageRows) -> 
 def store_neighbours(db: StoreHandle, fields: ArrayReader, scorer: StageRows) -> dict[int, Any]:
     """Every stored shape's list at the store's current version, by id ((k,) int64 each).
 
-    Read from ``<store>/index_neighbours/`` when it holds this version's lists under the
-    stage's parameters; else computed (:func:`stage_lists`), not written.
+    Read from ``<store>/index_neighbours/`` under the stage's parameters (carried: values of an
+    earlier version kept, :mod:`query.search.shape_table`); the missing ones computed
+    (:func:`stage_lists`), not written. :func:`refresh` gives the exact table.
     """
     table = neighbour_table(db, fields, scorer)
     table.get(None)

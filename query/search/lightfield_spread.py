@@ -305,8 +305,9 @@ def store_spreads(
 ) -> dict[int, float]:
     """Every stored shape's local spread at the store's current version, by id.
 
-    Read from ``<store>/index_lightfield/`` when it holds this version's spreads under
-    the stage's parameters; else computed (:func:`local_spreads`), not written.
+    Read from ``<store>/index_lightfield/`` under the stage's parameters (carried: values of an
+    earlier version kept, :mod:`query.search.shape_table`); the missing ones computed
+    (:func:`local_spreads`), not written. :func:`refresh` gives the exact table.
     """
     table = spread_table(db, fields, tuning)
     table.get(None)
