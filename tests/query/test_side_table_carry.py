@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from query_helpers import CONFIG
+from query_helpers import CONFIG, SMALL_STAGE
 
 import query.search.lightfield_neighbours as neighbours
 import query.search.lightfield_spread as spreads
@@ -26,12 +26,8 @@ from query.search.tuning import PRODUCT, StageTuning, tuned
 from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus
 
 STAGE = CONFIG.with_options(rerank="lightfield", fv_enabled=True)
-#: K 5 and K2 2, the spreads pooled over 3 candidates and the term at k 2.
-ON = replace(
-    PRODUCT, candidates=5, field_depth_weight=0.5, field_harmonic_weight=0.5,
-    field_candidates=2, ceiling=0.0, contrast_floor=0.0, pool=3, shared_neighbours=2,
-    shared_weight=0.8,
-)  # fmt: skip
+#: The small stores' stage with the spreads pooled over 3 candidates.
+ON = replace(PRODUCT, **SMALL_STAGE, pool=3)
 TABLES = {"spreads": spreads.SPREAD_DIR, "lists": neighbours.NEIGHBOUR_DIR}
 
 
