@@ -124,6 +124,7 @@ class ShapeTable:
         self.n_alive = int(np.count_nonzero(self.index.alive_))
         self.complete = False
         self._saved = False  # the table on disk holds exactly these values
+        self._prints: tuple[NDArray[np.int64], NDArray[np.uint64]] | None = None
         self._lock = threading.Lock()
         self._read()
 
@@ -159,17 +160,25 @@ class ShapeTable:
             self.check(values)
             at = np.load(sub / "at.npy") if (sub / "at.npy").exists() else None
             at = np.full(len(ids), version, np.int64) if at is None else at
+            has_prints = (sub / "prints.npy").exists()
+            prints = np.load(sub / "prints.npy") if has_prints else None
             if version < self.version:  # carried: the same shapes, still alive
+                if prints is None:
+                    raise ValueError("no fingerprints to carry the values by")
                 keep = np.asarray(self.index.lookup(ids)) >= 0
-                prints = np.load(sub / "prints.npy")
-                keep[keep] = fingerprints(self.index, ids[keep]) == prints[keep]
-                ids, values, at = ids[keep], values[keep], at[keep]
-            self.values = {int(i): v for i, v in zip(ids, values, strict=True)}
-            self.at = dict(zip(ids.tolist(), np.asarray(at, np.int64).tolist(), strict=True))
+                now = fingerprints(self.index, ids[keep])
+                same = now == prints[keep]
+                keep[keep] = same
+                ids, values, at, prints = ids[keep], values[keep], at[keep], now[same]
+            self._prints = None if prints is None else (ids, prints)
+            self.values = dict(zip(ids.tolist(), values, strict=True))
+            versions, which = np.unique(np.asarray(at, np.int64), return_inverse=True)
+            one = versions.tolist()  # one int object per version, not one per value
+            self.at = dict(zip(ids.tolist(), map(one.__getitem__, which.tolist()), strict=True))
             self.complete = version == self.version or len(self.values) >= self.n_alive
             self._saved = version == self.version
         except (OSError, ValueError, KeyError) as exc:
-            self.values, self.at = {}, {}
+            self.values, self.at, self._prints = {}, {}, None
             log.warning("recomputing the %s of %s: %s", self.what, self.db.store.path, exc)
 
     def save(self) -> None:
@@ -181,10 +190,11 @@ class ShapeTable:
         with self._lock:
             if not self.complete or self._saved:
                 return
-            ids = np.array(sorted(self.values), np.int64)
-            values = np.asarray([self.values[int(i)] for i in ids])
-            at = np.array([self.at[int(i)] for i in ids], np.int64)
-        prints = fingerprints(self.index, ids)
+            keys = np.fromiter(self.values, np.int64, len(self.values))
+            order = np.argsort(keys, kind="stable")
+            ids, values = keys[order], np.asarray(list(self.values.values()))[order]
+            at = np.fromiter((self.at[i] for i in self.values), np.int64, len(keys))[order]
+        prints = self._fingerprints(ids)
         carried = int(np.count_nonzero(at < self.version))
         oldest = int(at.min()) if len(at) else self.version
 
@@ -202,6 +212,18 @@ class ShapeTable:
             self.what, len(ids), self.version, carried, oldest,
         )  # fmt: skip
 
+    def _fingerprints(self, ids: NDArray[np.int64]) -> NDArray[np.uint64]:
+        """:func:`fingerprints` of the sorted ``ids``, those read or verified reused."""
+        out = np.zeros(len(ids), np.uint64)
+        todo = np.ones(len(ids), bool)
+        if self._prints is not None and len(self._prints[0]):
+            known, prints = self._prints
+            pos = np.minimum(np.searchsorted(known, ids), len(known) - 1)
+            hit = known[pos] == ids
+            out[hit], todo = prints[pos[hit]], ~hit
+        out[todo] = fingerprints(self.index, ids[todo])
+        return out
+
     def keep(self) -> None:
         """:meth:`save`, or keep the table in memory only (one warning) when the store's
         directory cannot be written (read-only media, another user's files)."""
@@ -215,35 +237,43 @@ class ShapeTable:
         """Recompute every alive shape's value at this version (nothing carried)."""
         with self._lock:
             ids, got = self.compute(None)
-            self.values = {int(i): v for i, v in zip(ids, got, strict=True)}
+            self.values = dict(zip(ids.tolist(), got, strict=True))
             self.at = dict.fromkeys(self.values, self.version)
             self.complete, self._saved = True, False
 
+    def fill(self, ids: NDArray[np.int64] | None = None) -> None:
+        """Compute the values of the alive ``ids`` (every alive shape's when None) that have
+        none yet, in this process (nothing is written: :meth:`save`); known values are kept."""
+        with self._lock:
+            if self.complete:
+                return
+            if ids is not None:
+                asked = np.unique(np.asarray(ids, np.int64))
+                pending: NDArray[np.int64] | None = np.array(
+                    [i for i in asked.tolist() if i not in self.values], np.int64
+                )
+            elif self.values:  # the alive ids without a value
+                lack = np.array(self.index.alive_, bool)
+                pos = np.asarray(self.index.lookup(np.fromiter(self.values, np.int64)))
+                lack[pos[pos >= 0]] = False
+                pending = np.asarray(self.index.ids_, np.int64)[lack]
+            else:
+                pending = None
+            if pending is None or len(pending):
+                got_ids, got = self.compute(pending)
+                self.values.update(zip(got_ids.tolist(), got, strict=True))
+                self.at.update(dict.fromkeys(got_ids.tolist(), self.version))
+                self._saved = False
+            if len(self.values) >= self.n_alive:  # compute answers alive ids only
+                self.complete = True
+
     def known(self, ids: NDArray[np.int64] | None = None) -> tuple[NDArray[np.int64], list[Any]]:
         """``(ids, values)``: every asked id's value (None where it has none; every alive
-        shape's when ``ids`` is None).
-
-        Computes the ids that have no value yet, in this process (nothing is written:
-        :meth:`save`); carried values are kept.
-        """
+        shape's when ``ids`` is None), computing those without one (:meth:`fill`)."""
+        self.fill(ids)
         with self._lock:
-            want = None if ids is None else np.asarray(ids, np.int64).ravel()
-            if not self.complete:
-                have = np.fromiter(self.values, np.int64, len(self.values))
-                pending = want if want is None or not len(have) else np.setdiff1d(want, have)
-                if want is None and len(have):
-                    alive = np.asarray(self.index.ids_, np.int64)[np.asarray(self.index.alive_)]
-                    pending = np.setdiff1d(alive, have)
-                if pending is None or len(pending):
-                    got_ids, got = self.compute(pending)
-                    self.values.update({int(i): v for i, v in zip(got_ids, got, strict=True)})
-                    self.at.update(dict.fromkeys(got_ids.tolist(), self.version))
-                    self._saved = False
-                    if len(self.values) >= self.n_alive:  # compute answers alive ids only
-                        self.complete = True
-            if want is None:
-                want = np.array(sorted(self.values), np.int64)
-            return want, [self.values.get(int(i)) for i in want]
+            want = np.array(sorted(self.values), np.int64) if ids is None else ids
+            return want, [self.values.get(int(i)) for i in np.asarray(want, np.int64).ravel()]
 
 
 def update(table: ShapeTable, whole: int, limit: int) -> None:
@@ -257,7 +287,7 @@ def update(table: ShapeTable, whole: int, limit: int) -> None:
     if whole <= limit:
         table.refresh()
     else:
-        table.known(None)
+        table.fill(None)
     table.keep()
 
 

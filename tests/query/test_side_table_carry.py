@@ -22,6 +22,7 @@ import query.search.lightfield_neighbours as neighbours
 import query.search.lightfield_spread as spreads
 from query.search.index import open_index
 from query.search.rerank_lightfield import LightFieldFusion, stored_arrays
+from query.search.shape_table import fingerprints
 from query.search.tuning import PRODUCT, StageTuning, tuned
 from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus
 
@@ -149,6 +150,9 @@ def test_a_commit_carries_the_old_values_and_computes_the_new_shapes(
             v0
         }
         assert all(np.all(np.isfinite(values[i])) for i in new)
+        root = Path(db.store.path) / TABLES[name]
+        prints = np.load(root / meta["dir"] / "prints.npy")
+        assert prints.tolist() == fingerprints(open_index(db), np.array(sorted(values))).tolist()
     # what a search reads: the table of the new version, complete, nothing computed
     assert all(t.complete and not t.exact for t in _tables(db).values())
     assert asked == {"spreads": [new], "lists": [new]}
