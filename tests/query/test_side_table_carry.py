@@ -226,3 +226,22 @@ def test_other_parameters_discard_the_stored_values(db: Any, asked: dict[str, li
         meta, values, _ = _stored(db, name)
         assert meta[key] == value and meta["exact"] and len(values) == 8
     assert all(not t.complete for t in _tables(db).values())  # the stage's own numbers
+
+
+def test_a_store_that_cannot_be_written_keeps_the_carried_table_in_memory(
+    db: Any, asked: dict[str, list[Any]], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import query.search.shape_table as shape_table
+
+    def refuse(*args: Any, **kwargs: Any) -> Any:
+        raise PermissionError(13, "Permission denied")
+
+    v0 = db.store.version
+    monkeypatch.setattr(shape_table, "save_version", refuse)
+    _, added = db.commit([_copy(db, "rod_b", "rod_c")])
+    assert asked == {"spreads": [[added[0].id]], "lists": [[added[0].id]]}
+    for name, table in _tables(db).items():
+        assert table.complete and len(table.values) == 8 and not table.exact
+        assert _stored(db, name)[0]["version"] == v0  # the disk holds the old table
+    db.search("rod_c", k=3)
+    assert len(asked["spreads"]) == len(asked["lists"]) == 1  # nothing computed again
