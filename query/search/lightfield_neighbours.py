@@ -18,17 +18,20 @@ list order) and stage distances ``dl(q, x)``,
   1)`` exactly where ``q ∈ {x} ∪ N_k(x)``, and nothing else differs.
 
 The lists ``N_k(x)`` depend on the whole store (a new shape changes its neighbours'
-lists), so, like the spreads (:mod:`query.search.lightfield_spread`), they belong to a store
-version: computed on demand for the candidates a search needs (only queries whose gate
-is open read them), kept in process per store version (:class:`NeighbourTable`), and
-written to ``<store>/index_neighbours/`` (a versioned directory like the index's:
-``ids.npy``, ``neighbours.npy``, and the store version and the parameters in
-``current.json``) once every stored shape has one (an evaluation, or the commit hook of a
-store whose table costs at most :data:`FULL_AT_COMMIT` stage distances); read back while
-they match. A list computed for one shape or for all is the same (deterministic, from the
-stored vectors, light fields and field vectors). Cost: one stage per shape (``K + K2``
-stage distances at most, and a search of each index). The lists are those of the store's
-own stored distance (no learned metric).
+lists). Like the spreads (:mod:`query.search.lightfield_spread`), they are computed on demand
+for the candidates a search needs (only queries whose gate is open read them), kept in
+process per store version (:class:`NeighbourTable`), and written to
+``<store>/index_neighbours/`` (a versioned table, :mod:`query.search.shape_table`) by the
+commit hook (:func:`on_commit`): created at an ingest's end while the whole table costs
+at most :data:`FULL_AT_COMMIT` stage distances (recomputed whole at each commit while it
+does), or by :func:`refresh` at any size; once written, each commit *carries* it: the
+shapes still alive keep their lists (an old list does not gain a new shape; the table
+records the version each was computed at), a deleted id is in no result but may stay in
+an old list, where it matches no candidate, and only the new shapes' lists are computed.
+Read back while the parameters match. A list computed for one shape or for all at one
+version is the same (deterministic, from the stored vectors, light fields and field
+vectors). Cost: one stage per shape (``K + K2`` stage distances at most, and a search of
+each index). The lists are those of the store's own stored distance (no learned metric).
 """
 
 from __future__ import annotations
@@ -43,8 +46,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from query.search.field_fusion import FieldFusion
+from query.search.index import open_index
 from query.search.rerank import Candidates, stage_batch
-from query.search.shape_table import ShapeTable, index_version, shared_table
+from query.search.shape_table import ShapeTable, index_version, shared_table, update
 from query.search.tuning import PRODUCT, StageTuning
 from query.search.versioned import POINTER
 
@@ -67,6 +71,7 @@ __all__ = [
     "neighbour_table",
     "store_neighbours",
     "on_commit",
+    "refresh",
 ]
 
 log = logging.getLogger(__name__)
@@ -77,8 +82,10 @@ NEIGHBOURS = "light_field_neighbours"
 NEIGHBOUR_DIR = "index_neighbours"
 _FORMAT = 1
 _CHUNK = 16
-#: A commit recomputes every shape's list only when that costs at most this many stage
-#: distances (:func:`commit_distances`; 100 shapes each reaching the whole store).
+#: The lists are computed whole (the table created at an ingest's end, or recomputed
+#: exactly at a commit) only while that costs at most this many stage distances
+#: (:func:`commit_distances`; 100 shapes each reaching the whole store): larger stores
+#: keep no table until one is written (:func:`refresh`), then carry it.
 FULL_AT_COMMIT = 10_000
 _CACHE: dict[tuple[str, int], NeighbourTable] = {}
 _LOCK = threading.Lock()
@@ -317,8 +324,9 @@ def neighbour_table(db: StoreHandle, fields: ArrayReader, scorer: StageRows) -> 
 def store_neighbours(db: StoreHandle, fields: ArrayReader, scorer: StageRows) -> dict[int, Any]:
     """Every stored shape's list at the store's current version, by id ((k,) int64 each).
 
-    Read from ``<store>/index_neighbours/`` when it holds this version's lists under the
-    stage's parameters; else computed (:func:`stage_lists`), not written.
+    Read from ``<store>/index_neighbours/`` under the stage's parameters (carried: values of an
+    earlier version kept, :mod:`query.search.shape_table`); the missing ones computed
+    (:func:`stage_lists`), not written. :func:`refresh` gives the exact table.
     """
     table = neighbour_table(db, fields, scorer)
     table.get(None)
@@ -331,18 +339,30 @@ def on_commit(
     """Bring the lists up to date after a commit, for a store whose stage reads them.
 
     Only a store with the ``"lightfield"`` scorer and the term on
-    (:attr:`query.search.tuning.StageTuning.shares_neighbours`) whose lists cost at most
-    :data:`FULL_AT_COMMIT` stage distances (:func:`commit_distances`), and whose table
-    was written before unless ``create`` (the end of an ingest): the table is computed and
-    written here, the one place that writes it; other stores' searches compute the lists
-    they read, in memory.
+    (:attr:`query.search.tuning.StageTuning.shares_neighbours`) and a table written
+    before, or, with ``create`` (the end of an ingest), a store whose whole table costs at
+    most :data:`FULL_AT_COMMIT` stage distances (:func:`commit_distances`): the one place
+    that writes the table (:func:`query.search.shape_table.update`: the new shapes'
+    lists computed, the others carried; a table within the limit recomputed whole).
+    Other stores' searches compute the lists they read, in memory.
     """
     cfg = db.config
     if cfg.rerank.scorer != "lightfield" or not scorer.tuning.shares_neighbours:
         return
-    if not create and not (Path(db.store.path) / NEIGHBOUR_DIR / POINTER).exists():
-        return
+    written = (Path(db.store.path) / NEIGHBOUR_DIR / POINTER).exists()
+    whole = commit_distances(int(np.count_nonzero(open_index(db).alive_)), cfg, scorer.tuning)
+    if written or (create and whole <= FULL_AT_COMMIT):
+        update(neighbour_table(db, fields, scorer), whole, FULL_AT_COMMIT)
+
+
+def refresh(db: StoreHandle, fields: ArrayReader, scorer: StageRows) -> NeighbourTable:
+    """Recompute every stored shape's list at the store's version and save the table.
+
+    The exact table (nothing carried, ``exact`` in its pointer), whatever the store's
+    size (``commit_distances`` stage distances); a store the process cannot write keeps
+    it in memory. Returns the shared table.
+    """
     table = neighbour_table(db, fields, scorer)
-    if commit_distances(table.n_alive, cfg, scorer.tuning) <= FULL_AT_COMMIT:
-        table.get(None)
-        table.save()
+    table.refresh()
+    table.keep()
+    return table

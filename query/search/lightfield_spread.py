@@ -18,17 +18,20 @@ distance. It is scale-free and high where the light field finds other shapes nea
 than the stored distance's neighbours (the same subject's other poses against other
 subjects in the same pose). The pool takes the statistics' ``pool_quantile``.
 
-The spreads depend on the whole store (a new shape changes its neighbours' lists), so
-they belong to a store version. They are computed on demand, for the shapes a search
-pools (a search costs the same whatever the store's size, and a commit costs nothing),
-kept in-process per store version, and written to ``<store>/index_lightfield/`` (a
-versioned directory like the index's: ``ids.npy``, ``spreads.npy``, and the store
-version and the parameters they were computed with in ``current.json``) once every
-stored shape has one (an evaluation, :func:`store_spreads`, or the commit hook of a
-store whose statistics cost at most :data:`FULL_AT_COMMIT` light field distances); read back while they match. A spread
-computed for one shape or for all is the same number (deterministic, from the stored
-vectors and light fields). Cost: ``spread_candidates`` light field distances per shape
-(``max(spread_candidates, ratio_candidates)`` with the ratio).
+The spreads depend on the whole store (a new shape changes its neighbours' lists). They
+are computed on demand, for the shapes a search pools (a search costs the same whatever
+the store's size), kept in process per store version, and written to
+``<store>/index_lightfield/`` (a versioned table, :mod:`query.search.shape_table`) by the
+commit hook (:func:`on_commit`): created at an ingest's end while the whole table costs at
+most :data:`FULL_AT_COMMIT` light field distances (recomputed whole at each commit while
+it does), or by :func:`refresh` at any size; once written, each commit *carries* it: the
+shapes still alive keep their spreads (not recomputed when new neighbours arrive; the
+table records the version each was computed at) and only the new shapes' are computed,
+so a commit costs its new shapes, not the store. Read back while the parameters match. A
+spread computed for one shape or for all at one version is the same number
+(deterministic, from the stored vectors and light fields). Cost: ``spread_candidates``
+light field distances per shape (``max(spread_candidates, ratio_candidates)`` with the
+ratio).
 
 In a store whose stage fuses the field vectors into the light field distance
 (:mod:`query.search.field_fusion`), every light field distance above is the fused one, and the
@@ -46,7 +49,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from query.search.field_fusion import FieldFusion
-from query.search.shape_table import ShapeTable, index_version, shared_table
+from query.search.index import open_index
+from query.search.shape_table import ShapeTable, index_version, shared_table, update
 from query.search.tuning import PRODUCT, StageTuning, active
 from query.search.versioned import POINTER
 
@@ -67,6 +71,7 @@ __all__ = [
     "spread_table",
     "store_spreads",
     "on_commit",
+    "refresh",
 ]
 
 log = logging.getLogger(__name__)
@@ -74,9 +79,10 @@ log = logging.getLogger(__name__)
 SPREAD_DIR = "index_lightfield"
 _FORMAT = 1
 _CHUNK = 256
-#: A commit recomputes every shape's statistic only when that costs at most this many
-#: light field distances (:func:`commit_distances`; 2,000 shapes of the spread over 5);
-#: larger stores compute them as searches ask for them.
+#: The statistics are computed whole (the table created at an ingest's end, or recomputed
+#: exactly at a commit) only while that costs at most this many light field distances
+#: (:func:`commit_distances`; 2,000 shapes of the spread over 5, ~0.25 s): larger stores
+#: keep no table until one is written (:func:`refresh`), then carry it.
 FULL_AT_COMMIT = 10_000
 _CACHE: dict[tuple[str, int], SpreadTable] = {}
 _LOCK = threading.Lock()
@@ -299,8 +305,9 @@ def store_spreads(
 ) -> dict[int, float]:
     """Every stored shape's local spread at the store's current version, by id.
 
-    Read from ``<store>/index_lightfield/`` when it holds this version's spreads under
-    the stage's parameters; else computed (:func:`local_spreads`), not written.
+    Read from ``<store>/index_lightfield/`` under the stage's parameters (carried: values of an
+    earlier version kept, :mod:`query.search.shape_table`); the missing ones computed
+    (:func:`local_spreads`), not written. :func:`refresh` gives the exact table.
     """
     table = spread_table(db, fields, tuning)
     table.get(None)
@@ -310,18 +317,30 @@ def store_spreads(
 def on_commit(db: StoreHandle, fields: ArrayReader, *, create: bool = False) -> None:
     """Bring the spreads up to date after a commit, for a store whose stage pools them.
 
-    Only a store with the ``"lightfield"`` scorer whose statistics cost at most
-    :data:`FULL_AT_COMMIT` light field distances (:func:`commit_distances`), and whose
-    table was written before unless ``create`` (the end of an ingest): the table is
-    computed and written here, the one place that writes it; other stores' searches
-    compute the spreads they pool, in memory.
+    Only a store with the ``"lightfield"`` scorer and a table written before, or, with
+    ``create`` (the end of an ingest), a store whose whole table costs at most
+    :data:`FULL_AT_COMMIT` light field distances (:func:`commit_distances`): the one place
+    that writes the table (:func:`query.search.shape_table.update`: the new shapes'
+    spreads computed, the others carried; a table within the limit recomputed whole).
+    Other stores' searches compute the spreads they pool, in memory.
     """
     tuning = active()
     if db.config.rerank.scorer != "lightfield" or tuning.pool <= 0:
         return
-    if not create and not (Path(db.store.path) / SPREAD_DIR / POINTER).exists():
-        return
+    written = (Path(db.store.path) / SPREAD_DIR / POINTER).exists()
+    n = int(np.count_nonzero(open_index(db).alive_))
+    if written or (create and commit_distances(n, tuning) <= FULL_AT_COMMIT):
+        update(spread_table(db, fields, tuning), commit_distances(n, tuning), FULL_AT_COMMIT)
+
+
+def refresh(db: StoreHandle, fields: ArrayReader, tuning: StageTuning = PRODUCT) -> SpreadTable:
+    """Recompute every stored shape's spread at the store's version and save the table.
+
+    The exact table (nothing carried, ``exact`` in its pointer), whatever the store's
+    size (``commit_distances`` light field distances); a store the process cannot
+    write keeps it in memory. Returns the shared table.
+    """
     table = spread_table(db, fields, tuning)
-    if commit_distances(int(np.count_nonzero(table.index.alive_)), tuning) <= FULL_AT_COMMIT:
-        table.get(None)
-        table.save()
+    table.refresh()
+    table.keep()
+    return table

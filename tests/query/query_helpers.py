@@ -14,6 +14,13 @@ from shapedb.signature.kernel import features
 from shapedb.store.schema import ShapeRecord
 
 CONFIG = Config().with_options(resolution=32, n_balls=64)
+#: The light field stage of the small analytic stores (``StageTuning`` options): K 5 and
+#: K2 2, the gate open, the shared-neighbour term at k 2 with beta 0.8.
+SMALL_STAGE: dict[str, Any] = {
+    "candidates": 5, "field_depth_weight": 0.5, "field_harmonic_weight": 0.5,
+    "field_candidates": 2, "ceiling": 0.0, "contrast_floor": 0.0, "shared_neighbours": 2,
+    "shared_weight": 0.8,
+}  # fmt: skip
 
 
 def synthetic_features(n: int, n_r: int = 32, seed: int = 0) -> np.ndarray:

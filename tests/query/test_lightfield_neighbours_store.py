@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from query_helpers import CONFIG
+from query_helpers import CONFIG, SMALL_STAGE
 
 import query.search.lightfield_neighbours as neighbours
 from query.evaluate import evaluate, retrieval_scores
@@ -44,11 +44,7 @@ from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus
 
 STAGE = CONFIG.with_options(rerank="lightfield", fv_enabled=True)
 #: K 5 and K2 2, the gate open, the term at k 2, beta 0.8 (``ON``) and off (``OFF``).
-ON = replace(
-    PRODUCT, candidates=5, field_depth_weight=0.5, field_harmonic_weight=0.5,
-    field_candidates=2, ceiling=0.0, contrast_floor=0.0, pool=0, shared_neighbours=2,
-    shared_weight=0.8,
-)  # fmt: skip
+ON = replace(PRODUCT, **SMALL_STAGE, pool=0)
 OFF = replace(ON, shared_neighbours=0)
 
 
