@@ -548,9 +548,19 @@ class Store:
         when the manifest's ``next_id`` is wrong.
         """
         delete_ids = {int(i) for i in delete}
-        live_ids = set(self.ids().tolist()) if (delete_ids or records) else set()
+        segments = snap.segments("shapes")
+        # every segment's largest id is in the manifest: new shapes alone need no id read
+        # (reading every id made a commit grow with the store)
+        unknown = any("max_id" not in s and s.get("rows", 1) for s in segments)
+        explicit = any(r.id is not None for r in records)
+        live_ids: set[int] = set()
+        if delete_ids or explicit or (records and unknown):
+            live_ids = set(self.ids().tolist())
+        elif records:  # what reading them checked: no listed segment missing or resized
+            for table in TABLES:
+                check_sizes(self.path, snap.segments(table), missing=True)
         delete_ids &= live_ids
-        recorded = (int(s.get("max_id", 0)) + 1 for s in snap.segments("shapes"))
+        recorded = (int(s.get("max_id", 0)) + 1 for s in segments)
         next_id = max(int(snap.data["next_id"]), max(live_ids, default=0) + 1, *recorded)
         new: list[ShapeRecord] = []
         for r in records:
