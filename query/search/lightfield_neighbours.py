@@ -46,7 +46,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from query.search.field_fusion import FieldFusion
-from query.search.index import open_index
 from query.search.rerank import Candidates, stage_batch
 from query.search.shape_table import ShapeTable, index_version, shared_table, update
 from query.search.tuning import PRODUCT, StageTuning
@@ -350,8 +349,10 @@ def on_commit(
     if cfg.rerank.scorer != "lightfield" or not scorer.tuning.shares_neighbours:
         return
     written = (Path(db.store.path) / NEIGHBOUR_DIR / POINTER).exists()
-    whole = commit_distances(int(np.count_nonzero(open_index(db).alive_)), cfg, scorer.tuning)
-    if written or (create and whole <= FULL_AT_COMMIT):
+    if not written and not create:  # nothing to keep: no index opened, nothing computed
+        return
+    whole = commit_distances(len(db.store), cfg, scorer.tuning)
+    if written or whole <= FULL_AT_COMMIT:
         update(neighbour_table(db, fields, scorer), whole, FULL_AT_COMMIT)
 
 

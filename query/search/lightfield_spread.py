@@ -49,7 +49,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from query.search.field_fusion import FieldFusion
-from query.search.index import open_index
 from query.search.shape_table import ShapeTable, index_version, shared_table, update
 from query.search.tuning import PRODUCT, StageTuning, active
 from query.search.versioned import POINTER
@@ -328,8 +327,10 @@ def on_commit(db: StoreHandle, fields: ArrayReader, *, create: bool = False) -> 
     if db.config.rerank.scorer != "lightfield" or tuning.pool <= 0:
         return
     written = (Path(db.store.path) / SPREAD_DIR / POINTER).exists()
-    n = int(np.count_nonzero(open_index(db).alive_))
-    if written or (create and commit_distances(n, tuning) <= FULL_AT_COMMIT):
+    if not written and not create:  # nothing to keep: no index opened, nothing computed
+        return
+    n = len(db.store)
+    if written or commit_distances(n, tuning) <= FULL_AT_COMMIT:
         update(spread_table(db, fields, tuning), commit_distances(n, tuning), FULL_AT_COMMIT)
 
 

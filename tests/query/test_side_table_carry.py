@@ -245,3 +245,18 @@ def test_a_store_that_cannot_be_written_keeps_the_carried_table_in_memory(
         assert _stored(db, name)[0]["version"] == v0  # the disk holds the old table
     db.search("rod_c", k=3)
     assert len(asked["spreads"]) == len(asked["lists"]) == 1  # nothing computed again
+
+
+def test_a_commit_to_a_store_without_tables_opens_no_index(
+    db: Any, tmp_path: Path, asked: dict[str, list[Any]]
+) -> None:
+    """Above the size a table is created at, a commit of a store that never wrote one
+    computes nothing and builds no index (it did: the hook counted shapes by the index)."""
+    import shapedb
+    from query.search.index import INDEX_DIR
+
+    other = shapedb.connect(tmp_path / "plain", config=db.config)
+    other.commit([_copy(db, "box_a", "box_x"), _copy(db, "ring_a", "ring_x")])
+    assert not (other.path / INDEX_DIR).exists()
+    assert asked == {"spreads": [], "lists": []}
+    assert not any((other.path / d).exists() for d in TABLES.values())
