@@ -41,6 +41,7 @@ import os
 import shutil
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -155,19 +156,23 @@ def drop_tables(db: Any) -> None:
             shutil.rmtree(Path(db.path) / name)
 
 
-def measure(db: Any, args: argparse.Namespace, seeds: list[Any],
-            rng: np.random.Generator) -> dict[str, Any]:  # fmt: skip
-    """Every figure at the store's current size."""
+def measure(db: Any, args: argparse.Namespace, seeds: list[Any], rng: np.random.Generator,
+            out: dict[str, Any], save: Callable[[], None]) -> None:  # fmt: skip
+    """Every figure at the store's current size, into ``out``; ``save()`` after each phase
+    (the cheap ones first: a run stopped during a long index build keeps them)."""
     n = len(db)
     ids = db.store.ids()
-    out: dict[str, Any] = {"shapes": n}
+    out["shapes"] = n
     out.update(m.store_figures(db))
+    out.update(m.sql_figures(db, int(ids[0])))
+    save()
     if n <= args.tables_max:
         out.update(m.table_figures(db))
-    sample = rng.choice(db.store.ids(), args.queries + 1, replace=False)
+    sample = rng.choice(ids, args.queries + 1, replace=False)
     searched = m.search_figures(db, sample)
     results = searched.pop("results")
     out.update(searched)
+    save()
     out.update(m.candidate_recall(db, sample[:50]))
     if n <= args.reference_max:
         wanted = [int(i) for i in list(results)[: args.reference_queries]]
@@ -175,13 +180,16 @@ def measure(db: Any, args: argparse.Namespace, seeds: list[Any],
         if ref is not None:
             got = [len(set(results[i]) & set(ref[i])) / 10 for i in wanted]
             out["recall@10"] = float(np.mean(got))
+    save()
     out.update(serve_figures(Path(db.path), rng.choice(ids, args.queries + 1, replace=False)))
-    out.update(m.sql_figures(db, int(ids[0])))
+    save()
     if n <= args.part_max:
         out.update(m.part_figures(db, rng))
+        save()
     with tempfile.TemporaryDirectory(prefix="scale-model-") as tmp:
         out.update(m.ingest_figures(db, probe_model(Path(tmp), seeds, n), db.config))
-    return out
+    out["derived_bytes_per_shape"] = m.store_figures(db)["derived_bytes_per_shape"]
+    save()
 
 
 _COLUMNS = [
@@ -276,11 +284,14 @@ def main(argv: list[str] | None = None) -> int:
             made, grow_s, commits = grow(db, maker, size, made)
             if args.grow_only:
                 continue
-            row = {**measure(db, args, seeds, rng), **commits}
-            row["grow_s"] = grow_s
-            row["elapsed_s"] = time.perf_counter() - t0
+            row: dict[str, Any] = {**commits, "grow_s": grow_s}
             rows.append(row)
-            write_json(args.out, {"seeds": len(seeds), "sizes": rows, "load": os.getloadavg()})
+
+            def save(row: dict[str, Any] = row) -> None:
+                row["elapsed_s"] = time.perf_counter() - t0
+                write_json(args.out, {"seeds": len(seeds), "sizes": rows, "load": os.getloadavg()})
+
+            measure(db, args, seeds, rng, row, save)
             print(report(rows), flush=True)
     finally:
         if not args.keep and not resumed:
