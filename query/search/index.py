@@ -16,10 +16,14 @@ a side array (``ids_``).
 
 On disk (:func:`open_index`) the index lives in ``<store>/index/``: a pointer file
 ``current.json`` (replaced atomically) naming a directory ``v<version>-<token>/``
-with ``faiss.index``, ``ids.npy``, ``features.npy`` and ``alive.npy``. The pointer
-records the store version the index reflects; when the store has moved on, the index
-is brought up to date: new ids are added, and deletions are tombstoned (HNSW) or
-rebuilt (flat, or HNSW once a fifth of it is dead).
+with ``faiss.index``, ``ids.npy``, ``features.npy``, ``alive.npy`` and ``segs.npy``.
+The pointer records the store version and the ``shapes`` segment files the index
+reflects; when the store has moved on, only the segments it has not read are read
+(:mod:`query.search.index_segments`): new ids are added, changed and deleted ones
+tombstoned, and the index is rebuilt from its own live vectors when it is flat with
+tombstones, HNSW and a fifth dead, or ``"auto"`` and of the other size. It is written
+again only once the changes since the saved copy pass :data:`_RESAVE_FRACTION` of it; a
+new process loads the saved copy and reads the few newer segments.
 
 faiss is imported only when an index is built or loaded.
 """
@@ -35,6 +39,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from query.search import field_rows, index_segments
 from query.search.versioned import POINTER, current, save_version
 from shapedb.errors import ConfigError, NotFittedError, QueryError, StoreError, require
 
@@ -56,6 +61,13 @@ _PARAMS = tuple(
     "kind hnsw_threshold hnsw_m ef_construction ef_search oversample min_candidates".split()
 )
 _REBUILD_DEAD_FRACTION = 0.2
+#: An update is written to disk once the changes since the saved index pass this fraction
+#: of it (as the field vector index: below it a new process re-reads those few segments).
+_RESAVE_FRACTION = 0.02
+#: Spare rows kept after ``features_`` (as a fraction of it), so that a commit's rows are
+#: written in place rather than the whole matrix copied: a copy every 1/8 growth.
+_SPARE_ROWS = 0.125
+_ADD_BLOCK = 65_536
 _RERANK_CHUNK = 256
 _SCAN_BLOCK = 65_536
 _SMALL_BATCH = 4
@@ -99,6 +111,12 @@ class FeatureIndex:
         The index type actually built, "flat" or "hnsw".
     version_ : int or None
         Store version the index reflects (set by :func:`open_index`).
+    segments_ : tuple of str
+        The store segment files it reflects (() when not opened on a store).
+    segs_ : (n,) int32
+        Index into ``segments_`` of the segment each position was read from (-1: none).
+    unsaved_ : int
+        Rows changed or read since the index was last saved.
     """
 
     def __init__(
@@ -181,19 +199,69 @@ class FeatureIndex:
             self.faiss_index_.hnsw.efConstruction = self.ef_construction
         self.ids_ = np.empty(0, np.int64)
         self.features_ = np.empty((0, w.shape[0]), np.float32)
+        self._room: list[Any] | None = None
         self.alive_ = np.empty(0, bool)
+        self.segs_ = np.empty(0, np.int32)
+        self.segments_: tuple[str, ...] = ()
         self._pos: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
+        self.unsaved_ = 0
         self._append(ids_a, feats)
         log.info("built %s index of %d vectors (d=%d)", self.kind_, len(ids_a), w.shape[0])
         return self
 
-    def _append(self, ids: NDArray[np.int64], features: NDArray[np.float32]) -> None:
-        if len(ids):
-            self.faiss_index_.add(self._weighted(features))
+    def _append(
+        self,
+        ids: NDArray[np.int64],
+        features: NDArray[np.float32],
+        segs: NDArray[np.int32] | None = None,
+    ) -> None:
+        for lo in range(0, len(ids), _ADD_BLOCK):
+            self.faiss_index_.add(self._weighted(features[lo : lo + _ADD_BLOCK]))
         self.ids_ = np.concatenate([self.ids_, ids])
-        self.features_ = np.concatenate([np.asarray(self.features_), features])
+        self.features_ = self._grown(features)
         self.alive_ = np.concatenate([self.alive_, np.ones(len(ids), bool)])
+        more = np.full(len(ids), -1, np.int32) if segs is None else np.asarray(segs, np.int32)
+        self.segs_ = np.concatenate([self.segs_, more])
         self._pos = None
+        self.unsaved_ += len(ids)
+
+    def _grown(self, rows: NDArray[np.float32]) -> NDArray[np.float32]:
+        """``features_`` with ``rows`` after it: written into the spare rows of its buffer
+        when this index was the last to fill it (copies made by :meth:`copy` share the
+        buffer and see only their own rows), else copied into a new, larger buffer."""
+        n, m = len(self.features_), len(rows)
+        room = self._room  # [buffer, rows filled], shared with copies
+        if room is not None and room[1] == n and n + m <= len(room[0]):
+            if self.features_.base is room[0] or n == 0:
+                room[0][n : n + m] = rows
+                room[1] = n + m
+                return room[0][: n + m]  # type: ignore[no-any-return]
+        buffer = np.empty((n + m + int(_SPARE_ROWS * (n + m)) + 16, self.dim), np.float32)
+        buffer[:n] = self.features_
+        buffer[n : n + m] = rows
+        self._room = [buffer, n + m]
+        return buffer[: n + m]
+
+    def add(
+        self, ids: ArrayLike, features: ArrayLike, *, segments: ArrayLike | None = None
+    ) -> FeatureIndex:
+        """Append vectors of ids not indexed (tombstone an id's old vector first).
+
+        Parameters
+        ----------
+        ids : (m,) int
+        features : (m, d) float
+            Raw Eq. 1 feature vectors.
+        segments : (m,) int, optional
+            Index into ``segments_`` of each one's store segment (-1 when not given).
+        """
+        self._check_fitted()
+        ids_a, feats = _check_rows(ids, features, self.dim)
+        if np.any(self.lookup(ids_a) >= 0):
+            raise QueryError("ids already indexed", source="ids")
+        segs = None if segments is None else np.asarray(segments, np.int32).ravel()
+        self._append(ids_a, feats, segs)
+        return self
 
     def remove(self, ids: ArrayLike) -> FeatureIndex:
         """Tombstone vectors by id; they are never returned again.
@@ -203,9 +271,37 @@ class FeatureIndex:
         ids : (m,) int
         """
         pos = self.lookup(ids)
-        self.alive_[pos[pos >= 0]] = False
+        pos = pos[pos >= 0]
+        self.alive_[pos] = False
         self._pos = None
+        self.unsaved_ += len(pos)
         return self
+
+    def settle(self) -> str:
+        """After :meth:`add` and :meth:`remove`: rebuild from the live vectors in ascending
+        id order (what a fresh build gives) when the index is flat with tombstones or out
+        of id order, HNSW more than a fifth dead, or ``"auto"`` and of the other size.
+
+        Returns
+        -------
+        str
+            "rebuilt" or "updated".
+        """
+        self._check_fitted()
+        live = np.flatnonzero(self.alive_)
+        ids = self.ids_[live]
+        ordered = not np.any(ids[1:] <= ids[:-1])
+        if not (
+            self._resolve_kind(len(live)) != self.kind_
+            or (self.kind_ == "flat" and (len(live) < len(self.ids_) or not ordered))
+            or 1 - len(live) / max(len(self.ids_), 1) > _REBUILD_DEAD_FRACTION
+        ):
+            return "updated"
+        keep = live[np.argsort(ids, kind="stable")]
+        segs, segments = self.segs_[keep], self.segments_
+        self.fit(self.ids_[keep], np.asarray(self.features_)[keep], self.weights_)
+        self.segs_, self.segments_ = segs, segments
+        return "rebuilt"
 
     def lookup(self, ids: ArrayLike) -> NDArray[np.int64]:
         """faiss position of each id, -1 for ids not (or no longer) indexed: (m,) int64."""
@@ -403,6 +499,7 @@ class FeatureIndex:
             np.save(sub / "ids.npy", self.ids_)
             np.save(sub / "features.npy", np.asarray(self.features_))
             np.save(sub / "alive.npy", self.alive_)
+            np.save(sub / "segs.npy", self.segs_)
 
         meta = {
             "format": _FORMAT,
@@ -413,9 +510,11 @@ class FeatureIndex:
             "dim": self.dim,
             "weights": self.weights_.tolist(),
             "params": self.params,
+            "segments": list(self.segments_),
         }
         path = save_version(directory, write, meta, version=version)
         self.version_ = version
+        self.unsaved_ = 0
         log.debug("saved %s index (version %s) to %s", self.kind_, version, path)
         return path
 
@@ -439,12 +538,18 @@ class FeatureIndex:
             index.ids_ = np.load(sub / "ids.npy")
             index.features_ = np.load(sub / "features.npy", mmap_mode="r")
             index.alive_ = np.load(sub / "alive.npy")
+            has_segs = (sub / "segs.npy").exists()  # an index saved before they were kept
+            n = len(index.ids_)
+            index.segs_ = np.load(sub / "segs.npy") if has_segs else np.full(n, -1, np.int32)
+            index.segments_ = tuple(meta.get("segments", ())) if has_segs else ()
         except (OSError, ValueError, KeyError, RuntimeError) as exc:
             raise StoreError(f"cannot read the feature index: {exc}", source=root) from exc
         index.weights_ = np.asarray(meta["weights"], np.float64)
         index.kind_, index.version_, index._pos = meta["kind"], meta["version"], None
+        index._room, index.unsaved_ = None, 0
         n = len(index.ids_)
-        if index.faiss_index_.ntotal != n or len(index.features_) != n or len(index.alive_) != n:
+        sizes = (len(index.features_), len(index.alive_), len(index.segs_))
+        if index.faiss_index_.ntotal != n or sizes != (n, n, n):
             raise StoreError("index files disagree on the number of vectors", source=root)
         return index
 
@@ -546,10 +651,12 @@ def open_index(
     with _LOCK:
         version = store.version
         cached = None if rebuild else _CACHE.get(key)
+        shared = False  # whether ``index`` is the cached one, which searches may be using
         if cached is not None and cached[0] == config and kind in (None, cached[1].kind):
             if cached[1].version_ == version:
                 return cached[1]
-            index: FeatureIndex | None = cached[1].copy()  # searches in flight keep the old one
+            index: FeatureIndex | None = cached[1]
+            shared = True
         else:
             index = None if rebuild else _load(directory)
         if index is not None and (
@@ -559,18 +666,43 @@ def open_index(
         ):
             index = None  # kernel configuration or requested type changed
         if index is None or index.version_ != version:
-            ids, feats = store.features(view=view)
-            feats = np.asarray(feats, np.float32).reshape(len(ids), w.shape[0])
-            if index is None:
-                settings = {**params, "kind": kind or params.get("kind", "auto")}
-                index = FeatureIndex(**settings).fit(ids, feats, w)
-                action = "built"
-            else:
-                action = index.sync(ids, feats)
-            keep_beside(index, directory, version, "feature index")
+            settings = {**params, "kind": kind or params.get("kind", "auto")}
+            base = index
+
+            def bring(snap: field_rows.Snapshot) -> tuple[FeatureIndex, str]:
+                return _brought_to(base, shared, snap, w, view=view, settings=settings)
+
+            index, action = field_rows.consistent(db, bring)
+            if action in ("built", "rebuilt") or index.unsaved_ > _RESAVE_FRACTION * len(
+                index.ids_
+            ):
+                keep_beside(index, directory, index.version_ or 0, "feature index")
             log.info("feature index %s at store version %s: %r", action, version, index)
         _CACHE[key] = (config, index)
         return index
+
+
+def _brought_to(
+    base: FeatureIndex | None,
+    shared: bool,
+    snap: field_rows.Snapshot,
+    w: NDArray[np.float64],
+    *,
+    view: bool,
+    settings: dict[str, Any],
+) -> tuple[FeatureIndex, str]:
+    """``base`` at the snapshot (a copy first when it is ``shared`` and anything changed),
+    or a fresh build; with what was done: "built", "unchanged", "updated" or "rebuilt"."""
+    if base is None:
+        index, action = index_segments.build(FeatureIndex(**settings), snap, w, view=view), "built"
+    elif base.segments_ == snap.files:
+        index, action = (base.copy() if shared else base), "unchanged"
+    else:
+        index = base.copy() if shared else base
+        index_segments.catch_up(index, snap, view=view)
+        action = index.settle()
+    index.version_ = snap.version
+    return index, action
 
 
 def keep_beside(index: Any, directory: Path, version: int, what: str) -> None:
