@@ -1,9 +1,9 @@
 """The feature index kept in step with its store segment by segment.
 
-A :class:`query.search.index.FeatureIndex` opened on a store (:func:`query.search.index.open_index`)
-records the ``shapes`` segment files it reflects (``segments_``) and the segment each of
-its positions was read from (``segs_``). Segment files are immutable, so at a new store
-version :func:`catch_up` reads only the segments it has not read, through
+A :class:`query.search.feature_index.FeatureIndex` opened on a store
+(:func:`query.search.index.open_index`) records the ``shapes`` segment files it reflects
+(``segments_``) and the segment each of its positions was read from (``segs_``). Segment
+files are immutable, so at a new store version :func:`catch_up` reads only the segments it has not read, through
 :mod:`query.search.field_rows`:
 
 - a segment a deletion or compaction wrote copies rows of the segments it retires (its
@@ -32,7 +32,7 @@ from query.search import field_rows
 from shapedb.errors import StoreError
 
 if TYPE_CHECKING:
-    from query.search.index import FeatureIndex
+    from query.search.feature_index import FeatureIndex
 
 __all__ = ["read_features", "build", "catch_up"]
 

@@ -172,13 +172,14 @@ def test_the_view_index_follows_commits(feat_db: Any, reads: dict[str, list[str]
     _same_as_fresh(feat_db, index, view=True)
 
 
+def _refuse_to_write(index: FeatureIndex, *args: Any, **kwargs: Any) -> None:
+    raise PermissionError(13, "Permission denied")
+
+
 def test_a_store_the_process_cannot_write_still_searches(
     feat_db: Any, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
-    def refuse(self: Any, *args: Any, **kwargs: Any) -> None:
-        raise PermissionError(13, "Permission denied")
-
-    monkeypatch.setattr(FeatureIndex, "save", refuse)
+    monkeypatch.setattr(FeatureIndex, "save", _refuse_to_write)
     with caplog.at_level("WARNING", logger="query.search.index"):
         open_index(feat_db)
         feat_db.store.commit(_records(_features(40, 12), "ro-"), delete=[1, 2])
