@@ -53,10 +53,6 @@ _SCAN_BLOCK = 65_536
 _SMALL_BATCH = 4
 
 
-def _faiss() -> Any:
-    return require("faiss", extra="faiss", feature="the feature index")
-
-
 class FeatureIndex:
     """Nearest neighbours under the Eq. 2 weighted L1 distance.
 
@@ -537,6 +533,10 @@ class FeatureIndex:
         if not hasattr(self, "faiss_index_"):
             return f"FeatureIndex(kind={self.kind!r}, unfitted)"
         return f"FeatureIndex(kind={self.kind_!r}, n={self.n_alive}, d={self.dim}, version={self.version_})"
+
+
+def _faiss() -> Any:
+    return require("faiss", extra="faiss", feature="the feature index")
 
 
 def _faiss_search(
