@@ -153,6 +153,25 @@ def test_a_new_process_loads_the_saved_copy_and_catches_up(
     assert json.loads(pointer.read_text())["version"] == feat_db.store.version
 
 
+def test_a_saved_copy_behind_deletions_and_a_compaction_catches_up(
+    feat_db: Any, reads: dict[str, list[str]], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The saved copy never names the segment a later rewrite copies: read whole."""
+    import query.search.index as index_module
+
+    open_index(feat_db, kind="hnsw")  # tombstones (a flat index is rebuilt, so written)
+    monkeypatch.setattr(index_module, "_RESAVE_FRACTION", 10.0)  # never written again
+    for victim in (5, 6, 250):  # two rewrites of the first segment, one of the last
+        feat_db.store.delete([victim])
+        open_index(feat_db)
+    feat_db.store.compact(target_shapes=1000)
+    _forget(feat_db)  # a new process: the saved copy names none of the merged segment's
+    reads["features"].clear()
+    index = open_index(feat_db)
+    assert reads["features"] == _files(feat_db) and index.n_alive == 297
+    _same_as_fresh(feat_db, index)
+
+
 def test_auto_turns_to_hnsw_at_its_threshold(feat_db: Any) -> None:
     assert open_index(feat_db, hnsw_threshold=320).kind_ == "flat"
     feat_db.store.commit(_records(_features(30, 10), "grow-"))
