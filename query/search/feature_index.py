@@ -527,6 +527,8 @@ class FeatureIndex:
         sizes = (len(index.features_), len(index.alive_), len(index.segs_))
         if index.faiss_index_.ntotal != n or sizes != (n, n, n):
             raise StoreError("index files disagree on the number of vectors", source=root)
+        if n and int(index.segs_.max()) >= len(index.segments_):
+            raise StoreError("index names fewer segments than its rows point at", source=root)
         return index
 
     def __repr__(self) -> str:
