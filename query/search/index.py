@@ -71,8 +71,8 @@ def open_index(
     Parameters
     ----------
     db : shapedb.Database
-        Uses ``db.store`` (``path``, ``version``, ``features()``) and
-        ``db.config``.
+        Uses ``db.store`` (``path``, ``version``; the segments its manifest lists are
+        read through :mod:`query.search.field_rows`) and ``db.config``.
     kind : {"auto", "flat", "hnsw"}, optional
         Force an index type (rebuilding if the current one differs).
     rebuild : bool
@@ -91,7 +91,8 @@ def open_index(
     Returns
     -------
     FeatureIndex
-        Up to date with ``db.store.version``; cached in-process per store path.
+        Up to date with ``db.store.version`` (or a later one); cached in-process per
+        store path. An update reads only the segments the index has not read.
     """
     store = db.store
     root = Path(_store_key(db))
