@@ -1,21 +1,26 @@
-"""The stored field vectors, read segment by segment as float32 numpy blocks.
+"""A store's ``shapes`` columns, read segment by segment as numpy blocks.
 
-The field vector index (:mod:`query.search.field_index`) reads the ``field_vector``
-column of a store of up to 10^6 shapes (950 floats each at the defaults): as Python
-lists that is unusable, and as one Arrow table beside its numpy copy it costs twice the
-matrix. Here the Parquet segments that one manifest lists are scanned in record batches
-of :data:`READ_BATCH` rows, each flattened to numpy (``pyarrow.compute.list_flatten``
-of its non-null rows), scaled (:meth:`query.search.field_fusion.FieldFusion.scaled`) and
-handed on, so the caller's float32 matrix is the only large allocation.
+The derived indexes read whole list columns of a store of up to 10^6 shapes: the field
+vector index (:mod:`query.search.field_index`) the ``field_vector`` column (950 floats
+each at the defaults), the feature index (:mod:`query.search.index_segments`) the
+``feature`` and ``view_feature`` columns. As Python lists that is unusable, and as one
+Arrow table beside its numpy copy it costs twice the matrix. Here the Parquet segments
+that one manifest lists are scanned in record batches of :data:`READ_BATCH` rows
+(:func:`batches`), each list column flattened to numpy (:func:`list_rows`:
+``pyarrow.compute.list_flatten`` of its non-null rows) and handed on, so the caller's
+float32 matrix is the only large allocation; :func:`read_rows` also scales the field
+vectors (:meth:`query.search.field_fusion.FieldFusion.scaled`).
 
 A snapshot (:func:`snapshot`) is one read of the manifest: its version and its segments
 of the ``shapes`` table. Segment files are immutable, so an index that records which
 ones it has read can later read only the segments it has not (:func:`read_rows` with a
-subset of the snapshot's segments).
+subset of the snapshot's segments); a segment a deletion or compaction wrote names the
+segments it copies its rows from (:func:`copied_from`).
 """
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -26,17 +31,29 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.dataset as ds
+import pyarrow.parquet as pq
 from numpy.typing import NDArray
 
 from query.search.field_fusion import FIELD, FieldFusion
 from shapedb.errors import StoreError
 from shapedb.store.manifest import check_sizes, read_manifest, unreadable
 from shapedb.store.schema import shapes_schema
+from shapedb.store.transaction import REPLACES
 
 if TYPE_CHECKING:
     from shapedb.store.handle import StoreHandle
 
-__all__ = ["READ_BATCH", "Snapshot", "snapshot", "read_rows", "read_ids", "consistent"]
+__all__ = [
+    "READ_BATCH",
+    "Snapshot",
+    "snapshot",
+    "batches",
+    "list_rows",
+    "copied_from",
+    "read_rows",
+    "read_ids",
+    "consistent",
+]
 
 #: Rows per record batch: the float64 scaling temporary of a batch stays ~30 MB at d = 950.
 READ_BATCH = 4096
@@ -91,7 +108,10 @@ def consistent(db: StoreHandle, read: Callable[[Snapshot], T]) -> T:
     raise StoreError("cannot read a consistent snapshot of shapes", source=str(db.store.path))
 
 
-def _batches(snap: Snapshot, columns: list[str]) -> Iterator[pa.RecordBatch]:
+def batches(snap: Snapshot, columns: list[str]) -> Iterator[pa.RecordBatch]:
+    """The snapshot's rows of ``columns``, in record batches of at most :data:`READ_BATCH`
+    rows, segment after segment in the manifest's order (older segments' missing columns
+    as nulls); StoreError when a segment is damaged, FileNotFoundError when one is gone."""
     if not snap.segments:
         return
     segs = list(snap.segments)
@@ -110,7 +130,7 @@ def _batches(snap: Snapshot, columns: list[str]) -> Iterator[pa.RecordBatch]:
 
 def read_ids(snap: Snapshot) -> NDArray[np.int64]:
     """(n,) ids of every row of the snapshot's segments, in segment order."""
-    parts = [b.column(0).to_numpy() for b in _batches(snap, ["id"])]
+    parts = [b.column(0).to_numpy() for b in batches(snap, ["id"])]
     return np.concatenate(parts).astype(np.int64) if parts else np.empty(0, np.int64)
 
 
@@ -142,15 +162,40 @@ def read_rows(
     StoreError
         A segment is damaged, or a field vector is not ``dim`` long.
     """
-    for batch in _batches(snap, ["id", FIELD]):
+    for batch in batches(snap, ["id", FIELD]):
         ids = batch.column(0).to_numpy().astype(np.int64)
-        column = batch.column(1)
-        valid = np.asarray(column.is_valid().to_numpy(zero_copy_only=False), bool)
-        m = int(valid.sum())
-        flat = pc.list_flatten(column).to_numpy(zero_copy_only=False) if m else np.zeros(0)
-        if flat.size != m * dim:
-            raise StoreError(
-                f"field vectors of {flat.size / max(m, 1):g} values, expected {dim}",
-                source=str(snap.root),
-            )
-        yield ids, ids[valid], fusion.scaled(flat.reshape(m, dim))
+        valid, vectors = list_rows(batch.column(1), dim, snap.root)
+        yield ids, ids[valid], fusion.scaled(vectors)
+
+
+def list_rows(
+    column: pa.Array, dim: int, source: Path | str
+) -> tuple[NDArray[np.bool_], NDArray[Any]]:
+    """``(valid, rows)`` of a list column: (b,) bool, whether each row is set, and the
+    (valid.sum(), dim) numbers of those that are (as stored: float32 for float32 lists).
+
+    Raises
+    ------
+    StoreError
+        A set row is not ``dim`` long (``source`` names the store).
+    """
+    valid = np.asarray(column.is_valid().to_numpy(zero_copy_only=False), bool)
+    m = int(valid.sum())
+    flat = pc.list_flatten(column).to_numpy(zero_copy_only=False) if m else np.zeros(0)
+    if flat.size != m * dim:
+        raise StoreError(
+            f"rows of {flat.size / max(m, 1):g} values, expected {dim}", source=str(source)
+        )
+    return valid, flat.reshape(m, dim)
+
+
+def copied_from(snap: Snapshot, file: str) -> tuple[str, ...]:
+    """The segments whose rows the segment ``file`` copies (its ``shapedb.replaces``
+    metadata, written by a deletion or a compaction); () for a segment of new rows."""
+    try:
+        meta = pq.read_schema(snap.root / file).metadata or {}
+    except (pa.ArrowException, OSError) as exc:
+        if isinstance(exc, FileNotFoundError):
+            raise
+        raise StoreError(f"cannot read segment {file}: {exc}", source=str(snap.root)) from exc
+    return tuple(str(f) for f in json.loads(meta[REPLACES])) if REPLACES in meta else ()

@@ -1,27 +1,18 @@
-"""A faiss index over the stored Eq. 1 feature vectors, kept in step with the store.
-
-Eq. 2 is a weighted L1 distance, ``d(a, b) = sum_i w_i |a_i - b_i|`` with
-``w = weights(config)``, which is the plain L1 distance between ``a * w`` and
-``b * w``. The index therefore holds the *weighted* vectors under faiss's
-``METRIC_L1``:
-
-``kind="flat"`` is ``IndexFlat(d, METRIC_L1)`` (exact), ``kind="hnsw"`` is
-``IndexHNSWFlat(d, M, METRIC_L1)`` (approximate) and ``kind="auto"`` picks flat
-below ``hnsw_threshold`` vectors, HNSW above.
-
-Either way faiss only proposes candidates (``max(oversample * k, min_candidates)``
-of them); they are re-ranked with the exact Eq. 2 in float64 on the raw stored
-features, ties broken by ascending id. faiss positions are mapped to shape ids with
-a side array (``ids_``).
+"""The store's feature index (:class:`query.search.feature_index.FeatureIndex`), kept in
+step with the store.
 
 On disk (:func:`open_index`) the index lives in ``<store>/index/``: a pointer file
 ``current.json`` (replaced atomically) naming a directory ``v<version>-<token>/``
-with ``faiss.index``, ``ids.npy``, ``features.npy`` and ``alive.npy``. The pointer
-records the store version the index reflects; when the store has moved on, the index
-is brought up to date: new ids are added, and deletions are tombstoned (HNSW) or
-rebuilt (flat, or HNSW once a fifth of it is dead).
-
-faiss is imported only when an index is built or loaded.
+with ``faiss.index``, ``ids.npy``, ``features.npy``, ``alive.npy`` and ``segs.npy``.
+The pointer records the store version and the ``shapes`` segment files the index
+reflects; when the store has moved on, only the segments it has not read are read
+(:mod:`query.search.index_segments`): new ids are added, changed and deleted ones
+tombstoned, and the index is rebuilt from its own live vectors when it is flat with
+tombstones, HNSW and a fifth dead, or ``"auto"`` and of the other size
+(:meth:`FeatureIndex.settle`). It is written again only once the changes since the saved
+copy pass :data:`_RESAVE_FRACTION` of it; a new process loads the saved copy and reads
+the few newer segments. A store the process cannot write keeps it in memory (one
+warning each time it would be written).
 """
 
 from __future__ import annotations
@@ -33,10 +24,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
-from query.search.versioned import POINTER, current, save_version
-from shapedb.errors import ConfigError, NotFittedError, QueryError, StoreError, require
+from query.search import field_rows, index_segments
+from query.search.feature_index import FeatureIndex
+from query.search.versioned import POINTER
+from shapedb.errors import ConfigError, StoreError
 
 if TYPE_CHECKING:
     from query.learn.metric import LearnedMetric
@@ -50,446 +43,9 @@ log = logging.getLogger(__name__)
 INDEX_DIR = "index"
 #: Where the index over the shapes' sparse-view features lives (stores with views).
 VIEW_INDEX_DIR = "index_view"
-_FORMAT = 1
-_KINDS = ("auto", "flat", "hnsw")
-_PARAMS = tuple(
-    "kind hnsw_threshold hnsw_m ef_construction ef_search oversample min_candidates".split()
-)
-_REBUILD_DEAD_FRACTION = 0.2
-_RERANK_CHUNK = 256
-_SCAN_BLOCK = 65_536
-_SMALL_BATCH = 4
-
-
-def _faiss() -> Any:
-    return require("faiss", extra="faiss", feature="the feature index")
-
-
-class FeatureIndex:
-    """Nearest neighbours under the Eq. 2 weighted L1 distance.
-
-    Parameters
-    ----------
-    kind : {"auto", "flat", "hnsw"}
-        Index type; ``"auto"`` picks flat below ``hnsw_threshold`` vectors.
-    hnsw_threshold : int
-        Size from which ``"auto"`` uses HNSW.
-    hnsw_m : int
-        HNSW graph degree M.
-    ef_construction : int
-        HNSW build-time beam width.
-    ef_search : int
-        HNSW search beam width (raised to the number of candidates if smaller).
-    oversample : int
-        Candidates asked from faiss per result, before exact re-ranking.
-    min_candidates : int
-        Lower bound on the number of candidates.
-
-    Attributes
-    ----------
-    ids_ : (n,) int64
-        Shape id of each faiss position.
-    features_ : (n, d) float32
-        Raw (unweighted) feature vector of each position, used for re-ranking.
-    alive_ : (n,) bool
-        False for positions whose shape was deleted (tombstones).
-    weights_ : (d,) float64
-        Eq. 2 weights the index was built with.
-    kind_ : str
-        The index type actually built, "flat" or "hnsw".
-    version_ : int or None
-        Store version the index reflects (set by :func:`open_index`).
-    """
-
-    def __init__(
-        self,
-        *,
-        kind: str = "auto",
-        hnsw_threshold: int = 50_000,
-        hnsw_m: int = 32,
-        ef_construction: int = 80,
-        ef_search: int = 128,
-        oversample: int = 4,
-        min_candidates: int = 64,
-    ) -> None:
-        if kind not in _KINDS:
-            raise ConfigError(f"must be one of {_KINDS}", source=f"kind={kind!r}")
-        self.kind = kind
-        self.hnsw_threshold = hnsw_threshold
-        self.hnsw_m = hnsw_m
-        self.ef_construction = ef_construction
-        self.ef_search = ef_search
-        self.oversample = oversample
-        self.min_candidates = min_candidates
-        self.version_: int | None = None
-
-    @property
-    def params(self) -> dict[str, Any]:
-        """The constructor's settings, as a JSON-serialisable dict."""
-        return {name: getattr(self, name) for name in _PARAMS}
-
-    def _check_fitted(self) -> None:
-        if not hasattr(self, "faiss_index_"):
-            raise NotFittedError("FeatureIndex used before fit()", source="FeatureIndex")
-
-    @property
-    def dim(self) -> int:
-        """Feature dimension d."""
-        self._check_fitted()
-        return int(self.weights_.shape[0])
-
-    @property
-    def n_alive(self) -> int:
-        """Number of live (not deleted) vectors."""
-        self._check_fitted()
-        return int(self.alive_.sum())
-
-    def _resolve_kind(self, n: int) -> str:
-        if self.kind != "auto":
-            return self.kind
-        return "hnsw" if n >= self.hnsw_threshold else "flat"
-
-    def _weighted(self, features: NDArray[Any]) -> NDArray[np.float32]:
-        return np.ascontiguousarray(np.asarray(features, np.float64) * self.weights_, np.float32)
-
-    def fit(self, ids: ArrayLike, features: ArrayLike, weights: ArrayLike) -> FeatureIndex:
-        """Build the index from scratch.
-
-        Parameters
-        ----------
-        ids : (n,) int
-            Shape ids, unique.
-        features : (n, d) float
-            Raw Eq. 1 feature vectors.
-        weights : (d,) float
-            Eq. 2 weights, ``shapedb.signature.kernel.weights(config)``.
-
-        Returns
-        -------
-        FeatureIndex
-            ``self``.
-        """
-        w = np.asarray(weights, dtype=np.float64).ravel()
-        ids_a, feats = _check_rows(ids, features, w.shape[0])
-        self.weights_ = w
-        self.kind_ = self._resolve_kind(len(ids_a))
-        faiss = _faiss()
-        if self.kind_ == "flat":
-            self.faiss_index_ = faiss.IndexFlat(w.shape[0], faiss.METRIC_L1)
-        else:
-            self.faiss_index_ = faiss.IndexHNSWFlat(w.shape[0], self.hnsw_m, faiss.METRIC_L1)
-            self.faiss_index_.hnsw.efConstruction = self.ef_construction
-        self.ids_ = np.empty(0, np.int64)
-        self.features_ = np.empty((0, w.shape[0]), np.float32)
-        self.alive_ = np.empty(0, bool)
-        self._pos: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
-        self._append(ids_a, feats)
-        log.info("built %s index of %d vectors (d=%d)", self.kind_, len(ids_a), w.shape[0])
-        return self
-
-    def _append(self, ids: NDArray[np.int64], features: NDArray[np.float32]) -> None:
-        if len(ids):
-            self.faiss_index_.add(self._weighted(features))
-        self.ids_ = np.concatenate([self.ids_, ids])
-        self.features_ = np.concatenate([np.asarray(self.features_), features])
-        self.alive_ = np.concatenate([self.alive_, np.ones(len(ids), bool)])
-        self._pos = None
-
-    def remove(self, ids: ArrayLike) -> FeatureIndex:
-        """Tombstone vectors by id; they are never returned again.
-
-        Parameters
-        ----------
-        ids : (m,) int
-        """
-        pos = self.lookup(ids)
-        self.alive_[pos[pos >= 0]] = False
-        self._pos = None
-        return self
-
-    def lookup(self, ids: ArrayLike) -> NDArray[np.int64]:
-        """faiss position of each id, -1 for ids not (or no longer) indexed: (m,) int64."""
-        self._check_fitted()
-        if self._pos is None:
-            live = np.flatnonzero(self.alive_)
-            order = np.argsort(self.ids_[live], kind="stable")
-            self._pos = (self.ids_[live][order], live[order])
-        keys, pos = self._pos
-        q = np.asarray(ids, dtype=np.int64).ravel()
-        if len(keys) == 0:
-            return np.full(len(q), -1, np.int64)
-        i = np.minimum(np.searchsorted(keys, q), len(keys) - 1)
-        return np.where(keys[i] == q, pos[i], -1)
-
-    def __contains__(self, shape_id: object) -> bool:
-        ok = isinstance(shape_id, (int, np.integer))
-        return ok and bool(self.lookup([int(shape_id)])[0] >= 0)  # type: ignore[call-overload]
-
-    def sync(self, ids: ArrayLike, features: ArrayLike) -> str:
-        """Bring the index up to date with the store's current ``(ids, features)``.
-
-        Existing vectors whose feature changed, or a flat index with deletions, or an
-        HNSW index more than a fifth dead, or an ``"auto"`` index that outgrew its
-        type, are rebuilt; otherwise new ids are added and deleted ones tombstoned.
-
-        Returns
-        -------
-        str
-            What was done: "unchanged", "updated" or "rebuilt".
-        """
-        self._check_fitted()
-        ids_a, feats = _check_rows(ids, features, self.dim)
-        found = self.lookup(ids_a)
-        new_mask = found < 0
-        old_pos = found[~new_mask]
-        changed = not np.array_equal(np.asarray(self.features_)[old_pos], feats[~new_mask])
-        n_live = self.n_alive
-        n_deleted = n_live - len(old_pos)
-        dead = len(self.ids_) - n_live + n_deleted
-        dead_after = dead / max(len(self.ids_) + int(new_mask.sum()), 1)
-        rebuild = (
-            changed
-            or self._resolve_kind(len(ids_a)) != self.kind_
-            or (n_deleted and self.kind_ == "flat")
-            or dead_after > _REBUILD_DEAD_FRACTION
-        )
-        if rebuild:
-            self.fit(ids_a, feats, self.weights_)
-            return "rebuilt"
-        if not n_deleted and not new_mask.any():
-            return "unchanged"
-        if n_deleted:
-            gone = np.ones(len(self.ids_), bool)
-            gone[old_pos] = False
-            self.alive_[gone] = False
-            self._pos = None
-        self._append(ids_a[new_mask], feats[new_mask])
-        return "updated"
-
-    def search(
-        self, queries: ArrayLike, k: int = 10, *, allowed: ArrayLike | None = None
-    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-        """The k nearest stored vectors of each query under exact Eq. 2.
-
-        Parameters
-        ----------
-        queries : (q, d) or (d,) float
-            Raw Eq. 1 feature vectors.
-        k : int
-            Neighbours wanted.
-        allowed : (m,) int, optional
-            Restrict the results to these ids; the search is then exhaustive (exact).
-
-        Returns
-        -------
-        ids : (q, k) int64
-            Shape ids, nearest first (ties by ascending id); -1 pads rows when fewer
-            than k vectors exist.
-        distances : (q, k) float64
-            Eq. 2 distances; inf where padded.
-        """
-        self._check_fitted()
-        q = np.asarray(queries, dtype=np.float64)
-        if q.ndim == 1:
-            q = q[None, :]
-        if q.ndim != 2 or q.shape[1] != self.dim:
-            raise QueryError(f"expected vectors of length {self.dim}", source=f"shape {q.shape}")
-        if not np.all(np.isfinite(q)):
-            raise QueryError("feature vector has NaN or inf entries", source="query")
-        k = int(k)
-        if k < 1:
-            raise QueryError("k must be >= 1", source=f"k={k}")
-        if allowed is not None:
-            cand = np.unique(self.lookup(allowed))
-            return self._scan(q, cand[cand >= 0], k)
-        n_live = self.n_alive
-        if n_live == 0:
-            return np.full((len(q), k), -1, np.int64), np.full((len(q), k), np.inf)
-        dead = len(self.ids_) - n_live
-        n_cand = max(self.oversample * k, self.min_candidates, k)
-        n_cand = int(np.ceil(n_cand * len(self.ids_) / n_live)) if dead else n_cand
-        n_cand = min(n_cand, len(self.ids_))
-        ef = max(self.ef_search, n_cand) if self.kind_ == "hnsw" else None
-        cand = _faiss_search(self.faiss_index_, self._weighted(q), n_cand, ef_search=ef)
-        return self._rerank(q, cand, k)
-
-    def _rerank(
-        self, q: NDArray[np.float64], cand: NDArray[np.int64], k: int
-    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-        """Exact float64 Eq. 2 over per-query candidate positions (q, c); -1 = none."""
-        out_ids = np.full((len(q), k), -1, np.int64)
-        out_d = np.full((len(q), k), np.inf)
-        feats = np.asarray(self.features_)
-        for s in range(0, len(q), _RERANK_CHUNK):
-            c = cand[s : s + _RERANK_CHUNK]
-            valid = c >= 0
-            valid[valid] = self.alive_[c[valid]]
-            cc = np.where(valid, c, 0)
-            x = feats[cc].astype(np.float64)  # (b, c, d): Eq. 2 in float64
-            d = np.where(
-                valid, np.abs(x - q[s : s + _RERANK_CHUNK, None, :]) @ self.weights_, np.inf
-            )
-            ids = np.where(valid, self.ids_[cc], np.iinfo(np.int64).max)
-            order = np.lexsort((ids, d), axis=-1)[:, :k]
-            top_d = np.take_along_axis(d, order, 1)
-            top_i = np.take_along_axis(ids, order, 1)
-            top_i[~np.isfinite(top_d)] = -1
-            out_ids[s : s + len(c), : top_d.shape[1]] = top_i
-            out_d[s : s + len(c), : top_d.shape[1]] = top_d
-        return out_ids, out_d
-
-    def _scan(
-        self, q: NDArray[np.float64], positions: NDArray[np.int64], k: int
-    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-        """Exhaustive exact Eq. 2 of every query against the same positions (m,)."""
-        out_ids = np.full((len(q), k), -1, np.int64)
-        out_d = np.full((len(q), k), np.inf)
-        if len(positions) == 0:
-            return out_ids, out_d
-        ids = self.ids_[positions]
-        for lo in range(0, len(positions), _SCAN_BLOCK):
-            x = np.asarray(self.features_[positions[lo : lo + _SCAN_BLOCK]], np.float64)
-            block_ids = ids[lo : lo + _SCAN_BLOCK]
-            for j in range(len(q)):
-                d = np.abs(x - q[j]) @ self.weights_
-                # merge this block with the running best k, ties by ascending id
-                all_d = np.concatenate([out_d[j], d])
-                all_i = np.concatenate([out_ids[j], block_ids])
-                if len(all_d) > 4 * k:
-                    thr = np.partition(all_d, k - 1)[k - 1]
-                    keep = all_d <= thr
-                    all_d, all_i = all_d[keep], all_i[keep]
-                key_i = np.where(all_i < 0, np.iinfo(np.int64).max, all_i)
-                order = np.lexsort((key_i, all_d))[:k]
-                out_d[j], out_ids[j] = all_d[order], all_i[order]
-        out_ids[~np.isfinite(out_d)] = -1
-        return out_ids, out_d
-
-    def exact_search(
-        self, queries: ArrayLike, k: int = 10
-    ) -> tuple[NDArray[np.int64], NDArray[Any]]:
-        """Brute-force exact search over every live vector (reference for recall)."""
-        self._check_fitted()
-        q = np.atleast_2d(np.asarray(queries, np.float64))
-        return self._scan(q, np.flatnonzero(self.alive_), k)
-
-    def copy(self) -> FeatureIndex:
-        """An independent copy: faiss index cloned, ``alive_`` copied (the other
-        arrays are only ever replaced, never modified in place, so they are shared)."""
-        self._check_fitted()
-        other = FeatureIndex(**self.params)
-        other.__dict__.update(self.__dict__)
-        other.faiss_index_ = _faiss().clone_index(self.faiss_index_)
-        other.alive_ = self.alive_.copy()
-        return other
-
-    def features_of(self, shape_id: int) -> NDArray[np.float64] | None:
-        """Stored feature vector of a shape id, or None when it is not indexed."""
-        p = int(self.lookup([shape_id])[0])
-        return None if p < 0 else np.asarray(self.features_[p], np.float64)
-
-    def save(self, directory: str | os.PathLike[str], *, version: int | None = None) -> Path:
-        """Write the index atomically under ``directory`` (an ``index/`` folder).
-
-        A fresh sub-directory is written completely, then the pointer file
-        ``current.json`` is replaced with :func:`os.replace`; older sub-directories
-        are removed afterwards.
-        """
-        self._check_fitted()
-        faiss = _faiss()
-
-        def write(sub: Path) -> None:
-            faiss.write_index(self.faiss_index_, str(sub / "faiss.index"))
-            np.save(sub / "ids.npy", self.ids_)
-            np.save(sub / "features.npy", np.asarray(self.features_))
-            np.save(sub / "alive.npy", self.alive_)
-
-        meta = {
-            "format": _FORMAT,
-            "version": version,
-            "kind": self.kind_,
-            "n": int(len(self.ids_)),
-            "n_alive": self.n_alive,
-            "dim": self.dim,
-            "weights": self.weights_.tolist(),
-            "params": self.params,
-        }
-        path = save_version(directory, write, meta, version=version)
-        self.version_ = version
-        log.debug("saved %s index (version %s) to %s", self.kind_, version, path)
-        return path
-
-    @classmethod
-    def load(cls, directory: str | os.PathLike[str]) -> FeatureIndex:
-        """Read the index that ``<directory>/current.json`` points to.
-
-        Raises
-        ------
-        StoreError
-            When there is no index there or it is damaged.
-        """
-        faiss = _faiss()
-        root = Path(directory)
-        try:
-            meta, sub = current(root)
-            if meta.get("format") != _FORMAT:
-                raise StoreError(f"unknown index format {meta.get('format')!r}", source=root)
-            index = cls(**meta["params"])
-            index.faiss_index_ = faiss.read_index(str(sub / "faiss.index"))
-            index.ids_ = np.load(sub / "ids.npy")
-            index.features_ = np.load(sub / "features.npy", mmap_mode="r")
-            index.alive_ = np.load(sub / "alive.npy")
-        except (OSError, ValueError, KeyError, RuntimeError) as exc:
-            raise StoreError(f"cannot read the feature index: {exc}", source=root) from exc
-        index.weights_ = np.asarray(meta["weights"], np.float64)
-        index.kind_, index.version_, index._pos = meta["kind"], meta["version"], None
-        n = len(index.ids_)
-        if index.faiss_index_.ntotal != n or len(index.features_) != n or len(index.alive_) != n:
-            raise StoreError("index files disagree on the number of vectors", source=root)
-        return index
-
-    def __repr__(self) -> str:
-        if not hasattr(self, "faiss_index_"):
-            return f"FeatureIndex(kind={self.kind!r}, unfitted)"
-        return f"FeatureIndex(kind={self.kind_!r}, n={self.n_alive}, d={self.dim}, version={self.version_})"
-
-
-def _faiss_search(
-    index: Any, x: NDArray[np.float32], k: int, *, ef_search: int | None = None
-) -> NDArray[np.int64]:
-    """faiss search; a few queries run on one OpenMP thread.
-
-    For one query faiss parallelises the flat scan across threads, which on a busy
-    machine costs far more than it saves (``docs/results.md``, "Index").
-    ``omp_set_num_threads`` sets the calling thread's own ICV, so other Python
-    threads are unaffected.
-    """
-    faiss = _faiss()
-    params = None if ef_search is None else faiss.SearchParametersHNSW(efSearch=ef_search)
-    if len(x) > _SMALL_BATCH:
-        return index.search(x, k, params=params)[1]
-    before = faiss.omp_get_max_threads()
-    faiss.omp_set_num_threads(1)
-    try:
-        return index.search(x, k, params=params)[1]
-    finally:
-        faiss.omp_set_num_threads(before)
-
-
-def _check_rows(
-    ids: ArrayLike, features: ArrayLike, d: int
-) -> tuple[NDArray[np.int64], NDArray[np.float32]]:
-    ids_a = np.asarray(ids, dtype=np.int64).ravel()
-    feats = np.asarray(features, dtype=np.float32)
-    if len(ids_a) == 0:
-        feats = feats.reshape(0, d)
-    if feats.ndim != 2 or feats.shape != (len(ids_a), d):
-        raise QueryError(f"expected shape ({len(ids_a)}, {d})", source=f"features {feats.shape}")
-    if len(np.unique(ids_a)) != len(ids_a):
-        raise QueryError("ids are not unique", source="ids")
-    if not np.all(np.isfinite(feats)):
-        raise QueryError("features contain NaN or inf", source="features")
-    return ids_a, np.ascontiguousarray(feats)
+#: An update is written to disk once the changes since the saved index pass this fraction
+#: of it (as the field vector index: below it a new process re-reads those few segments).
+_RESAVE_FRACTION = 0.02
 
 
 # ------------------------------------------------------------------ store glue
@@ -515,8 +71,8 @@ def open_index(
     Parameters
     ----------
     db : shapedb.Database
-        Uses ``db.store`` (``path``, ``version``, ``features()``) and
-        ``db.config``.
+        Uses ``db.store`` (``path``, ``version``; the segments its manifest lists are
+        read through :mod:`query.search.field_rows`) and ``db.config``.
     kind : {"auto", "flat", "hnsw"}, optional
         Force an index type (rebuilding if the current one differs).
     rebuild : bool
@@ -535,7 +91,8 @@ def open_index(
     Returns
     -------
     FeatureIndex
-        Up to date with ``db.store.version``; cached in-process per store path.
+        Up to date with ``db.store.version`` (or a later one); cached in-process per
+        store path. An update reads only the segments the index has not read.
     """
     store = db.store
     root = Path(_store_key(db))
@@ -546,10 +103,12 @@ def open_index(
     with _LOCK:
         version = store.version
         cached = None if rebuild else _CACHE.get(key)
+        shared = False  # whether ``index`` is the cached one, which searches may be using
         if cached is not None and cached[0] == config and kind in (None, cached[1].kind):
             if cached[1].version_ == version:
                 return cached[1]
-            index: FeatureIndex | None = cached[1].copy()  # searches in flight keep the old one
+            index: FeatureIndex | None = cached[1]
+            shared = True
         else:
             index = None if rebuild else _load(directory)
         if index is not None and (
@@ -559,18 +118,43 @@ def open_index(
         ):
             index = None  # kernel configuration or requested type changed
         if index is None or index.version_ != version:
-            ids, feats = store.features(view=view)
-            feats = np.asarray(feats, np.float32).reshape(len(ids), w.shape[0])
-            if index is None:
-                settings = {**params, "kind": kind or params.get("kind", "auto")}
-                index = FeatureIndex(**settings).fit(ids, feats, w)
-                action = "built"
-            else:
-                action = index.sync(ids, feats)
-            keep_beside(index, directory, version, "feature index")
+            settings = {**params, "kind": kind or params.get("kind", "auto")}
+            base = index
+
+            def bring(snap: field_rows.Snapshot) -> tuple[FeatureIndex, str]:
+                return _brought_to(base, shared, snap, w, view=view, settings=settings)
+
+            index, action = field_rows.consistent(db, bring)
+            if action in ("built", "rebuilt") or index.unsaved_ > _RESAVE_FRACTION * len(
+                index.ids_
+            ):
+                keep_beside(index, directory, index.version_ or 0, "feature index")
             log.info("feature index %s at store version %s: %r", action, version, index)
         _CACHE[key] = (config, index)
         return index
+
+
+def _brought_to(
+    base: FeatureIndex | None,
+    shared: bool,
+    snap: field_rows.Snapshot,
+    w: NDArray[np.float64],
+    *,
+    view: bool,
+    settings: dict[str, Any],
+) -> tuple[FeatureIndex, str]:
+    """``base`` at the snapshot (a copy first when it is ``shared`` and its rows change),
+    or a fresh build; with what was done: "built", "unchanged", "updated" or "rebuilt"."""
+    if base is None:
+        index, action = index_segments.build(FeatureIndex(**settings), snap, w, view=view), "built"
+    elif base.segments_ == snap.files:  # no shape changed (a commit of failures only)
+        index, action = base, "unchanged"
+    else:
+        index = base.copy() if shared else base
+        index_segments.catch_up(index, snap, view=view)
+        action = index.settle()
+    index.version_ = snap.version
+    return index, action
 
 
 def keep_beside(index: Any, directory: Path, version: int, what: str) -> None:
