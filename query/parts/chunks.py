@@ -12,6 +12,7 @@ n) chunks, each row copied O(log n) times over the life of the index). After
 from __future__ import annotations
 
 import os
+import uuid
 from pathlib import Path
 
 import numpy as np
@@ -106,6 +107,15 @@ class RowChunks:
         out = np.concatenate(self.chunks) if self.chunks else np.zeros((0, *self.tail), self.dtype)
         return out if dtype is None else out.astype(dtype)
 
+    def spill(self, directory: Path) -> None:
+        """Write the chunks held in memory to new files under ``directory`` and map them
+        read only instead (a build then holds one batch of rows in memory)."""
+        for k, c in enumerate(self.chunks):
+            if not isinstance(c, np.memmap):
+                target = directory / f"spill-{uuid.uuid4().hex}.npy"
+                np.save(target, c)
+                self.chunks[k] = np.load(target, mmap_mode="r")
+
     def select(self, pos: NDArray[np.int64]) -> RowChunks:
         """A new single-chunk RowChunks of the rows at ``pos`` (compaction)."""
         return RowChunks(self.dtype, self.tail, [self.take(pos)])
@@ -149,11 +159,10 @@ def _write(target: Path, parts: list[NDArray]) -> None:
             return
         except OSError:
             pass  # another filesystem, or the file was superseded meanwhile: copy it
-    shape = (sum(len(p) for p in parts), *parts[0].shape[1:])
+    ends = np.cumsum([len(p) for p in parts])
+    shape = (int(ends[-1]), *parts[0].shape[1:])
     out = np.lib.format.open_memmap(target, mode="w+", dtype=parts[0].dtype, shape=shape)
-    at = 0
-    for p in parts:
-        out[at : at + len(p)] = p
-        at += len(p)
+    for p, end in zip(parts, ends, strict=True):  # written through the map, chunk by chunk
+        out[end - len(p) : end] = p
     out.flush()
     del out

@@ -47,7 +47,10 @@ from __future__ import annotations
 import json
 import logging
 import os
+import shutil
 import threading
+import uuid
+from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -175,13 +178,25 @@ class PartIndex:
         PartIndex
             ``self``.
         """
+        return self.fit_batches([(ids, graphs)])
+
+    def fit_batches(
+        self, batches: Iterable[tuple[ArrayLike, list[Any]]], *, spill: Path | None = None
+    ) -> PartIndex:
+        """:meth:`fit` over batches of ``(ids, graphs)``; with ``spill`` (a directory on
+        the index's file system) each batch's rows are written there and memory-mapped,
+        so that the build holds one batch in memory (a save links those files)."""
         self.shapes_ = np.zeros(0, np.int64)
         self.node_ptr_ = np.zeros(1, np.int64)
         self.edge_ptr_ = np.zeros(1, np.int64)
         self.edges_ = RowChunks(np.int32, (2,))
         self.alive_ = np.zeros(0, bool)
         self.features_ = RowChunks(np.float32, (part_dim(self.config),))
-        self._append(ids, graphs)
+        for ids, graphs in batches:
+            self._append(ids, graphs)
+            if spill is not None:
+                self.features_.spill(spill)
+                self.edges_.spill(spill)
         self._build_faiss()
         return self
 
@@ -635,6 +650,30 @@ def _graphs_from_store(
     return [(r[b_ptr[g] : b_ptr[g + 1]], e[e_ptr[g] : e_ptr[g + 1]]) for g in range(len(ids))]
 
 
+def _build(
+    db: StoreHandle, ids: NDArray[np.int64], cfg: PartConfig, root: Path, params: dict[str, Any]
+) -> PartIndex:
+    """A fresh index of the shapes ``ids``, read and featurised a batch at a time, each
+    batch's rows spilled to a scratch directory under ``root`` where it can be written."""
+    batches = (
+        (ids[b : b + _FEATURE_BATCH], _graphs_from_store(db, ids[b : b + _FEATURE_BATCH], cfg))
+        for b in range(0, len(ids), _FEATURE_BATCH)
+    )
+    scratch = root / f".tmp-build-{uuid.uuid4().hex[:12]}"
+    spill: Path | None = scratch
+    try:
+        scratch.mkdir(parents=True)
+    except OSError:
+        spill = None  # a store the process may not write: the rows stay in memory
+    try:
+        index = PartIndex(cfg, **params).fit_batches(batches, spill=spill)
+        keep_beside(index, root, db.store.version, "part index")  # links the spilled rows
+    finally:
+        if spill is not None:
+            shutil.rmtree(spill, ignore_errors=True)
+    return index
+
+
 def open_parts_index(
     db: StoreHandle, config: PartConfig | None = None, *, rebuild: bool = False, **params: Any
 ) -> PartIndex:
@@ -675,7 +714,7 @@ def open_parts_index(
             return index
         ids = np.asarray(store.ids(), np.int64)
         if index is None:
-            index = PartIndex(cfg, **params).fit(ids, _graphs_from_store(db, ids, cfg))
+            index = _build(db, ids, cfg, root, params)
             action = "built"
         else:
             have = index.shapes_[index.alive_]

@@ -29,6 +29,7 @@ def test_commit_writes_only_new_chunks(tmp_db) -> None:
     open_parts_index(tmp_db, cfg)
     before = {p.name: p.stat().st_ino for p in _live(root).glob("*-*.npy")}
     assert {"features-0.npy", "edges-0.npy"} <= set(before)
+    assert not list(root.glob(".tmp-build-*"))  # the build's spilled rows were linked
     tmp_db.commit([make_record("capsule-new", "capsule", Capsule([0, 0, 0], [1.5, 0, 0], 0.3))])
     index = open_parts_index(tmp_db, cfg)
     after = {p.name: p.stat().st_ino for p in _live(root).glob("*-*.npy")}
