@@ -83,6 +83,19 @@ def test_compressed_path_recall(tmp_path: Path) -> None:
     )
 
 
+def test_growing_index_switches_to_ivf_and_retrains() -> None:
+    graphs = _clustered(60, 2)
+    index = PartIndex(ivf_threshold=1_000).fit(np.arange(20), graphs[:20])
+    assert index.kind_ == "flat" and index.trained_n_ == 600
+    index.add(np.arange(20, 40), graphs[20:40])  # 1,200 vectors: past the flat index
+    assert index.kind_ == "ivf" and index.trained_n_ == 1_200
+    assert index.faiss_.ntotal == len(index.codes_) == 1_200
+    index.add(np.arange(40, 50), graphs[40:50])  # added to the trained index
+    assert index.trained_n_ == 1_200 and index.faiss_.ntotal == len(index.codes_) == 1_500
+    q = np.asarray(index.features_)[1_400]
+    assert index.search(q, 1)[0][0] == index.exact_search(q, 1)[0][0]
+
+
 def test_row_chunks_take_and_merge_plan() -> None:
     rc = RowChunks(np.float32, (2,), [np.arange(6).reshape(3, 2), np.arange(6, 10).reshape(2, 2)])
     assert rc.shape == (5, 2) and len(rc) == 5
