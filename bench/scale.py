@@ -26,10 +26,11 @@ At each size (:mod:`bench.support.scale_measures`):
   memory, p50 / p99, recall@10 against its exact scan;
 * **ingest**: one real file into the grown store against the same into an empty store.
 
-Writes ``bench/results/scale.json`` after every size (a long run keeps what it measured)
-and prints the table at the end. The store lives in ``--dir`` (default a folder under
-the system's temporary directory; check the free disk: about 30 KB a shape for the
-tables, more for the indexes). ``--keep`` keeps it.
+Writes ``bench/results/scale.json`` after every phase (a long run keeps what it measured)
+and prints the table after every size. The store lives in ``--dir``, which is kept (a
+store already there is grown further), or in a temporary folder removed at the end unless
+``--keep``. Check the free disk first: about 26 KB a shape for the tables, more for the
+indexes beside them.
 """
 
 from __future__ import annotations
@@ -262,7 +263,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--keep",
         action="store_true",
-        help="keep the grown store (a --dir that already holds a store is kept, and grown further)",
+        help="keep the grown temporary store (a --dir is always kept; a store there grows)",
     )
     p.add_argument("--out", type=Path, default=RESULTS)
     args = p.parse_args(argv)
@@ -294,8 +295,8 @@ def main(argv: list[str] | None = None) -> int:
             measure(db, args, seeds, rng, row, save)
             print(report(rows), flush=True)
     finally:
-        if not args.keep and not resumed:
-            shutil.rmtree(root.parent if args.dir is None else root, ignore_errors=True)
+        if args.dir is None and not args.keep:  # a --dir given is the user's: kept
+            shutil.rmtree(root.parent, ignore_errors=True)
     print(json.dumps({"elapsed_s": time.perf_counter() - t0}))
     return 0
 
