@@ -6,7 +6,7 @@ geometric ball graphs of 512 balls (centres in a randomly stretched box, radii
 decreasing as a power law with a random exponent, each ball touching its 3 nearest
 neighbours), so 512 neighbourhood subgraphs per shape. Then:
 
-* the part index is built (:func:`query.parts.index.open_parts_index`: features of
+* the part index is built (:func:`query.parts.store_index.open_parts_index`: features of
   every node, faiss IVF above 5e5 vectors) and its build time reported;
 * queries are parts of *noisy copies* of stored shapes (radii x (1 + 2% noise), not
   stored), so the exact answer is not trivially a distance-0 hit;
@@ -126,8 +126,8 @@ def run(
 def run_config(
     db: Any, n_shapes: int, n_queries: int, n_balls: int, t_store: float, part: str
 ) -> dict[str, Any]:
-    from query.parts.index import open_parts_index
     from query.parts.match import match, part_feature
+    from query.parts.store_index import open_parts_index
 
     cfg = PARTS[part]
     t0 = time.perf_counter()

@@ -14,8 +14,9 @@ from __future__ import annotations
 
 from query.evaluate import RetrievalScores, retrieval_scores
 from query.learn.metric import LearnedMetric, fit_metric
-from query.parts.index import PartIndex, open_parts_index
+from query.parts.index import PartIndex
 from query.parts.match import PartGeometry, PartMatch, match_pairs, part_geometry
+from query.parts.store_index import open_parts_index
 from query.search.engine import Hit, query_features
 from query.search.index import FeatureIndex, build_index, open_index
 

@@ -176,7 +176,7 @@ class Database:
         """Bring the derived state already on disk up to date: the indexes, the array caches
         (:mod:`query.search.array_cache`), and the re-ranking stage's side tables (their
         writers: this and the end of :meth:`ingest`)."""
-        from query.parts import index as parts_index
+        from query.parts import store_index as parts_index
         from query.search import array_cache, index
 
         try:

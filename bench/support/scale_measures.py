@@ -268,7 +268,7 @@ def reference_ranks(db: Any, ids: list[int], timeout: float) -> dict[int, list[i
 def part_figures(db: Any, rng: np.random.Generator, queries: int = 50) -> dict[str, Any]:
     """The part index (built or brought up to date here): build time and memory, p50 / p99
     of a stored part's search and recall@10 (by shape) against the exact scan."""
-    from query.parts.index import open_parts_index
+    from query.parts.store_index import open_parts_index
 
     gc.collect()
     rss0 = rss_mb()

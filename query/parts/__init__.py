@@ -6,8 +6,9 @@ of the query through :class:`PartIndex` and the paper's substructure matching.
 
 from __future__ import annotations
 
-from query.parts.index import PartIndex, open_parts_index
+from query.parts.index import PartIndex
 from query.parts.match import PartGeometry, match_pairs, part_geometry
+from query.parts.store_index import open_parts_index
 
 __all__ = [
     "PartIndex",

@@ -493,7 +493,7 @@ def _corpus(
     per_shape: int,
     overlap: float | None,
 ) -> list[PartMatch]:
-    from query.parts.index import open_parts_index
+    from query.parts.store_index import open_parts_index
     from query.search.engine import checked_k
 
     k = checked_k(k)  # an integer in [1, MAX_K]; the index returns at most what it holds

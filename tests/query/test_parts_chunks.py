@@ -10,7 +10,8 @@ import numpy as np
 from query_helpers import make_record
 
 from query.parts.chunks import RowChunks, merge_plan
-from query.parts.index import PARTS_DIR, PartIndex, open_parts_index
+from query.parts.index import PARTS_DIR, PartIndex
+from query.parts.store_index import open_parts_index
 from shapedb.config.part import PartConfig
 from shapedb.geometry.implicit import Capsule
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from query_helpers import make_record
 
-from query.parts.index import PARTS_DIR, PartIndex, open_parts_index, read_part_config
+from query.parts.index import PARTS_DIR, PartIndex, read_part_config
 from query.parts.match import (
     PartMatch,
     match,
@@ -15,6 +15,7 @@ from query.parts.match import (
     nearest_ball,
     part_geometry,
 )
+from query.parts.store_index import open_parts_index
 from shapedb.config.part import PartConfig
 from shapedb.errors import NotFoundError, QueryError
 from shapedb.geometry.implicit import Capsule
