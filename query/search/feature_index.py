@@ -23,8 +23,10 @@ when an index is built or loaded.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -34,7 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 from query.search.versioned import current, save_version
 from shapedb.errors import ConfigError, NotFittedError, QueryError, StoreError, require
 
-__all__ = ["FeatureIndex"]
+__all__ = ["FeatureIndex", "faiss_knn_l1"]
 
 log = logging.getLogger(__name__)
 
@@ -541,26 +543,44 @@ def _faiss() -> Any:
     return require("faiss", extra="faiss", feature="the feature index")
 
 
-def _faiss_search(
-    index: Any, x: NDArray[np.float32], k: int, *, ef_search: int | None = None
-) -> NDArray[np.int64]:
-    """faiss search; a few queries run on one OpenMP thread.
+@contextlib.contextmanager
+def _threads_for(n_queries: int) -> Iterator[None]:
+    """A few queries run on one OpenMP thread.
 
     For one query faiss parallelises the flat scan across threads, which on a busy
     machine costs far more than it saves (``docs/results.md``, "Index").
     ``omp_set_num_threads`` sets the calling thread's own ICV, so other Python
     threads are unaffected.
     """
+    if n_queries > _SMALL_BATCH:
+        yield
+        return
     faiss = _faiss()
-    params = None if ef_search is None else faiss.SearchParametersHNSW(efSearch=ef_search)
-    if len(x) > _SMALL_BATCH:
-        return index.search(x, k, params=params)[1]
     before = faiss.omp_get_max_threads()
     faiss.omp_set_num_threads(1)
     try:
-        return index.search(x, k, params=params)[1]
+        yield
     finally:
         faiss.omp_set_num_threads(before)
+
+
+def _faiss_search(
+    index: Any, x: NDArray[np.float32], k: int, *, ef_search: int | None = None
+) -> NDArray[np.int64]:
+    """faiss search of an index; a few queries run on one OpenMP thread."""
+    faiss = _faiss()
+    params = None if ef_search is None else faiss.SearchParametersHNSW(efSearch=ef_search)
+    with _threads_for(len(x)):
+        return index.search(x, k, params=params)[1]  # type: ignore[no-any-return]
+
+
+def faiss_knn_l1(queries: NDArray[np.float32], vectors: NDArray[np.float32], k: int) -> Any:
+    """(q, k) positions of the ``k`` nearest rows of ``vectors`` (n, d) to each of
+    ``queries`` (q, d) by L1, exact (faiss's brute force over the arrays in place, float32;
+    -1 pads); a few queries run on one OpenMP thread."""
+    faiss = _faiss()
+    with _threads_for(len(queries)):
+        return faiss.knn(queries, vectors, int(k), metric=faiss.METRIC_L1)[1]
 
 
 def _check_rows(

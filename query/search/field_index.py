@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from query.search import field_rows
+from query.search.feature_index import faiss_knn_l1
 from query.search.field_fusion import FieldFusion
 from query.search.versioned import POINTER, current, save_version
 from shapedb.errors import StoreError
@@ -52,8 +53,7 @@ INDEX_DIR = "index_field"
 #: Extra proposals asked past k, so that float32 rounding cannot push a neighbour out
 #: before the exact float64 order.
 _MARGIN = 16
-#: Up to this many vectors a float32 numpy scan proposes the candidates (faiss's flat L1
-#: search is slower per vector than numpy's at the field vector's length); beyond, the
+#: Up to this many vectors an exact float32 scan proposes the candidates; beyond, the
 #: HNSW graph.
 SCAN_MAX = 65_536
 #: HNSW proposals per wanted candidate (k + 16), efSearch the same: recall@200 0.998 at 10^5
@@ -211,17 +211,20 @@ class FieldIndex:
         return out_i, out_d
 
     def _scan(self, q32: NDArray[np.float32], k: int) -> NDArray[np.int64]:
-        """(q, k + 16) positions by a float32 numpy scan of every live vector."""
+        """(q, k + 16) positions of the nearest live vectors by an exact float32 L1 scan
+        (faiss's brute-force search over the vectors in place, one thread for a few queries:
+        14x numpy's at 10^4 x 950, 1.2 against 17.6 ms)."""
         n_cand = min(k + _MARGIN, len(self))
-        dead = not self.alive_.all()
-        vectors = self.vectors_
-        found = np.empty((len(q32), n_cand), np.int64)
+        n_dead = int(len(self.ids_) - len(self))
+        ask = min(n_cand + n_dead, len(self.ids_))
+        found = np.asarray(faiss_knn_l1(q32, np.asarray(self.vectors_, np.float32), ask), np.int64)
+        if not n_dead:
+            return found
+        out = np.full((len(q32), n_cand), -1, np.int64)
         for at in range(len(q32)):
-            d = np.abs(vectors - q32[at]).sum(axis=1)
-            if dead:
-                d[~self.alive_] = np.inf
-            found[at] = np.argpartition(d, n_cand - 1)[:n_cand]
-        return found
+            live = found[at][(found[at] >= 0) & self.alive_[np.maximum(found[at], 0)]]
+            out[at, : min(n_cand, len(live))] = live[:n_cand]
+        return out
 
     def propose(self, q32: NDArray[np.float32], k: int) -> NDArray[np.int64]:
         """(q, c) positions the HNSW graph proposes for ``k`` neighbours of the float32

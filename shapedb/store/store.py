@@ -152,6 +152,7 @@ class Store:
         self.retain_seconds = float(retain_seconds)
         self._lock = FileLock(self.path / _LOCK)
         self._lock_depth = 0
+        self._read_as: tuple[tuple[int, ...], _Snapshot] | None = None
         snap = self._snapshot()  # validates
         self._config = Config.from_dict(snap.data["config"])
         self._dim = int(snap.data["dim"])
@@ -225,7 +226,23 @@ class Store:
         return f"<Store {str(self.path)!r} version={self.version} shapes={len(self)}>"
 
     # ------------------------------------------------------------------ reading
-    def _snapshot(self) -> _Snapshot:
+    def _snapshot(self, *, fresh: bool = False) -> _Snapshot:
+        """The manifest as it is now. Readers share the parsed copy while the file is the
+        same (its inode, size and times: a commit replaces it by a new file), since a
+        search reads it several times; ``fresh`` (writers, which change what they read)
+        parses it again."""
+        if not fresh:
+            try:
+                st = (self.path / MANIFEST).stat()
+                key = (st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+            except OSError:
+                key = None
+            if key is not None and self._read_as is not None and self._read_as[0] == key:
+                return self._read_as[1]
+            snap = _Snapshot(read_manifest(self.path))
+            if key is not None:
+                self._read_as = (key, snap)
+            return snap
         return _Snapshot(read_manifest(self.path))
 
     def files(self, table: str = "shapes") -> list[str]:
@@ -436,7 +453,7 @@ class Store:
 
     def _cleanup(self) -> None:
         """Remove staging leftovers, orphans and expired retired files (lock held)."""
-        removed = cleanup(self.path, self._snapshot().data, TABLES, self.retain_seconds)
+        removed = cleanup(self.path, self._snapshot(fresh=True).data, TABLES, self.retain_seconds)
         if removed:
             log.info("store %s: removed %d orphan or expired segment(s)", self.path, removed)
 
@@ -483,7 +500,7 @@ class Store:
         CommitResult
         """
         with self.writer(), _writing(self.path, "commit"):
-            snap = self._snapshot()
+            snap = self._snapshot(fresh=True)
             self._check_config(snap, records)
             new, delete_ids, next_id = self._plan(snap, records, delete)
             if not new and not delete_ids and not failures:
@@ -619,7 +636,7 @@ class Store:
         if int(target_shapes) < 1:
             raise ConfigError("must be >= 1", source=f"target_shapes={target_shapes!r}")
         with self.writer(), _writing(self.path, "compact"):
-            snap = self._snapshot()
+            snap = self._snapshot(fresh=True)
             txn = Transaction(self.path, snap.data)
             shapes = max(sum(int(s.get("rows", 0)) for s in snap.segments("shapes")), 1)
             merged = False
