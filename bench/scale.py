@@ -51,6 +51,9 @@ import numpy as np
 from bench.common import format_table, write_json
 from bench.support import scale_measures as m
 from bench.support.synthetic_records import RecordMaker
+from query.parts.index import PARTS_DIR
+from query.search.lightfield_neighbours import NEIGHBOUR_DIR
+from query.search.lightfield_spread import SPREAD_DIR
 
 log = logging.getLogger("bench.scale")
 
@@ -145,15 +148,13 @@ def serve_figures(root: Path, ids: np.ndarray) -> dict[str, Any]:
         server.stop()
 
 
-def drop_tables(db: Any) -> None:
-    """Remove the stage's side tables of the benchmark's own store, so growing past
-    ``--tables-max`` does not compute them for every new shape (derived state)."""
-    from query.search.lightfield_neighbours import NEIGHBOUR_DIR
-    from query.search.lightfield_spread import SPREAD_DIR
-
-    for name in (SPREAD_DIR, NEIGHBOUR_DIR):
+def drop_derived(db: Any, names: tuple[str, ...], why: str) -> None:
+    """Remove derived folders of the benchmark's own store (the stage's side tables, the
+    part index), so growing past ``--tables-max`` or ``--part-max`` does not keep them up
+    to date for every new shape (tens of milliseconds a shape each)."""
+    for name in names:
         if (Path(db.path) / name).is_dir():
-            log.info("growing past --tables-max: the side tables of %s are dropped", db.path)
+            log.info("growing past %s: %s of %s dropped", why, name, db.path)
             shutil.rmtree(Path(db.path) / name)
 
 
@@ -281,7 +282,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         for size in sorted(args.sizes):
             if size > args.tables_max:
-                drop_tables(db)
+                drop_derived(db, (SPREAD_DIR, NEIGHBOUR_DIR), "--tables-max")
+            if size > args.part_max:
+                drop_derived(db, (PARTS_DIR,), "--part-max")
             made, grow_s, commits = grow(db, maker, size, made)
             if args.grow_only:
                 continue
