@@ -266,7 +266,9 @@ def main(argv: list[str] | None = None) -> int:
         default=10_000,
         help="build the ranking stage's side tables up to this size",
     )
-    p.add_argument("--grow-only", action="store_true", help="grow the store, measure nothing")
+    p.add_argument(
+        "--grow-only", action="store_true", help="grow the store; measure only its last commits"
+    )
     p.add_argument(
         "--keep",
         action="store_true",
@@ -292,15 +294,16 @@ def main(argv: list[str] | None = None) -> int:
             if size > args.part_max:
                 drop_derived(db, (PARTS_DIR,), "--part-max")
             made, grow_s, commits = grow(db, maker, size, made)
-            if args.grow_only:
-                continue
-            row: dict[str, Any] = {**commits, "grow_s": grow_s}
+            row: dict[str, Any] = {"shapes": len(db), **commits, "grow_s": grow_s}
             rows.append(row)
 
             def save(row: dict[str, Any] = row) -> None:
                 row["elapsed_s"] = time.perf_counter() - t0
                 write_json(args.out, {"seeds": len(seeds), "sizes": rows, "load": os.getloadavg()})
 
+            if args.grow_only:  # the growth's timed commits only
+                save()
+                continue
             measure(db, args, seeds, rng, row, save)
             print(report(rows), flush=True)
     finally:
