@@ -96,7 +96,9 @@ def run(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m bench.studies.field_index_recall", description=__doc__.splitlines()[0]
+    )
     parser.add_argument("--n", type=int, default=100_000)
     parser.add_argument("--d", type=int, default=950)
     parser.add_argument("--k", type=int, default=200)
