@@ -1,4 +1,4 @@
-"""Which segments a compaction merges: runs of small segments, up to a target size.
+"""Compaction: runs of small segments merged into one, up to a target size.
 
 A store gains one segment per table at every commit, so a store grown by small commits
 holds thousands of small files, and every scan opens them all. A compaction rewrites
@@ -11,7 +11,11 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["TARGET_SHAPES", "merge_runs"]
+import pyarrow as pa
+
+from shapedb.store.transaction import Transaction
+
+__all__ = ["TARGET_SHAPES", "merge_runs", "merge_small_segments"]
 
 #: Shapes a compacted segment holds at most (about 26 MB of shapes, 300 MB of balls
 #: for real packings of ~480 balls): what one run reads into memory while it is merged.
@@ -49,3 +53,34 @@ def merge_runs(segments: list[dict[str, Any]], target_rows: int) -> list[list[in
         rows += n
     runs.append(run)
     return [r for r in runs if len(r) >= 2]
+
+
+def merge_small_segments(txn: Transaction, dim: int, target_shapes: int) -> bool:
+    """Stage, in ``txn``, one segment for each run of small segments of the ``shapes``,
+    ``balls`` and ``edges`` tables (each table's runs planned on its own rows, ``balls`` and
+    ``edges`` scaled by their rows per shape), retiring the merged files; True when any
+    run was merged. Reads one run at a time, so memory holds one merged segment."""
+    tables = txn.tables
+    shapes = max(sum(int(s.get("rows", 0)) for s in tables["shapes"]), 1)
+    merged = False
+    for table in ("shapes", "balls", "edges"):
+        segments = list(tables[table])
+        per_shape = sum(int(s.get("rows", 0)) for s in segments) / shapes
+        target = max(int(target_shapes * max(per_shape, 1.0)), 1)
+        col = "id" if table == "shapes" else "shape_id"
+        kept: list[dict[str, Any]] = []
+        runs = {run[0]: run for run in merge_runs(segments, target)}
+        k = 0
+        while k < len(segments):
+            run = runs.get(k)
+            if run is None:
+                kept.append(segments[k])
+                k += 1
+                continue
+            parts = [txn.read_segment(segments[j], table, dim) for j in run]
+            files = [segments[j]["file"] for j in run]
+            txn.retire(files)
+            kept.append(txn.stage(table, pa.concat_tables(parts).sort_by(col), col, replaces=files))
+            merged, k = True, run[-1] + 1
+        txn.tables[table] = kept
+    return merged

@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 from shapedb.config.core import Config
 from shapedb.errors import ConfigError, NotFoundError, QueryError, ShapeDBError, StoreError
 from shapedb.store.checksums import verified_files
-from shapedb.store.compaction import TARGET_SHAPES, merge_runs
+from shapedb.store.compaction import TARGET_SHAPES, merge_small_segments
 from shapedb.store.manifest import (
     DATA,
     FORMAT_VERSION,
@@ -638,29 +638,7 @@ class Store:
         with self.writer(), _writing(self.path, "compact"):
             snap = self._snapshot(fresh=True)
             txn = Transaction(self.path, snap.data)
-            shapes = max(sum(int(s.get("rows", 0)) for s in snap.segments("shapes")), 1)
-            merged = False
-            for table in ("shapes", "balls", "edges"):
-                segments = snap.segments(table)
-                per_shape = sum(int(s.get("rows", 0)) for s in segments) / shapes
-                target = max(int(target_shapes * max(per_shape, 1.0)), 1)
-                col = "id" if table == "shapes" else "shape_id"
-                kept: list[dict[str, Any]] = []
-                runs = {run[0]: run for run in merge_runs(segments, target)}
-                k = 0
-                while k < len(segments):
-                    run = runs.get(k)
-                    if run is None:
-                        kept.append(segments[k])
-                        k += 1
-                        continue
-                    parts = [txn.read_segment(segments[j], table, self.dim) for j in run]
-                    files = [segments[j]["file"] for j in run]
-                    t = pa.concat_tables(parts).sort_by(col)
-                    txn.retire(files)
-                    kept.append(txn.stage(table, t, col, replaces=files))
-                    merged, k = True, run[-1] + 1
-                txn.tables[table] = kept
+            merged = merge_small_segments(txn, self.dim, target_shapes)
             if not merged:
                 return CommitResult(version=snap.version)
             return CommitResult(version=txn.publish())
