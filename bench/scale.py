@@ -63,6 +63,8 @@ CAPOD = Path(__file__).resolve().parents[2] / "shared" / "data" / "capod"
 GROW_BATCH = 10_000
 #: 1,000-shape commits timed at the end of each growth.
 TIMED_COMMITS = 3
+#: Seconds one search over HTTP may take (a cold one at 10^6 took over 120 s on 2 busy cores).
+COLD_TIMEOUT = 1800.0
 
 
 def seed_records(seed_store: Path) -> list[Any]:
@@ -123,11 +125,14 @@ def serve_figures(root: Path, ids: np.ndarray) -> dict[str, Any]:
     """``GET /api/search?id=`` in ``shapedb serve``, one request at a time: two passes over
     the ids as :func:`bench.support.scale_measures.search_figures` (cold, warm), and the
     server's peak resident set."""
+    import http.client
+
     from bench.serve import Server, get_timed
 
     server = Server(root)
     try:
-        conn = server.connection()
+        # a cold search of a large store computes side tables for minutes on loaded cores
+        conn = http.client.HTTPConnection("127.0.0.1", server.port, timeout=COLD_TIMEOUT)
 
         own: list[float] = []  # the server's own milliseconds (its Server-Timing header)
 
