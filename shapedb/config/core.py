@@ -111,8 +111,12 @@ class MDBDConfig:
         models), and open meshes made largely of sheets, are decomposed dilated by
         this many grid cells (:mod:`shapedb.geometry.sheet`); 0 turns it off (such models then
         fail). Closed meshes in which a ball fits are never dilated whole.
-    sheet_rule : {"local", "whole"}
-        ``"local"``: a triangle mesh not dilated whole whose sheet cells (surface cells
+    sheet_rule : {"enclosed", "local", "whole"}
+        ``"enclosed"``: a triangle mesh's solid is what a flood from outside the grid
+        cannot reach plus every point within ``sheet_cells`` of its surface
+        (:mod:`shapedb.geometry.enclosed`); face orientation and closedness do not
+        matter. Other representations, and the next two rules, take the solid from
+        the winding number. ``"local"``: a triangle mesh not dilated whole whose sheet cells (surface cells
         with no inside nearby: sheets and parts thinner than the grid) are at least 1 %
         of its surface cells is dilated by ``sheet_cells`` near them only
         (:func:`shapedb.geometry.sheet.sheet_region`), so the wings of an airplane with a closed
@@ -173,10 +177,10 @@ class MDBDConfig:
         _check(0.0 <= self.tie_cells <= 4, "tie_cells", self.tie_cells, "must be in [0, 4]")
         _check(0.0 <= self.sheet_cells <= 8, "sheet_cells", self.sheet_cells, "must be in [0, 8]")
         _check(
-            self.sheet_rule in ("local", "whole"),
+            self.sheet_rule in ("enclosed", "local", "whole"),
             "sheet_rule",
             self.sheet_rule,
-            "must be 'local' or 'whole'",
+            "must be 'enclosed', 'local' or 'whole'",
         )
         _check(
             self.tie_rule in ("first", "middle"),

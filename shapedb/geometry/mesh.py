@@ -76,6 +76,7 @@ from shapedb.geometry._meshing import (
     triangle_band,
 )
 from shapedb.geometry.base import Geometry, Grid, as_points
+from shapedb.geometry.enclosed import Enclosed, enclosed_field, enclosed_sides
 
 if TYPE_CHECKING:
     import trimesh
@@ -433,23 +434,62 @@ class TriangleMesh(Geometry):
         d = self.unsigned_distance(p)
         return np.where(self.contains(p), d, -d)
 
+    def _band_distance(
+        self, grid: Grid
+    ) -> tuple[NDArray[np.bool_], NDArray[np.float32], NDArray[np.int32], NDArray[np.float64]]:
+        """(band, distance in cells, owner, closest points in cells) on ``grid``; an empty
+        band when the surface lies entirely outside the grid."""
+        v, f = self._clean
+        tri = (v[f] - grid.origin) / grid.spacing
+        band = triangle_band(tri, grid.shape)
+        if not band.any():
+            return band, np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros((0, 3))
+        band_pts = grid.to_point(np.argwhere(band))
+        closest = (self._closest(band_pts) - grid.origin) / grid.spacing
+        dist, owner = propagate_closest(band, closest)
+        logger.debug("grid field %s: %d band cells of %d", grid.shape, len(band_pts), grid.size)
+        return band, dist, owner, closest
+
     def grid_sdf(self, grid: Grid) -> NDArray[np.float32]:
         """Signed distance at every cell centre, ``grid.shape`` float32, model units.
 
         Narrow band + closest-point propagation + coarse-to-fine winding numbers;
         see the module docstring.
         """
-        h = grid.spacing
-        v, f = self._clean
-        tri = (v[f] - grid.origin) / h
-        band = triangle_band(tri, grid.shape)
+        band, dist, owner, closest = self._band_distance(grid)
         if not band.any():  # surface entirely outside the grid: use the exact query
             return super().grid_sdf(grid)
-        band_pts = grid.to_point(np.argwhere(band))
-        closest = (self._closest(band_pts) - grid.origin) / h
-        dist, owner = propagate_closest(band, closest)
         inside = coarse_to_fine_inside(grid, dist, self._inside)
         refine_closest(dist, owner, closest, inside & ~band)
-        out = np.where(inside, dist, -dist) * np.float32(h)
-        logger.debug("grid_sdf %s: %d band cells of %d", grid.shape, len(band_pts), grid.size)
+        out = np.where(inside, dist, -dist) * np.float32(grid.spacing)
         return out.astype(np.float32, copy=False)
+
+    def enclosed_solid(self, grid: Grid, thickness: float) -> tuple[Enclosed, NDArray[np.float32]]:
+        """This surface's enclosed solid on ``grid`` and its field there.
+
+        The solid a flood from the grid's border cannot reach, plus every point within
+        ``thickness`` (model units, > 0) of the surface
+        (:mod:`shapedb.geometry.enclosed`); face orientation and closedness are not used.
+
+        Returns
+        -------
+        solid : Enclosed
+            The solid, for queries off the grid.
+        field : ``grid.shape`` float32
+            Its signed distance at every cell centre, model units, positive inside.
+
+        Raises
+        ------
+        DegenerateGeometryError
+            If the surface lies entirely outside ``grid``.
+        """
+        band, dist, owner, closest = self._band_distance(grid)
+        if not band.any():
+            raise DegenerateGeometryError(
+                f"the surface lies outside the grid {grid.shape}", source=self.name
+            )
+        sides = enclosed_sides(dist)
+        refine_closest(dist, owner, closest, sides & ~band)
+        h = grid.spacing
+        field = enclosed_field(dist, sides, thickness / h) * np.float32(h)
+        return Enclosed(self, thickness, grid, sides), field

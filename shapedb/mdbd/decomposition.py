@@ -212,13 +212,19 @@ def prepare_field(geometry: Geometry, cfg: MDBDConfig) -> PreparedField:
         timings["frame"] += time.perf_counter() - t0
     else:
         grid = Grid.fit(geometry.bounds, resolution=cfg.resolution, padding=cfg.padding_cells)
+    from shapedb.geometry.mesh import TriangleMesh
+
     t0 = time.perf_counter()
+    thickness = cfg.sheet_cells * grid.spacing
+    if cfg.sheet_rule == "enclosed" and cfg.sheet_cells > 0 and isinstance(local, TriangleMesh):
+        local, F = local.enclosed_solid(grid, thickness)
+        timings["sdf"] = time.perf_counter() - t0
+        return PreparedField(local, grid, F, frame, timings, scale)
     F = np.ascontiguousarray(local.grid_sdf(grid), dtype=np.float32)
     if F.shape != grid.shape:
         raise InvalidShapeError(
             f"grid_sdf returned shape {F.shape}, expected {grid.shape}", source=repr(geometry)
         )
-    thickness = cfg.sheet_cells * grid.spacing
     if cfg.sheet_cells > 0 and needs_thickening(
         local, F, grid.spacing, cfg.min_radius_cells * grid.spacing
     ):
