@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from shapedb.errors import DegenerateGeometryError, NonFiniteGeometryError
 
-__all__ = ["Geometry", "Grid", "Transformed"]
+__all__ = ["Geometry", "Grid", "Transformed", "offset_closest"]
 
 
 @dataclass(frozen=True)
@@ -276,3 +276,22 @@ class Transformed(Geometry):
     def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
         """Point-membership classification (n,) bool."""
         return self.child.contains(self._back(points))
+
+
+def offset_closest(
+    points: NDArray[np.float64],
+    closest: NDArray[np.float64],
+    inward: NDArray[np.bool_],
+    distance: float,
+) -> NDArray[np.float64]:
+    """Closest points (n, 3) of a surface offset by ``distance``: ``closest`` moved that far
+    towards ``points``, or away from them where ``inward`` (points inside the offset solid).
+
+    A point exactly on the surface has no direction and keeps its closest point.
+    """
+    v = points - closest
+    n = np.linalg.norm(v, axis=1)
+    sign = np.where(inward, -1.0, 1.0)
+    unit = v / np.maximum(n, 1e-300)[:, None] * sign[:, None]
+    unit[n <= 0] = 0.0
+    return closest + distance * unit

@@ -28,8 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import ndimage
 
-from shapedb.geometry.base import Geometry, Grid, Transformed, as_points
-from shapedb.geometry.sheet import Thickened
+from shapedb.geometry.base import Geometry, Grid, Transformed, as_points, offset_closest
 
 __all__ = ["Enclosed", "BARRIER_CELLS", "enclosed_sides", "enclosed_field"]
 
@@ -85,7 +84,7 @@ def enclosed_field(
     return np.where(sides, t + d, t - d).astype(np.float32, copy=False)
 
 
-class Enclosed(Thickened):
+class Enclosed(Geometry):
     """A surface's enclosed solid (see the module): its grid side mask plus a thickness.
 
     Off the grid's cell centres the side is that of the nearest cell (points off the
@@ -112,10 +111,15 @@ class Enclosed(Thickened):
     def __init__(
         self, base: Geometry, thickness: float, grid: Grid, sides: NDArray[np.bool_]
     ) -> None:
-        super().__init__(base, thickness)
+        if not (np.isfinite(thickness) and thickness > 0):
+            raise ValueError(f"thickness must be positive and finite, got {thickness!r}")
         sides = np.asarray(sides, dtype=bool)
         if sides.shape != tuple(grid.shape):
             raise ValueError(f"sides has shape {sides.shape}, the grid {tuple(grid.shape)}")
+        self.base = base
+        self.thickness = float(thickness)
+        self.representation = base.representation  # type: ignore[misc]
+        self.name = getattr(base, "name", None)
         self.grid = grid
         self.sides = sides
 
@@ -152,12 +156,17 @@ class Enclosed(Thickened):
         if len(p) == 0:
             return np.zeros((0, 3))
         q = np.asarray(self.base.closest_points(p), dtype=np.float64)
-        v = p - q
-        n = np.linalg.norm(v, axis=1)
-        sign = np.where(self.enclosed_side(p), -1.0, 1.0)
-        unit = v / np.maximum(n, 1e-300)[:, None] * sign[:, None]
-        unit[n <= 0] = 0.0
-        return q + self.thickness * unit
+        return offset_closest(p, q, self.enclosed_side(p), self.thickness)
+
+    def unsigned_distance(self, points: ArrayLike) -> NDArray[np.float64]:
+        """``|signed_distance|`` (n,), model units."""
+        return np.abs(self.signed_distance(points))
+
+    @property
+    def bounds(self) -> NDArray[np.float64]:
+        """(2, 3) float64: the surface's bounds grown by the thickness."""
+        b = np.asarray(self.base.bounds, dtype=np.float64)
+        return np.stack([b[0] - self.thickness, b[1] + self.thickness])
 
     def transformed(self, rotation: ArrayLike, translation: ArrayLike) -> Geometry:
         """This solid moved rigidly (a :class:`~shapedb.geometry.base.Transformed` wrapper:

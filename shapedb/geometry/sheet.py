@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import ndimage
 
-from shapedb.geometry.base import Geometry, Grid, as_points
+from shapedb.geometry.base import Geometry, Grid, as_points, offset_closest
 
 __all__ = [
     "Thickened",
@@ -122,12 +122,8 @@ class Thickened(Geometry):
         if len(p) == 0:
             return np.zeros((0, 3))
         q = np.asarray(self.base.closest_points(p), dtype=np.float64)
-        v = p - q
-        n = np.linalg.norm(v, axis=1)
-        sign = np.where(np.asarray(self.base.contains(p), dtype=bool), -1.0, 1.0)
-        unit = v / np.maximum(n, 1e-300)[:, None] * sign[:, None]
-        unit[n <= 0] = 0.0
-        return q + self.thickness * unit
+        inward = np.asarray(self.base.contains(p), dtype=bool)
+        return offset_closest(p, q, inward, self.thickness)
 
     def transformed(self, rotation: ArrayLike, translation: ArrayLike) -> Thickened:
         """The base moved by ``x -> rotation @ x + translation``, thickened alike."""
