@@ -393,7 +393,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m bench.retrieval", description=__doc__.split("\n")[0]
     )
-    ap.add_argument("--datasets", nargs="+", default=["generic", "capod", "articulated", "parts"])
+    ap.add_argument(
+        "--datasets",
+        nargs="+",
+        default=["generic", "capod", "articulated", "parts"],
+        help="any of capod, articulated, people, parts, generic, web, webplus, enclosures",
+    )
     ap.add_argument("--quick", action="store_true", help="small subsets and a coarse grid")
     ap.add_argument("--split", default="test", choices=["test", "validation", "all"])
     ap.add_argument("--resolution", type=int, default=None)

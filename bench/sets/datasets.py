@@ -33,6 +33,12 @@ validation, the rest to test; parameter studies see only the validation split):
     ``web`` nor ``generic`` has (close man-made families, animals in many poses,
     plants), built and oriented as ``web``; every model is in the test split (nobody
     tunes on it). Sources carry :func:`bench.sets.webplus_shapes.webplus_version`.
+``enclosures``
+    Thin-walled, enclosing man-made kinds from :mod:`bench.sets.enclosures` (houses with
+    open rooms, rail cars, desks, bookcases, sinks, housings, wheels, dishes, books,
+    brackets, tents, boats): single-sided sheets with gaps for doors and vents, open
+    boxes, inconsistent winding, repeated faces and stray vertices, y or z up.
+    Sources carry :func:`bench.sets.enclosures.enclosure_version`.
 
 Point-cloud versions follow the paper: a random 20 % of the mesh vertices, seeded by
 the model name; meshes so coarse that this gives fewer than ``min_points`` points are
@@ -47,7 +53,7 @@ import functools
 import inspect
 import os
 import zlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -68,6 +74,7 @@ __all__ = [
     "generic",
     "web",
     "webplus",
+    "enclosures",
     "load_dataset",
     "build_sets",
     "mesh_arrays",
@@ -299,6 +306,15 @@ def generic(per_kind: int = 20, kinds: Sequence[str] | None = None) -> Dataset:
     return Dataset("generic", split_by_model(models))
 
 
+def _kind_models(prefix: str, kinds: Sequence[str], per_kind: int, version: str) -> list[Model]:
+    """``per_kind`` models of each kind (test split), sources ``"<prefix>:<kind>:<seed>:<version>"``."""
+    return [
+        Model(name=f"{k}_{i:02d}", label=k, source=f"{prefix}:{k}:{i}:{version}")
+        for k in kinds
+        for i in range(per_kind)
+    ]
+
+
 def web(per_kind: int = 20, kinds: Sequence[str] | None = None) -> Dataset:
     """The hard web-like set: one class per kind of :mod:`bench.sets.web_shapes`.
 
@@ -307,13 +323,7 @@ def web(per_kind: int = 20, kinds: Sequence[str] | None = None) -> Dataset:
     """
     from bench.sets.web_shapes import KINDS, web_version
 
-    kinds = tuple(kinds) if kinds else KINDS
-    version = web_version()
-    models = [
-        Model(name=f"{k}_{i:02d}", label=k, source=f"web:{k}:{i}:{version}")
-        for k in kinds
-        for i in range(per_kind)
-    ]
+    models = _kind_models("web", tuple(kinds) if kinds else KINDS, per_kind, web_version())
     return Dataset("web", split_by_model(models))
 
 
@@ -326,21 +336,28 @@ def webplus(per_kind: int = 16, kinds: Sequence[str] | None = None) -> Dataset:
     """
     from bench.sets.webplus_shapes import KINDS, webplus_version
 
-    kinds = tuple(kinds) if kinds else KINDS
-    version = webplus_version()
-    models = [
-        Model(name=f"{k}_{i:02d}", label=k, source=f"webplus:{k}:{i}:{version}", split="test")
-        for k in kinds
-        for i in range(per_kind)
-    ]
+    models = _kind_models("webplus", tuple(kinds) if kinds else KINDS, per_kind, webplus_version())
     return Dataset("webplus", tuple(models))
+
+
+def enclosures(per_kind: int = 20, kinds: Sequence[str] | None = None) -> Dataset:
+    """The thin-walled set: one class per kind of :mod:`bench.sets.enclosures`.
+
+    Sources are ``"enclosure:<kind>:<seed>:<enclosure_version>"``: a change of the
+    generator's code changes every source, so no cache serves stale models.
+    """
+    from bench.sets.enclosures import KINDS, enclosure_version
+
+    kinds = tuple(kinds) if kinds else KINDS
+    models = _kind_models("enclosure", kinds, per_kind, enclosure_version())
+    return Dataset("enclosures", split_by_model(models))
 
 
 def load_dataset(name: str) -> Dataset:
     """A set by name, at its default size.
 
     One of ``capod``, ``articulated``, ``people``, ``parts``, ``generic``, ``web``,
-    ``webplus``; ValueError for another name.
+    ``webplus``, ``enclosures``; ValueError for another name.
     """
     makers = {
         "capod": capod,
@@ -350,6 +367,7 @@ def load_dataset(name: str) -> Dataset:
         "generic": generic,
         "web": web,
         "webplus": webplus,
+        "enclosures": enclosures,
     }
     if name not in makers:
         raise ValueError(f"unknown data set {name!r}: choose from {sorted(makers)}")
@@ -378,14 +396,8 @@ def build_sets(
                 out.append(parts(4) if quick else parts(per_kind))
             except (ImportError, AttributeError, RuntimeError) as exc:
                 print(f"parts set unavailable: {exc}")
-        elif name == "generic":
-            ds = generic()
-            out.append(ds.head(per_class=6) if quick else ds)
-        elif name == "web":
-            ds = web()
-            out.append(ds.head(per_class=6) if quick else ds)
-        elif name == "webplus":
-            ds = webplus()
+        elif name in ("generic", "web", "webplus", "enclosures"):
+            ds = load_dataset(name)
             out.append(ds.head(per_class=6) if quick else ds)
         else:
             raise SystemExit(f"unknown data set {name!r}")
@@ -417,6 +429,27 @@ def _to_mesh(geometry: object, resolution: int) -> object:
     return examples.to_mesh(geometry, resolution)
 
 
+def _versioned(
+    model: Model,
+    generator: str,
+    version: str,
+    mesh: Callable[[str, int], tuple[NDArray[np.float64], NDArray[np.int64]]],
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """``mesh(kind, seed)`` of a ``"<set>:<kind>:<seed>:<version>"`` source.
+
+    Raises
+    ------
+    ValueError
+        When the source was made by another version of the generator's code.
+    """
+    _, kind, seed, made = model.source.split(":")
+    if made != version:
+        raise ValueError(
+            f"{model.name}: made by {generator} generator {made}, this code is {version}"
+        )
+    return mesh(kind, int(seed))
+
+
 def mesh_arrays(
     model: Model, *, cache: bool = True
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -433,22 +466,15 @@ def mesh_arrays(
     if model.source.startswith("web:"):
         from bench.sets.web_shapes import web_mesh, web_version
 
-        _, kind, seed, version = model.source.split(":")
-        if version != web_version():
-            raise ValueError(
-                f"{model.name}: made by web generator {version}, this code is {web_version()}"
-            )
-        return web_mesh(kind, int(seed))
+        return _versioned(model, "web", web_version(), web_mesh)
     if model.source.startswith("webplus:"):
         from bench.sets.webplus_shapes import webplus_mesh, webplus_version
 
-        _, kind, seed, version = model.source.split(":")
-        if version != webplus_version():
-            raise ValueError(
-                f"{model.name}: made by webplus generator {version}, "
-                f"this code is {webplus_version()}"
-            )
-        return webplus_mesh(kind, int(seed))
+        return _versioned(model, "webplus", webplus_version(), webplus_mesh)
+    if model.source.startswith("enclosure:"):
+        from bench.sets.enclosures import enclosure_mesh, enclosure_version
+
+        return _versioned(model, "enclosures", enclosure_version(), enclosure_mesh)
     if not model.source.startswith(("figure:", "part:", "person:")):
         import trimesh
 
@@ -521,7 +547,7 @@ def families(models: Sequence[Model]) -> NDArray[np.str_]:
     for m in models:
         if m.source.startswith(("figure:", "person:")):
             keys.append(m.source.rsplit(":", 1)[0])
-        elif m.source.startswith(("part:", "generic:", "web:", "webplus:")):
+        elif m.source.startswith(("part:", "generic:", "web:", "webplus:", "enclosure:")):
             keys.append(m.source)
         else:
             faces = np.ascontiguousarray(mesh_arrays(m)[1], dtype=np.int64)

@@ -4,7 +4,8 @@
 engine, else the older engines of :data:`ENGINE_COMMITS`); models not cached are left out
 and counted. Used by the benches that re-rank or fuse stored balls. :data:`SETS` are the
 sets they iterate by default; :data:`HELD_OUT` (``webplus``, a test split only) is read
-on request, to check settings chosen on the others.
+on request, to check settings chosen on the others; :data:`EXTRA` (``enclosures``) are
+sets with both splits read on request only, until their caches are filled.
 """
 
 from __future__ import annotations
@@ -13,11 +14,11 @@ from collections.abc import Sequence
 from typing import Any
 
 from bench.common import cache_path, load_balls
-from bench.sets.datasets import Dataset, capod, generic, parts, people, web, webplus
+from bench.sets.datasets import Dataset, capod, enclosures, generic, parts, people, web, webplus
 from bench.sets.datasets import articulated as figures
 from shapedb.config.core import MDBDConfig
 
-__all__ = ["ENGINE_COMMITS", "SETS", "HELD_OUT", "CHOICES", "load", "model_key"]
+__all__ = ["ENGINE_COMMITS", "SETS", "HELD_OUT", "EXTRA", "CHOICES", "load", "model_key"]
 
 #: Older engines whose cached decompositions are read where today's key has none
 #: (b95b2be: test splits, differs only in how flat quads are thickened; f031e22: the
@@ -30,8 +31,10 @@ ENGINE_COMMITS = ("c106441", "7ad60e6", "2ba8d98", "b95b2be", "f031e22")
 SETS = ("web", "generic", "capod", "figures", "parts", "people")
 #: Held-out sets (test split only), never in a default run: nothing is tuned on them.
 HELD_OUT = ("webplus",)
+#: Sets with validation and test splits that a run reads only when it names them.
+EXTRA = ("enclosures",)
 #: Every set :func:`load` reads.
-CHOICES = SETS + HELD_OUT
+CHOICES = SETS + HELD_OUT + EXTRA
 
 
 def load(name: str, split: str, variants: Sequence[str] = ("mesh",)) -> tuple[Dataset, list[Any]]:
@@ -40,7 +43,7 @@ def load(name: str, split: str, variants: Sequence[str] = ("mesh",)) -> tuple[Da
     Returns the models and, per model, its Balls (one variant) or a tuple of Balls.
     """
     ds = {"web": web, "generic": generic, "capod": capod, "figures": figures, "parts": parts,
-          "people": people, "webplus": webplus}[name]().split(split)  # fmt: skip
+          "people": people, "webplus": webplus, "enclosures": enclosures}[name]().split(split)  # fmt: skip
     cfg = MDBDConfig()
     keep, balls = [], []
     for i, m in enumerate(ds.models):

@@ -72,7 +72,7 @@ MIXES = {
     "webplus+figures": ("webplus", "figures"),
     "webplus+people": ("webplus", "people"),
 }
-#: Sets a run may name: the six, and the held-out ones :mod:`bench.support.cached` knows (``webplus``).
+#: Sets a run may name: the six, and the others :mod:`bench.support.cached` reads on request.
 CHOICES = tuple(getattr(cached, "CHOICES", SETS))
 MEASURES = ("nn", "first_tier", "dcg")
 #: The row of the stage at the tuning a run scores (the product's unless a study says).
