@@ -39,6 +39,7 @@ from bench.sets.datasets import (
 from shapedb.config.core import CloudConfig, MDBDConfig
 
 __all__ = [
+    "code_digest",
     "format_table",
     "write_json",
     "log_margin",
@@ -421,6 +422,16 @@ def _code_at(commit: str, module: str) -> str | None:
     """:func:`_code_only` of ``shapedb/<module>.py`` at ``commit`` (None if absent)."""
     source = _source_at(commit, module)
     return None if source is None else _code_only(source)
+
+
+def code_digest(paths: Sequence[Path]) -> str:
+    """A digest (16 hex) of the code of the Python files ``paths`` (docstrings and comments
+    left out, so documentation edits keep what is keyed by it), in sorted order."""
+    digest = hashlib.sha256()
+    for path in sorted(Path(p) for p in paths):
+        st = path.stat()
+        digest.update(_module_code(str(path), st.st_size, st.st_mtime_ns).encode())
+    return digest.hexdigest()[:16]
 
 
 def engine_version(variant: str | None = None, *, commit: str | None = None) -> str:
