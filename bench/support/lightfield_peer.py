@@ -216,12 +216,13 @@ def peer_distance(descriptors: ArrayLike, others: ArrayLike | None = None) -> Fl
     -------
     (n, m) float64
         Per pair, the minimum over light-field pairs and the 60 rotations of the
-        dodecahedron of the summed L1 distances of corresponding silhouettes.
+        dodecahedron of the summed L1 distances of corresponding silhouettes (the
+        published method's, computed per pair from its 100 x 100 silhouette table).
 
     Raises
     ------
     ValueError
-        If the arrays are not (count, fields, 10, d) with the same ``d``.
+        For arrays not shaped (count, fields, 10, d), or of different ``d``.
     """
     a = np.asarray(descriptors, dtype=np.float32)
     b = a if others is None else np.asarray(others, dtype=np.float32)
