@@ -18,8 +18,11 @@ at :data:`query.search.tuning.PRODUCT`, its gate the product's own), and scored 
 
 Rows, in the same run: version 4 alone (the descriptor, no stage); the stage's distance
 alone; an ungated rank fusion; on the fused distance, the stage before the field
-vectors; with ``--mesh-lfd``, the mesh light field descriptor (Chen et al. 2003) ranking
-every shape; the stage without and with its shared-neighbour term
+vectors; with ``--mesh-lfd``, the mesh light field descriptor ranking every shape: the
+published method of Chen et al. 2003 (filled-polygon silhouettes at 256 px, 10 light
+fields, Zernike and Fourier bytes: :func:`bench.support.lightfield_peer.peer_split_matrix`),
+and with ``--mesh-lfd-splat`` also the earlier, simplified splat peer
+(:func:`bench.support.lightfield.lfd_split_matrix`); the stage without and with its shared-neighbour term
 (:data:`bench.support.stores.STAGE_NOW`: the product, :data:`query.search.tuning.PRODUCT`).
 A row's "worst" is its largest loss against version 4, in queries of one set. Written to
 bench/results/rerank_<split>.json (``--out``). The grids and the gates before the
@@ -32,7 +35,7 @@ import argparse
 import dataclasses
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -60,16 +63,20 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def mesh_lfd_row(split: Split, sets: Sequence[str], names: dict[str, tuple[str, ...]],
-                 base: dict[str, dict[str, dict[str, float]]]) -> dict[str, Any]:  # fmt: skip
-    """The mesh light field descriptor's row (:func:`bench.support.lightfield.lfd_split_matrix`):
-    every shape of each store ranked by it alone, scored like the stage's rows."""
+                 base: dict[str, dict[str, dict[str, float]]], *,
+                 matrix: Callable[[list[Any]], np.ndarray] | None = None) -> dict[str, Any]:  # fmt: skip
+    """The mesh light field descriptor's row: every shape of each store ranked by it
+    alone, scored like the stage's rows. ``matrix`` gives the (n, n) distances of the
+    sets' models; by default the published method
+    (:func:`bench.support.lightfield_peer.peer_split_matrix`); the earlier splat peer is
+    :func:`bench.support.lightfield.lfd_split_matrix`."""
     import copy
 
-    from bench.support.lightfield import lfd_split_matrix
+    from bench.support.lightfield_peer import peer_split_matrix
 
     models = [m for s in sets for m in load(s, split.split)[0].models]
     peer = copy.copy(split)
-    peer.dl = lfd_split_matrix(models)
+    peer.dl = (matrix or peer_split_matrix)(models)
     peer.dv = None
     stores = {
         k: Store(peer, peer.store(v), candidates=len(peer.store(v))) for k, v in names.items()
@@ -77,7 +84,8 @@ def mesh_lfd_row(split: Split, sets: Sequence[str], names: dict[str, tuple[str, 
     return score_row(stores, {k: np.full(len(st.rows), np.inf) for k, st in stores.items()}, base)
 
 
-def baseline_rows(split: Split, datasets: Sequence[str], *, mesh_lfd: bool = False) -> tuple[
+def baseline_rows(split: Split, datasets: Sequence[str], *, mesh_lfd: bool = False,
+                  mesh_lfd_splat: bool = False) -> tuple[
     dict[str, Store], dict[str, Any], dict[str, dict[str, Any]]
 ]:  # fmt: skip
     """The stores of ``split`` and the rows every run of the stage scores them against.
@@ -85,7 +93,8 @@ def baseline_rows(split: Split, datasets: Sequence[str], *, mesh_lfd: bool = Fal
     Rows (:func:`score_row`): version 4 alone (no stage); the stage's distance alone
     among the candidates; an ungated rank fusion at weight 0.5; on a fused split, the
     stage before the field vectors (the light field distance, K alone, at the product's
-    gate); with ``mesh_lfd``, the mesh light field descriptor ranking every shape.
+    gate); with ``mesh_lfd``, the published mesh light field descriptor ranking every
+    shape; with ``mesh_lfd_splat``, the earlier splat peer likewise.
 
     Returns the stage's stores, the rule's base and the rows.
     """
@@ -110,14 +119,21 @@ def baseline_rows(split: Split, datasets: Sequence[str], *, mesh_lfd: bool = Fal
         rows["the stage before the field vectors (light field distance, K = 100)"] = score_row(
             plain, {k: gate_weights(st, PRODUCT) for k, st in plain.items()}, base
         )
-    if mesh_lfd:  # the peer: every shape ranked by the mesh LFD
-        rows["mesh light field descriptor (every shape ranked)"] = mesh_lfd_row(
+    if mesh_lfd:  # the peer: every shape ranked by the published mesh LFD
+        rows["mesh light field descriptor, published (every shape ranked)"] = mesh_lfd_row(
             split, datasets, names, base
+        )
+    if mesh_lfd_splat:
+        from bench.support.lightfield import lfd_split_matrix
+
+        rows["mesh light field descriptor, splats (every shape ranked)"] = mesh_lfd_row(
+            split, datasets, names, base, matrix=lfd_split_matrix
         )
     return stores, base, rows
 
 
-def measure(split_name: str, datasets: Sequence[str], *, mesh_lfd: bool = False) -> dict[str, Any]:
+def measure(split_name: str, datasets: Sequence[str], *, mesh_lfd: bool = False,
+            mesh_lfd_splat: bool = False) -> dict[str, Any]:  # fmt: skip
     """The stage's rows on every store of ``datasets``' split; prints the table.
 
     Returns the JSON written by :func:`main`: the split, the rows (:func:`score_row`
@@ -126,7 +142,9 @@ def measure(split_name: str, datasets: Sequence[str], *, mesh_lfd: bool = False)
     """
     t0 = time.perf_counter()
     split = product_split(split_name, datasets)
-    stores, base, rows = baseline_rows(split, datasets, mesh_lfd=mesh_lfd)
+    stores, base, rows = baseline_rows(
+        split, datasets, mesh_lfd=mesh_lfd, mesh_lfd_splat=mesh_lfd_splat
+    )
     print(f"  {len(split.sets)} shapes, {len(stores)} stores ({time.perf_counter() - t0:.0f} s)")
     default = PRODUCT
     rows.update(shared_rows(stores, split, default, base))
@@ -145,8 +163,14 @@ def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="python -m bench.rerank", description=__doc__.split("\n")[0])
     ap.add_argument("--split", default="test", choices=["validation", "test"])
     ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
-    ap.add_argument("--mesh-lfd", action="store_true",
-                    help="the peer's row: every shape ranked by the mesh light field descriptor")  # fmt: skip
+    ap.add_argument(
+        "--mesh-lfd",
+        action="store_true",
+        help="the peer's row: every shape ranked by the published mesh light field "
+        "descriptor (Chen et al. 2003)",
+    )
+    ap.add_argument("--mesh-lfd-splat", action="store_true",
+                    help="also the earlier splat peer's row (bench.support.lightfield)")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None)
     return ap
 
@@ -154,7 +178,9 @@ def parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status."""
     args = parser().parse_args(argv)
-    result = measure(args.split, args.datasets, mesh_lfd=args.mesh_lfd)
+    result = measure(
+        args.split, args.datasets, mesh_lfd=args.mesh_lfd, mesh_lfd_splat=args.mesh_lfd_splat
+    )
     out = args.out or RESULTS / f"rerank_{args.split}.json"
     write_json(out, result)
     print(f"written {out}")

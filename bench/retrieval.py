@@ -7,6 +7,7 @@ Usage (from the repository root)::
     python -m bench.retrieval --study                  # parameter study, validation split
     python -m bench.retrieval --stability              # = python -m bench.stability
     python -m bench.retrieval --baselines-only         # D2, SH, LFD only: no decomposition
+    python -m bench.retrieval --peers --datasets generic --split validation
 
 For each data set (generic, web, capod, articulated, parts) one table is printed, on the test split:
 the MDBD kernel of Eq. 3 on meshes, on point clouds (20 % of the vertices), on an even
@@ -16,6 +17,11 @@ WL-subtree and Pyramid Match kernels on the same MDBD graphs (labels r/r1 rounde
 (:mod:`bench.support.lightfield`) on the meshes; the seconds each method took; and the mean kernel value
 between the mesh and the point cloud of the same model (paper: 0.996), beside the
 same-class and other-class means. Everything is written to bench/results/retrieval.json.
+
+``--peers`` prints one table per set of the published light field descriptor and its
+simplified variants (:data:`bench.support.lightfield_peer.VARIANTS`): NN, 1-T, 2-T, DCG
+and the seconds each took (descriptors and distances are cached, so a second run is
+quick); written under ``"peers"`` in the JSON.
 
 ``--study`` varies the kernel and decomposition parameters one at a time on the
 validation split; ``--stability`` runs :mod:`bench.stability`; :mod:`bench.studies.select_descriptors`
@@ -315,6 +321,24 @@ def run_baselines(ds: Dataset, d2: D2Config) -> dict[str, Any]:
     }
 
 
+def run_peers(ds: Dataset) -> dict[str, Any]:
+    """One data set's table of the light field descriptor's variants (no decomposition)."""
+    from bench.support.lightfield_peer import VARIANTS
+
+    rows: list[list[Any]] = []
+    for name, matrix in VARIANTS.items():
+        t = time.perf_counter()
+        d = matrix(list(ds.models))
+        s = retrieval_scores(-d, ds.labels)
+        rows.append([name, s["nn"], s["first_tier"], s["second_tier"], s["dcg"],
+                     time.perf_counter() - t])  # fmt: skip
+    columns = ("light field descriptor", "NN", "1-T", "2-T", "DCG", "seconds")
+    print()
+    print(format_table(f"{ds.name}: {len(ds)} models, {len(set(ds.labels))} classes, "
+                       "the published LFD and its variants", columns, rows))  # fmt: skip
+    return {"models": len(ds), "table": [dict(zip(columns, r, strict=True)) for r in rows]}
+
+
 # --------------------------------------------------------------------------------------
 # Parameter study (validation split only)
 # --------------------------------------------------------------------------------------
@@ -427,6 +451,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         action="store_true",
         help="only the mesh descriptors D2, spherical harmonics and LFD (no decomposition)",
     )
+    ap.add_argument(
+        "--peers",
+        action="store_true",
+        help="only the published light field descriptor and its variants (no decomposition)",
+    )
     ap.add_argument("--study", action="store_true", help="parameter study on the validation split")
     ap.add_argument("--stability", action="store_true", help="shift / rotation / decimation")
     ap.add_argument(
@@ -463,9 +492,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                 probes=12 if args.quick else args.probes,
                 view_cells=args.views,
             )
-        if args.baselines_only:
+        if args.peers:
+            entry["peers"] = run_peers(ds.split(args.split))
+        elif args.baselines_only:
             entry["baselines"] = run_baselines(ds.split(args.split), d2)
-        elif not (args.study or args.stability):
+        elif not (args.study or args.stability or args.peers):
             entry["tables"] = run_tables(
                 ds.split(args.split),
                 mdbd,

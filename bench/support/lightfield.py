@@ -16,9 +16,11 @@ on the triangles (plus the vertices), scaled into the unit sphere about their me
 projected orthographically onto a ``resolution`` x ``resolution`` image of the
 unit disc and closed morphologically (one pixel), so that a surface seen face-on
 leaves no holes while thin rods and sheets seen edge-on stay visible. Orientation,
-connectivity and watertightness of the mesh do not matter. Chen et al. render at
-256 x 256 and quantise each coefficient to 8 bits; here the silhouettes are smaller
-and the coefficients stay floats.
+connectivity and watertightness of the mesh do not matter. Chen et al. render filled
+polygons at 256 x 256 and quantise each coefficient to 8 bits; here the silhouettes are
+splats, smaller, and the coefficients stay floats. This is the simplified, earlier peer:
+the published method is :mod:`bench.support.lightfield_peer`, which ``bench.rerank
+--mesh-lfd`` compares against (this one is its ``--mesh-lfd-splat`` row).
 
 Only the mesh splatting lives here; the dodecahedron, the silhouette features, the
 descriptor's layout and the distance are :mod:`shapedb.signature.lightfield`'s, which also
