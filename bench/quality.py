@@ -12,7 +12,7 @@ scored with :meth:`Database.evaluate`: every shape queries the others exactly as
 ``db.search`` ranks them (:mod:`bench.support.product_stores`; stores are cached by
 models, options and code). ``--against`` builds a second store per set with other options
 in the same run; ``--peer`` ranks the same meshes with the light field descriptor
-(Chen et al. 2003, :func:`bench.support.lightfield.lfd_split_matrix`).
+(Chen et al. 2003, as published: :func:`bench.support.lightfield_peer.peer_split_matrix`).
 
 A *family* is one of the bench's sets; the objective is the macro average over the families
 of ``(NN + 1-T + DCG) / 3``, and a change must not cost any family more than
@@ -71,9 +71,9 @@ def _split(name: str, split: str) -> Any:
 
 def _peer_scores(ds: Any) -> dict[str, Any]:
     from bench.common import retrieval_scores
-    from bench.support.lightfield import lfd_split_matrix
+    from bench.support.lightfield_peer import peer_split_matrix
 
-    d = lfd_split_matrix(list(ds.models))
+    d = peer_split_matrix(list(ds.models))
     s = retrieval_scores(-d, ds.labels)
     return {k: s[k] for k in ("nn", "first_tier", "second_tier", "dcg")}
 

@@ -1,8 +1,8 @@
 """How much the ``"lightfield"`` stage's light field should count, per store and per query.
 
 The selection of the stage's gate: its grids, the gates before it and their margins.
-The product's stage at its defaults, measured per set, is :mod:`bench.rerank`, whose
-rows (:func:`bench.rerank.baseline_rows`) every run here starts from.
+The product's stage at its defaults, measured per set, is :mod:`bench.studies.rerank_stage`, whose
+rows (:func:`bench.studies.rerank_stage.baseline_rows`) every run here starts from.
 
 Usage (from the repository root)::
 
@@ -37,7 +37,7 @@ cached under ``$SHAPEDB_BENCH_CACHE/lightfield_gate`` keyed by the models and th
 ``shapedb/signature/lightfield.py`` and ``shapedb/signature/lightfield_descriptor.py``, so a changed silhouette
 re-computes them and the selection re-runs in one command. Written to
 bench/results/studies/lightfield_gate_<split>.json. A held-out set that :mod:`bench.support.cached` knows
-(``webplus``) is measured by ``python -m bench.rerank --datasets webplus figures people``
+(``webplus``) is measured by ``python -m bench.studies.rerank_stage --datasets webplus figures people``
 (it and its mixes with the figures and the people). ``--lf-n-balls N``: the light fields of
 the packing continued to N balls (``LightFieldConfig.n_balls``, decomposed and cached by
 :func:`bench.support.packings.longer`; ``--lf-within M``: the first N by radius of the packing
@@ -83,7 +83,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common import format_table, write_json
-from bench.rerank import baseline_rows
 from bench.studies.gate_checks import (
     JOINTED,
     JOINTED_SETS,
@@ -94,6 +93,7 @@ from bench.studies.gate_checks import (
     gate_margin,
     ratio_settings,
 )
+from bench.studies.rerank_stage import baseline_rows
 from bench.support.stores import (
     CHOICES,
     SETS,

@@ -19,7 +19,7 @@ leaves no holes while thin rods and sheets seen edge-on stay visible. Orientatio
 connectivity and watertightness of the mesh do not matter. Chen et al. render filled
 polygons at 256 x 256 and quantise each coefficient to 8 bits; here the silhouettes are
 splats, smaller, and the coefficients stay floats. This is the simplified, earlier peer:
-the published method is :mod:`bench.support.lightfield_peer`, which ``bench.rerank
+the published method is :mod:`bench.support.lightfield_peer`, which ``bench.studies.rerank_stage
 --mesh-lfd`` compares against (this one is its ``--mesh-lfd-splat`` row).
 
 Only the mesh splatting lives here; the dodecahedron, the silhouette features, the

@@ -7,7 +7,7 @@ stage's distance (the light fields', or its fusion with the field vectors:
 rankings at per-query weights; :func:`gate_weights` the product's own gate
 (:meth:`query.search.rerank_lightfield.LightFieldFusion.gate`, at any
 :class:`query.search.tuning.StageTuning`) on a store; :func:`score_row` a row
-of scores against version 4 with the two-queries rule. Used by :mod:`bench.rerank` (the
+of scores against version 4 with the two-queries rule. Used by :mod:`bench.studies.rerank_stage` (the
 product's stage at its defaults) and by the studies that tune it
 (:mod:`bench.studies.lightfield_gate`, :mod:`bench.studies.field_choice`, ...).
 """

@@ -1,10 +1,10 @@
-"""bench.rerank: the product's stage scored on every store against version 4 alone."""
+"""bench.studies.rerank_stage: the product's stage scored on every store against version 4 alone."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from bench.rerank import baseline_rows
+from bench.studies.rerank_stage import baseline_rows
 from bench.support.stores import STAGE_NOW, shared_rows
 from query.search.tuning import PRODUCT
 

@@ -2,8 +2,8 @@
 
 Usage (from the repository root)::
 
-    python -m bench.rerank --split test --mesh-lfd        # the six sets and their mixes
-    python -m bench.rerank --split test --datasets webplus figures people   # held out
+    python -m bench.studies.rerank_stage --split test --mesh-lfd        # the six sets and their mixes
+    python -m bench.studies.rerank_stage --split test --datasets webplus figures people   # held out
 
 Every bench set's split (meshes; the cached balls of :func:`bench.support.cached.load`,
 nothing decomposed) is a store of its own, and so are the mixes of
@@ -59,7 +59,7 @@ from query.search.tuning import PRODUCT
 
 __all__ = ["mesh_lfd_row", "baseline_rows", "measure", "parser", "main"]
 
-RESULTS = Path(__file__).resolve().parent / "results"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 
 
 def mesh_lfd_row(split: Split, sets: Sequence[str], names: dict[str, tuple[str, ...]],
@@ -160,7 +160,9 @@ def measure(split_name: str, datasets: Sequence[str], *, mesh_lfd: bool = False,
 
 def parser() -> argparse.ArgumentParser:
     """The command line of :func:`main`."""
-    ap = argparse.ArgumentParser(prog="python -m bench.rerank", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.studies.rerank_stage", description=__doc__.split("\n")[0]
+    )
     ap.add_argument("--split", default="test", choices=["validation", "test"])
     ap.add_argument("--datasets", nargs="+", default=list(SETS), choices=CHOICES)
     ap.add_argument(
