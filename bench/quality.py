@@ -31,7 +31,7 @@ import numpy as np
 
 from bench.common import format_table, write_json
 
-__all__ = ["FAMILIES", "MAX_FAMILY_LOSS", "parse_options", "family_rows", "main"]
+__all__ = ["FAMILIES", "MAX_FAMILY_LOSS", "parse_options", "family_split", "family_rows", "main"]
 
 RESULTS = Path(__file__).resolve().parent / "results"
 #: The families a design change is judged on (every set with a validation split).
@@ -60,7 +60,8 @@ def parse_options(pairs: Sequence[str]) -> dict[str, Any]:
     return out
 
 
-def _split(name: str, split: str) -> Any:
+def family_split(name: str, split: str) -> Any:
+    """The validation or test split of a family (``SystemExit`` when it has none)."""
     from bench.sets.datasets import load_dataset
 
     ds = load_dataset(_DATASET.get(name, name)).split(split)
@@ -87,7 +88,7 @@ def family_rows(
 
     rows: dict[str, dict[str, Any]] = {}
     for name in names:
-        ds = _split(name, split)
+        ds = family_split(name, split)
         print(f"{name} ({split}, {len(ds)} models)", flush=True)
         row = {"store": store_scores(split_store(ds, options))}
         if against is not None:

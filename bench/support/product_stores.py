@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import shutil
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -41,7 +40,7 @@ def split_store(ds: Dataset, options: Mapping[str, Any], *, workers: int = 2) ->
     """The split's meshes in a store with ``options`` (flat store options), built or cached.
 
     Returns the open :class:`query.database.Database`. A store left half-built by an
-    interrupted run is built again from nothing.
+    interrupted run is completed (the ingest skips the shapes it already holds).
     """
     import shapedb
     from shapedb.geometry.mesh import TriangleMesh
@@ -50,8 +49,6 @@ def split_store(ds: Dataset, options: Mapping[str, Any], *, workers: int = 2) ->
     done = path / "built.json"
     if done.exists():
         return shapedb.connect(path, create=False)
-    if path.exists():
-        shutil.rmtree(path)  # a run interrupted before built.json: rebuilt whole
     t = time.perf_counter()
     db = shapedb.connect(path, **options)
     items = [(m.name, m.label, TriangleMesh(*mesh_arrays(m), name=m.name)) for m in ds.models]
