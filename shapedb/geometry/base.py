@@ -95,6 +95,16 @@ class Grid:
         """Centres (n, 3) of cells with (possibly fractional) indices ijk (n, 3)."""
         return self.origin + self.spacing * np.asarray(ijk, dtype=np.float64).reshape(-1, 3)
 
+    def mask_at(self, mask: NDArray[np.bool_], points: ArrayLike) -> NDArray[np.bool_]:
+        """(n,) bool: ``mask`` (this grid's shape) at each point's nearest cell; False off the grid."""
+        p = as_points(points)
+        ijk = np.rint((p - self.origin) / self.spacing).astype(np.int64)
+        on = np.all((ijk >= 0) & (ijk < np.asarray(self.shape)), axis=1)
+        out = np.zeros(len(p), dtype=bool)
+        i = ijk[on]
+        out[on] = mask[i[:, 0], i[:, 1], i[:, 2]]
+        return out
+
 
 class Geometry(ABC):
     """A solid, seen only through distance and point membership.

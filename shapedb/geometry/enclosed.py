@@ -125,13 +125,7 @@ class Enclosed(Geometry):
 
     def enclosed_side(self, points: ArrayLike) -> NDArray[np.bool_]:
         """(n,) bool: whether each point's nearest cell is on the enclosed side."""
-        p = as_points(points)
-        ijk = np.rint((p - self.grid.origin) / self.grid.spacing).astype(np.int64)
-        on = np.all((ijk >= 0) & (ijk < np.asarray(self.grid.shape)), axis=1)
-        out = np.zeros(len(p), dtype=bool)
-        i = ijk[on]
-        out[on] = self.sides[i[:, 0], i[:, 1], i[:, 2]]
-        return out
+        return self.grid.mask_at(self.sides, points)
 
     def signed_distance(self, points: ArrayLike) -> NDArray[np.float64]:
         """``t + d`` on the enclosed side, ``t - d`` elsewhere: (n,) model units, positive inside."""

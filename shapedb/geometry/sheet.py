@@ -292,13 +292,7 @@ class LocallyThickened(Thickened):
 
     def in_region(self, points: ArrayLike) -> NDArray[np.bool_]:
         """(n,) bool: whether each point's nearest cell is in the region (never off the grid)."""
-        p = as_points(points)
-        ijk = np.rint((p - self.grid.origin) / self.grid.spacing).astype(np.int64)
-        on = np.all((ijk >= 0) & (ijk < np.asarray(self.grid.shape)), axis=1)
-        out = np.zeros(len(p), dtype=bool)
-        i = ijk[on]
-        out[on] = self.region[i[:, 0], i[:, 1], i[:, 2]]
-        return out
+        return self.grid.mask_at(self.region, points)
 
     def signed_distance(self, points: ArrayLike) -> NDArray[np.float64]:
         """The base's signed distance (n,), plus the thickness in the region; model units."""
