@@ -54,9 +54,10 @@ def split_store(ds: Dataset, options: Mapping[str, Any], *, workers: int = 2) ->
     items = [(m.name, m.label, TriangleMesh(*mesh_arrays(m), name=m.name)) for m in ds.models]
     report = db.ingest(items, workers=workers, progress=False)
     seconds = time.perf_counter() - t
-    done.write_text(json.dumps({"models": len(ds), "failed": report.failed, "seconds": seconds}))
+    failed = len(report.failed)
+    done.write_text(json.dumps({"models": len(ds), "failed": failed, "seconds": seconds}))
     print(
-        f"  {ds.name}: {report.ingested} ingested, {report.failed} failed, {seconds:.0f} s",
+        f"  {ds.name}: {len(report.ingested)} ingested, {failed} failed, {seconds:.0f} s",
         flush=True,
     )
     return db
