@@ -3,8 +3,8 @@
 :func:`split_store` ingests a set's split (meshes) into a store of its own with
 :meth:`query.database.Database.ingest` and the options given (the default store
 when none), and keeps it under ``$SHAPEDB_BENCH_CACHE/stores``, keyed by the split's
-models, the options and the code of ``shapedb/`` and ``ingest/`` (docstrings and
-comments left out), so that a second run only scores. :func:`store_scores` scores a
+models, the resolved configuration and the code of ``shapedb/`` and ``ingest/`` (docstrings
+and comments left out), so that a second run only scores. :func:`store_scores` scores a
 store as its searches rank (:meth:`Database.evaluate`).
 """
 
@@ -28,11 +28,15 @@ _REPO = Path(__file__).resolve().parents[2]
 
 
 def store_key(ds: Dataset, options: Mapping[str, Any]) -> str:
-    """A digest (16 hex) of the split's models, the store options and the ingest code."""
-    code = code_digest(
-        [*_REPO.joinpath("shapedb").rglob("*.py"), *_REPO.joinpath("ingest").rglob("*.py")]
-    )
-    text = json.dumps([[m.source for m in ds.models], dict(options), code], sort_keys=True)
+    """A digest (16 hex) of the split's models, the store's whole configuration (the defaults
+    with ``options``) and the code of ``shapedb/`` and ``ingest/`` but its configuration
+    module (a changed default changes the configuration, which is in the key)."""
+    from shapedb.config.core import Config
+
+    config = Config().with_options(**options).to_dict()
+    files = [*_REPO.joinpath("shapedb").rglob("*.py"), *_REPO.joinpath("ingest").rglob("*.py")]
+    code = code_digest([f for f in files if f.parent.name != "config"])
+    text = json.dumps([[m.source for m in ds.models], config, code], sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
