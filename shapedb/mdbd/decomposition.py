@@ -216,7 +216,8 @@ def prepare_field(geometry: Geometry, cfg: MDBDConfig) -> PreparedField:
 
     t0 = time.perf_counter()
     thickness = cfg.sheet_cells * grid.spacing
-    if cfg.sheet_rule == "enclosed" and cfg.sheet_cells > 0 and isinstance(local, TriangleMesh):
+    enclosing = cfg.sheet_rule == "enclosed" and cfg.sheet_cells > 0
+    if enclosing and isinstance(local, TriangleMesh) and not local.closed:
         local, F = local.enclosed_solid(grid, thickness)
         timings["sdf"] = time.perf_counter() - t0
         return PreparedField(local, grid, F, frame, timings, scale)
@@ -230,7 +231,7 @@ def prepare_field(geometry: Geometry, cfg: MDBDConfig) -> PreparedField:
     ):
         local = Thickened(local, thickness)
         F += np.float32(thickness)
-    elif cfg.sheet_cells > 0 and cfg.sheet_rule == "local":
+    elif cfg.sheet_cells > 0 and cfg.sheet_rule in ("local", "enclosed"):
         region = sheet_region(local, F, grid.spacing, thickness)
         if region is not None:
             local = LocallyThickened(local, thickness, grid, region)

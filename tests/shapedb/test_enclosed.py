@@ -82,12 +82,41 @@ def test_sides_of_a_closed_surface_and_its_complement() -> None:
     assert not enclosed_sides(dist)[4, 4, 4]
 
 
-def test_decompose_with_the_enclosed_rule_packs_a_soup_like_its_closed_mesh() -> None:
-    closed = decompose(TriangleMesh(BOX.vertices, BOX.faces), resolution=32, n_balls=16,
-                       sheet_rule="enclosed")  # fmt: skip
-    soup = decompose(_soup(BOX), resolution=32, n_balls=16, sheet_rule="enclosed")
-    np.testing.assert_allclose(soup.radii, closed.radii, rtol=1e-6)
-    assert closed.radii[0] > 0.5  # the half-side, grown by the thickness
+def _quad_box(over: float = 0.05) -> TriangleMesh:
+    """A unit box of six separate quads that overshoot their edges (a builder's walls,
+    interpenetrating, never sharing a vertex), each wound at random."""
+    rng = np.random.default_rng(1)
+    tris = []
+    for axis in range(3):
+        u, w = [a for a in range(3) if a != axis]
+        for side in (-0.5, 0.5):
+            c = np.zeros((4, 3))
+            c[:, axis] = side
+            c[:, u] = np.array([-1, 1, 1, -1]) * (0.5 + over)
+            c[:, w] = np.array([-1, -1, 1, 1]) * (0.5 + over)
+            quad = [c[[0, 1, 2]], c[[0, 2, 3]]]
+            tris += [t[::-1] if rng.random() < 0.5 else t for t in quad]
+    v = np.concatenate(tris)
+    return TriangleMesh(v, np.arange(len(v)).reshape(-1, 3))
+
+
+def test_a_box_of_loose_walls_is_a_solid_box() -> None:
+    walls = _quad_box()
+    assert not walls.closed
+    d = decompose(walls, resolution=32, n_balls=16, sheet_rule="enclosed")
+    cell = 1.1 / (32 - 4)  # the longest extent over the grid's inner cells
+    assert d.radii[0] == pytest.approx(0.5 + cell, rel=0.05)  # the half-side plus t
+    local = decompose(walls, resolution=32, n_balls=16, sheet_rule="local")
+    assert local.radii[0] < d.radii[0]
+
+
+def test_a_closed_mesh_decomposes_as_under_the_local_rule() -> None:
+    box = TriangleMesh(BOX.vertices, BOX.faces)
+    assert box.closed
+    a = decompose(box, resolution=32, n_balls=16, sheet_rule="enclosed")
+    b = decompose(box, resolution=32, n_balls=16, sheet_rule="local")
+    np.testing.assert_array_equal(a.radii, b.radii)
+    np.testing.assert_array_equal(a.centers, b.centers)
 
 
 def test_off_grid_queries_agree_with_the_grid() -> None:
