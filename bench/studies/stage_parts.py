@@ -28,7 +28,7 @@ from bench.common import format_table, write_json
 from bench.quality import FAMILIES, parse_options
 from query.search.tuning import PRODUCT, StageTuning, tuned
 
-__all__ = ["VARIANTS", "numbers_left", "main"]
+__all__ = ["VARIANTS", "numbers_left", "run", "table", "main"]
 
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 
@@ -73,6 +73,42 @@ def _scores(stores: dict[str, Any], tuning: StageTuning) -> dict[str, dict[str, 
         return {name: store_scores(db) for name, db in stores.items()}
 
 
+def run(stores: dict[str, Any], combine: Sequence[str] = ()) -> dict[str, Any]:
+    """Every variant (and ``combine``'s together) on ``stores`` (family -> open Database):
+    per variant its families' scores, macro objective, worst family and numbers left."""
+    runs = dict(VARIANTS)
+    if combine:
+        runs[" + ".join(combine)] = _combined(combine)
+    results: dict[str, Any] = {}
+    for name, (sets, dropped) in runs.items():
+        scores = _scores(stores, replace(PRODUCT, **sets))
+        macro = float(
+            np.mean([(s["nn"] + s["first_tier"] + s["dcg"]) / 3 for s in scores.values()])
+        )
+        results[name] = {"families": scores, "macro": macro, "numbers": numbers_left(dropped)}
+        print(f"  {name}: macro {macro:.4f}", flush=True)
+    base = results["product"]["families"]
+    for r in results.values():
+        loss = {f: base[f]["nn"] - s["nn"] for f, s in r["families"].items()}
+        worst = max(loss, key=loss.__getitem__)
+        r["worst"] = {"family": worst, "nn_loss": loss[worst]}
+    return results
+
+
+def table(results: dict[str, Any], split: str) -> str:
+    """:func:`run`'s results as a table: NN / 1-T per family, macro, worst loss, numbers."""
+    families = list(next(iter(results.values()))["families"])
+    body = []
+    for name, r in results.items():
+        cells = [f"{s['nn']:.3f}/{s['first_tier']:.3f}" for s in r["families"].values()]
+        w = r["worst"]
+        body.append(
+            [name, *cells, f"{r['macro']:.4f}", f"{w['family']} {w['nn_loss']:+.3f}", r["numbers"]]
+        )
+    return format_table(f"NN/1-T per family ({split})",
+                        ["variant", *families, "macro", "worst NN loss", "numbers"], body)  # fmt: skip
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m bench.studies.stage_parts", description=__doc__.split("\n")[0]
@@ -94,29 +130,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     options = parse_options(args.set)
     stores = {n: split_store(family_split(n, args.split), options) for n in args.datasets}
-    runs = dict(VARIANTS)
-    if args.combine:
-        runs[" + ".join(args.combine)] = _combined(args.combine)
-    results: dict[str, Any] = {}
-    for name, (sets, dropped) in runs.items():
-        scores = _scores(stores, replace(PRODUCT, **sets))
-        macro = float(
-            np.mean([(s["nn"] + s["first_tier"] + s["dcg"]) / 3 for s in scores.values()])
-        )
-        results[name] = {"families": scores, "macro": macro, "numbers": numbers_left(dropped)}
-        print(f"  {name}: macro {macro:.4f}", flush=True)
-    base = results["product"]["families"]
-    body = []
-    for name, r in results.items():
-        loss = {f: base[f]["nn"] - s["nn"] for f, s in r["families"].items()}
-        worst = max(loss, key=loss.__getitem__)
-        r["worst"] = {"family": worst, "nn_loss": loss[worst]}
-        cells = [f"{s['nn']:.3f}/{s['first_tier']:.3f}" for s in r["families"].values()]
-        body.append(
-            [name, *cells, f"{r['macro']:.4f}", f"{worst} {loss[worst]:+.3f}", r["numbers"]]
-        )
-    print(format_table(f"NN/1-T per family ({args.split})",
-                       ["variant", *args.datasets, "macro", "worst NN loss", "numbers"], body))  # fmt: skip
+    results = run(stores, args.combine)
+    print(table(results, args.split))
     write_json(
         args.out or RESULTS / f"stage_parts_{args.split}.json",
         {"options": options, "variants": results},
