@@ -112,18 +112,19 @@ class MDBDConfig:
         this many grid cells (:mod:`shapedb.geometry.sheet`); 0 turns it off (such models then
         fail). Closed meshes in which a ball fits are never dilated whole.
     sheet_rule : {"enclosed", "local", "whole"}
-        ``"enclosed"``: the solid of a triangle mesh that is not closed (some edge not
-        used twice in opposite directions once cleaned and oriented: open walls,
-        single-sided sheets, soups) is what a flood from outside the grid cannot reach
-        plus every point within ``sheet_cells`` of its surface
+        ``"enclosed"`` (the default): the solid of a triangle mesh that is not closed
+        (some edge not used twice in opposite directions once cleaned and oriented:
+        open walls, single-sided sheets, soups) is what a flood from outside the grid
+        cannot reach plus every point within ``sheet_cells`` of its surface
         (:mod:`shapedb.geometry.enclosed`), whatever its faces' orientation; a closed
         mesh, whose inside the winding number gives exactly, and every other
-        representation, follow ``"local"``. ``"local"``: a triangle mesh not dilated whole whose sheet cells (surface cells
-        with no inside nearby: sheets and parts thinner than the grid) are at least 1 %
-        of its surface cells is dilated by ``sheet_cells`` near them only
-        (:func:`shapedb.geometry.sheet.sheet_region`), so the wings of an airplane with a closed
-        fuselage get a solid. ``"whole"``: only the whole-model rule (stores written
-        before the field, whose sheets in such models had no inside).
+        representation follow ``"local"``. ``"local"`` (stores written before the
+        enclosed solid): a triangle mesh not dilated whole whose sheet cells (surface
+        cells with no inside nearby: sheets and parts thinner than the grid) are at
+        least 1 % of its surface cells is dilated by ``sheet_cells`` near them only
+        (:func:`shapedb.geometry.sheet.sheet_region`), so the wings of an airplane with
+        a closed fuselage get a solid. ``"whole"``: only the whole-model rule (stores
+        written before the field, whose sheets in such models had no inside).
     """
 
     resolution: int = 128
@@ -137,7 +138,7 @@ class MDBDConfig:
     tie_cells: float = 1.5
     tie_rule: str = "middle"
     sheet_cells: float = 1.0
-    sheet_rule: str = "local"
+    sheet_rule: str = "enclosed"
 
     def __post_init__(self) -> None:
         _check(
