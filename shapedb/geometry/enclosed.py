@@ -20,6 +20,10 @@ Its signed distance is ``t + d`` on the enclosed side of the surface and ``t - d
 the side the flood reaches (``d``: distance to the surface), exact up to the surface's
 own distance field. A gap in a wall wider than about a cell lets the flood in: at the
 grid's resolution a room with an open door is a room.
+
+The decomposition uses it for triangle meshes that are not closed
+(``MDBDConfig.sheet_rule="enclosed"``, the default): a closed mesh's inside is exact from
+its winding number, and growing it by ``t`` merges limbs a cell apart.
 """
 
 from __future__ import annotations
