@@ -24,16 +24,12 @@ from bench.sets.datasets import point_cloud
 from bench.support.baselines import sample_surface
 
 __all__ = [
-    "SCAN_POINTS",
-    "SCAN_NOISE",
-    "bounding_sphere",
-    "viewpoint",
-    "one_sided_scan",
-    "even_cloud",
-    "vertex_cloud",
-    "falloff_cloud",
-    "cropped_mesh",
-]
+    "SCAN_POINTS", "SCAN_NOISE", "bounding_sphere", "viewpoint", "one_sided_scan",
+    "even_cloud", "vertex_cloud", "falloff_cloud", "cropped_mesh",
+]  # fmt: skip
+
+Points = NDArray[np.float64]
+Faces = NDArray[np.int64]
 
 #: Points of a scan and of the even and falloff clouds (the order of the vertex clouds').
 SCAN_POINTS = 3000
@@ -165,40 +161,19 @@ def one_sided_scan(
     return np.asarray(out)
 
 
-def even_cloud(
-    vertices: NDArray[np.float64],
-    faces: NDArray[np.int64],
-    *,
-    seed: int,
-    points: int = SCAN_POINTS,
-) -> NDArray[np.float64]:
+def even_cloud(vertices: Points, faces: Faces, *, seed: int, points: int = SCAN_POINTS) -> Points:
     """``points`` points (points, 3) sampled uniformly by area over the whole surface."""
     return sample_surface(vertices, faces, points, rng=np.random.default_rng(seed))
 
 
-def vertex_cloud(
-    vertices: NDArray[np.float64],
-    faces: NDArray[np.int64],
-    *,
-    seed: int,
-    fraction: float = 0.2,
-    min_points: int = 2000,
-) -> NDArray[np.float64]:
-    """The paper's cloud: ``fraction`` of the mesh's vertices (crowded where it is fine).
-
-    :func:`bench.sets.datasets.point_cloud`: meshes with fewer than ``min_points``
-    such vertices are sampled evenly by area instead.
-    """
-    return point_cloud(vertices, faces, seed=seed, fraction=fraction, min_points=min_points)
+#: The paper's cloud: ``fraction`` (default 20 %) of the mesh's vertices, crowded where the
+#: mesh is fine (meshes with fewer such vertices than ``min_points`` are sampled evenly).
+vertex_cloud = point_cloud
 
 
 def falloff_cloud(
-    vertices: NDArray[np.float64],
-    faces: NDArray[np.int64],
-    *,
-    seed: int,
-    points: int = SCAN_POINTS,
-) -> NDArray[np.float64]:
+    vertices: Points, faces: Faces, *, seed: int, points: int = SCAN_POINTS
+) -> Points:
     """The whole surface sampled with a density falling with distance from a viewpoint.
 
     Even samples (:data:`RAYS_PER_POINT` x ``points``) are each kept with probability
