@@ -218,6 +218,10 @@ def _query_main(args: argparse.Namespace, options: dict[str, Any]) -> int:
     partial = _PARTIAL[args.partial]
     rows = query_rows(args.datasets, args.split, options, kinds, partial)
     print(_query_table(rows, kinds))
+    for name, row in rows.items():
+        for kind in kinds:
+            if row[kind].get("paths"):
+                print(f"{name} {kind}: search paths {row[kind]['paths']}")
     out = {
         "split": args.split,
         "options": options,
