@@ -14,6 +14,16 @@ models, options and code). ``--against`` builds a second store per set with othe
 in the same run; ``--peer`` ranks the same meshes with the light field descriptor
 (Chen et al. 2003, as published: :func:`bench.support.lightfield_peer.peer_split_matrix`).
 
+``--queries`` searches other representations of every model against the store of the
+split's meshes (:mod:`bench.support.scan_queries`: clouds sampled evenly, at 20 % of
+the vertices or falling off with distance, one-sided depth scans, cropped halves), its
+own mesh left out of its hits; the mesh -> mesh row (``db.evaluate``) is the baseline::
+
+    python -m bench.quality --split validation --datasets capod --queries mesh one-sided cropped
+
+``--partial on|off`` forces ``db.search``'s part path on or off (``auto``: the search
+decides). Written to ``bench/results/quality_<split>_queries.json``.
+
 A *family* is one of the bench's sets; the objective is the macro average over the families
 of ``(NN + 1-T + DCG) / 3``, and a change must not cost any family more than
 :data:`MAX_FAMILY_LOSS` NN. Written to ``bench/results/quality_<split>.json`` (``--out``).
@@ -30,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from bench.common import format_table, write_json
+from bench.support.scan_queries import QUERY_KINDS
 
 __all__ = [
     "FAMILIES",
@@ -38,6 +49,7 @@ __all__ = [
     "parse_options",
     "family_split",
     "family_rows",
+    "query_rows",
     "main",
 ]
 
@@ -50,6 +62,7 @@ HELD_OUT = ("webplus",)
 MAX_FAMILY_LOSS = 0.02
 
 _DATASET = {"figures": "articulated"}
+_PARTIAL = {"auto": None, "on": True, "off": False}
 
 
 def parse_options(pairs: Sequence[str]) -> dict[str, Any]:
@@ -109,6 +122,45 @@ def family_rows(
     return rows
 
 
+def query_rows(
+    names: Sequence[str], split: str, options: dict[str, Any], kinds: Sequence[str],
+    partial: bool | None,
+) -> dict[str, dict[str, Any]]:  # fmt: skip
+    """Per family, per query kind: its scores (``mesh``: the store's ``db.evaluate``)."""
+    from bench.support.product_stores import split_store, store_scores
+    from bench.support.scan_queries import kind_scores
+
+    rows: dict[str, dict[str, Any]] = {}
+    for name in names:
+        ds = family_split(name, split)
+        print(f"{name} ({split}, {len(ds)} models)", flush=True)
+        db = split_store(ds, options)
+        row: dict[str, Any] = {"mesh": {**store_scores(db), "median_ms": None}}
+        for kind in kinds:
+            if kind != "mesh":
+                print(f"  {kind} queries", flush=True)
+                row[kind] = kind_scores(db, ds, kind, partial=partial)
+        rows[name] = row
+    return rows
+
+
+def _query_table(rows: dict[str, dict[str, Any]], kinds: Sequence[str]) -> str:
+    names = list(rows)
+    header = ["query", *(c for n in names for c in (f"{n} NN / 1-T / DCG", f"{n} ms"))]
+    body = []
+    for kind in kinds:
+        cells: list[Any] = [f"{kind} -> mesh"]
+        for n in names:
+            s = rows[n][kind]
+            ms = s["median_ms"]
+            cells += [
+                f"{s['nn']:.3f} / {s['first_tier']:.3f} / {s['dcg']:.3f}",
+                None if ms is None else f"{ms:.0f}",
+            ]
+        body.append(cells)
+    return format_table("NN / 1-T / DCG and median search ms, per query kind", header, body)
+
+
 def _objective(s: dict[str, Any]) -> float:
     return (s["nn"] + s["first_tier"] + s["dcg"]) / 3
 
@@ -142,13 +194,50 @@ def parser() -> argparse.ArgumentParser:
         help="store options of a second store per set, in the same run",
     )
     ap.add_argument("--peer", action="store_true", help="rank with the light field descriptor too")
+    ap.add_argument(
+        "--queries",
+        nargs="+",
+        default=["mesh"],
+        choices=QUERY_KINDS,
+        help="query kinds searched against the meshes' store (mesh: the leave-one-out alone)",
+    )
+    ap.add_argument(
+        "--partial",
+        default="auto",
+        choices=sorted(_PARTIAL),
+        help="db.search's partial= in --queries mode (auto: the search decides)",
+    )
     ap.add_argument("--out", type=Path, default=None)
     return ap  # fmt: skip
+
+
+def _query_main(args: argparse.Namespace, options: dict[str, Any]) -> int:
+    if args.against is not None or args.peer:
+        raise SystemExit("--queries: --against and --peer are not measured in this mode")
+    kinds = ["mesh", *(k for k in dict.fromkeys(args.queries) if k != "mesh")]
+    partial = _PARTIAL[args.partial]
+    rows = query_rows(args.datasets, args.split, options, kinds, partial)
+    print(_query_table(rows, kinds))
+    for name, row in rows.items():
+        for kind in kinds:
+            if row[kind].get("paths"):
+                print(f"{name} {kind}: search paths {row[kind]['paths']}")
+    out = {
+        "split": args.split,
+        "options": options,
+        "queries": kinds,
+        "partial": args.partial,
+        "families": rows,
+    }
+    write_json(args.out or RESULTS / f"quality_{args.split}_queries.json", out)
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parser().parse_args(argv)
     options = parse_options(args.set)
+    if args.queries != ["mesh"]:
+        return _query_main(args, options)
     against = None if args.against is None else parse_options(args.against)
     rows = family_rows(args.datasets, args.split, options, against, args.peer)
     columns = [

@@ -60,3 +60,49 @@ def test_a_half_built_store_is_completed(tmp_path: Path, monkeypatch: pytest.Mon
     assert sorted(db.shapes(["name"]).column("name").to_pylist()) == sorted(
         m.name for m in ds.models
     )
+
+
+def test_scans_and_cropped_halves_query_the_meshes_store(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import json
+
+    monkeypatch.setattr(product_stores, "STORES_DIR", tmp_path / "stores")
+    ds = generic().split("validation").head(per_class=2, classes=2)
+    monkeypatch.setattr(quality, "family_split", lambda name, split: ds)
+    out = tmp_path / "queries.json"
+    argv = ["--datasets", "generic", "--set", "resolution=32", "n_balls=32"]
+    assert quality.main([*argv, "--queries", "one-sided", "cropped", "--out", str(out)]) == 0
+    got = json.loads(out.read_text())
+    assert got["queries"] == ["mesh", "one-sided", "cropped"]
+    row = got["families"]["generic"]
+    for kind in ("mesh", "one-sided", "cropped"):
+        for measure in ("nn", "first_tier", "second_tier", "dcg"):
+            assert 0.0 <= row[kind][measure] <= 1.0
+    for kind in ("one-sided", "cropped"):
+        # A one-sided scan of a thin shape may be refused at resolution 32: a scored miss.
+        assert row[kind]["failed"] == len(row[kind]["errors"]) < len(ds)
+        assert row[kind]["median_ms"] > 0
+        assert set(row[kind]["top"]) | set(row[kind]["errors"]) == {m.name for m in ds.models}
+        for name, hits in row[kind]["top"].items():
+            assert name not in hits and len(hits) == len(ds) - 1
+
+
+def test_partial_is_passed_only_to_a_search_that_takes_it() -> None:
+    from bench.support.scan_queries import search_options
+
+    class Old:
+        def search(self, query: object, *, k: int = 10) -> list[object]:
+            return []
+
+    class New:
+        def search(
+            self, query: object, *, k: int = 10, partial: bool | None = None
+        ) -> list[object]:
+            return []
+
+    assert search_options(Old(), None) == {}
+    with pytest.raises(SystemExit, match="partial"):
+        search_options(Old(), True)
+    assert search_options(New(), None) == {"partial": None}
+    assert search_options(New(), False) == {"partial": False}
