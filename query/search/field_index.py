@@ -2,8 +2,8 @@
 
 The light field stage (:mod:`query.search.rerank_lightfield`) re-ranks version 4's ``K``
 nearest shapes, and with ``StageTuning.field_candidates = K2 > 0`` also the
-``K2`` nearest by the L1 distance of the scaled field vectors ``[depth / m_b, harmonic
-/ m_h]`` (:meth:`query.search.field_fusion.FieldFusion.scaled`) not among those ``K``. This
+``K2`` nearest by the L1 distance of the scaled field vectors ``[alpha * depth, gamma *
+harmonic]`` (:meth:`query.search.field_fusion.FieldFusion.scaled`) not among those ``K``. This
 module finds those ``K2``: something proposes candidates, and the exact float64 L1 of the
 float32 scaled vectors orders them (ties by ascending id). Up to :data:`SCAN_MAX` live
 vectors a float32 numpy scan proposes ``k + 16``; beyond, an approximate faiss
@@ -527,7 +527,7 @@ def _load(directory: Path, scales: list[Any]) -> FieldIndex | None:
 def _scales(fusion: FieldFusion) -> list[Any]:
     """What the scaled vectors depend on, JSON-serialisable."""
     d, h = fusion.depth, fusion.harmonic
-    return [fusion.m_b, fusion.m_h, [d.start, d.stop], [h.start, h.stop]]
+    return [fusion.alpha, fusion.gamma, [d.start, d.stop], [h.start, h.stop]]
 
 
 def _stored_dim(db: StoreHandle) -> int:

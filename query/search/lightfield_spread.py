@@ -1,7 +1,7 @@
 """The store's local light field spreads: an index-time statistic of the ``"lightfield"`` stage.
 
 A stored shape's *local spread* is the median light field distance (over
-``StageTuning.typical``) over the median stored distance (in version 4's
+``StageTuning.scale``, the unit of the stage's light field distance, fused or not) over the median stored distance (in version 4's
 calibrated units, :func:`calibration`) among its ``spread_candidates`` nearest other
 stored shapes by the stored distance (the index's exact order, ties by ascending id). It
 is high where near neighbours by the stored vector look unlike each other: jointed
@@ -35,7 +35,7 @@ ratio).
 
 In a store whose stage fuses the field vectors into the light field distance
 (:mod:`query.search.field_fusion`), every light field distance above is the fused one, and the
-fusion's weights and scales are among the parameters a stored table must match.
+fusion's weights and the unit ``scale`` are among the parameters a stored table must match.
 """
 
 from __future__ import annotations
@@ -76,7 +76,7 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 SPREAD_DIR = "index_lightfield"
-_FORMAT = 1
+_FORMAT = 2
 _CHUNK = 256
 #: The statistics are computed whole (the table created at an ingest's end, or recomputed
 #: exactly at a commit) only while that costs at most this many light field distances
@@ -103,7 +103,7 @@ def local_statistic(
 
     ``spread ** (1 - b) * ratio ** b`` of :class:`query.search.tuning.StageTuning`
     (``b = ratio_weight``; ``m = spread_candidates``): the spread is the median of ``dl``
-    over the first ``m`` (over ``typical``) over the median of ``d`` over them; the ratio
+    over the first ``m`` (over ``scale``) over the median of ``d`` over them; the ratio
     the median of ``dl`` over the first ``m`` over the median of the ``m`` smallest ``dl``
     among the first ``max(ratio_candidates, m)``.
 
@@ -130,7 +130,7 @@ def local_statistic(
     b = float(f.ratio_weight)
     out = 1.0
     if b < 1.0:
-        spread = near / f.typical / max(float(np.median(d[:m])), 1e-300)
+        spread = near / f.scale / max(float(np.median(d[:m])), 1e-300)
         out *= spread ** (1.0 - b)
     if b > 0.0:
         c = max(int(f.ratio_candidates), m)
@@ -239,7 +239,7 @@ def _meta(config: Config, version: int, tuning: StageTuning) -> dict[str, Any]:
         "format": _FORMAT,
         "version": version,
         "spread_candidates": int(f.spread_candidates),
-        "typical": float(f.typical),
+        "scale": float(f.scale),
         "ratio_weight": float(f.ratio_weight),
         "ratio_candidates": int(f.ratio_candidates),
         "light_field": repr(lf),

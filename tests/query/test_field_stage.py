@@ -31,8 +31,7 @@ OPEN = replace(PRODUCT, weight=4.0, ceiling=0.0, contrast_floor=0.0, pool=0)
 
 def _fusion(**kw: Any) -> FieldFusion:
     args: dict[str, Any] = {
-        "depth_weight": 0.5, "harmonic_weight": 2.0, "light_field_scale": 3.0,
-        "depth_scale": 0.7, "harmonic_scale": 1.9, **kw,
+        "depth_weight": 0.5, "harmonic_weight": 2.0, **kw,
     }  # fmt: skip
     return FieldFusion(DEPTH, HARMONIC, **args)
 
@@ -108,11 +107,11 @@ def test_the_fused_distance_is_the_formula() -> None:
     q, c, light = rng.random(7), rng.random((5, 7)), rng.random(5)
     b = np.abs(c[:, :4] - q[:4]).sum(1)
     h = np.abs(c[:, 4:] - q[4:]).sum(1)
-    want = 3.0 * (light / 3.0 + 0.5 * b / 0.7 + 2.0 * h / 1.9) / (1.0 + 0.5 + 2.0)
+    want = light + 0.5 * b + 2.0 * h
     assert fusion.active
     np.testing.assert_allclose(fusion.distance(light, q, c), want, rtol=1e-12)
-    s = fusion.scaled(np.vstack([q, c]))  # L1 of the scaled vectors: b / m_b + h / m_h
-    np.testing.assert_allclose(np.abs(s[1:] - s[0]).sum(1), b / 0.7 + h / 1.9, rtol=1e-5)
+    s = fusion.scaled(np.vstack([q, c]))  # L1 of the scaled vectors: alpha * b + gamma * h
+    np.testing.assert_allclose(np.abs(s[1:] - s[0]).sum(1), 0.5 * b + 2.0 * h, rtol=1e-5)
     off = _fusion(depth_weight=0.0, harmonic_weight=0.0)
     assert not off.active and off.key() is None
     assert np.array_equal(off.distance(light, q, c), light)
