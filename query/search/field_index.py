@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 from query.search import field_rows
 from query.search.feature_index import faiss_knn_l1
 from query.search.field_fusion import FieldFusion
+from query.search.tuning import active
 from query.search.versioned import POINTER, current, save_version
 from shapedb.errors import StoreError
 
@@ -397,12 +398,12 @@ _UPDATE = threading.Lock()  # one build or update at a time
 def field_index(db: StoreHandle) -> FieldIndex:
     """The shared :class:`FieldIndex` of ``db``'s store at its current version.
 
-    Over the ``field_vector`` column, scaled by ``db.config``'s fusion
-    (:meth:`FieldFusion.scaled`): the one of an earlier version (in this process, or
+    Over the ``field_vector`` column, scaled by ``db.config``'s fusion under the active
+    stage numbers (:func:`query.search.tuning.active`, :meth:`FieldFusion.scaled`): the one of an earlier version (in this process, or
     saved in ``<store>/index_field/``) brought up to date, else built; rebuilt when the
-    fusion scales change. A store without field vectors gets an empty index.
+    fusion weights change. A store without field vectors gets an empty index.
     """
-    fusion = FieldFusion.from_config(db.config)
+    fusion = FieldFusion.from_config(db.config, active())
     path = os.fspath(db.store.path)
     key = (path, int(db.store.version))
     scales = _scales(fusion)
