@@ -396,14 +396,14 @@ def local_spreads(st: Store, candidates: int, unit: float, ratio_weight: float =
     """(n,) each stored shape's local statistic over its nearest others in the store.
 
     The product's :func:`query.search.lightfield_spread.local_statistic` at
-    ``spread_candidates=candidates``, ``scale=unit``, ``ratio_weight`` and
+    ``spread_candidates=candidates``, the unit ``unit``, ``ratio_weight`` and
     ``ratio_candidates``, of each shape's nearest others by the stored distance
     (:meth:`Store.nearest`).
     """
-    f = dataclasses.replace(PRODUCT, spread_candidates=candidates, scale=unit,
+    f = dataclasses.replace(PRODUCT, spread_candidates=candidates,
                             ratio_weight=ratio_weight, ratio_candidates=ratio_candidates)  # fmt: skip
     d, ll = st.nearest(max(candidates, ratio_candidates) if ratio_weight > 0 else candidates)
-    return np.array([local_statistic(d[i], ll[i], f) for i in range(len(d))])
+    return np.array([local_statistic(d[i], ll[i], f, unit) for i in range(len(d))])
 
 
 def shape_statistics(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:

@@ -11,12 +11,14 @@ its place (``lf_<field>`` of :class:`~query.search.tuning.StageTuning` and
 ``lf_power``, the exponent of the overlap gate the stage had before the spread ceiling
 (always 0 in the product, and gone from the library), lives on here for the studies that
 measure the settings of that time: :class:`OverlapFusion`. So does ``lf_typical``, the
-unit of a light field distance alone (no field vectors) in the local spread and the
-shared-neighbour term before the stage took one unit, ``StageTuning.scale``, for the fused
-distance and the light field's alike: :class:`LegacyTuning`. The bench reads it through
-:func:`unit_of` (its statistics, :mod:`bench.support.stores`) and :func:`configure` (a
-setting's ``scale`` is its ``typical`` on a store without field vectors); the product's
-:data:`~query.search.tuning.PRODUCT` has none.
+former unit 18.03 of the light field distance alone (no field vectors) in the local spread
+and the shared-neighbour term, where the product now divides by ``light_field_unit``
+(20.67, which keeps its gate at its ceiling but moves the shared-neighbour term a little):
+:class:`LegacyTuning`, for the studies' settings of that time (their ceilings are in that
+unit). The bench reads it through :func:`unit_of` (its statistics,
+:mod:`bench.support.stores`) and :func:`configure` (a setting's units are its ``typical``
+on a store without field vectors); the product's :data:`~query.search.tuning.PRODUCT` has
+none.
 """
 
 from __future__ import annotations
@@ -52,7 +54,7 @@ Floats = NDArray[np.float64]
 Bools = NDArray[np.bool_]
 
 #: The retired ``typical``: the geometric mean over the six validation sets of the median
-#: light field distance (the spread's unit before ``StageTuning.scale``).
+#: light field distance (the spread's unit before ``StageTuning.light_field_unit``).
 LEGACY_TYPICAL = 18.03
 
 
@@ -61,8 +63,8 @@ class LegacyTuning(StageTuning):
     """The stage's numbers with the retired unit of the light field distance alone.
 
     On a store without field vectors the local spread and the shared-neighbour term
-    divide the light field distance by ``typical`` instead of ``scale`` (as the stage did
-    before ``scale``); a store that fuses the field vectors keeps ``scale``, which
+    divide the light field distance by ``typical`` instead of ``light_field_unit`` (as the
+    stage did before); a store that fuses the field vectors keeps ``scale``, which
     reproduces the former fusion exactly (:mod:`query.search.tuning`).
 
     Attributes
@@ -90,24 +92,25 @@ def unit_of(tuning: Any, stage: Any = None) -> float:
 
     ``stage`` (a :class:`bench.support.field_vectors.FieldStage`, or None) fusing the
     field vectors: its ``scale``; else ``tuning``'s ``typical`` when it has one
-    (:class:`LegacyTuning`), else its ``scale``.
+    (:class:`LegacyTuning`), else its ``light_field_unit``.
     """
     if stage is not None and stage.fuses:
         return float(stage.scale)
-    return float(getattr(tuning, "typical", tuning.scale))
+    return float(getattr(tuning, "typical", tuning.light_field_unit))
 
 
 def at_unit(tuning: Any, stage: Any = None) -> Any:
-    """``tuning`` with ``scale`` set to :func:`unit_of` (itself when it already is).
-
-    ``tuning``: a :class:`StageTuning` or a namespace of its fields.
+    """``tuning`` with both units, ``scale`` and ``light_field_unit``, set to :func:`unit_of`
+    (so the product's scorer reads it whether its configuration fuses or not; itself when
+    both already are). ``tuning``: a :class:`StageTuning` or a namespace of its fields.
     """
     unit = unit_of(tuning, stage)
-    if unit == tuning.scale:
+    if unit == tuning.scale == tuning.light_field_unit:
         return tuning
+    units = {"scale": unit, "light_field_unit": unit}
     if dataclasses.is_dataclass(tuning):
-        return dataclasses.replace(tuning, scale=unit)
-    return type(tuning)(**{**vars(tuning), "scale": unit})
+        return dataclasses.replace(tuning, **units)
+    return type(tuning)(**{**vars(tuning), **units})
 
 
 def parse_value(text: str) -> Any:

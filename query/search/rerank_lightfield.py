@@ -28,8 +28,8 @@ the scorer proposes the nearest shapes by the scaled field vectors as extra cand
 :mod:`query.search.field_index`, which the store's reader offers: :meth:`StoredArrays.field_index`).
 
 With ``StageTuning.shared_neighbours`` ``k > 0`` and ``shared_weight`` ``beta
-> 0`` the light field's rank ranks by ``dl / scale - beta * S(q, x)`` (``StageTuning.scale``,
-the unit of the stage's light field distance, fused or not), ``S`` the share of
+> 0`` the light field's rank ranks by ``dl / scale - beta * S(q, x)`` (``scale`` the unit of
+the stage's distance, :meth:`query.search.tuning.StageTuning.unit`), ``S`` the share of
 the query's and the candidate's ``k`` nearest neighbours in common
 (:mod:`query.search.lightfield_neighbours`, whose per-store-version table of the stored shapes'
 lists the reader serves as :data:`NEIGHBOURS`); the gate reads ``dl`` alone, and the
@@ -185,9 +185,10 @@ class LightFieldFusion:
 
     @property
     def scale(self) -> float:
-        """The unit of ``dl`` in the shared-neighbour term: ``StageTuning.scale``, whether
-        the field vectors are fused into the light field distance or not."""
-        return float(self.tuning.scale)
+        """The unit of ``dl`` in the spread and the shared-neighbour term: ``scale`` when the
+        field vectors are fused into the light field distance, else ``light_field_unit``
+        (:meth:`query.search.tuning.StageTuning.unit`)."""
+        return self.tuning.unit(self.field.active)
 
     def gate(
         self,
@@ -213,7 +214,7 @@ class LightFieldFusion:
                     return 0.0
                 spread = float(pooled(pool, f.pool_quantile))
             else:  # the query's own statistic over its candidates
-                spread = local_statistic(d4[others], dl[others], self.tuning)
+                spread = local_statistic(d4[others], dl[others], self.tuning, self.scale)
             g *= float(np.clip((f.ceiling - spread) / f.ramp, 0.0, 1.0))
         if f.contrast_floor > 0:
             far = d4[others[min(f.contrast_depth, len(others)) - 1]]

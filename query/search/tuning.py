@@ -19,10 +19,13 @@ stored vector already sets the nearest apart); the field vectors are fused into 
 candidates that share the query's nearest neighbours rise. :class:`StageTuning`'s
 attributes name each part.
 
-One unit, ``scale``, turns the stage's light field distance into the local spread's and
-the shared-neighbour term's. It was fitted on fused distances; a store without field
-vectors (older configurations: ``l`` alone) uses it too, where it once used 18.03, so
-its gate and shared-neighbour term differ slightly from before.
+One unit turns the stage's light field distance into the local spread's and the
+shared-neighbour term's: ``scale`` for the fused distance, ``light_field_unit`` for the
+light field distance alone (a store without field vectors: older configurations). A
+store with field vectors ranks exactly as before these two units (the former fusion's
+weights and scales, and the unit 18.03 of its spread, are in the attributes' comments);
+one without keeps its gate exactly, and its shared-neighbour term moves slightly (its
+unit was 18.03, now 20.67).
 """
 
 from __future__ import annotations
@@ -67,9 +70,10 @@ class StageTuning:
         ``alpha`` and ``gamma``: the fused distance is ``l + alpha * b + gamma * h``
         (light field units), ``b`` and ``h`` the field vectors' depth and harmonic L1
         distances (:mod:`query.search.field_fusion`).
-    scale : float
-        The unit of the stage's light field distance (fused or not) in a shape's local
-        spread and in the shared-neighbour term (> 0).
+    scale, light_field_unit : float
+        The unit of the stage's fused distance, and of the light field distance alone (a
+        store without field vectors), in a shape's local spread and in the
+        shared-neighbour term (> 0; :meth:`unit`).
     field_candidates : int
         Candidates the field vector index adds to the index's K.
     shared_neighbours, shared_weight : int, float
@@ -90,9 +94,9 @@ class StageTuning:
     ratio_candidates: int = 100
     pool: int = 30
     pool_quantile: float = 0.25
-    # The ceiling and ramp: that grid's 0.17 and 0.034 in the spread's unit ``scale``, i.e.
-    # times (18.03 / 20.67) ** 0.8 (the former spread unit over the former light field
-    # scale, to the spread's share 1 - 0.2).
+    # The ceiling and ramp: that grid's 0.17 and 0.034 in the spread's units (``scale``,
+    # ``light_field_unit``), i.e. times (18.03 / 20.67) ** 0.8 (the former spread unit over
+    # the former light field scale, to the spread's share 1 - 0.2).
     ceiling: float = 0.1523958432880074
     ramp: float = 0.030479168657601478
     contrast_ramp: float = 0.2
@@ -114,9 +118,14 @@ class StageTuning:
     field_harmonic_weight: float = 2.383533210332103
     field_candidates: int = 200
     # The fused distance's unit: (1 + 0.25 + 0.25) * 20.67, the former light field scale
-    # at the former weights (a store without field vectors once used 18.03, the geometric
-    # mean over the six validation sets of the median light field distance, here).
+    # at the former weights.
     scale: float = 31.005
+    # The light field distance's unit where nothing is fused: the former light field scale
+    # (its median over each validation set's off-diagonal pairs, median of the six sets), so
+    # such a store's gate is exactly the former one (its spread unit was 18.03, the geometric
+    # mean of the sets' medians, at the ceiling 0.17); its shared-neighbour term's unit was
+    # 18.03 too, so that term moves a little (beta as if times 20.67 / 18.03).
+    light_field_unit: float = 20.67
     # Shared neighbours at k 3, beta 1.6: the highest objective of their grid on validation,
     # with the field seen about its surface (python -m bench.studies.lightfield_gate --shared-grid).
     shared_neighbours: int = 3
@@ -133,13 +142,18 @@ class StageTuning:
         for name in ("candidates", "neighbours", "spread_candidates", "ratio_candidates"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"StageTuning.{name} must be >= 1")
-        for name in ("ramp", "offset", "contrast_ramp", "scale"):
+        for name in ("ramp", "offset", "contrast_ramp", "scale", "light_field_unit"):
             if getattr(self, name) <= 0:
                 raise ConfigError(f"StageTuning.{name} must be > 0")
         if self.contrast_depth < 2 or self.pool_quantile > 1 or self.ratio_weight > 1:
             raise ConfigError(
                 "StageTuning: contrast_depth must be >= 2, pool_quantile and ratio_weight <= 1"
             )
+
+    def unit(self, fused: bool) -> float:
+        """The unit of the stage's distance: ``scale`` when ``fused``, else
+        ``light_field_unit``."""
+        return float(self.scale if fused else self.light_field_unit)
 
     @property
     def shares_neighbours(self) -> bool:

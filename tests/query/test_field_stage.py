@@ -134,8 +134,9 @@ def test_a_row_without_field_vectors_keeps_the_light_field_distance(
 
 
 def test_the_stage_ranks_by_the_fused_distance_everywhere(matrix_distance: Any) -> None:
-    # the gate's own spread of the query reads the distance too
-    case = _case(ceiling=5.0, ramp=5.0)
+    # the gate's own spread of the query reads the distance too; one unit for the fused
+    # distance and the light field's, so the fused one given as the light field's compares
+    case = _case(ceiling=5.0, ramp=5.0, light_field_unit=PRODUCT.scale)
     fusion = _fusion()
     n = len(case["x"])
     b = np.abs(case["fv"][:, None, DEPTH] - case["fv"][None, :, DEPTH]).sum(-1)
@@ -398,3 +399,9 @@ def test_the_gate_s_statistic_is_the_former_one_in_the_new_unit() -> None:
     assert PRODUCT.ramp == pytest.approx(0.034 * factor, rel=1e-15)
     gate = np.clip((PRODUCT.ceiling - now) / PRODUCT.ramp, 0.0, 1.0)
     assert gate == pytest.approx(np.clip((0.17 - former) / 0.034, 0.0, 1.0), abs=1e-12)
+    # a store without field vectors: the light field distance alone in light_field_unit,
+    # the former statistic (unit 18.03) times the same factor, so its gate is the former
+    alone = local_statistic(d, light, f, f.unit(False))
+    spread = float(np.median(light[:m])) / TYPICAL / float(np.median(d[:m]))
+    ratio = float(np.median(light[:m])) / float(np.median(np.sort(light)[:m]))
+    assert alone == pytest.approx(spread ** (1.0 - w) * ratio**w * factor, rel=1e-12)

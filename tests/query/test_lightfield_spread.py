@@ -91,7 +91,7 @@ def test_the_pooled_gate_ranks_as_the_selection_bench(gate: dict[str, Any]) -> N
     t = np.median(dd[:, : f.neighbours], 1) / dd[:, f.contrast_depth - 1]
     # a unit that puts the ceiling at the median statistic
     unit = (float(np.median(s)) / f.ceiling) ** (1.0 / (1.0 - f.ratio_weight))
-    f = replace(f, scale=unit, contrast_floor=float(np.median(t)) - 0.02)
+    f = replace(f, light_field_unit=unit, contrast_floor=float(np.median(t)) - 0.02)
     want_w = gate_weights(probe, _with_power(f))
     assert 0 < np.count_nonzero(want_w) < 40  # the gate decides
     got, _ = rerank.search(index, x, 40, config=config, query_ids=np.arange(40),

@@ -65,7 +65,7 @@ def test_with_every_shape_a_candidate_the_legacy_gate_ranks_as_the_study() -> No
         np.take_along_axis(d4, near, 1), 1
     )
     unit = float(np.median(ratio) / 0.09)
-    f = replace(LEGACY, scale=unit, candidates=len(x))
+    f = replace(LEGACY, light_field_unit=unit, candidates=len(x))
     study = fuse("adrank", f.weight, d4, dl, unit, f.neighbours, 0.0, f.ceiling, f.ramp)
     index = FeatureIndex(kind="flat").fit(np.arange(len(x)), x.astype(np.float32), w)
 
@@ -97,7 +97,7 @@ def test_without_light_fields_the_stored_order_is_kept_with_a_warning(
 
 
 def test_bad_stage_numbers_and_light_field_options_name_the_field() -> None:
-    for name, value in [("weight", -1.0), ("neighbours", 0), ("ramp", 0.0), ("scale", 0.0),
+    for name, value in [("weight", -1.0), ("neighbours", 0), ("ramp", 0.0), ("scale", 0.0), ("light_field_unit", 0.0),
                         ("spread_candidates", 0), ("pool", -1), ("contrast_ramp", 0.0),
                         ("contrast_depth", 1), ("ratio_weight", 1.5), ("ratio_candidates", 0),
                         ("pool_quantile", -0.1), ("weight", float("nan"))]:  # fmt: skip
