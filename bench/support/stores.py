@@ -491,7 +491,8 @@ def score_row(stores: dict[str, Store], weights: dict[str, FloatArray],
 def shared_scale(split: Split, f: Any) -> float:
     """The unit of the shared-neighbour term on ``split`` under the fusion ``f``
     (:func:`bench.support.tuning.unit_of`: the split's stage's ``scale`` when it fuses the
-    field vectors, else ``f``'s; as :attr:`query.search.rerank_lightfield.LightFieldFusion.scale`)."""
+    field vectors, else ``f``'s ``light_field_unit``; as
+    :attr:`query.search.rerank_lightfield.LightFieldFusion.scale`)."""
     return unit_of(f, getattr(split, "stage", None))
 
 

@@ -199,7 +199,7 @@ def configure(
 ) -> Setting:
     """``config`` and ``tuning`` with the flat ``settings`` applied (:func:`split_settings`).
 
-    With ``lf_typical``, a :class:`LegacyTuning` whose ``scale`` is ``typical`` when the
+    With ``lf_typical``, a :class:`LegacyTuning` whose units are ``typical`` when the
     configuration fuses nothing (so the product's scorer, its stored statistics and
     :func:`query.search.tuning.tuned` all read that unit).
     """

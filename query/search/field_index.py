@@ -399,9 +399,9 @@ def field_index(db: StoreHandle) -> FieldIndex:
     """The shared :class:`FieldIndex` of ``db``'s store at its current version.
 
     Over the ``field_vector`` column, scaled by ``db.config``'s fusion under the active
-    stage numbers (:func:`query.search.tuning.active`, :meth:`FieldFusion.scaled`): the one of an earlier version (in this process, or
-    saved in ``<store>/index_field/``) brought up to date, else built; rebuilt when the
-    fusion weights change. A store without field vectors gets an empty index.
+    stage numbers (:func:`query.search.tuning.active`, :meth:`FieldFusion.scaled`): the
+    one of an earlier version (in this process, or saved in ``<store>/index_field/``)
+    brought up to date, else built; rebuilt when the fusion weights change. A store without field vectors gets an empty index.
     """
     fusion = FieldFusion.from_config(db.config, active())
     path = os.fspath(db.store.path)

@@ -1,8 +1,8 @@
 """The store's local light field spreads: an index-time statistic of the ``"lightfield"`` stage.
 
 A stored shape's *local spread* is the median light field distance (over its unit,
-``StageTuning.scale`` when fused with the field vectors, else ``light_field_unit``) over the median stored distance (in version 4's
-calibrated units, :func:`calibration`) among its ``spread_candidates`` nearest other
+``StageTuning.scale`` when fused with the field vectors, else ``light_field_unit``) over
+the median stored distance (in version 4's calibrated units, :func:`calibration`) among its ``spread_candidates`` nearest other
 stored shapes by the stored distance (the index's exact order, ties by ascending id). It
 is high where near neighbours by the stored vector look unlike each other: jointed
 subjects in other poses, whose silhouettes change with the pose. The scorer

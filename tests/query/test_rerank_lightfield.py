@@ -97,8 +97,8 @@ def test_without_light_fields_the_stored_order_is_kept_with_a_warning(
 
 
 def test_bad_stage_numbers_and_light_field_options_name_the_field() -> None:
-    for name, value in [("weight", -1.0), ("neighbours", 0), ("ramp", 0.0), ("scale", 0.0), ("light_field_unit", 0.0),
-                        ("spread_candidates", 0), ("pool", -1), ("contrast_ramp", 0.0),
+    for name, value in [("weight", -1.0), ("neighbours", 0), ("ramp", 0.0), ("scale", 0.0),
+                        ("light_field_unit", 0.0), ("spread_candidates", 0), ("pool", -1), ("contrast_ramp", 0.0),
                         ("contrast_depth", 1), ("ratio_weight", 1.5), ("ratio_candidates", 0),
                         ("pool_quantile", -0.1), ("weight", float("nan"))]:  # fmt: skip
         with pytest.raises(ConfigError, match=name):
