@@ -106,12 +106,12 @@ def choose(
     base = None
     for rule, m in rules.items():
         for a, c in WEIGHTS:
-            stage = FieldStage(a, c, m["l"], m["b"], m["h"], 0)
+            stage = FieldStage.at_scales(a, c, m["l"], m["b"], m["h"], 0)
             split = fuse(base_split, names, stage)
             amemo: dict[Any, Any] = {}
             dist = {k: analytic_distance(db, shapes[k], stage) for k, db in analytic.items()}
-            g_chain, s_chain = analytic_gates(analytic["chain"], f, amemo, dist["chain"])
-            g_rigid, _ = analytic_gates(analytic["rigid"], f, amemo, dist["rigid"])
+            g_chain, s_chain = analytic_gates(analytic["chain"], f, amemo, dist["chain"], stage)
+            g_rigid, _ = analytic_gates(analytic["rigid"], f, amemo, dist["rigid"], stage)
             chain_ok = bool(np.all(g_chain == 0) and np.count_nonzero(g_rigid) >= 6)
             margin = None
             for k2 in K2:

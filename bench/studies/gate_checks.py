@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.support.stores import Store, gate_statistic
+from bench.support.tuning import at_unit
 from query.search.lightfield_spread import pooled
 from shapedb.config.core import Config
 from shapedb.signature.lightfield import light_field_distance
@@ -148,7 +149,11 @@ def analytic_stores(root: Path) -> dict[str, Any]:
 
 
 def analytic_gates(
-    db: Any, f: Any, memo: dict[Any, Any] | None = None, distance: Distance | None = None
+    db: Any,
+    f: Any,
+    memo: dict[Any, Any] | None = None,
+    distance: Distance | None = None,
+    stage: Any = None,
 ) -> tuple[FloatArray, FloatArray]:
     """(n,) ``g(q)`` and (n,) ``s_q`` of every shape of ``db`` querying it, at ``f``.
 
@@ -161,15 +166,18 @@ def analytic_gates(
     ``distance``: the stage's distance in place of the light field's,
     ``distance(query id, candidate ids, light field distances)`` (the field vectors'
     fusion, :func:`bench.support.field_vectors.analytic_distance`), in the statistics and the
-    gate alike; ``memo`` keys it by its identity.
+    gate alike; ``memo`` keys it by its identity. ``stage``: the
+    :class:`bench.support.field_vectors.FieldStage` of that distance, whose ``scale`` is the
+    unit (:func:`bench.support.tuning.at_unit`; without it, ``f``'s).
     """
     from query.search.index import open_index
     from query.search.lightfield_spread import calibration, local_spreads
     from query.search.rerank_lightfield import COLUMN, LightFieldFusion, stored_arrays
 
+    f = at_unit(f, stage)
     config = db.config
     index, reader = open_index(db), stored_arrays(db)
-    key = (str(db.store.path), f.spread_candidates, f.typical, f.ratio_weight,
+    key = (str(db.store.path), f.spread_candidates, f.scale, f.ratio_weight,
            f.ratio_candidates if f.ratio_weight > 0 else 0, id(distance))  # fmt: skip
     if (memo is None or key not in memo) and distance is not None:
         got = _fused_spreads(index, reader, config, f, distance)

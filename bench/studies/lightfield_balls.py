@@ -66,6 +66,7 @@ from bench.common import (
 )
 from bench.sets.datasets import CACHE_DIR, Dataset, capod, generic, mesh_arrays, web
 from bench.support.cached import CHOICES, SETS, load
+from bench.support.tuning import unit_of
 from shapedb.config.core import Config, DescriptorConfig, LightFieldConfig
 from shapedb.signature.descriptor import LAYOUTS
 from shapedb.signature.lightfield import ball_light_field, light_field_distance
@@ -310,7 +311,7 @@ def check_product(datasets: Sequence[str], split: str) -> dict[str, Any]:
         for kind, fields in (("float64", exact), ("float32", exact.astype(np.float32))):
             fields = fields.astype(np.float64)
             study = np.argsort(
-                fuse("adrank", f.weight, d4, light_field_distance(fields), f.typical,
+                fuse("adrank", f.weight, d4, light_field_distance(fields), unit_of(f),
                      f.neighbours, whole.power, f.ceiling, f.ramp), axis=1, kind="stable",
             )  # fmt: skip
             got = rankings(index_of(v4), whole, fields)

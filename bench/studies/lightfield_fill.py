@@ -56,6 +56,7 @@ from bench.sets.datasets import CACHE_DIR, Dataset, mesh_arrays
 from bench.studies.lightfield_balls import fill_config
 from bench.support.cached import SETS, load
 from bench.support.packings import longer
+from bench.support.tuning import unit_of
 from shapedb.config.core import MDBDConfig
 from shapedb.config.lightfield import product_light_field
 from shapedb.signature.lightfield import (
@@ -447,7 +448,7 @@ def fused_longer(split: str, datasets: Sequence[str], n_balls: int) -> dict[str,
         order = [keep[m.name] for m in ds.models]
         dm = dm[np.ix_(order, order)]
         d4 = v4_distances(balls)
-        args = (f.typical, f.neighbours, 0.0, f.ceiling, f.ramp)  # the product's power: 0
+        args = (unit_of(f), f.neighbours, 0.0, f.ceiling, f.ramp)  # the product's power: 0
         table["v4"][name] = _scores(d4, ds.labels)
         table["fused, 512 balls"][name] = _scores(
             fuse("adrank", f.weight, d4, dl, *args), ds.labels

@@ -108,7 +108,7 @@ from bench.support.stores import (
     shared_rows,
     shared_stores,
 )
-from bench.support.tuning import parse_value
+from bench.support.tuning import parse_value, unit_of
 from query.search.tuning import PRODUCT
 
 __all__ = [
@@ -265,7 +265,7 @@ def select(args: argparse.Namespace, split: Split | None = None,
         fused = {k: analytic_distance(db, shapes[k], stage) for k, db in analytic.items()}
 
     def gates(which: str, f: Any) -> tuple[FloatArray, FloatArray]:
-        return analytic_gates(analytic[which], f, amemo, fused.get(which))
+        return analytic_gates(analytic[which], f, amemo, fused.get(which), stage)
 
     def closed(f: Any) -> bool:
         """The chain in poses shut and the rigid analytic store open (some of it)."""
@@ -416,9 +416,9 @@ def statistics(stores: dict[str, Store], f: Any) -> dict[str, dict[str, dict[str
         d = st.others(st.D)
         far = d[:, min(f.contrast_depth, d.shape[1]) - 1]
         stats = {
-            "spread 100": local_spreads(st, 100, f.typical),
+            "spread 100": local_spreads(st, 100, unit_of(f, st.stage)),
             "local": local_spreads(
-                st, f.spread_candidates, f.typical, f.ratio_weight, f.ratio_candidates
+                st, f.spread_candidates, unit_of(f, st.stage), f.ratio_weight, f.ratio_candidates
             ),
             "pooled": gate_statistic(st, f),
             "contrast": np.median(d[:, : f.neighbours], 1) / np.maximum(far, 1e-300),

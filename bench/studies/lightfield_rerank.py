@@ -73,8 +73,9 @@ from bench.studies.adaptive_rerank import AdaptiveFusion
 from bench.support import inside_fields
 from bench.support.cached import CHOICES, load
 from bench.support.features import kernel_features
+from bench.support.field_vectors import SCALES, FieldStage
 from bench.support.packings import light_field_balls
-from bench.support.tuning import Setting, configure, parse_value
+from bench.support.tuning import LEGACY_TYPICAL, Setting, configure, parse_value
 from query.search import rerank
 from query.search.field_fusion import FIELD, FieldFusion
 from query.search.field_index import FieldIndex
@@ -91,21 +92,25 @@ SETS = ("web", "generic", "capod", "figures", "parts", "people")
 _MEASURES = ("nn", "first_tier", "dcg")
 _CHUNK = 32
 #: The stage's gate before the ratio (the pooled spread and contrast floor): flat settings
-#: (:func:`bench.support.tuning.configure`), the stage's numbers as ``lf_<field>``.
+#: (:func:`bench.support.tuning.configure`), the stage's numbers as ``lf_<field>`` (the
+#: light field distance alone then, in the unit of that time: ``lf_typical``).
 SPREAD_GATE = {"lf_weight": 4.0, "lf_ceiling": 0.11, "lf_ramp": 0.02, "lf_spread_candidates": 5,
                "lf_pool": 20, "lf_contrast_ramp": 0.05, "lf_ratio_weight": 0.0,
-               "lf_pool_quantile": 0.5}  # fmt: skip
+               "lf_pool_quantile": 0.5, "lf_typical": LEGACY_TYPICAL}  # fmt: skip
 #: The stage without the field vectors (what a store written before them reads: no
 #: shared-neighbour term either).
 NO_FIELD = {"fv_enabled": False, "lf_field_depth_weight": 0.0, "lf_field_harmonic_weight": 0.0,
             "lf_field_candidates": 0, "lf_shared_neighbours": 0}  # fmt: skip
-#: The field vectors' part of the stage where the defaults do not turn it on.
-FIELD_STAGE = {"lf_field_depth_weight": 0.5, "lf_field_harmonic_weight": 0.5,
+#: The field vectors' part of the stage where the defaults do not turn it on: the research's
+#: weights 0.5 and 0.5 at its scales (:meth:`bench.support.field_vectors.FieldStage.at_scales`).
+_FIELD = FieldStage.at_scales(0.5, 0.5, *SCALES, 100)
+FIELD_STAGE = {"lf_field_depth_weight": _FIELD.depth_weight,
+               "lf_field_harmonic_weight": _FIELD.harmonic_weight, "lf_scale": _FIELD.scale,
                "lf_field_candidates": 100}  # fmt: skip
 #: The stage's settings before the pooled spread and the contrast floor (no shared neighbours).
 LEGACY = {"lf_weight": 8.0, "lf_power": 3.0, "lf_ceiling": 0.09, "lf_spread_candidates": 100,
           "lf_pool": 0, "lf_contrast_floor": 0.0, "lf_ramp": 0.02, "lf_ratio_weight": 0.0,
-          "lf_shared_neighbours": 0}  # fmt: skip
+          "lf_shared_neighbours": 0, "lf_typical": LEGACY_TYPICAL}  # fmt: skip
 
 
 def index_of(x: np.ndarray) -> FeatureIndex:

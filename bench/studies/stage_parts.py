@@ -37,7 +37,7 @@ VARIANTS: dict[str, tuple[dict[str, Any], tuple[str, ...]]] = {
     "product": ({}, ()),
     "no shared neighbours": (
         {"shared_weight": 0.0},
-        ("shared_weight", "shared_neighbours", "typical"),
+        ("shared_weight", "shared_neighbours"),
     ),
     "no contrast floor": (
         {"contrast_floor": 0.0},

@@ -11,16 +11,21 @@ descriptor of its field's inside (Vranic: 438 floats at 64 px, ``k`` 8) followed
 spherical-harmonic energies of the same inside (Kazhdan, on an angle grid: 32 shells x
 16 bands). The stage's distance between two shapes is
 
-    ``m_l * (l / m_l + a * b / m_b + c * h / m_h) / (1 + a + c)``
+    ``l + alpha * b + gamma * h``
 
 (``l`` the light field distance, ``b`` and ``h`` the L1 distances of the depth and the
-harmonic parts, ``m_*`` fixed scales, ``a`` and ``c`` the weights: the fields
-``field_depth_weight``, ``field_harmonic_weight``, ``light_field_scale``,
-``field_depth_scale``, ``field_harmonic_scale`` of
-:class:`query.search.tuning.StageTuning`), and its candidates are version 4's ``K``
-nearest followed by those of the ``K2`` nearest by the L1 distance of the scaled vectors
-``[depth / m_b, harmonic / m_h]`` (``field_candidates``) that are not among them, in the
-stored distance's order.
+harmonic parts; ``alpha`` and ``gamma`` the fields ``field_depth_weight`` and
+``field_harmonic_weight`` of :class:`query.search.tuning.StageTuning`, its unit ``scale``),
+and its candidates are version 4's ``K`` nearest followed by those of the ``K2`` nearest
+by the L1 distance of the scaled vectors ``[alpha * depth, gamma * harmonic]``
+(``field_candidates``) that are not among them, in the stored distance's order.
+
+The research chose weights ``a`` and ``c`` of the three distances each over a fixed scale
+(``m_l``, ``m_b``, ``m_h``: their medians), the distance
+``m_l * (l / m_l + a * b / m_b + c * h / m_h) / (1 + a + c)``. The distance above is that
+one times ``1 + a + c`` with ``alpha = a * m_l / m_b`` and ``gamma = c * m_l / m_h``, in the
+unit ``scale = (1 + a + c) * m_l`` (:meth:`FieldStage.at_scales`): the research's settings
+(:data:`WEIGHTS`, :data:`SCALES`) are turned into the stage's that way.
 
 :func:`fuse` turns a :class:`bench.support.stores.Split` into that stage's split (its
 light field distance replaced by the fused one, the scaled vectors' distance kept for
@@ -64,6 +69,14 @@ DEPTH_DIM = 438
 HARMONIC_DIM = 32 * 16
 
 
+#: The research's weights ``a`` and ``c`` of the depth and the harmonic distances: the
+#: field vector choice on validation (python -m bench.studies.field_choice).
+WEIGHTS = (0.25, 0.25)
+#: The research's scales ``m_l``, ``m_b``, ``m_h``: the three distances' medians over each
+#: validation set's off-diagonal pairs, then the median of the six sets.
+SCALES = (20.67, 6.045, 2.168)
+
+
 @dataclasses.dataclass(frozen=True)
 class FieldStage:
     """The field vectors' part of the stage (the fields of ``StageTuning``).
@@ -71,18 +84,16 @@ class FieldStage:
     Attributes
     ----------
     depth_weight, harmonic_weight : float
-        ``a`` and ``c``, >= 0.
-    light_field_scale, depth_scale, harmonic_scale : float
-        ``m_l``, ``m_b``, ``m_h``, > 0 (units of each distance).
+        ``alpha`` and ``gamma``, >= 0 (light field units per unit of ``b`` and ``h``).
+    scale : float
+        The fused distance's unit in the spread and the shared-neighbour term, > 0.
     candidates : int
         ``K2``, the field vectors' nearest added to version 4's ``K``; 0: none.
     """
 
     depth_weight: float = 0.5
     harmonic_weight: float = 0.5
-    light_field_scale: float = 1.0
-    depth_scale: float = 1.0
-    harmonic_scale: float = 1.0
+    scale: float = 1.0
     candidates: int = 100
 
     @property
@@ -91,12 +102,20 @@ class FieldStage:
         return self.depth_weight > 0 or self.harmonic_weight > 0
 
     @classmethod
+    def at_scales(cls, a: float, c: float, light_field_scale: float, depth_scale: float,
+                  harmonic_scale: float, candidates: int = 100) -> FieldStage:  # fmt: skip
+        """The stage of the research's weights ``a``, ``c`` at scales ``m_l``, ``m_b``,
+        ``m_h`` (> 0): ``alpha = a * m_l / m_b``, ``gamma = c * m_l / m_h``, ``scale = (1 +
+        a + c) * m_l`` (the module docstring)."""
+        ml, mb, mh = light_field_scale, depth_scale, harmonic_scale
+        return cls(a * ml / mb, c * ml / mh, (1.0 + a + c) * ml, candidates)
+
+    @classmethod
     def of(cls, fusion: Any) -> FieldStage | None:
         """The stage of a ``StageTuning`` (None when it has no field vectors)."""
         names = {"depth_weight": "field_depth_weight",
                  "harmonic_weight": "field_harmonic_weight",
-                 "light_field_scale": "light_field_scale", "depth_scale": "field_depth_scale",
-                 "harmonic_scale": "field_harmonic_scale", "candidates": "field_candidates"}  # fmt: skip
+                 "scale": "scale", "candidates": "field_candidates"}  # fmt: skip
         if not all(hasattr(fusion, v) for v in names.values()):
             return None
         got = cls(**{k: getattr(fusion, v) for k, v in names.items()})
@@ -104,8 +123,8 @@ class FieldStage:
 
     def short(self) -> str:
         """The stage in a few characters."""
-        return (f"a {self.depth_weight:g} c {self.harmonic_weight:g} K2 {self.candidates} "
-                f"m {self.light_field_scale:.4g}/{self.depth_scale:.4g}/{self.harmonic_scale:.4g}")  # fmt: skip
+        return (f"alpha {self.depth_weight:.4g} gamma {self.harmonic_weight:.4g} "
+                f"K2 {self.candidates} scale {self.scale:.4g}")  # fmt: skip
 
 
 # --------------------------------------------------------------------------------------
@@ -186,10 +205,8 @@ def fuse(split: Split, names: Sequence[str], stage: FieldStage) -> Split:
     b, h = split_parts(split, names)
     out = copy.copy(split)
     light = split.light
-    ml, mb, mh = stage.light_field_scale, stage.depth_scale, stage.harmonic_scale
-    a, c = stage.depth_weight, stage.harmonic_weight
     out.light = light
-    out.dl = ml * (light / ml + a * b / mb + c * h / mh) / (1.0 + a + c)
+    out.dl = light + stage.depth_weight * b + stage.harmonic_weight * h
     out.dv = scaled_distance(split, names, stage)
     out.stage = stage
     return out
@@ -210,10 +227,10 @@ def split_parts(split: Split, names: Sequence[str]) -> tuple[FloatArray, FloatAr
 
 
 def scaled_distance(split: Split, names: Sequence[str], stage: FieldStage) -> FloatArray:
-    """(n, n) L1 of ``[depth / m_b, harmonic / m_h]`` as float32 vectors (the index's)."""
-    v = np.concatenate([set_vectors(n, split.split) for n in names])
-    x = np.concatenate([v[:, :DEPTH_DIM] / np.float32(stage.depth_scale),
-                        v[:, DEPTH_DIM:] / np.float32(stage.harmonic_scale)], 1)  # fmt: skip
+    """(n, n) L1 of ``[alpha * depth, gamma * harmonic]`` as float32 vectors (the index's)."""
+    v = np.concatenate([set_vectors(n, split.split) for n in names]).astype(np.float64)
+    x = np.concatenate([stage.depth_weight * v[:, :DEPTH_DIM],
+                        stage.harmonic_weight * v[:, DEPTH_DIM:]], 1)  # fmt: skip
     return l1(x.astype(np.float32))
 
 
@@ -273,15 +290,14 @@ def analytic_distance(db: Any, shapes: Sequence[tuple[str, Any]], stage: FieldSt
     t = db.store.shapes(["id", "name"])
     pos = {int(i): [s for s, _ in shapes].index(n)
            for i, n in zip(t.column("id").to_pylist(), t.column("name").to_pylist(), strict=True)}  # fmt: skip
-    ml, mb, mh = stage.light_field_scale, stage.depth_scale, stage.harmonic_scale
-    a, c = stage.depth_weight, stage.harmonic_weight
+    alpha, gamma = stage.depth_weight, stage.harmonic_weight
 
     def f(q: int, ids: NDArray[np.int64], dl: FloatArray) -> FloatArray:
         x = v[pos[int(q)]].astype(np.float64)
         y = v[[pos[int(i)] for i in ids]].astype(np.float64)
         b = np.abs(y[:, :DEPTH_DIM] - x[:DEPTH_DIM]).sum(1)
         h = np.abs(y[:, DEPTH_DIM:] - x[DEPTH_DIM:]).sum(1)
-        return ml * (dl / ml + a * b / mb + c * h / mh) / (1.0 + a + c)
+        return dl + alpha * b + gamma * h
 
     return f
 
@@ -292,7 +308,7 @@ def analytic_distance(db: Any, shapes: Sequence[tuple[str, Any]], stage: FieldSt
 
 #: The choice on validation (docs/results.md, "The field vectors in the stage"): the stage
 #: of ``--field-vectors`` when the product's fusion is off (its gate: ``contrast_ramp`` 0.05).
-CHOSEN = FieldStage(0.25, 0.25, 20.67, 6.045, 2.168, 200)
+CHOSEN = FieldStage.at_scales(*WEIGHTS, *SCALES, 200)
 
 
 def stage_of(args: argparse.Namespace) -> FieldStage | None:
@@ -300,7 +316,9 @@ def stage_of(args: argparse.Namespace) -> FieldStage | None:
 
     ``--no-field-vectors``: None. No flag: the product's (:data:`query.search.tuning.PRODUCT`'s
     fields, None while it has none). ``--field-vectors`` or any ``--fv-*``: the
-    product's stage (:data:`CHOSEN` while it is off) with those values replaced.
+    product's stage (:data:`CHOSEN` while it is off) with those values replaced;
+    ``--fv-weights`` (``a``, ``c``) and ``--fv-scales`` (``m_l``, ``m_b``, ``m_h``) are the
+    research's, the other at :data:`WEIGHTS` or :data:`SCALES` (:meth:`FieldStage.at_scales`).
     """
     from query.search.tuning import PRODUCT
 
@@ -310,12 +328,10 @@ def stage_of(args: argparse.Namespace) -> FieldStage | None:
     if on is False or (on is None and all(v is None for v in given.values())):
         return None if on is False else product
     stage = product or CHOSEN
-    if given["fv_weights"] is not None:
-        a, c = given["fv_weights"]
-        stage = dataclasses.replace(stage, depth_weight=a, harmonic_weight=c)
-    if given["fv_scales"] is not None:
-        ml, mb, mh = given["fv_scales"]
-        stage = dataclasses.replace(stage, light_field_scale=ml, depth_scale=mb, harmonic_scale=mh)
+    if given["fv_weights"] is not None or given["fv_scales"] is not None:
+        a, c = given["fv_weights"] or WEIGHTS
+        ml, mb, mh = given["fv_scales"] or SCALES
+        stage = FieldStage.at_scales(a, c, ml, mb, mh, stage.candidates)
     if given["fv_candidates"] is not None:
         stage = dataclasses.replace(stage, candidates=int(given["fv_candidates"]))
     return stage

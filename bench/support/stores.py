@@ -30,7 +30,7 @@ from bench.support import cached, inside_fields
 from bench.support.cached import load
 from bench.support.features import kernel_features
 from bench.support.packings import light_field_balls
-from bench.support.tuning import OverlapFusion, parse_value, with_light_field
+from bench.support.tuning import OverlapFusion, at_unit, parse_value, unit_of, with_light_field
 from query.search.lightfield_spread import local_statistic, pooled
 from query.search.rerank_lightfield import LightFieldFusion
 from query.search.tuning import PRODUCT
@@ -202,11 +202,14 @@ class Store:
     rank_l : (n, C) float64
         Rank of each candidate by the light field distance among the query's candidates
         (ties in list order); padding ranks last.
+    stage : bench.support.field_vectors.FieldStage or None
+        The split's (its distance's unit when it fuses the field vectors).
     """
 
     def __init__(self, split: Split, rows: NDArray[np.int64], candidates: int = 100,
                  offset: float = 60.0, field_candidates: int = 0) -> None:  # fmt: skip
         self.rows = rows
+        self.stage: Any = getattr(split, "stage", None)  # the split's FieldStage, if fused
         self.labels = split.labels[rows]
         self.sets = split.sets[rows]
         d4 = split.d4[np.ix_(rows, rows)]
@@ -251,7 +254,7 @@ class Store:
         k, beta : int, float
             The term's ``k`` and ``beta``; ``k`` 0 or ``beta`` 0: this store unchanged.
         scale : float
-            ``m_l`` (the product's ``light_field_scale`` on a fused split, else ``typical``).
+            The unit of ``dl`` (:func:`shared_scale`: the stage's ``scale``).
         within : str
             Where ``N_k`` is taken: ``"store"``, each shape's ``k`` nearest others over the
             whole store (``split.dl`` restricted to the store's rows, ties by position);
@@ -310,9 +313,9 @@ class Store:
         b = np.take_along_axis(cand, np.argsort(ll, axis=1, kind="stable")[:, :m], 1)
         return np.array([len(np.intersect1d(x, y)) / m for x, y in zip(a, b, strict=True)])
 
-    def spread(self, typical: float = 18.03) -> FloatArray:
-        """(n,) the product's ``s_q``: median light field over median stored distance."""
-        return np.median(self.others(self.L), 1) / typical / np.median(self.others(self.D), 1)
+    def spread(self, unit: float = PRODUCT.scale) -> FloatArray:
+        """(n,) median light field distance (over ``unit``) over median stored distance."""
+        return np.median(self.others(self.L), 1) / unit / np.median(self.others(self.D), 1)
 
     def spearman(self) -> FloatArray:
         """(n,) rank correlation of the two distances over the query's other candidates."""
@@ -388,29 +391,31 @@ class Store:
         return out
 
 
-def local_spreads(st: Store, candidates: int, typical: float, ratio_weight: float = 0.0,
+def local_spreads(st: Store, candidates: int, unit: float, ratio_weight: float = 0.0,
                   ratio_candidates: int = 100) -> FloatArray:  # fmt: skip
     """(n,) each stored shape's local statistic over its nearest others in the store.
 
     The product's :func:`query.search.lightfield_spread.local_statistic` at
-    ``spread_candidates=candidates``, ``typical``, ``ratio_weight`` and
+    ``spread_candidates=candidates``, the unit ``unit``, ``ratio_weight`` and
     ``ratio_candidates``, of each shape's nearest others by the stored distance
     (:meth:`Store.nearest`).
     """
-    f = dataclasses.replace(PRODUCT, spread_candidates=candidates, typical=typical,
+    f = dataclasses.replace(PRODUCT, spread_candidates=candidates,
                             ratio_weight=ratio_weight, ratio_candidates=ratio_candidates)  # fmt: skip
     d, ll = st.nearest(max(candidates, ratio_candidates) if ratio_weight > 0 else candidates)
-    return np.array([local_statistic(d[i], ll[i], f) for i in range(len(d))])
+    return np.array([local_statistic(d[i], ll[i], f, unit) for i in range(len(d))])
 
 
 def shape_statistics(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None) -> FloatArray:
-    """(n,) every stored shape's local statistic under the fusion ``f`` (:func:`local_spreads`),
-    the spreads the product keeps with a store. ``memo``: kept by store and the fields read."""
-    key = ("local", id(st), f.spread_candidates, f.typical, f.ratio_weight,
+    """(n,) every stored shape's local statistic under the fusion ``f`` (:func:`local_spreads`
+    at the unit :func:`bench.support.tuning.unit_of` ``f`` and the store's stage), the
+    spreads the product keeps with a store. ``memo``: kept by store and the fields read."""
+    unit = unit_of(f, st.stage)
+    key = ("local", id(st), f.spread_candidates, unit, f.ratio_weight,
            f.ratio_candidates if f.ratio_weight > 0 else 0)  # fmt: skip
     if memo is not None and key in memo:
         return memo[key]
-    s = local_spreads(st, f.spread_candidates, f.typical, f.ratio_weight, f.ratio_candidates)
+    s = local_spreads(st, f.spread_candidates, unit, f.ratio_weight, f.ratio_candidates)
     if memo is not None:
         memo[key] = s
     return s
@@ -424,7 +429,7 @@ def gate_statistic(st: Store, f: Any, memo: dict[Any, FloatArray] | None = None)
     :func:`query.search.lightfield_spread.pooled`). ``memo``: results kept by store and
     the fields they read (a grid reuses them).
     """
-    key = (id(st), f.spread_candidates, f.typical, f.ratio_weight,
+    key = (id(st), f.spread_candidates, unit_of(f, st.stage), f.ratio_weight,
            f.ratio_candidates if f.ratio_weight > 0 else 0, f.pool, f.pool_quantile)  # fmt: skip
     if memo is not None and key in memo:
         return memo[key]
@@ -445,12 +450,14 @@ def gate_weights(
     on each query's candidates, reading the stored shapes' :func:`shape_statistics`.
     ``memo``: the pooled statistics already computed, by store and the fields they read.
     ``power`` > 0: times the overlap gate of the stage before the spread ceiling
-    (:class:`bench.support.tuning.OverlapFusion`).
+    (:class:`bench.support.tuning.OverlapFusion`). The scorer's unit is
+    :func:`bench.support.tuning.unit_of` ``f`` and the store's stage.
     """
+    unit = at_unit(f, st.stage)
     scorer = (
-        OverlapFusion(Config(), tuning=f, power=power)
+        OverlapFusion(Config(), tuning=unit, power=power)
         if power > 0
-        else LightFieldFusion(Config(), tuning=f)
+        else LightFieldFusion(Config(), tuning=unit)
     )
     spreads = shape_statistics(st, f, memo) if f.ceiling > 0 and f.pool > 0 else None
     g = np.empty(len(st.rows))
@@ -482,11 +489,11 @@ def score_row(stores: dict[str, Store], weights: dict[str, FloatArray],
 
 
 def shared_scale(split: Split, f: Any) -> float:
-    """``m_l`` of the shared-neighbour term on ``split`` under the fusion ``f``: its
-    ``light_field_scale`` when the split's distance fuses the field vectors, else
-    ``typical`` (as :attr:`query.search.rerank_lightfield.LightFieldFusion.scale`)."""
-    stage = getattr(split, "stage", None)
-    return float(stage.light_field_scale if stage is not None and stage.fuses else f.typical)
+    """The unit of the shared-neighbour term on ``split`` under the fusion ``f``
+    (:func:`bench.support.tuning.unit_of`: the split's stage's ``scale`` when it fuses the
+    field vectors, else ``f``'s ``light_field_unit``; as
+    :attr:`query.search.rerank_lightfield.LightFieldFusion.scale`)."""
+    return unit_of(f, getattr(split, "stage", None))
 
 
 def shared_stores(stores: dict[str, Store], split: Split, f: Any,

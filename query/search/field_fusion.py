@@ -3,22 +3,21 @@
 A store with field vectors (``Config.stores_field_vectors``: each record's
 ``field_vector`` column, :func:`shapedb.signature.field_vector.field_vector` of its field's
 inside) and a field weight in its fusion (``StageTuning.field_depth_weight``
-``a`` or ``field_harmonic_weight`` ``c`` above 0) replaces the light field distance
+``alpha`` or ``field_harmonic_weight`` ``gamma`` above 0) replaces the light field distance
 ``l`` of the ``"lightfield"`` stage (:mod:`query.search.rerank_lightfield`: its ranks, its gate,
 and the stored local statistics of :mod:`query.search.lightfield_spread`) by
 
-    ``m_l * (l / m_l + a * b / m_b + c * h / m_h) / (1 + a + c)``
+    ``l + alpha * b + gamma * h``
 
 with ``b`` and ``h`` the L1 distances of the two parts of the field vectors (the depth
 buffer descriptor and the harmonic energies,
-:func:`shapedb.signature.field_vector.field_vector_parts`) and ``m_l``, ``m_b``, ``m_h`` the
-fixed scales ``light_field_scale``, ``field_depth_scale``, ``field_harmonic_scale``. The
-division keeps the fused distance in the light field's units, so the gate's thresholds
-keep theirs. A query or a candidate without a field vector keeps ``l`` for its whole
-row (one warning per :class:`FieldFusion`).
+:func:`shapedb.signature.field_vector.field_vector_parts`). The fused distance is in the
+light field's units; the stage divides it by ``StageTuning.scale`` where it needs a
+unit (the local spread, the shared-neighbour term). A query or a candidate without a
+field vector keeps ``l`` for its whole row (one warning per :class:`FieldFusion`).
 
-The *scaled* field vector ``[depth / m_b, harmonic / m_h]`` (:meth:`FieldFusion.scaled`)
-makes ``b / m_b + h / m_h`` a plain L1 distance: the one the field vector index
+The *scaled* field vector ``[alpha * depth, gamma * harmonic]`` (:meth:`FieldFusion.scaled`)
+makes ``alpha * b + gamma * h`` a plain L1 distance: the one the field vector index
 (:mod:`query.search.field_index`) ranks by, for the stage's extra candidates
 (``StageTuning.field_candidates``).
 """
@@ -58,9 +57,7 @@ class FieldFusion:
     depth, harmonic : slice
         Where the depth buffer part and the harmonic part lie in a field vector.
     depth_weight, harmonic_weight : float
-        ``a`` and ``c``, >= 0.
-    light_field_scale, depth_scale, harmonic_scale : float
-        ``m_l``, ``m_b`` and ``m_h``, > 0.
+        ``alpha`` and ``gamma``, >= 0 (light field units per unit of ``b`` and ``h``).
     candidates : int
         ``K2``, the extra candidates by the scaled field vectors (0: none).
     stored : bool
@@ -75,17 +72,11 @@ class FieldFusion:
         *,
         depth_weight: float = 0.0,
         harmonic_weight: float = 0.0,
-        light_field_scale: float = 1.0,
-        depth_scale: float = 1.0,
-        harmonic_scale: float = 1.0,
         candidates: int = 0,
         stored: bool = True,
     ) -> None:
         self.depth, self.harmonic = depth, harmonic
-        self.a, self.c = float(depth_weight), float(harmonic_weight)
-        self.m_l, self.m_b, self.m_h = (
-            float(light_field_scale), float(depth_scale), float(harmonic_scale)
-        )  # fmt: skip
+        self.alpha, self.gamma = float(depth_weight), float(harmonic_weight)
         self.candidates = int(candidates)
         self.stored = bool(stored)
         self._warned = False
@@ -108,9 +99,6 @@ class FieldFusion:
             depth, harmonic,
             depth_weight=f.field_depth_weight,
             harmonic_weight=f.field_harmonic_weight,
-            light_field_scale=f.light_field_scale,
-            depth_scale=f.field_depth_scale,
-            harmonic_scale=f.field_harmonic_scale,
             candidates=f.field_candidates,
             stored=stored,
         )  # fmt: skip
@@ -118,7 +106,7 @@ class FieldFusion:
     @property
     def active(self) -> bool:
         """Whether the light field distance is fused (field vectors stored, a weight > 0)."""
-        return self.stored and (self.a > 0 or self.c > 0)
+        return self.stored and (self.alpha > 0 or self.gamma > 0)
 
     @property
     def proposes(self) -> bool:
@@ -130,15 +118,16 @@ class FieldFusion:
         if not self.active:
             return None
         return {
-            "a": self.a, "c": self.c, "m_l": self.m_l, "m_b": self.m_b, "m_h": self.m_h,
+            "alpha": self.alpha, "gamma": self.gamma,
             "depth": [self.depth.start, self.depth.stop],
             "harmonic": [self.harmonic.start, self.harmonic.stop],
         }  # fmt: skip
 
     def scaled(self, vectors: NDArray[Any]) -> NDArray[np.float32]:
-        """(n, d') float32 ``[depth / m_b, harmonic / m_h]`` of field vectors (n, d)."""
+        """(n, d') float32 ``[alpha * depth, gamma * harmonic]`` of field vectors (n, d)."""
         v = np.atleast_2d(np.asarray(vectors, np.float64))
-        out = np.concatenate([v[:, self.depth] / self.m_b, v[:, self.harmonic] / self.m_h], axis=1)
+        parts = [self.alpha * v[:, self.depth], self.gamma * v[:, self.harmonic]]
+        out = np.concatenate(parts, axis=1)
         return np.ascontiguousarray(out, np.float32)
 
     def parts(
@@ -157,10 +146,9 @@ class FieldFusion:
     def combine(
         self, light: NDArray[Any], depth: NDArray[Any], harmonic: NDArray[Any]
     ) -> NDArray[np.float64]:
-        """``m_l * (l / m_l + a * b / m_b + c * h / m_h) / (1 + a + c)``, elementwise."""
+        """``l + alpha * b + gamma * h``, elementwise (float64)."""
         lf, b, h = (np.asarray(v, np.float64) for v in (light, depth, harmonic))
-        inner = lf / self.m_l + self.a * b / self.m_b + self.c * h / self.m_h
-        return np.asarray(self.m_l * inner / (1.0 + self.a + self.c), np.float64)
+        return np.asarray(lf + self.alpha * b + self.gamma * h, np.float64)
 
     def distance(
         self,

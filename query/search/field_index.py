@@ -2,8 +2,8 @@
 
 The light field stage (:mod:`query.search.rerank_lightfield`) re-ranks version 4's ``K``
 nearest shapes, and with ``StageTuning.field_candidates = K2 > 0`` also the
-``K2`` nearest by the L1 distance of the scaled field vectors ``[depth / m_b, harmonic
-/ m_h]`` (:meth:`query.search.field_fusion.FieldFusion.scaled`) not among those ``K``. This
+``K2`` nearest by the L1 distance of the scaled field vectors ``[alpha * depth, gamma *
+harmonic]`` (:meth:`query.search.field_fusion.FieldFusion.scaled`) not among those ``K``. This
 module finds those ``K2``: something proposes candidates, and the exact float64 L1 of the
 float32 scaled vectors orders them (ties by ascending id). Up to :data:`SCAN_MAX` live
 vectors a float32 numpy scan proposes ``k + 16``; beyond, an approximate faiss
@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 from query.search import field_rows
 from query.search.feature_index import faiss_knn_l1
 from query.search.field_fusion import FieldFusion
+from query.search.tuning import active
 from query.search.versioned import POINTER, current, save_version
 from shapedb.errors import StoreError
 
@@ -397,12 +398,12 @@ _UPDATE = threading.Lock()  # one build or update at a time
 def field_index(db: StoreHandle) -> FieldIndex:
     """The shared :class:`FieldIndex` of ``db``'s store at its current version.
 
-    Over the ``field_vector`` column, scaled by ``db.config``'s fusion
-    (:meth:`FieldFusion.scaled`): the one of an earlier version (in this process, or
-    saved in ``<store>/index_field/``) brought up to date, else built; rebuilt when the
-    fusion scales change. A store without field vectors gets an empty index.
+    Over the ``field_vector`` column, scaled by ``db.config``'s fusion under the active
+    stage numbers (:func:`query.search.tuning.active`, :meth:`FieldFusion.scaled`): the
+    one of an earlier version (in this process, or saved in ``<store>/index_field/``)
+    brought up to date, else built; rebuilt when the fusion weights change. A store without field vectors gets an empty index.
     """
-    fusion = FieldFusion.from_config(db.config)
+    fusion = FieldFusion.from_config(db.config, active())
     path = os.fspath(db.store.path)
     key = (path, int(db.store.version))
     scales = _scales(fusion)
@@ -527,7 +528,7 @@ def _load(directory: Path, scales: list[Any]) -> FieldIndex | None:
 def _scales(fusion: FieldFusion) -> list[Any]:
     """What the scaled vectors depend on, JSON-serialisable."""
     d, h = fusion.depth, fusion.harmonic
-    return [fusion.m_b, fusion.m_h, [d.start, d.stop], [h.start, h.stop]]
+    return [fusion.alpha, fusion.gamma, [d.start, d.stop], [h.start, h.stop]]
 
 
 def _stored_dim(db: StoreHandle) -> int:

@@ -79,7 +79,7 @@ log = logging.getLogger(__name__)
 #: (m, k) float64 ids, -1 pads.
 NEIGHBOURS = "light_field_neighbours"
 NEIGHBOUR_DIR = "index_neighbours"
-_FORMAT = 1
+_FORMAT = 2
 _CHUNK = 16
 #: The lists are computed whole (the table created at an ingest's end, or recomputed
 #: exactly at a commit) only while that costs at most this many stage distances
@@ -261,7 +261,7 @@ def _meta(config: Config, version: int, tuning: StageTuning) -> dict[str, Any]:
         "method": config.kernel.method,
         "field_fusion": fusion.key(),
         "field_candidates": int(f.field_candidates) if fusion.proposes else 0,
-        "field_scales": [float(f.field_depth_scale), float(f.field_harmonic_scale)]
+        "field_weights": [float(f.field_depth_weight), float(f.field_harmonic_weight)]
         if fusion.proposes
         else None,
         "field_vector": repr(config.field_vector) if config.stores_field_vectors else None,

@@ -1,8 +1,8 @@
 """The store's local light field spreads: an index-time statistic of the ``"lightfield"`` stage.
 
-A stored shape's *local spread* is the median light field distance (over
-``StageTuning.typical``) over the median stored distance (in version 4's
-calibrated units, :func:`calibration`) among its ``spread_candidates`` nearest other
+A stored shape's *local spread* is the median light field distance (over its unit,
+``StageTuning.scale`` when fused with the field vectors, else ``light_field_unit``) over
+the median stored distance (in version 4's calibrated units, :func:`calibration`) among its ``spread_candidates`` nearest other
 stored shapes by the stored distance (the index's exact order, ties by ascending id). It
 is high where near neighbours by the stored vector look unlike each other: jointed
 subjects in other poses, whose silhouettes change with the pose. The scorer
@@ -35,7 +35,7 @@ ratio).
 
 In a store whose stage fuses the field vectors into the light field distance
 (:mod:`query.search.field_fusion`), every light field distance above is the fused one, and the
-fusion's weights and scales are among the parameters a stored table must match.
+fusion's weights are among the parameters a stored table must match (and the unit, always).
 """
 
 from __future__ import annotations
@@ -76,7 +76,7 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 SPREAD_DIR = "index_lightfield"
-_FORMAT = 1
+_FORMAT = 2
 _CHUNK = 256
 #: The statistics are computed whole (the table created at an ingest's end, or recomputed
 #: exactly at a commit) only while that costs at most this many light field distances
@@ -97,13 +97,16 @@ def calibration(config: Config) -> float:
 
 
 def local_statistic(
-    d: NDArray[np.float64], dl: NDArray[np.float64], tuning: StageTuning = PRODUCT
+    d: NDArray[np.float64],
+    dl: NDArray[np.float64],
+    tuning: StageTuning = PRODUCT,
+    unit: float | None = None,
 ) -> float:
     """One shape's local statistic from its nearest others by the stored distance.
 
     ``spread ** (1 - b) * ratio ** b`` of :class:`query.search.tuning.StageTuning`
     (``b = ratio_weight``; ``m = spread_candidates``): the spread is the median of ``dl``
-    over the first ``m`` (over ``typical``) over the median of ``d`` over them; the ratio
+    over the first ``m`` (over ``unit``) over the median of ``d`` over them; the ratio
     the median of ``dl`` over the first ``m`` over the median of the ``m`` smallest ``dl``
     among the first ``max(ratio_candidates, m)``.
 
@@ -116,6 +119,8 @@ def local_statistic(
         Their light field distances to the shape.
     tuning : StageTuning
         The stage's numbers.
+    unit : float, optional
+        The unit of ``dl`` (:meth:`StageTuning.unit`); None: ``tuning.scale`` (fused).
 
     Returns
     -------
@@ -130,7 +135,7 @@ def local_statistic(
     b = float(f.ratio_weight)
     out = 1.0
     if b < 1.0:
-        spread = near / f.typical / max(float(np.median(d[:m])), 1e-300)
+        spread = near / (f.scale if unit is None else unit) / max(float(np.median(d[:m])), 1e-300)
         out *= spread ** (1.0 - b)
     if b > 0.0:
         c = max(int(f.ratio_candidates), m)
@@ -194,6 +199,7 @@ def local_spreads(
         return ids, out
     m = min(_reach(f), len(alive) - 1)
     cal = calibration(config)
+    unit = f.unit(fusion.active)
     x = np.asarray(index.features_, np.float64)[index.lookup(ids)]
     for lo in range(0, len(ids), _CHUNK):
         q = ids[lo : lo + _CHUNK]
@@ -216,7 +222,7 @@ def local_spreads(
             if fusion.active:
                 fc = None if fv is None else fv[[pos[int(i)] for i in nb]][ok]
                 dl = fusion.distance(dl, None if fv is None else fv[pos[int(sid)]], fc)
-            out[lo + row] = local_statistic(d[ok] / cal, dl, tuning)
+            out[lo + row] = local_statistic(d[ok] / cal, dl, tuning, unit)
     return ids, out
 
 
@@ -239,7 +245,7 @@ def _meta(config: Config, version: int, tuning: StageTuning) -> dict[str, Any]:
         "format": _FORMAT,
         "version": version,
         "spread_candidates": int(f.spread_candidates),
-        "typical": float(f.typical),
+        "unit": f.unit(FieldFusion.from_config(config, tuning).active),
         "ratio_weight": float(f.ratio_weight),
         "ratio_candidates": int(f.ratio_candidates),
         "light_field": repr(lf),

@@ -28,7 +28,8 @@ the scorer proposes the nearest shapes by the scaled field vectors as extra cand
 :mod:`query.search.field_index`, which the store's reader offers: :meth:`StoredArrays.field_index`).
 
 With ``StageTuning.shared_neighbours`` ``k > 0`` and ``shared_weight`` ``beta
-> 0`` the light field's rank ranks by ``dl / m_l - beta * S(q, x)``, ``S`` the share of
+> 0`` the light field's rank ranks by ``dl / scale - beta * S(q, x)`` (``scale`` the unit of
+the stage's distance, :meth:`query.search.tuning.StageTuning.unit`), ``S`` the share of
 the query's and the candidate's ``k`` nearest neighbours in common
 (:mod:`query.search.lightfield_neighbours`, whose per-store-version table of the stored shapes'
 lists the reader serves as :data:`NEIGHBOURS`); the gate reads ``dl`` alone, and the
@@ -101,7 +102,7 @@ class LightFieldFusion:
     :class:`query.search.tuning.StageTuning` (:data:`~query.search.tuning.PRODUCT`); ranks and
     the neighbourhoods are taken among the query's valid candidates in their list
     order (stored distance, ties by ascending id). With the shared-neighbour term
-    (``shared_neighbours``, ``shared_weight``) ``rank_l`` ranks by ``dl / m_l - beta *
+    (``shared_neighbours``, ``shared_weight``) ``rank_l`` ranks by ``dl / scale - beta *
     S(q, x)`` where the gate is open, and the first result among the query's others is
     the one without the term (:meth:`fuse`).
 
@@ -141,8 +142,8 @@ class LightFieldFusion:
         """Fused scores (c,) of one query's candidates.
 
         With ``shared`` (the term's ``S(q, x)``, :mod:`query.search.lightfield_neighbours`) and
-        an open gate, the light field's rank is taken by ``dl / m_l - beta * S`` instead
-        of ``dl`` (:class:`query.search.tuning.StageTuning`; ``m_l``:
+        an open gate, the light field's rank is taken by ``dl / scale - beta * S`` instead
+        of ``dl`` (:class:`query.search.tuning.StageTuning`; ``scale``:
         :attr:`scale`); the gate reads ``dl`` alone. **The first result is kept**: the
         candidate first among those not ``own`` without the term (by fused score, ties
         by ascending id, as :func:`query.search.rerank.rerank_candidates` orders) is first among
@@ -184,10 +185,10 @@ class LightFieldFusion:
 
     @property
     def scale(self) -> float:
-        """``m_l`` of the shared-neighbour term: ``light_field_scale`` when the field vectors
-        are fused into the light field distance, else ``typical``."""
-        f = self.tuning
-        return float(f.light_field_scale if self.field.active else f.typical)
+        """The unit of ``dl`` in the spread and the shared-neighbour term: ``scale`` when the
+        field vectors are fused into the light field distance, else ``light_field_unit``
+        (:meth:`query.search.tuning.StageTuning.unit`)."""
+        return self.tuning.unit(self.field.active)
 
     def gate(
         self,
@@ -213,7 +214,7 @@ class LightFieldFusion:
                     return 0.0
                 spread = float(pooled(pool, f.pool_quantile))
             else:  # the query's own statistic over its candidates
-                spread = local_statistic(d4[others], dl[others], self.tuning)
+                spread = local_statistic(d4[others], dl[others], self.tuning, self.scale)
             g *= float(np.clip((f.ceiling - spread) / f.ramp, 0.0, 1.0))
         if f.contrast_floor > 0:
             far = d4[others[min(f.contrast_depth, len(others)) - 1]]

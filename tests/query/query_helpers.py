@@ -15,9 +15,12 @@ from shapedb.store.schema import ShapeRecord
 
 CONFIG = Config().with_options(resolution=32, n_balls=64)
 #: The light field stage of the small analytic stores (``StageTuning`` options): K 5 and
-#: K2 2, the gate open, the shared-neighbour term at k 2 with beta 0.8.
+#: K2 2, the gate open, the shared-neighbour term at k 2 with beta 0.8; the field vectors
+#: at the research's weights 0.5 and 0.5 of its scales 20.67, 6.045, 2.168 (``alpha = a *
+#: m_l / m_b``, ``gamma = c * m_l / m_h``, ``scale = (1 + a + c) * m_l``).
 SMALL_STAGE: dict[str, Any] = {
-    "candidates": 5, "field_depth_weight": 0.5, "field_harmonic_weight": 0.5,
+    "candidates": 5, "field_depth_weight": 0.5 * 20.67 / 6.045,
+    "field_harmonic_weight": 0.5 * 20.67 / 2.168, "scale": 2.0 * 20.67,
     "field_candidates": 2, "ceiling": 0.0, "contrast_floor": 0.0, "shared_neighbours": 2,
     "shared_weight": 0.8,
 }  # fmt: skip

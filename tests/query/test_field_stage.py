@@ -19,6 +19,7 @@ from query.search import rerank
 from query.search.field_fusion import FIELD, FieldFusion
 from query.search.field_index import FieldIndex
 from query.search.index import FeatureIndex
+from query.search.lightfield_spread import local_statistic
 from query.search.rerank_lightfield import COLUMN, LightFieldFusion
 from query.search.tuning import PRODUCT
 from shapedb.config.core import Config
@@ -31,8 +32,7 @@ OPEN = replace(PRODUCT, weight=4.0, ceiling=0.0, contrast_floor=0.0, pool=0)
 
 def _fusion(**kw: Any) -> FieldFusion:
     args: dict[str, Any] = {
-        "depth_weight": 0.5, "harmonic_weight": 2.0, "light_field_scale": 3.0,
-        "depth_scale": 0.7, "harmonic_scale": 1.9, **kw,
+        "depth_weight": 0.5, "harmonic_weight": 2.0, **kw,
     }  # fmt: skip
     return FieldFusion(DEPTH, HARMONIC, **args)
 
@@ -108,11 +108,11 @@ def test_the_fused_distance_is_the_formula() -> None:
     q, c, light = rng.random(7), rng.random((5, 7)), rng.random(5)
     b = np.abs(c[:, :4] - q[:4]).sum(1)
     h = np.abs(c[:, 4:] - q[4:]).sum(1)
-    want = 3.0 * (light / 3.0 + 0.5 * b / 0.7 + 2.0 * h / 1.9) / (1.0 + 0.5 + 2.0)
+    want = light + 0.5 * b + 2.0 * h
     assert fusion.active
     np.testing.assert_allclose(fusion.distance(light, q, c), want, rtol=1e-12)
-    s = fusion.scaled(np.vstack([q, c]))  # L1 of the scaled vectors: b / m_b + h / m_h
-    np.testing.assert_allclose(np.abs(s[1:] - s[0]).sum(1), b / 0.7 + h / 1.9, rtol=1e-5)
+    s = fusion.scaled(np.vstack([q, c]))  # L1 of the scaled vectors: alpha * b + gamma * h
+    np.testing.assert_allclose(np.abs(s[1:] - s[0]).sum(1), 0.5 * b + 2.0 * h, rtol=1e-5)
     off = _fusion(depth_weight=0.0, harmonic_weight=0.0)
     assert not off.active and off.key() is None
     assert np.array_equal(off.distance(light, q, c), light)
@@ -134,8 +134,9 @@ def test_a_row_without_field_vectors_keeps_the_light_field_distance(
 
 
 def test_the_stage_ranks_by_the_fused_distance_everywhere(matrix_distance: Any) -> None:
-    # the gate's own spread of the query reads the distance too
-    case = _case(ceiling=5.0, ramp=5.0)
+    # the gate's own spread of the query reads the distance too; one unit for the fused
+    # distance and the light field's, so the fused one given as the light field's compares
+    case = _case(ceiling=5.0, ramp=5.0, light_field_unit=PRODUCT.scale)
     fusion = _fusion()
     n = len(case["x"])
     b = np.abs(case["fv"][:, None, DEPTH] - case["fv"][None, :, DEPTH]).sum(-1)
@@ -342,3 +343,65 @@ def test_a_saved_index_loads_the_same(small_scan: None, tmp_path: Any, n: int) -
     q = v[:6].astype(np.float64)
     for a, b in zip(index.search(q, 20), back.search(q, 20), strict=True):
         assert np.array_equal(a, b)
+
+
+#: The former parametrisation: weights 0.25 and 0.25 of the three distances over their
+#: scales (light field 20.67, depth 6.045, harmonic 2.168), the spread's unit 18.03.
+A, C, M_L, M_B, M_H, TYPICAL = 0.25, 0.25, 20.67, 6.045, 2.168, 18.03
+
+
+def _product_fusion() -> FieldFusion:
+    return FieldFusion(DEPTH, HARMONIC, depth_weight=PRODUCT.field_depth_weight,
+                       harmonic_weight=PRODUCT.field_harmonic_weight)  # fmt: skip
+
+
+def _former(light: np.ndarray, b: np.ndarray, h: np.ndarray) -> np.ndarray:
+    return M_L * (light / M_L + A * b / M_B + C * h / M_H) / (1.0 + A + C)
+
+
+def test_the_product_s_fusion_is_the_former_one_times_one_plus_a_plus_c() -> None:
+    assert PRODUCT.field_depth_weight == A * M_L / M_B
+    assert PRODUCT.field_harmonic_weight == C * M_L / M_H
+    assert PRODUCT.scale == pytest.approx((1.0 + A + C) * M_L, rel=1e-15)
+    fusion = _product_fusion()
+    rng = np.random.default_rng(11)
+    light, b, h = 40.0 * rng.random(1000), 12.0 * rng.random(1000), 4.0 * rng.random(1000)
+    fused = fusion.combine(light, b, h)
+    np.testing.assert_allclose(fused, (1.0 + A + C) * _former(light, b, h), rtol=1e-13)
+    # the shared-neighbour term's D / scale is the former dl / m_l
+    np.testing.assert_allclose(fused / PRODUCT.scale, _former(light, b, h) / M_L, rtol=1e-13)
+    # the index's L1 of the scaled vectors: alpha * b + gamma * h, the former b / m_b + h / m_h
+    # times a * m_l (a == c), so the same order
+    q, x = rng.random(7), rng.random((50, 7))
+    s = fusion.scaled(np.vstack([q, x]))
+    bb, hh = fusion.parts(q, x)
+    l1 = np.abs(s[1:].astype(np.float64) - s[0]).sum(1)
+    np.testing.assert_allclose(l1, A * M_L * (bb / M_B + hh / M_H), rtol=1e-5)
+
+
+def test_the_gate_s_statistic_is_the_former_one_in_the_new_unit() -> None:
+    d = np.array([0.8, 1.1, 1.3, 1.7, 2.0, 2.2])  # calibrated stored distances, list order
+    light, b, h = (np.array([21.0, 30.0, 17.5, 25.0, 12.0, 40.0]),
+                   np.array([5.0, 7.5, 4.0, 6.5, 3.0, 9.0]),
+                   np.array([2.0, 1.5, 2.5, 3.0, 1.0, 2.2]))  # fmt: skip
+    f = replace(PRODUCT, spread_candidates=3, ratio_candidates=6)
+    now = local_statistic(d, _product_fusion().combine(light, b, h), f)
+    dl = _former(light, b, h)
+    m, w = f.spread_candidates, f.ratio_weight
+    spread = float(np.median(dl[:m])) / TYPICAL / float(np.median(d[:m]))
+    ratio = float(np.median(dl[:m])) / float(np.median(np.sort(dl)[:m]))
+    former = spread ** (1.0 - w) * ratio**w
+    factor = (TYPICAL / M_L) ** 0.8
+    assert factor == pytest.approx(0.8964461369882787, rel=1e-15)
+    assert now == pytest.approx(former * 0.8964461369882787, rel=1e-12)
+    # the gate's ceiling and ramp: the former 0.17 and 0.034 in the new unit
+    assert PRODUCT.ceiling == pytest.approx(0.17 * factor, rel=1e-15)
+    assert PRODUCT.ramp == pytest.approx(0.034 * factor, rel=1e-15)
+    gate = np.clip((PRODUCT.ceiling - now) / PRODUCT.ramp, 0.0, 1.0)
+    assert gate == pytest.approx(np.clip((0.17 - former) / 0.034, 0.0, 1.0), abs=1e-12)
+    # a store without field vectors: the light field distance alone in light_field_unit,
+    # the former statistic (unit 18.03) times the same factor, so its gate is the former
+    alone = local_statistic(d, light, f, f.unit(False))
+    spread = float(np.median(light[:m])) / TYPICAL / float(np.median(d[:m]))
+    ratio = float(np.median(light[:m])) / float(np.median(np.sort(light)[:m]))
+    assert alone == pytest.approx(spread ** (1.0 - w) * ratio**w * factor, rel=1e-12)

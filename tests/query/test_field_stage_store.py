@@ -21,10 +21,12 @@ from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus
 from shapedb.mdbd.decomposition import decompose
 
 #: The stage with field vectors: K = 3 of version 4 and K2 = 2 by the field vectors, the
-#: gate open (g = 1) so that the fused distance always counts.
+#: gate open (g = 1) so that the fused distance always counts (the research's weights 0.5
+#: and 0.5 at its scales 20.67, 6.045, 2.168).
 FIELD_STAGE = CONFIG.with_options(rerank="lightfield", fv_enabled=True)
 TUNING = replace(
-    PRODUCT, candidates=3, field_depth_weight=0.5, field_harmonic_weight=0.5,
+    PRODUCT, candidates=3, field_depth_weight=0.5 * 20.67 / 6.045,
+    field_harmonic_weight=0.5 * 20.67 / 2.168, scale=2.0 * 20.67,
     field_candidates=2, ceiling=0.0, contrast_floor=0.0, pool=0,
 )  # fmt: skip
 

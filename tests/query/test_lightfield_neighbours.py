@@ -3,7 +3,7 @@
 Seven shapes whose light field distances are a given matrix (each light field is its
 shape's id; :func:`shapedb.signature.lightfield.light_field_distance` patched to read the matrix),
 every shape a candidate of every query (K = 7), the gate wide open (g = 1) and the light
-field's rank weighted so much that it decides the order; ``typical`` 1, so the term ranks
+field's rank weighted so much that it decides the order; ``light_field_unit`` 1, so the term ranks
 by ``dl - beta * S``. With ``k = 2`` the lists ``N_2`` of the matrix :data:`L` are
 
     0: {1, 4}   1: {5, 6}   2: {4, 0}   3: {4, 0}   4: {2, 3}   5: {6, 1}   6: {5, 1}
@@ -52,11 +52,11 @@ L = np.array(
     ]
 )
 LISTS = [[1, 4], [5, 6], [4, 0], [4, 0], [2, 3], [6, 1], [5, 1]]
-#: No field vectors (m_l = typical).
+#: No field vectors (the light field distance alone, in the unit ``light_field_unit``).
 STAGE = Config().with_options(rerank="lightfield", fv_enabled=False)
 #: The gate wide open and the light field's rank deciding.
 OPEN = replace(PRODUCT, candidates=7, weight=1000.0, ceiling=0.0, contrast_floor=0.0, pool=0,
-               typical=1.0, shared_neighbours=2)  # fmt: skip
+               light_field_unit=1.0, shared_neighbours=2)  # fmt: skip
 
 
 class Reader:

@@ -83,15 +83,15 @@ def test_the_pooled_gate_ranks_as_the_selection_bench(gate: dict[str, Any]) -> N
     f = replace(PLAIN, **gate)
     x = np.asarray(index.features_, np.float64)
     d = np.abs(x[:, None, :] - x[None, :, :]) @ index.weights_ / calibration(config)
-    # a typical distance and a contrast floor that open some gates and close others
+    # a unit and a contrast floor that open some gates and close others
     probe = Store(SimpleNamespace(labels=np.arange(40) % 4, sets=np.zeros(40), d4=d, dl=dl),
                   np.arange(40), candidates=40)  # fmt: skip
     s = local_spreads_of(probe, f.spread_candidates, 1.0, f.ratio_weight, f.ratio_candidates)
     dd = probe.others(probe.D)
     t = np.median(dd[:, : f.neighbours], 1) / dd[:, f.contrast_depth - 1]
-    # a typical distance that puts the ceiling at the median statistic
-    typical = (float(np.median(s)) / f.ceiling) ** (1.0 / (1.0 - f.ratio_weight))
-    f = replace(f, typical=typical, contrast_floor=float(np.median(t)) - 0.02)
+    # a unit that puts the ceiling at the median statistic
+    unit = (float(np.median(s)) / f.ceiling) ** (1.0 / (1.0 - f.ratio_weight))
+    f = replace(f, light_field_unit=unit, contrast_floor=float(np.median(t)) - 0.02)
     want_w = gate_weights(probe, _with_power(f))
     assert 0 < np.count_nonzero(want_w) < 40  # the gate decides
     got, _ = rerank.search(index, x, 40, config=config, query_ids=np.arange(40),
@@ -199,8 +199,8 @@ def test_the_spreads_are_kept_with_the_store_at_its_version(stores: dict[str, An
 def test_the_local_statistic_of_a_hand_made_neighbourhood() -> None:
     d = np.array([1.0, 2.0, 3.0, 4.0, 5.0])  # calibrated stored distances, list order
     dl = np.array([6.0, 2.0, 9.0, 1.0, 4.0])  # the light field's nearest are the 4th, 2nd
-    f = replace(PRODUCT, spread_candidates=2, typical=2.0, ratio_weight=0.0)
-    assert local_statistic(d, dl, f) == (4.0 / 2.0) / 1.5  # median l / typical / median d
+    f = replace(PRODUCT, spread_candidates=2, scale=2.0, ratio_weight=0.0)
+    assert local_statistic(d, dl, f) == (4.0 / 2.0) / 1.5  # median l / scale / median d
     f = replace(f, ratio_weight=1.0, ratio_candidates=5)
     assert local_statistic(d, dl, f) == 4.0 / 1.5  # median of 6, 2 over median of 1, 2
     f = replace(f, ratio_candidates=3)  # among the first 3: 2 and 6

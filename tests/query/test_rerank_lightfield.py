@@ -33,7 +33,7 @@ BALLS = STAGE.with_options(lf_source="balls", lf_resolution=64)
 
 
 def _study_case(n: int = 40, seed: int = 0) -> tuple[Config, np.ndarray, np.ndarray, np.ndarray]:
-    """A v4 store's vectors, light fields and a typical distance that opens some gates."""
+    """A v4 store's vectors, light fields and their distances."""
     rng = np.random.default_rng(seed)
     config = Config().with_options(rerank="lightfield")
     x = rng.random((n, config.dim))
@@ -59,14 +59,14 @@ def test_with_every_shape_a_candidate_the_legacy_gate_ranks_as_the_study() -> No
         b[3] for b in __import__("shapedb.signature.descriptor").signature.descriptor.LAYOUTS[4]
     )
     d4 = d / cal
-    # a typical distance that puts the queries' spreads about the ceiling: some gates open
+    # a unit that puts the queries' spreads about the ceiling: some gates open
     near = np.argsort(d4 + np.eye(len(x)) * 1e300, axis=1)[:, :-1]
     ratio = np.median(np.take_along_axis(dl, near, 1), 1) / np.median(
         np.take_along_axis(d4, near, 1), 1
     )
-    typical = float(np.median(ratio) / 0.09)
-    f = replace(LEGACY, typical=typical, candidates=len(x))
-    study = fuse("adrank", f.weight, d4, dl, typical, f.neighbours, 0.0, f.ceiling, f.ramp)
+    unit = float(np.median(ratio) / 0.09)
+    f = replace(LEGACY, light_field_unit=unit, candidates=len(x))
+    study = fuse("adrank", f.weight, d4, dl, unit, f.neighbours, 0.0, f.ceiling, f.ramp)
     index = FeatureIndex(kind="flat").fit(np.arange(len(x)), x.astype(np.float32), w)
 
     def arrays(name: str, ids: np.ndarray) -> np.ndarray | None:
@@ -97,8 +97,8 @@ def test_without_light_fields_the_stored_order_is_kept_with_a_warning(
 
 
 def test_bad_stage_numbers_and_light_field_options_name_the_field() -> None:
-    for name, value in [("weight", -1.0), ("neighbours", 0), ("ramp", 0.0), ("typical", 0.0),
-                        ("spread_candidates", 0), ("pool", -1), ("contrast_ramp", 0.0),
+    for name, value in [("weight", -1.0), ("neighbours", 0), ("ramp", 0.0), ("scale", 0.0),
+                        ("light_field_unit", 0.0), ("spread_candidates", 0), ("pool", -1), ("contrast_ramp", 0.0),
                         ("contrast_depth", 1), ("ratio_weight", 1.5), ("ratio_candidates", 0),
                         ("pool_quantile", -0.1), ("weight", float("nan"))]:  # fmt: skip
         with pytest.raises(ConfigError, match=name):

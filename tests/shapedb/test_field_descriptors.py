@@ -222,5 +222,7 @@ def test_new_stores_keep_field_vectors_only_beside_the_fields_light_fields() -> 
     from query.search.tuning import PRODUCT
 
     assert PRODUCT.field_candidates == 200
-    assert (PRODUCT.field_depth_weight, PRODUCT.field_harmonic_weight) == (0.25, 0.25)
+    # the research's weights 0.25 and 0.25 at its scales 20.67, 6.045 and 2.168
+    weights = (PRODUCT.field_depth_weight, PRODUCT.field_harmonic_weight, PRODUCT.scale)
+    assert weights == (0.25 * 20.67 / 6.045, 0.25 * 20.67 / 2.168, 31.005)
     assert (PRODUCT.contrast_floor, PRODUCT.contrast_ramp, PRODUCT.contrast_depth) == (0.2, 0.2, 20)
