@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -103,14 +104,9 @@ def search(
 
 
 def search_batch(
-    db: StoreHandle,
-    queries: Sequence[Any],
-    *,
-    k: int = 10,
-    where: str | None = None,
-    metric: Any = None,
-    partial: bool | None = None,
-) -> list[list[Hit]]:
+    db: StoreHandle, queries: Sequence[Any], *, k: int = 10, where: str | None = None,
+    metric: Any = None, partial: bool | None = None,
+) -> list[list[Hit]]:  # fmt: skip
     """:func:`search` for many queries: the whole-path ones in one engine call.
 
     Returns one list of hits per query, in the order of ``queries``.
@@ -229,40 +225,43 @@ def partial_search(
         from query.sql import allowed_ids
 
         allowed = allowed_ids(db, where)
-    feats = neighbourhood_features(graph, cfg)
     volume = np.asarray(graph.radii, np.float64) ** 3
-    volume = volume / volume.sum()
-    lam = float(cfg.kernel.lam)
-    shapes = _candidates(index, feats, volume, lam, k, allowed)
+    parts = _Parts(neighbourhood_features(graph, cfg), volume / volume.sum(), float(cfg.kernel.lam))
+    shapes = _candidates(index, parts, k, allowed)
     if not len(shapes):
         return []
-    scores = np.array([_score(index, feats, volume, lam, int(s)) for s in shapes])
+    scores = np.array([_score(index, parts, int(s)) for s in shapes])
     order = np.lexsort((shapes, -scores))[:k]
     names = catalog(db, db.store.version).lookup(shapes[order])
     hits = []
     for sid, score, found in zip(shapes[order], scores[order], names, strict=True):
         if found is None:  # deleted by a commit made while we searched
             continue
-        distance = float(-np.log(score) / lam) if score > 0 else float("inf")
+        distance = float(-np.log(score) / parts.lam) if score > 0 else float("inf")
         hits.append(Hit(int(sid), found[0], found[1], float(score), distance, "partial"))
     return hits
 
 
+@dataclass(frozen=True)
+class _Parts:
+    """The query's parts: (n, d) neighbourhood features, (n,) volume weights summing to 1,
+    and the part kernel's ``lam``."""
+
+    feats: NDArray[np.float64]
+    volume: NDArray[np.float64]
+    lam: float
+
+
 def _candidates(
-    index: Any,
-    feats: NDArray[np.float64],
-    volume: NDArray[np.float64],
-    lam: float,
-    k: int,
-    allowed: NDArray[np.int64] | None,
+    index: Any, parts: _Parts, k: int, allowed: NDArray[np.int64] | None
 ) -> NDArray[np.int64]:
     """The best-voted shapes (ids, at most ``max(CANDIDATES, k)``)."""
-    voters = np.argsort(-volume, kind="stable")[:VOTING_PARTS]
+    voters = np.argsort(-parts.volume, kind="stable")[:VOTING_PARTS]
     votes: dict[int, float] = {}
     for v in voters.tolist():
-        sids, _, dists = index.search(feats[v], SHAPES_PER_PART, per_shape=1, allowed=allowed)
-        for sid, d in zip(sids.tolist(), dists.tolist(), strict=True):
-            votes[sid] = votes.get(sid, 0.0) + float(volume[v]) * float(np.exp(-lam * d))
+        found = index.search(parts.feats[v], SHAPES_PER_PART, per_shape=1, allowed=allowed)
+        for sid, d in zip(found[0].tolist(), found[2].tolist(), strict=True):
+            votes[sid] = votes.get(sid, 0.0) + float(parts.volume[v] * np.exp(-parts.lam * d))
     if not votes:
         return np.zeros(0, np.int64)
     ids = np.fromiter(votes, np.int64, len(votes))
@@ -270,9 +269,7 @@ def _candidates(
     return ids[np.lexsort((ids, -got))[: max(CANDIDATES, k)]]
 
 
-def _score(
-    index: Any, feats: NDArray[np.float64], volume: NDArray[np.float64], lam: float, sid: int
-) -> float:
+def _score(index: Any, parts: _Parts, sid: int) -> float:
     """Volume-weighted mean over the query's neighbourhoods of their best similarity in
     shape ``sid`` (its every node, exact weighted L1 distances)."""
     from scipy.spatial.distance import cdist
@@ -282,6 +279,6 @@ def _score(
     if not len(stored):
         return 0.0
     # the stored rows are float32: quantise the query alike (an identical part scores 1)
-    q = feats.astype(np.float32).astype(np.float64)
+    q = parts.feats.astype(np.float32).astype(np.float64)
     best = cdist(q * w, stored * w, metric="cityblock").min(axis=1)
-    return float(volume @ np.exp(-lam * best))
+    return float(parts.volume @ np.exp(-parts.lam * best))
