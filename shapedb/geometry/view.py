@@ -109,7 +109,7 @@ def normal_resultant(geometry: Geometry) -> float:
     if not np.isfinite(total) or total <= 0:
         return 0.0
     mean = (np.asarray(geometry.normals, np.float64) * areas[:, None]).sum(axis=0) / total
-    return float(min(np.linalg.norm(mean), 1.0))
+    return float(min(float(np.linalg.norm(mean)), 1.0))
 
 
 def is_one_sided(geometry: Geometry) -> bool:
