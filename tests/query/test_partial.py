@@ -119,3 +119,15 @@ def test_cli_flags_choose_the_path(
     assert "path" in text.splitlines()[0] and "whole" in text
     with pytest.raises(SystemExit):
         main(["search", "snowman", "--db", store, "--partial", "--whole"])
+
+
+def test_a_scan_file_is_searched_by_parts(
+    db: Any, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from query.cli import main
+
+    scan = tmp_path / "scan.ply"
+    trimesh.PointCloud(_sphere_scan().points).export(scan)
+    assert main(["search", str(scan), "--db", str(db.path), "-k", "2", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert rows[0]["name"] == "sphere" and rows[0]["path"] == "partial"
