@@ -342,8 +342,9 @@ class Database:
         k: int = 10,
         where: str | None = None,
         metric: Metric | str | os.PathLike[str] | None = None,
+        partial: bool | None = None,
     ) -> list[Hit]:
-        """The ``k`` stored shapes most like ``query``, best first (``query.search.engine.search``).
+        """The ``k`` stored shapes most like ``query``, best first (``query.parts.partial.search``).
 
         Parameters
         ----------
@@ -355,18 +356,25 @@ class Database:
             SQL predicate over the ``shapes`` table (e.g. ``"label = 'Chair'"``); the
             search is then exhaustive.
         metric : Metric or path, optional
-            A similarity fitted by :meth:`fit_metric` (or the file it was saved to).
+            A similarity fitted by :meth:`fit_metric` (or the file it was saved to);
+            whole-shape search only.
+        partial : bool or None
+            True: the shapes that *contain* the query, by its parts against the store's
+            part index (built on first use); False: the whole-shape search
+            (``query.search.engine.search``); None: partial for a one-sided point cloud
+            (a scan from one side), whole for everything else. Each hit's ``path`` says
+            which one found it.
 
         Raises
         ------
         NotFoundError
             Unknown shape id or name.
         QueryError
-            Malformed query, ``k`` or ``where``.
+            Malformed query, ``k``, ``where`` or ``partial``.
         """
-        from query.search.engine import search
+        from query.parts.partial import search
 
-        hits = search(self, query, k=k, where=where, metric=metric)
+        hits = search(self, query, k=k, where=where, metric=metric, partial=partial)
         return cast("list[Hit]", hits)
 
     def search_batch(
@@ -376,11 +384,12 @@ class Database:
         k: int = 10,
         where: str | None = None,
         metric: Metric | str | os.PathLike[str] | None = None,
+        partial: bool | None = None,
     ) -> list[list[Hit]]:
         """:meth:`search` for many queries at once: one list of hits per query."""
-        from query.search.engine import search_batch
+        from query.parts.partial import search_batch
 
-        hits = search_batch(self, queries, k=k, where=where, metric=metric)
+        hits = search_batch(self, queries, k=k, where=where, metric=metric, partial=partial)
         return cast("list[list[Hit]]", hits)
 
     def sql(

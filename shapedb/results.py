@@ -194,9 +194,15 @@ class Hit:
     label : str or None
         Class label, if any.
     similarity : float
-        Eq. 3 kernel value ``exp(-lam * distance)``, in (0, 1].
+        Whole path: the Eq. 3 kernel value ``exp(-lam * distance)``, in (0, 1]. Partial
+        path: how much of the query the shape holds, in (0, 1]
+        (:mod:`query.parts.partial`).
     distance : float
-        Eq. 2 weighted L1 distance between the query's and the shape's features.
+        Whole path: the Eq. 2 weighted L1 distance between the query's and the shape's
+        features. Partial path: ``-log(similarity) / lam`` with the part kernel's ``lam``.
+    path : str
+        The search that found it: ``"whole"`` (the whole-shape features) or
+        ``"partial"`` (the query's parts against the store's part index).
     """
 
     id: int
@@ -204,9 +210,10 @@ class Hit:
     label: str | None
     similarity: float
     distance: float
+    path: str = "whole"
 
     def to_dict(self) -> dict[str, Any]:
-        """``{"id", "name", "label", "similarity", "distance"}``, JSON-ready."""
+        """``{"id", "name", "label", "similarity", "distance", "path"}``, JSON-ready."""
         return asdict(self)
 
 

@@ -31,8 +31,12 @@ __all__ = [
     "show",
     "match",
     "MATCH_COLUMNS",
+    "SEARCH_COLUMNS",
     "readable_names",
 ]
+
+#: The columns of ``shapedb search`` as a table: a hit's fields and the search that found it.
+SEARCH_COLUMNS = (*HIT_COLUMNS, "path")
 
 #: The columns of ``shapedb match`` as a table (``--json`` keeps ``nodes`` as the list).
 MATCH_COLUMNS = ("id", "name", "label", "similarity", "centre", "nodes")
@@ -66,6 +70,22 @@ def search_arguments(s: argparse.ArgumentParser) -> None:
     s.add_argument("-k", type=int, default=10, help="number of hits (default 10)")
     s.add_argument("--where", metavar="SQL", help="filter, e.g. \"label = 'Chair'\"")
     s.add_argument("--metric", metavar="JSON", help="a similarity saved by fit-metric")
+    path = s.add_mutually_exclusive_group()
+    path.add_argument(
+        "--partial",
+        dest="partial",
+        action="store_const",
+        const=True,
+        help="find the shapes that contain QUERY (a scan, a crop, a part), by its parts "
+        "(default: chosen, partial for a one-sided point cloud)",
+    )
+    path.add_argument(
+        "--whole",
+        dest="partial",
+        action="store_const",
+        const=False,
+        help="compare whole shapes (default: chosen, whole for all but one-sided clouds)",
+    )
     s.add_argument("--json", action="store_true")
 
 
@@ -137,12 +157,15 @@ def match_arguments(s: argparse.ArgumentParser) -> None:
 def search(args: argparse.Namespace) -> int:
     """``shapedb search``."""
     db = existing_store(args.db)
-    hits = db.search(query_arg(args.query), k=args.k, where=args.where, metric=args.metric)
+    hits = db.search(
+        query_arg(args.query), k=args.k, where=args.where, metric=args.metric,
+        partial=args.partial,
+    )  # fmt: skip
     rows = [hit_row(h) for h in hits]
     if args.json:
         print_json(rows)
         return 0
-    print_rows(rows, HIT_COLUMNS)
+    print_rows(rows, SEARCH_COLUMNS)
     return 0
 
 

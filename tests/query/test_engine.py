@@ -47,7 +47,7 @@ def test_stored_query_ranks_itself_first(tmp_db):
     hits = search(tmp_db, "capsule2", k=3)
     assert hits[0].name == "capsule2" and hits[0].similarity == 1.0
     assert hits[0].label == "capsule"
-    assert hits[1].to_dict().keys() == {"id", "name", "label", "similarity", "distance"}
+    assert hits[1].to_dict().keys() == {"id", "name", "label", "similarity", "distance", "path"}
 
 
 def test_query_kinds_agree(tmp_db):

@@ -158,7 +158,7 @@ def test_search_sql_eval(tmp_path: Path, models: Path, capsys: pytest.CaptureFix
     assert main(["search", "rods1", "--db", str(db), "-k", "3", "--json"]) == 0
     hits = _json(capsys)
     assert len(hits) == 3
-    assert set(hits[0]) == {"id", "name", "label", "similarity", "distance"}
+    assert set(hits[0]) == {"id", "name", "label", "similarity", "distance", "path"}
     assert hits[0]["name"] == "rods1" and hits[0]["similarity"] == pytest.approx(1.0)
     query = models / "boxes" / "boxes2.obj"
     assert (

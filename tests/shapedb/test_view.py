@@ -124,3 +124,40 @@ def test_view_cells_round_trips_and_defaults_off_for_older_configs() -> None:
     old = cfg.to_dict()
     del old["cloud"]["view_cells"]
     assert Config.from_dict(old).cloud.view_cells == 0.0
+
+
+# --------------------------------------------------------------------------------------
+# One-sided point clouds
+# --------------------------------------------------------------------------------------
+
+
+def _sphere_points(n: int, seed: int = 0) -> np.ndarray:
+    p = np.random.default_rng(seed).normal(size=(n, 3))
+    return p / np.linalg.norm(p, axis=1, keepdims=True)
+
+
+def _cube_points(n: int, faces: int = 6, seed: int = 0) -> np.ndarray:
+    """Uniform samples of the faces of [-1, 1]^3: all six, or the three facing +x, +y, +z."""
+    rng = np.random.default_rng(seed)
+    face = rng.integers(0, faces, n)
+    p = rng.uniform(-1.0, 1.0, (n, 3))
+    p[np.arange(n), face % 3] = np.where(face < 3, 1.0, -1.0)
+    return p
+
+
+def test_one_sided_clouds_are_told_from_closed_ones() -> None:
+    from shapedb.geometry.view import ONE_SIDED_RESULTANT, is_one_sided, normal_resultant
+
+    sphere = _sphere_points(3000)
+    assert not is_one_sided(PointCloud(sphere))
+    assert is_one_sided(PointCloud(sphere[sphere[:, 0] > 0]))  # the half facing +x
+    assert not is_one_sided(PointCloud(_cube_points(3000)))
+    assert is_one_sided(PointCloud(_cube_points(1500, faces=3)))  # the visible three faces
+    assert normal_resultant(PointCloud(sphere)) < 0.1 < ONE_SIDED_RESULTANT
+
+
+def test_only_point_clouds_are_one_sided() -> None:
+    from shapedb.geometry.view import is_one_sided, normal_resultant
+
+    assert normal_resultant(Sphere([0, 0, 0], 1.0)) == 0.0
+    assert not is_one_sided(Sphere([0, 0, 0], 1.0))

@@ -1,0 +1,133 @@
+"""Partial-to-whole search: the shapes that contain a half, a scan or a part of them."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import trimesh
+
+from shapedb.errors import QueryError
+from shapedb.geometry.implicit import Box, Capsule, Cylinder, Intersection, Sphere, Union
+from shapedb.geometry.mesh import TriangleMesh
+from shapedb.geometry.pointcloud import PointCloud
+
+SHAPES = {
+    "sphere": Sphere([0, 0, 0], 1.0),
+    "box": Box([0, 0, 0], [2.4, 1.2, 0.8]),
+    "capsule": Capsule([-1.2, 0, 0], [1.2, 0, 0], 0.4),
+    "cylinder": Cylinder([0, 0, -1], [0, 0, 1], 0.6),
+    "snowman": Union(Sphere([0, 0, 0], 0.8), Sphere([0, 0, 1.1], 0.5)),
+    "dumbbell": Union(
+        Sphere([-1.2, 0, 0], 0.5),
+        Sphere([1.2, 0, 0], 0.5),
+        Cylinder([-1.2, 0, 0], [1.2, 0, 0], 0.2),
+    ),
+}
+
+
+@pytest.fixture(scope="module")
+def db(tmp_path_factory: pytest.TempPathFactory) -> Any:
+    import shapedb
+
+    store = shapedb.connect(tmp_path_factory.mktemp("partial") / "store", resolution=32, n_balls=32)
+    store.ingest([(n, n, g) for n, g in SHAPES.items()], workers=1, progress=False)
+    return store
+
+
+def _half(geometry: Any) -> Intersection:
+    """The solid cut by the plane x = (its middle), the side x > middle kept."""
+    lo, hi = geometry.bounds[0] - 0.1, geometry.bounds[1] + 0.1
+    lo[0] = 0.5 * (geometry.bounds[0][0] + geometry.bounds[1][0])
+    return Intersection(geometry, Box((lo + hi) / 2, hi - lo))
+
+
+def _sphere_scan(n: int = 1500) -> PointCloud:
+    """What a camera on the +x axis sees of the unit sphere."""
+    p = np.random.default_rng(0).normal(size=(2 * n, 3))
+    p /= np.linalg.norm(p, axis=1, keepdims=True)
+    return PointCloud(p[p[:, 0] > 0])
+
+
+def test_half_a_shape_finds_its_whole_by_parts(db: Any) -> None:
+    hits = db.search(_half(SHAPES["dumbbell"]), k=3, partial=True)
+    assert hits[0].name == "dumbbell"
+    assert all(h.path == "partial" for h in hits)
+    assert all(0.0 < h.similarity <= 1.0 for h in hits)
+    assert [h.similarity for h in hits] == sorted((h.similarity for h in hits), reverse=True)
+
+
+def test_a_one_sided_scan_takes_the_partial_path_by_itself(db: Any) -> None:
+    hits = db.search(_sphere_scan(), k=3)
+    assert [h.path for h in hits] == ["partial"] * 3
+    assert hits[0].name == "sphere"
+    assert db.search(_sphere_scan(), k=3, partial=False)[0].path == "whole"
+
+
+def test_a_stored_shape_matches_itself_fully(db: Any) -> None:
+    (hit, *_) = db.search("capsule", k=2, partial=True)
+    assert hit.name == "capsule" and hit.similarity == pytest.approx(1.0)
+    assert hit.distance == pytest.approx(0.0, abs=1e-9)
+
+
+def test_the_whole_path_is_todays_search(db: Any) -> None:
+    from query.search.engine import search
+
+    mesh = trimesh.creation.box(extents=(2.4, 1.2, 0.8))
+    query = TriangleMesh(mesh.vertices, mesh.faces)
+    auto = db.search(query, k=4)
+    assert [h.path for h in auto] == ["whole"] * 4
+    assert auto == db.search(query, k=4, partial=False) == search(db, query, k=4)
+    assert db.search_batch([query, _sphere_scan()], k=2)[0] == auto[:2]
+
+
+def test_where_restricts_the_partial_path(db: Any) -> None:
+    hits = db.search(_half(SHAPES["dumbbell"]), k=5, partial=True, where="name <> 'dumbbell'")
+    assert hits and "dumbbell" not in {h.name for h in hits}
+
+
+@pytest.mark.parametrize(
+    ("query", "options", "message"),
+    [
+        ("box", {"partial": "yes"}, "partial must be"),
+        (np.zeros(8), {"partial": True}, "no parts"),
+        ("box", {"partial": True, "metric": "metric.json"}, "learned metric"),
+    ],
+)
+def test_bad_partial_searches_are_one_line_errors(
+    db: Any, query: Any, options: dict[str, Any], message: str
+) -> None:
+    with pytest.raises(QueryError, match=message) as err:
+        db.search(query, **options)
+    assert "\n" not in str(err.value)
+
+
+def test_cli_flags_choose_the_path(
+    db: Any, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from query.cli import main
+
+    store = str(db.path)
+    assert main(["search", "snowman", "--db", store, "-k", "2", "--partial", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert rows[0]["name"] == "snowman" and {r["path"] for r in rows} == {"partial"}
+    assert main(["search", "snowman", "--db", store, "-k", "2", "--whole"]) == 0
+    text = capsys.readouterr().out
+    assert "path" in text.splitlines()[0] and "whole" in text
+    with pytest.raises(SystemExit):
+        main(["search", "snowman", "--db", store, "--partial", "--whole"])
+
+
+def test_a_scan_file_is_searched_by_parts(
+    db: Any, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from query.cli import main
+
+    scan = tmp_path / "scan.ply"
+    trimesh.PointCloud(_sphere_scan().points).export(scan)
+    assert main(["search", str(scan), "--db", str(db.path), "-k", "2", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert rows[0]["name"] == "sphere" and rows[0]["path"] == "partial"
