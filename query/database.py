@@ -361,9 +361,9 @@ class Database:
         partial : bool or None
             True: the shapes that *contain* the query, by its parts against the store's
             part index (built on first use); False: the whole-shape search
-            (``query.search.engine.search``); None: partial for a one-sided point cloud
-            (a scan from one side), whole for everything else. Each hit's ``path`` says
-            which one found it.
+            (``query.search.engine.search``); None: the whole-shape search (the part path
+            measured no better for one-sided scans). Each hit's ``path`` says which one
+            found it.
 
         Raises
         ------

@@ -77,14 +77,14 @@ def search_arguments(s: argparse.ArgumentParser) -> None:
         action="store_const",
         const=True,
         help="find the shapes that contain QUERY (a scan, a crop, a part), by its parts "
-        "(default: chosen, partial for a one-sided point cloud)",
+        "(default: whole shapes)",
     )
     path.add_argument(
         "--whole",
         dest="partial",
         action="store_const",
         const=False,
-        help="compare whole shapes (default: chosen, whole for all but one-sided clouds)",
+        help="compare whole shapes (the default)",
     )
     s.add_argument("--json", action="store_true")
 

@@ -167,17 +167,13 @@ def _load(query: Any) -> Any:
 def choose_path(query: Any, partial: bool | None, *, metric: Any = None) -> str:
     """``"partial"`` or ``"whole"``: the search a (loaded) query takes.
 
-    ``partial`` True or False decides; None picks ``"partial"`` for a one-sided point
-    cloud (:func:`shapedb.geometry.view.is_one_sided`) searched without a ``metric``,
-    else ``"whole"``.
+    ``partial`` True or False decides; None takes ``"whole"``: the partial path found a
+    one-sided scan's class no more often than the whole-shape search (docs/studies.md,
+    "Partial-to-whole search"), so it is only taken on request. ``query`` and ``metric``
+    are kept for the choice a better partial path will make.
     """
-    from shapedb.geometry.base import Geometry
-    from shapedb.geometry.view import is_one_sided
-
     if partial is not None:
         return "partial" if partial else "whole"
-    if metric is None and isinstance(query, Geometry) and is_one_sided(query):
-        return "partial"
     return "whole"
 
 

@@ -60,11 +60,11 @@ def test_half_a_shape_finds_its_whole_by_parts(db: Any) -> None:
     assert [h.similarity for h in hits] == sorted((h.similarity for h in hits), reverse=True)
 
 
-def test_a_one_sided_scan_takes_the_partial_path_by_itself(db: Any) -> None:
-    hits = db.search(_sphere_scan(), k=3)
+def test_a_one_sided_scan_takes_the_partial_path_on_request(db: Any) -> None:
+    hits = db.search(_sphere_scan(), k=3, partial=True)
     assert [h.path for h in hits] == ["partial"] * 3
     assert hits[0].name == "sphere"
-    assert db.search(_sphere_scan(), k=3, partial=False)[0].path == "whole"
+    assert [h.path for h in db.search(_sphere_scan(), k=3)] == ["whole"] * 3
 
 
 def test_a_stored_shape_matches_itself_fully(db: Any) -> None:
@@ -128,6 +128,6 @@ def test_a_scan_file_is_searched_by_parts(
 
     scan = tmp_path / "scan.ply"
     trimesh.PointCloud(_sphere_scan().points).export(scan)
-    assert main(["search", str(scan), "--db", str(db.path), "-k", "2", "--json"]) == 0
+    assert main(["search", str(scan), "--db", str(db.path), "-k", "2", "--partial", "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)
     assert rows[0]["name"] == "sphere" and rows[0]["path"] == "partial"
