@@ -61,9 +61,11 @@ def test_flat_disc_gets_balls_over_its_whole_area() -> None:
     assert np.isclose(d.radii[0], d.spacing) and d.radii.max() <= d.spacing * (1 + 1e-6)
 
 
-def test_open_box_decomposes() -> None:
-    d = decompose(_open_box(), resolution=32, n_balls=32)
-    assert len(d.radii) > 0 and d.radii[0] > 3 * d.spacing
+def test_open_box_decomposes_filled_under_the_local_rule_and_as_a_basin_by_default() -> None:
+    d = decompose(_open_box(), resolution=32, n_balls=32, sheet_rule="local")
+    assert len(d.radii) > 0 and d.radii[0] > 3 * d.spacing  # the winding number fills it
+    basin = decompose(_open_box(), resolution=32, n_balls=32)  # the enclosed solid: walls 2 t
+    assert len(basin.radii) == 32 and basin.radii[0] < 1.6 * basin.spacing
 
 
 def test_closed_solid_is_unchanged() -> None:
@@ -117,7 +119,7 @@ def test_a_sheet_beside_a_solid_gets_a_slab_only_with_the_local_rule() -> None:
 
     mesh = _winged_box()
     assert not mesh.closed
-    cfg = MDBDConfig(resolution=48)
+    cfg = MDBDConfig(resolution=48, sheet_rule="local")
     whole = prepare_field(mesh, replace(cfg, sheet_rule="whole"))
     local = prepare_field(mesh, cfg)
     assert isinstance(local.local, LocallyThickened) and not isinstance(whole.local, Thickened)
@@ -180,7 +182,7 @@ def test_sheet_rule_is_checked_and_old_stores_read_whole() -> None:
     with pytest.raises(ConfigError, match="sheet_rule"):
         MDBDConfig(sheet_rule="some")
     stored = Config().to_dict()
-    assert Config.from_dict(stored).mdbd.sheet_rule == "local"
+    assert Config.from_dict(stored).mdbd.sheet_rule == "enclosed"
     del stored["mdbd"]["sheet_rule"]
     old = Config.from_dict(stored)
     assert old.mdbd.sheet_rule == "whole"
