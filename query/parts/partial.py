@@ -16,10 +16,10 @@ index (:mod:`query.parts.index`, built on demand as ``db.match`` does):
    query neighbourhood weighted by its centre ball's volume (``r^3``). A shape holding
    every part of the query scores high, one holding a few parts low.
 
-``partial=None`` chooses: a point-cloud query that is one-sided
-(:func:`shapedb.geometry.view.is_one_sided`) takes the partial path, every other query
-the whole one (a stored shape, a mesh, an implicit solid, a closed cloud, a feature
-vector, and any query searched with a learned ``metric``).
+``partial=True`` takes the partial path for every query of a call; ``False`` and ``None``
+(the default) the whole one: measured on one-sided views and halves of generated shapes,
+the partial path found their class no more often than the whole-shape search
+(docs/studies.md, "Partial-to-whole search"), so it runs on request.
 """
 
 from __future__ import annotations
@@ -46,7 +46,6 @@ if TYPE_CHECKING:
 __all__ = [
     "search",
     "search_batch",
-    "choose_path",
     "partial_search",
     "VOTING_PARTS",
     "SHAPES_PER_PART",
@@ -87,7 +86,7 @@ def search(
         A learned whole-shape similarity (whole path only).
     partial : bool or None
         True: the partial path; False: the whole path (:mod:`query.search.engine`);
-        None: the partial path for a one-sided point cloud, else the whole path.
+        None: the whole path too (the default; see the module docstring).
 
     Returns
     -------
@@ -115,29 +114,18 @@ def search_batch(
     """
     if partial is not None and not isinstance(partial, bool):
         raise QueryError("partial must be True, False or None", source=f"partial={partial!r}")
-    if partial is False or isinstance(queries, (str, bytes, os.PathLike)):
+    if partial is not True or isinstance(queries, (str, bytes, os.PathLike)):
         return _whole(db, queries, k, where, metric)  # the engine checks the sequence
     if isinstance(queries, np.ndarray) and queries.ndim == 2:
         queries = list(queries)
     if not isinstance(queries, Sequence):
         return _whole(db, queries, k, where, metric)
-    resolved = [_load(q) for q in queries]
-    paths = [choose_path(q, partial, metric=metric) for q in resolved]
-    out: list[list[Hit]] = [[] for _ in resolved]
-    whole = [i for i, p in enumerate(paths) if p == "whole"]
-    if whole:
-        found = _whole(db, [resolved[i] for i in whole], k, where, metric)
-        for i, hits in zip(whole, found, strict=True):
-            out[i] = hits
-    for i, p in enumerate(paths):
-        if p == "partial":
-            if metric is not None:
-                raise QueryError(
-                    "a learned metric weighs whole-shape features: search by parts without it",
-                    source="metric",
-                )
-            out[i] = partial_search(db, resolved[i], k=k, where=where)
-    return out
+    if metric is not None:
+        raise QueryError(
+            "a learned metric weighs whole-shape features: search by parts without it",
+            source="metric",
+        )
+    return [partial_search(db, _load(q), k=k, where=where) for q in queries]
 
 
 def _whole(
@@ -162,19 +150,6 @@ def _load(query: Any) -> Any:
     import ingest  # the public API only: ingest.load(path) -> Geometry
 
     return ingest.load(path)
-
-
-def choose_path(query: Any, partial: bool | None, *, metric: Any = None) -> str:
-    """``"partial"`` or ``"whole"``: the search a (loaded) query takes.
-
-    ``partial`` True or False decides; None takes ``"whole"``: the partial path found a
-    one-sided scan's class no more often than the whole-shape search (docs/studies.md,
-    "Partial-to-whole search"), so it is only taken on request. ``query`` and ``metric``
-    are kept for the choice a better partial path will make.
-    """
-    if partial is not None:
-        return "partial" if partial else "whole"
-    return "whole"
 
 
 def partial_search(
