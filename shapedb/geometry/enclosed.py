@@ -34,11 +34,15 @@ from scipy import ndimage
 
 from shapedb.geometry.base import Geometry, Grid, Transformed, as_points, offset_closest
 
-__all__ = ["Enclosed", "BARRIER_CELLS", "enclosed_sides", "enclosed_field"]
+__all__ = ["Enclosed", "BARRIER_CELLS", "TIE_CELLS", "enclosed_sides", "enclosed_field"]
 
 #: Cells whose centre is within this many cells of the surface stop the flood (the
 #: smallest radius that provably stops every 6-connected crossing: see the module).
 BARRIER_CELLS = 0.5
+
+#: Cells within which a point on the boundary between two cells takes the lower one
+#: (far above coordinate rounding, far below any geometric scale).
+TIE_CELLS = 1e-9
 
 _FACES = ndimage.generate_binary_structure(3, 1)
 
@@ -128,8 +132,20 @@ class Enclosed(Geometry):
         self.sides = sides
 
     def enclosed_side(self, points: ArrayLike) -> NDArray[np.bool_]:
-        """(n,) bool: whether each point's nearest cell is on the enclosed side."""
-        return self.grid.mask_at(self.sides, points)
+        """(n,) bool: whether each point's nearest cell is on the enclosed side.
+
+        A point on a cell boundary, within :data:`TIE_CELLS` of it, takes the lower cell:
+        the off-grid refinement queries points half a cell off the lattice, whose rounding
+        (1e-16 relative) would otherwise pick the cell by the model's pose.
+        """
+        p = as_points(points)
+        g = self.grid
+        ijk = np.floor((p - g.origin) / g.spacing + (0.5 - TIE_CELLS)).astype(np.int64)
+        on = np.all((ijk >= 0) & (ijk < np.asarray(g.shape)), axis=1)
+        out = np.zeros(len(p), dtype=bool)
+        i = ijk[on]
+        out[on] = self.sides[i[:, 0], i[:, 1], i[:, 2]]
+        return out
 
     def signed_distance(self, points: ArrayLike) -> NDArray[np.float64]:
         """``t + d`` on the enclosed side, ``t - d`` elsewhere: (n,) model units, positive inside."""
