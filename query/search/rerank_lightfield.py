@@ -48,6 +48,7 @@ from numpy.typing import NDArray
 
 from query.search.array_cache import ColumnCache, open_column
 from query.search.array_cache import forget as forget_columns
+from query.search.candidate_neighbours import candidate_shared, context_distance
 from query.search.field_fusion import FIELD, FieldFusion, stores_field_vectors
 from query.search.lightfield_neighbours import (
     NEIGHBOURS,
@@ -138,6 +139,7 @@ class LightFieldFusion:
         gate: float | None = None,
         shared: NDArray[np.float64] | None = None,
         ids: NDArray[np.int64] | None = None,
+        context: NDArray[np.float64] | None = None,
     ) -> NDArray[np.float64]:
         """Fused scores (c,) of one query's candidates.
 
@@ -167,11 +169,19 @@ class LightFieldFusion:
         shared : (c,) float64, optional
             ``S(q, x)`` of each candidate; None: no shared-neighbour term.
         ids : (c,) int64, optional
-            The candidates' ids (the first result's ties); needed with ``shared``.
+            The candidates' ids (the first result's ties); needed with ``shared`` and
+            ``context``.
+        context : (c,) float64, optional
+            The stored distance with its shared-neighbour term
+            (:func:`query.search.candidate_neighbours.context_distance`): ``rank_d`` ranks by it,
+            its nearest other kept first; None: by ``d``.
         """
         f = self.tuning
         d4 = d / self.calibration
-        fused = 1.0 / (f.offset + _ranks(d4))
+        if context is not None and ids is not None:
+            fused = 1.0 / (f.offset + _ranks(keep_first(d4, context, own, ids)))
+        else:
+            fused = 1.0 / (f.offset + _ranks(d4))
         g = self.gate(d4, dl, own, spreads) if gate is None else float(gate)
         if g <= 0:
             return np.maximum(1.0 / f.offset - fused, 0.0)
@@ -310,9 +320,25 @@ class LightFieldFusion:
                 theirs = np.stack([lists[int(i)] for i in ids])
                 shared = shared_scores(mine, int(batch.query_ids[row]), ids, theirs, k)
             out[row, cols] = self.fuse(
-                batch.distances[row, cols], dl, own, gate=g, shared=shared, ids=ids
+                batch.distances[row, cols], dl, own, gate=g, shared=shared, ids=ids,
+                context=self._context(batch, row, cols, own),
             )
         return out
+
+    def _context(
+        self, batch: Candidates, row: int, cols: NDArray[np.intp], own: NDArray[np.bool_]
+    ) -> NDArray[np.float64] | None:
+        """The row's stored distance with the candidates' shared-neighbour term, or None
+        (``descriptor_shared_weight`` 0)."""
+        f = self.tuning
+        if f.descriptor_shared_weight <= 0 or f.shared_neighbours < 1:
+            return None
+        d = batch.distances[row, cols]
+        s = candidate_shared(
+            d, batch.features[row, cols], batch.queries[row], batch.weights, own,
+            int(f.shared_neighbours), int(f.candidates),
+        )  # fmt: skip
+        return context_distance(d, s, own, f.descriptor_shared_weight, int(f.candidates))
 
     def _lists(self, batch: Candidates, rows: list[Any]) -> dict[int, NDArray[np.int64]] | None:
         """The stored lists ``N_k(x)`` of the candidates of ``rows``, by id; None: no term."""

@@ -78,6 +78,9 @@ class StageTuning:
         Candidates the field vector index adds to the index's K.
     shared_neighbours, shared_weight : int, float
         ``k`` and ``beta`` of the shared-neighbour term (0: off).
+    descriptor_shared_weight : float
+        ``beta`` of the stored distance's shared-neighbour term among the candidates
+        (:mod:`query.search.candidate_neighbours`; 0: off).
     """
 
     # K: the index's 100 nearest, re-ranked (the stage's candidates since it was introduced;
@@ -130,6 +133,9 @@ class StageTuning:
     # with the field seen about its surface (python -m bench.studies.lightfield_gate --shared-grid).
     shared_neighbours: int = 3
     shared_weight: float = 1.6
+    # The stored distance's shared-neighbour term among the candidates, k as above: beta 0.2,
+    # the highest validation objective of 0.1-1.6 (0.8105 -> 0.8183; python -m bench.studies.stage_parts).
+    descriptor_shared_weight: float = 0.2
 
     def __post_init__(self) -> None:
         for f in fields(self):

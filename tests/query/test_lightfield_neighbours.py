@@ -153,8 +153,9 @@ def test_an_outside_copy_differs_from_the_stored_id_by_the_reciprocal_term_only(
 
 
 def test_a_closed_gate_leaves_the_term_out_and_reads_no_lists(matrix: None) -> None:
-    # a contrast floor of 1 shuts every gate: the stored distance's order, no lists read
-    stage, index, reader = _store(3.0, contrast_floor=1.0)
+    # a contrast floor of 1 shuts every gate: the stored distance's order (its own term
+    # among the candidates off), no lists read
+    stage, index, reader = _store(3.0, contrast_floor=1.0, descriptor_shared_weight=0.0)
     x = np.asarray(index.features_, np.float64)
     got, _ = rerank.search(
         index, x, 7, config=STAGE, query_ids=np.arange(7), arrays=reader, scorer=stage

@@ -3,7 +3,8 @@
 Run once from the repository root (``python tests/data/pinned/build.py``, needs the bench's
 generators); what it writes is committed: ``store/`` (as ingest left it, before any search),
 ``models/`` (the small web-like meshes, re-ingested by the test), ``queries/`` and
-``ranks.json``. The models come from the bench's generators (web-like generic and web
+``ranks.json``; a change to the query path alone re-pins the ranks of the same store with
+``--ranks-only``. The models come from the bench's generators (web-like generic and web
 models, people, jointed figures, machined parts), so the default re-ranking stage sees the
 kinds it gates on; the store is built with the default configuration through the public
 API, so it is what a user's store would be.
@@ -91,7 +92,15 @@ def ranks(store: Path, queries: dict[str, Path]) -> dict[str, list[list[float]]]
         return out
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    """Rebuild the pin; ``--ranks-only``: keep the store, models and queries, recompute
+    ``ranks.json`` (a change to the query path alone)."""
+    args = sys.argv[1:] if argv is None else argv
+    if args == ["--ranks-only"]:
+        _write_ranks()
+        return
+    if args:
+        raise SystemExit(f"usage: python {Path(__file__).name} [--ranks-only]")
     import shapedb
 
     for name in ("store", "models", "queries"):
@@ -110,6 +119,10 @@ def main() -> None:
                 shutil.copy(path, HERE / "models" / path.name)
         shutil.copy(models / "person_1_2.ply", HERE / "queries" / "person_1_2.ply")
         _cloud_query(models / "generic_chair_1.ply", HERE / "queries" / "chair_cloud.xyz")
+    _write_ranks()
+
+
+def _write_ranks() -> None:
     queries = {p.name: p for p in sorted((HERE / "queries").iterdir())}
     (HERE / "ranks.json").write_text(json.dumps(ranks(HERE / "store", queries)) + "\n")
 
