@@ -110,7 +110,7 @@ def test_the_bench_s_shared_term_ranks_as_the_product() -> None:
     config = Config().with_options(rerank="lightfield", fv_enabled=False)
     tuning = dataclasses.replace(
         PRODUCT, candidates=n, ceiling=0.0, contrast_floor=0.0, pool=0, shared_neighbours=3,
-        shared_weight=0.8, light_field_unit=float(np.median(dl)),
+        shared_weight=0.8, light_field_unit=float(np.median(dl)), descriptor_shared_weight=0.0,
     )  # fmt: skip
     x = rng.random((n, config.dim)).astype(np.float32)
     index = FeatureIndex(kind="flat").fit(np.arange(n), x, weights(config))

@@ -102,15 +102,21 @@ def test_the_pooled_gate_ranks_as_the_selection_bench(gate: dict[str, Any]) -> N
 
 
 def test_without_spreads_the_pooled_gate_keeps_the_stored_order() -> None:
+    # the gate shuts: the light field moves nothing; the stored distance's own term among
+    # the candidates reorders after the nearest, and without it the stored order is kept
     config, index, lf, _ = _case(12)
     x = np.asarray(index.features_, np.float64)
 
     def fields_only(name: str, ids: np.ndarray) -> np.ndarray | None:
         return lf[ids] if name == COLUMN else None
 
-    got, _ = rerank.search(index, x, 12, config=config, query_ids=np.arange(12),
-                           arrays=fields_only, scorer=LightFieldFusion(config))  # fmt: skip
-    assert np.array_equal(got, index.search(x, 12)[0])
+    stored = index.search(x, 12)[0]
+    plain = replace(PRODUCT, descriptor_shared_weight=0.0)
+    for tuning in (PRODUCT, plain):
+        got, _ = rerank.search(index, x, 12, config=config, query_ids=np.arange(12),
+                               arrays=fields_only, scorer=LightFieldFusion(config, tuning=tuning))  # fmt: skip
+        assert np.array_equal(got[:, :2], stored[:, :2])
+    assert np.array_equal(got, stored)
 
 
 def _gates(db: Any) -> np.ndarray:
