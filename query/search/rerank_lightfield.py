@@ -319,9 +319,9 @@ class LightFieldFusion:
                 mine = nearest_others(dl, own, ids, k)
                 theirs = np.stack([lists[int(i)] for i in ids])
                 shared = shared_scores(mine, int(batch.query_ids[row]), ids, theirs, k)
+            context = self._context(batch, row, cols, own)
             out[row, cols] = self.fuse(
-                batch.distances[row, cols], dl, own, gate=g, shared=shared, ids=ids,
-                context=self._context(batch, row, cols, own),
+                batch.distances[row, cols], dl, own, gate=g, shared=shared, ids=ids, context=context
             )
         return out
 
