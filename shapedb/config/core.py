@@ -360,7 +360,7 @@ def _option(section: str, name: str) -> str:
 SPECIFICATION: dict[str, tuple[str, ...]] = {
     "light_field": (
         "zernike_order", "fourier", "angles", "fourier_weight", "depth_weight", "seed",
-        "edges", "dilate_px", "close_px",
+        "edges", "dilate_px", "close_px", "framing",
     ),
     "field_vector": (
         "depth_resolution", "depth_frequencies", "harmonic_shells", "harmonic_bands",

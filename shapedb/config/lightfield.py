@@ -19,6 +19,7 @@ __all__ = [
     "LightFieldConfig",
     "SOURCES",
     "CENTRES",
+    "FRAMINGS",
     "product_light_field",
 ]
 
@@ -26,6 +27,8 @@ __all__ = [
 SOURCES = ("balls", "field")
 #: About which point the field's inside is seen (``LightFieldConfig.centre``).
 CENTRES = ("volume", "surface")
+#: How each silhouette is framed (:attr:`LightFieldConfig.framing`).
+FRAMINGS = ("view", "sphere")
 
 
 @dataclass(frozen=True)
@@ -82,6 +85,11 @@ class LightFieldConfig:
         all the inside cells. ``"surface"``: the mean of the shell cells (the surface as
         the grid sees it, as a mesh light field descriptor centres on its surface), which
         a thin sheet or wall pulls as much as a bulky part of the same area.
+    framing : str
+        How each silhouette is framed (:func:`shapedb.signature.lightfield.render_discs`).
+        ``"view"``: about its own bounding box's centre, scaled by its light field's
+        largest reach from those centres, as the published descriptor frames them.
+        ``"sphere"``: every view spans the unit disc about the 3-D centre (``centre``).
     """
 
     n_fields: int = 10
@@ -98,6 +106,7 @@ class LightFieldConfig:
     n_balls: int = 0
     source: str = "balls"
     centre: str = "volume"
+    framing: str = "view"
 
     def __post_init__(self) -> None:
         ints = {"n_fields": (1, 10), "resolution": (16, 256), "zernike_order": (2, 16)}
@@ -126,6 +135,8 @@ class LightFieldConfig:
         _check(ok, "lf_source", self.source, f"must be one of {', '.join(SOURCES)}")
         ok = isinstance(self.centre, str) and self.centre in CENTRES
         _check(ok, "lf_centre", self.centre, f"must be one of {', '.join(CENTRES)}")
+        ok = isinstance(self.framing, str) and self.framing in FRAMINGS
+        _check(ok, "lf_framing", self.framing, f"must be one of {', '.join(FRAMINGS)}")
 
 
 def product_light_field() -> LightFieldConfig:

@@ -97,6 +97,7 @@ ADDED: dict[str, dict[str, Any]] = {
         "n_balls": 2048,
         "source": "balls",
         "centre": "volume",
+        "framing": "sphere",
     },
     "field_vector": {"enabled": False},
 }
@@ -106,8 +107,9 @@ ADDED: dict[str, dict[str, Any]] = {
 #: stored section takes them: a section the layout predates keeps today's defaults.
 STORED_ADDED: dict[str, dict[str, Any]] = {
     # before n_balls, the light fields were those of the decomposition's balls; before
-    # source, always of balls; before centre, the field was seen about its volume centroid
-    "light_field": {"n_balls": 0, "source": "balls", "centre": "volume"},
+    # source, always of balls; before centre, the field was seen about its volume centroid;
+    # before framing, every view spanned the unit disc about that centre
+    "light_field": {"n_balls": 0, "source": "balls", "centre": "volume", "framing": "sphere"},
 }
 
 #: Sections added to the store configuration, by the first layout that writes them:

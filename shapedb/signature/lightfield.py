@@ -71,6 +71,8 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
+#: Views of one light field (a dodecahedron's 20 cameras, opposite ones mirror images).
+VIEWS_PER_FIELD = 10
 
 
 # --------------------------------------------------------------------------------------
@@ -89,6 +91,8 @@ def _splat_discs(
     res: int,
     depth: bool,
     grow: float,
+    shift: NDArray[np.float32],
+    scale: NDArray[np.float32],
 ) -> tuple[NDArray[np.bool_], NDArray[np.float32], NDArray[np.float32]]:
     m, n = u.shape[0], x.shape[0]
     sil = np.zeros((m, res, res), dtype=np.bool_)
@@ -99,12 +103,15 @@ def _splat_discs(
     slack = np.float32(1.0 / res + grow)  # half a pixel (plus the growth), image units
     pu = np.empty(n, dtype=np.float32)
     pw = np.empty(n, dtype=np.float32)
+    rr = np.empty(n, dtype=np.float32)
     for k in range(m):
+        inv = np.float32(1.0) / scale[k]
         for i in range(n):
-            pu[i] = x[i, 0] * u[k, 0] + x[i, 1] * u[k, 1] + x[i, 2] * u[k, 2]
-            pw[i] = x[i, 0] * w[k, 0] + x[i, 1] * w[k, 1] + x[i, 2] * w[k, 2]
-            pd = x[i, 0] * d[k, 0] + x[i, 1] * d[k, 1] + x[i, 2] * d[k, 2]
-            reach = r[i] + slack
+            pu[i] = (x[i, 0] * u[k, 0] + x[i, 1] * u[k, 1] + x[i, 2] * u[k, 2] - shift[k, 0]) * inv
+            pw[i] = (x[i, 0] * w[k, 0] + x[i, 1] * w[k, 1] + x[i, 2] * w[k, 2] - shift[k, 1]) * inv
+            pd = (x[i, 0] * d[k, 0] + x[i, 1] * d[k, 1] + x[i, 2] * d[k, 2]) * inv
+            rr[i] = r[i] * inv
+            reach = rr[i] + slack
             c0 = max(int((pu[i] - reach + 1.0) * half), 0)
             c1 = min(int((pu[i] + reach + 1.0) * half), res - 1)
             r0 = max(int((pw[i] - reach + 1.0) * half), 0)
@@ -118,7 +125,7 @@ def _splat_discs(
                         continue
                     sil[k, row, col] = True
                     if depth:
-                        h = np.sqrt(max(r[i] * r[i] - rho2, 0.0))
+                        h = np.sqrt(max(rr[i] * rr[i] - rho2, 0.0))
                         front[k, row, col] = max(front[k, row, col], pd + h)
                         back[k, row, col] = max(back[k, row, col], -pd + h)
         for e in range(edges.shape[0]):
@@ -127,7 +134,7 @@ def _splat_discs(
             # |p - a_t| - r_t is convex in t, its minimum in closed form
             i, j = edges[e, 0], edges[e, 1]
             au, aw, bu, bw = pu[i], pw[i], pu[j], pw[j]
-            ra, rb = r[i] + slack, r[j] + slack
+            ra, rb = rr[i] + slack, rr[j] + slack
             eu, ew = bu - au, bw - aw
             length = np.sqrt(eu * eu + ew * ew)
             dr = rb - ra
@@ -176,6 +183,24 @@ def _unit_balls(
     return x / extent, r / extent
 
 
+def _view_frames(
+    x: FloatArray, r: FloatArray, u: NDArray[np.float32], w: NDArray[np.float32], group: int
+) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """Per view, the centre of the discs' bounding box in the image plane (m, 2) and, per
+    run of ``group`` views (a light field), the largest distance of a disc's far side from
+    its view's centre (m,): the published descriptor's frame of each silhouette."""
+    pu, pw = x @ u.T.astype(np.float64), x @ w.T.astype(np.float64)  # (n, m)
+    rc = r[:, None]
+    cu = 0.5 * ((pu - rc).min(axis=0) + (pu + rc).max(axis=0))
+    cw = 0.5 * ((pw - rc).min(axis=0) + (pw + rc).max(axis=0))
+    reach = (np.hypot(pu - cu, pw - cw) + rc).max(axis=0)
+    m = len(cu)
+    per = reach.reshape(-1, group).max(axis=1) if m % group == 0 else np.full(1, reach.max())
+    scale = np.repeat(per, group)[:m] if m % group == 0 else np.full(m, per[0])
+    shift = np.stack([cu, cw], axis=1)
+    return shift.astype(np.float32), np.maximum(scale, 1e-12).astype(np.float32)
+
+
 def _kept_edges(radii: ArrayLike, edges: ArrayLike | None) -> NDArray[np.int64]:
     """(k, 2) contact edges among the balls of positive radius, indexed in that subset."""
     r = np.asarray(radii, dtype=np.float64).reshape(-1)
@@ -212,6 +237,7 @@ def render_discs(
     dilate_px: float = 0.0,
     close_px: int = 0,
     frame: tuple[ArrayLike, float] | None = None,
+    framing: str = "sphere",
 ) -> tuple[NDArray[np.bool_], NDArray[np.float32] | None]:
     """Orthographic images of the union of balls, in the unit-sphere frame of the module.
 
@@ -239,6 +265,12 @@ def render_discs(
         The centre and the extent the balls are seen in (the image spans the disc of
         radius ``extent`` about ``centre``, units of ``centers``); by default the
         balls' volume centroid and the farthest ball's far side.
+    framing : {"sphere", "view"}
+        ``"sphere"``: every image spans the unit disc of that frame. ``"view"``: each
+        image is centred on its discs' bounding box and spans the largest reach of a
+        disc from its image's centre over its light field (each run of 10 directions),
+        as the published descriptor frames its silhouettes: translation within the
+        image plane and the frame's centre no longer matter.
 
     Returns
     -------
@@ -260,9 +292,13 @@ def render_discs(
     d = np.asarray(directions, dtype=np.float32).reshape(-1, 3)
     u, w = image_axes(d)
     res = int(resolution)
+    if framing == "view":
+        shift, scale = _view_frames(x, r, u, w, VIEWS_PER_FIELD)
+    else:
+        shift, scale = np.zeros((len(d), 2), np.float32), np.ones(len(d), np.float32)
     sil, front, back = _splat_discs(
         x.astype(np.float32), r.astype(np.float32), e, u, w, d, res, bool(depth),
-        float(dilate_px) * 2.0 / res,
+        float(dilate_px) * 2.0 / res, shift, scale,
     )  # fmt: skip
     if close_px > 0:
         sil = _closed(sil, int(close_px))
@@ -319,7 +355,7 @@ def ball_light_field(
     sil, dep = render_discs(
         centers, radii, dirs, cfg.resolution, depth=depth,
         edges=edges if cfg.edges else None, dilate_px=cfg.dilate_px, close_px=cfg.close_px,
-        frame=frame,
+        frame=frame, framing=cfg.framing,
     )  # fmt: skip
     feats = silhouette_features(sil, cfg)
     if dep is not None:
