@@ -184,20 +184,30 @@ def _unit_balls(
 
 
 def _view_frames(
-    x: FloatArray, r: FloatArray, u: NDArray[np.float32], w: NDArray[np.float32], group: int
+    sil: NDArray[np.bool_],
+    x: FloatArray,
+    r: FloatArray,
+    u: NDArray[np.float32],
+    w: NDArray[np.float32],
+    group: int,
 ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-    """Per view, the centre of the discs' bounding box in the image plane (m, 2) and, per
-    run of ``group`` views (a light field), the largest distance of a disc's far side from
-    its view's centre (m,): the published descriptor's frame of each silhouette."""
+    """Each silhouette's frame: per image of ``sil`` (m, res, res) on [-1, 1]^2 the
+    centroid of its covered pixels (m, 2), and per run of ``group`` images (a light field)
+    the largest distance of a disc's far side from its image's centroid (m,), the discs
+    those of the balls ``x`` (n, 3), ``r`` (n,) seen along the image axes ``u``, ``w``."""
+    m, res = sil.shape[0], sil.shape[1]
+    px = (np.arange(res) + 0.5) * (2.0 / res) - 1.0
+    shift = np.zeros((m, 2))
+    for k in range(m):
+        rows, cols = np.nonzero(sil[k])
+        if len(rows):
+            shift[k] = px[cols].mean(), px[rows].mean()
     pu, pw = x @ u.T.astype(np.float64), x @ w.T.astype(np.float64)  # (n, m)
-    rc = r[:, None]
-    cu = 0.5 * ((pu - rc).min(axis=0) + (pu + rc).max(axis=0))
-    cw = 0.5 * ((pw - rc).min(axis=0) + (pw + rc).max(axis=0))
-    reach = (np.hypot(pu - cu, pw - cw) + rc).max(axis=0)
-    m = len(cu)
-    per = reach.reshape(-1, group).max(axis=1) if m % group == 0 else np.full(1, reach.max())
-    scale = np.repeat(per, group)[:m] if m % group == 0 else np.full(m, per[0])
-    shift = np.stack([cu, cw], axis=1)
+    reach = (np.hypot(pu - shift[:, 0], pw - shift[:, 1]) + r[:, None]).max(axis=0)
+    if m % group == 0:
+        scale = np.repeat(reach.reshape(-1, group).max(axis=1), group)
+    else:
+        scale = np.full(m, reach.max())
     return shift.astype(np.float32), np.maximum(scale, 1e-12).astype(np.float32)
 
 
@@ -267,10 +277,11 @@ def render_discs(
         balls' volume centroid and the farthest ball's far side.
     framing : {"sphere", "view"}
         ``"sphere"``: every image spans the unit disc of that frame. ``"view"``: each
-        image is centred on its discs' bounding box and spans the largest reach of a
-        disc from its image's centre over its light field (each run of 10 directions),
-        as the published descriptor frames its silhouettes: translation within the
-        image plane and the frame's centre no longer matter.
+        image is rendered again about the centroid of its covered pixels, spanning the
+        largest reach of a disc from its image's centroid over its light field
+        (each run of 10 directions), as the published descriptor frames its silhouettes
+        (about a centre of their own, one scale per light field): the frame's centre no
+        longer matters, and the centroid turns with the shape.
 
     Returns
     -------
@@ -292,14 +303,12 @@ def render_discs(
     d = np.asarray(directions, dtype=np.float32).reshape(-1, 3)
     u, w = image_axes(d)
     res = int(resolution)
-    if framing == "view":
-        shift, scale = _view_frames(x, r, u, w, VIEWS_PER_FIELD)
-    else:
-        shift, scale = np.zeros((len(d), 2), np.float32), np.ones(len(d), np.float32)
-    sil, front, back = _splat_discs(
-        x.astype(np.float32), r.astype(np.float32), e, u, w, d, res, bool(depth),
-        float(dilate_px) * 2.0 / res, shift, scale,
-    )  # fmt: skip
+    xf, rf, grow = x.astype(np.float32), r.astype(np.float32), float(dilate_px) * 2.0 / res
+    shift, scale = np.zeros((len(d), 2), np.float32), np.ones(len(d), np.float32)
+    sil, front, back = _splat_discs(xf, rf, e, u, w, d, res, bool(depth), grow, shift, scale)
+    if framing == "view":  # again, each image about its own centroid and light field's reach
+        shift, scale = _view_frames(sil, x, r, u, w, VIEWS_PER_FIELD)
+        sil, front, back = _splat_discs(xf, rf, e, u, w, d, res, bool(depth), grow, shift, scale)
     if close_px > 0:
         sil = _closed(sil, int(close_px))
     if not depth:

@@ -153,7 +153,7 @@ def test_a_contact_edge_fills_the_waist_between_two_touching_balls() -> None:
 
 
 def test_filled_unions_of_moved_turned_scaled_copies_are_at_distance_about_zero() -> None:
-    cfg = LightFieldConfig(n_fields=10, resolution=64, edges=True, close_px=1)
+    cfg = LightFieldConfig(n_fields=10, resolution=96, edges=True, close_px=1)
     shapes = _shapes()
     edges = [np.array([[0, 2], [1, 2]]), np.array([[0, 1], [0, 2]]),
              np.stack([np.arange(8), (np.arange(8) + 1) % 8], axis=1)]  # fmt: skip
@@ -241,3 +241,38 @@ def test_the_packing_length_is_checked() -> None:
     with pytest.raises(ConfigError, match="lf_n_balls"):
         LightFieldConfig(n_balls=-1)
     assert LightFieldConfig(n_balls=1024).n_balls == 1024
+
+
+def test_a_view_framed_silhouette_is_centred_and_its_light_field_fills_the_disc() -> None:
+    # two balls of unequal size, far from the 3-D centre's frame: each view's covered
+    # pixels have their centroid at the image's centre, and the widest view of each light
+    # field reaches the unit disc's rim
+    dirs = field_directions(2, 0)
+    c, r = np.array([[0.0, 0, 0], [2.5, 0.7, 0]]), np.array([1.0, 0.35])
+    sil, _ = render_discs(c, r, dirs, 96, framing="view")
+    px = (np.arange(96) + 0.5) / 48 - 1.0
+    reach = []
+    for img in sil:
+        rows, cols = np.nonzero(img)
+        assert abs(px[cols].mean()) <= 1.5 / 48 and abs(px[rows].mean()) <= 1.5 / 48
+        reach.append(np.hypot(px[cols], px[rows]).max())
+    for field in np.reshape(reach, (2, 10)):
+        assert 1.0 - 2.0 / 48 <= field.max() <= 1.0 + 1.0 / 48
+
+
+def test_view_framing_ignores_where_the_frame_is_centred() -> None:
+    c, r = _shapes()[1]
+    dirs = field_directions(1, 0)
+    # the same silhouettes up to the first pass's pixels (the centroid's), where the
+    # sphere's frame moves and shrinks them
+    a, _ = render_discs(c, r, dirs, 64, framing="view", frame=(c.mean(axis=0), 4.0))
+    b, _ = render_discs(c, r, dirs, 64, framing="view", frame=(c[0] + 0.7, 9.0))
+    assert (a ^ b).sum() < 0.05 * a.sum()
+    s1, _ = render_discs(c, r, dirs, 64, frame=(c.mean(axis=0), 4.0))
+    s2, _ = render_discs(c, r, dirs, 64, frame=(c[0] + 0.7, 9.0))
+    assert (s1 ^ s2).sum() > 0.5 * s1.sum()
+
+
+def test_a_bad_framing_names_the_option() -> None:
+    with pytest.raises(ConfigError, match="lf_framing"):
+        LightFieldConfig(framing="box")
