@@ -82,6 +82,7 @@ def test_nothing_stored_is_todays_defaults_but_the_stage_the_layout_predates() -
     plain = Config().with_options(
         rerank="none", lf_source="balls", lf_resolution=64, lf_centre="volume"
     )
+    plain = replace(plain, light_field=replace(plain.light_field, framing="sphere"))
     # and no field vectors, none fused (the sections' own defaults are the legacy ones)
     plain = replace(plain, field_vector=FieldVectorConfig())
     assert Config().rerank.scorer == "lightfield"
@@ -140,7 +141,9 @@ def _layout1_store_config() -> Config:
         cloud=CloudConfig(view_cells=4.0, reconstruct=False, reconstruct_depth=7),
         rerank=RerankConfig(scorer="none"),  # written before re-ranking stages
         # before the light fields: those the product kept when the section came
-        light_field=LightFieldConfig(n_fields=3, resolution=64, n_balls=2048, source="balls"),
+        light_field=LightFieldConfig(
+            n_fields=3, resolution=64, n_balls=2048, source="balls", framing="sphere"
+        ),
         # before the field vectors: none stored
         field_vector=FieldVectorConfig(),
     )
@@ -285,6 +288,18 @@ def test_light_fields_stored_before_the_centre_read_about_the_volume_centroid() 
     assert Config.from_dict(stored).light_field.centre == "volume"
     with pytest.raises(ConfigError, match="lf_centre"):
         Config().with_options(lf_centre="middle")
+
+
+def test_light_fields_stored_before_the_framing_read_in_the_sphere_s_frame() -> None:
+    today = Config()
+    assert today.light_field.framing == "view"
+    stored = today.to_dict()
+    assert Config.from_dict(stored) == today
+    del stored["light_field"]["framing"]
+    assert Config.from_dict(stored).light_field.framing == "sphere"
+    del stored["light_field"]
+    stored["layout"] = 3
+    assert Config.from_dict(stored).light_field.framing == "sphere"
 
 
 def test_stores_written_before_the_field_vectors_keep_none() -> None:
