@@ -35,9 +35,10 @@ RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 #: Each variant: the stage's fields it sets, and the fields that then no longer matter.
 VARIANTS: dict[str, tuple[dict[str, Any], tuple[str, ...]]] = {
     "product": ({}, ()),
-    "no shared neighbours": (
-        {"shared_weight": 0.0},
-        ("shared_weight", "shared_neighbours"),
+    "no shared neighbours": ({"shared_weight": 0.0}, ("shared_weight",)),
+    "no stored-distance neighbours": (
+        {"descriptor_shared_weight": 0.0},
+        ("descriptor_shared_weight",),
     ),
     "no contrast floor": (
         {"contrast_floor": 0.0},

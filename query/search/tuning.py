@@ -16,8 +16,9 @@ g(q) / (offset + rank_l))``, ``g(q)`` the product of the spread ceiling (the sto
 pooled local statistic of the query's candidates) and the contrast floor (how far the
 stored vector already sets the nearest apart); the field vectors are fused into ``l``
 (``l + alpha * b + gamma * h``, in light field units), their index adds candidates, and
-candidates that share the query's nearest neighbours rise. :class:`StageTuning`'s
-attributes name each part.
+candidates that share the query's nearest neighbours rise, by the light field where the gate
+is open and by the stored distance among the candidates in every row (``rank_d``).
+:class:`StageTuning`'s attributes name each part.
 
 One unit turns the stage's light field distance into the local spread's and the
 shared-neighbour term's: ``scale`` for the fused distance, ``light_field_unit`` for the
@@ -134,7 +135,8 @@ class StageTuning:
     shared_neighbours: int = 3
     shared_weight: float = 1.6
     # The stored distance's shared-neighbour term among the candidates, k as above: beta 0.2,
-    # the highest validation objective of 0.1-1.6 (0.8105 -> 0.8183; python -m bench.studies.stage_parts).
+    # the highest validation objective of 0.1, 0.2, 0.3, 0.4, 0.6, 0.8 and 1.6 (0.8183; off,
+    # 0.8105: python -m bench.studies.stage_parts, "no stored-distance neighbours").
     descriptor_shared_weight: float = 0.2
 
     def __post_init__(self) -> None:

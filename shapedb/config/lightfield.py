@@ -142,8 +142,8 @@ class LightFieldConfig:
 def product_light_field() -> LightFieldConfig:
     """The light fields a new store keeps: 3 light fields of 128 px, silhouettes only, of
     the inside of the decomposition's field (``source="field"``) seen about the mean of
-    its shell cells (``centre="surface"``); with ``lf_source=balls``, of the packing
-    continued to 2048 balls."""
+    its shell cells (``centre="surface"``), each silhouette framed about its own centroid
+    (``framing="view"``); with ``lf_source=balls``, of the packing continued to 2048 balls."""
     return LightFieldConfig(
         n_fields=3, resolution=128, depth_weight=0.0, n_balls=2048, source="field",
         centre="surface",

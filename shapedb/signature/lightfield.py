@@ -12,7 +12,11 @@ balls thinner than a pixel, as on thickened sheets, stay visible). With ``depth_
 0`` each view also carries the Zernike magnitudes of its front and back depth images,
 ``(h + 1) / 2`` where covered (``h`` the nearest front's height, unit sphere), 0
 elsewhere; opposite views swap front and back, so the two enter as their sum and
-absolute difference.
+absolute difference. With ``LightFieldConfig.framing = "view"`` (the default of new
+stores) each image is rendered a second time about the centroid of its covered pixels,
+spanning the largest reach of a disc from its image's centroid over its light field, as
+the published descriptor frames its silhouettes (a centre of their own, one scale per
+light field).
 
 The light fields of the inside of the decomposition's field (``LightFieldConfig.source
 = "field"``, :func:`inside_light_field`) are those of its inside cells, each a ball of
