@@ -18,19 +18,27 @@ Accepted queries, tried in this order:
   ``ingest.load``, decomposed and featurised with the store's configuration;
 * a stored shape name (a ``str`` that is not an existing file).
 
-A sparse point cloud (a sample every 2 grid cells or more) also has the feature of its
-reconstruction (:mod:`shapedb.mdbd.reconstruct`), and in a store with sparse views
-(``CloudConfig.view_cells > 0``, :mod:`shapedb.geometry.view`) every dense shape that of its
-view. A pair of a sparse cloud and a dense shape is as far apart as the nearest of the
-cloud's own feature and the dense shape's own feature or view, and the cloud's
-reconstruction and the dense shape's own feature. A sparse geometry or file query
-costs a Poisson reconstruction and its decomposition; a dense one in a store with
-views and sparse clouds one more (point-cloud) decomposition.
+In a store that compares second features (one with sparse views,
+``CloudConfig.view_cells > 0``, :mod:`shapedb.geometry.view`, or one holding sparse
+point clouds) a sparse point cloud (a sample every 2 grid cells or more) also has the
+feature of its reconstruction (:mod:`shapedb.mdbd.reconstruct`), and with views every
+dense shape that of its view. A pair of a sparse cloud and a dense shape is as far
+apart as the nearest of the cloud's own feature and the dense shape's own feature or
+view, and the cloud's reconstruction and the dense shape's own feature. There a sparse
+geometry or file query costs a Poisson reconstruction and its decomposition; a dense
+one in a store with views and sparse clouds one more (point-cloud) decomposition.
+
+In a store of dense shapes only (the default store of meshes) a sparse cloud ranks as
+any other query, by its own feature and the re-ranking stage, without a reconstruction:
+a stored mesh that is not closed packs its enclosed solid
+(:mod:`shapedb.geometry.enclosed`), a shell two cells thick wherever a hole lets the
+flood in, while a cloud packs the solid its samples enclose, so their features can
+disagree where their light fields (silhouettes) do not.
 
 A store whose ``RerankConfig.scorer`` is not ``"none"`` (the default ``"lightfield"``)
 re-ranks the first ``K`` results (:mod:`query.search.stage`) with that exact scorer
-(:mod:`query.search.rerank`), except in searches that compare sparse clouds or views (stores
-with sparse clouds or ``view_cells``), which rank by the stored distance. The hits are in
+(:mod:`query.search.rerank`), except in stores with sparse clouds or ``view_cells``,
+which rank by the stored distance. The hits are in
 the scorer's order; their distance and similarity are the stored vector's, so a later
 hit may be nearer by the stored distance than an earlier one.
 
@@ -147,11 +155,7 @@ def search_batch(
         from query.sql import allowed_ids
 
         allowed = allowed_ids(db, where)
-    if (
-        db.config.cloud.view_cells
-        or any(q.sparse for q in resolved)
-        or len(store_catalog(db, index.version_).sparse)
-    ):
+    if db.config.cloud.view_cells or len(store_catalog(db, index.version_).sparse):
         ids, dist = _search_with_views(db, index, resolved, int(k), allowed, learned)
     else:
         from query.search.rerank import search as rerank_search
@@ -414,14 +418,15 @@ def _from_geometry(db: StoreHandle, geometry: Any) -> _Query:
     )  # fmt: skip
     sparse = is_sparse(d.sampling, d.spacing)
     if sparse:
-        from shapedb.mdbd.reconstruct import reconstructed
 
-        found = (
-            reconstructed(geometry, d, config.mdbd, depth=config.cloud.reconstruct_depth)
-            if config.cloud.reconstruct
-            else None
-        )
-        recon = None if found is None else _featurise(found, config)
+        def recon() -> NDArray[np.float64] | None:
+            from shapedb.mdbd.reconstruct import reconstructed
+
+            if not config.cloud.reconstruct:
+                return None
+            found = reconstructed(geometry, d, config.mdbd, depth=config.cloud.reconstruct_depth)
+            return None if found is None else _featurise(found, config)
+
         return _Query(_featurise(d, config), True, recon, decomposition=d)
 
     def view() -> NDArray[np.float64] | None:
