@@ -4,8 +4,8 @@ A mesh that is not closed, with holes wider than a grid cell, packs its enclosed
 shell two cells thick (:mod:`shapedb.geometry.enclosed`), while an even cloud of the same
 surface packs the solid its samples enclose, so the two features disagree. In a store of
 meshes only, a sparse cloud is therefore ranked as any query, by the re-ranking stage (its
-light fields are silhouettes, alike for a shell and its filled solid), and pays no Poisson
-reconstruction.
+light fields are silhouettes, alike for a shell and its filled solid), its list holding each
+mesh at the nearer of its own feature's and its Poisson reconstruction's distance.
 """
 
 from __future__ import annotations
@@ -24,6 +24,8 @@ from shapedb.geometry.mesh import TriangleMesh
 from shapedb.geometry.pointcloud import PointCloud
 from shapedb.geometry.view import is_sparse
 from shapedb.mdbd.decomposition import decompose
+from shapedb.mdbd.reconstruct import reconstructed
+from shapedb.signature.kernel import features
 
 CONFIG = Config().with_options(resolution=40, n_balls=96)
 
@@ -98,14 +100,17 @@ def test_the_stage_lifts_the_holed_box_above_its_stored_distance(mesh_db: Any) -
     assert names.index("holed-box") <= 1
 
 
-def test_no_reconstruction_in_a_store_of_meshes(
-    mesh_db: Any, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    import shapedb.mdbd.reconstruct as reconstruct
-
-    def refuse(*args: Any, **kwargs: Any) -> None:
-        raise AssertionError("a store of meshes compares no reconstruction")
-
-    monkeypatch.setattr(reconstruct, "reconstructed", refuse)
-    hits = mesh_db.search(_cloud(_meshes()["torus"]), k=2)
-    assert hits[0].name == "torus"
+def test_a_cloud_is_as_far_as_the_nearer_of_its_feature_and_reconstruction(mesh_db: Any) -> None:
+    """The stage's stored distances: each mesh at the nearer of the two comparisons."""
+    query = _cloud(_meshes()["torus"])
+    hits = mesh_db.search(query, k=len(mesh_db))
+    ids, own = mesh_db.store.features()
+    dec = decompose(query, config=CONFIG.mdbd)
+    recon = reconstructed(query, dec, CONFIG.mdbd, depth=CONFIG.cloud.reconstruct_depth)
+    assert recon is not None
+    by_own = np.abs(own - features(dec, CONFIG.kernel)).sum(axis=1)
+    by_recon = np.abs(own - features(recon, CONFIG.kernel)).sum(axis=1)
+    want = np.minimum(by_own, by_recon)
+    assert {h.id: round(h.distance, 4) for h in hits} == {
+        int(i): round(float(w), 4) for i, w in zip(ids, want, strict=True)
+    }
