@@ -27,10 +27,18 @@ reconstruction and the dense shape's own feature. A sparse geometry or file quer
 costs a Poisson reconstruction and its decomposition; a dense one in a store with
 views and sparse clouds one more (point-cloud) decomposition.
 
+In a store of dense shapes only (the default store of meshes) a sparse cloud's candidate
+list holds each shape at the nearer of its own feature's and its reconstruction's
+distance, and the re-ranking stage orders it as any query's: a stored mesh that is not
+closed packs its enclosed solid (:mod:`shapedb.geometry.enclosed`), a shell two cells
+thick wherever a hole lets the flood in, while a cloud (and its closed reconstruction)
+packs the solid its samples enclose, so their features can disagree where their light
+fields (silhouettes) do not.
+
 A store whose ``RerankConfig.scorer`` is not ``"none"`` (the default ``"lightfield"``)
 re-ranks the first ``K`` results (:mod:`query.search.stage`) with that exact scorer
-(:mod:`query.search.rerank`), except in searches that compare sparse clouds or views (stores
-with sparse clouds or ``view_cells``), which rank by the stored distance. The hits are in
+(:mod:`query.search.rerank`), except in stores with sparse clouds or ``view_cells``,
+which rank by the stored distance. The hits are in
 the scorer's order; their distance and similarity are the stored vector's, so a later
 hit may be nearer by the stored distance than an earlier one.
 
@@ -147,11 +155,7 @@ def search_batch(
         from query.sql import allowed_ids
 
         allowed = allowed_ids(db, where)
-    if (
-        db.config.cloud.view_cells
-        or any(q.sparse for q in resolved)
-        or len(store_catalog(db, index.version_).sparse)
-    ):
+    if db.config.cloud.view_cells or len(store_catalog(db, index.version_).sparse):
         ids, dist = _search_with_views(db, index, resolved, int(k), allowed, learned)
     else:
         from query.search.rerank import search as rerank_search
@@ -160,10 +164,12 @@ def search_batch(
         vectors = np.stack([r.feature for r in resolved])
         qids = np.array([r.sid for r in resolved], np.int64)
         arrays, query_arrays = _stored_arrays(db, resolved)
+        scorer = scorer_for(db.config)
+        wanted = max(int(k), int(scorer.tuning.candidates)) if scorer is not None else int(k)
         ids, dist = rerank_search(
             index, vectors, int(k), config=db.config, query_ids=qids, allowed=allowed,
-            scorer=scorer_for(db.config), arrays=arrays, query_arrays=query_arrays,
-            stored_distances=True,
+            scorer=scorer, arrays=arrays, query_arrays=query_arrays, stored_distances=True,
+            candidates=_sparse_lists(index, resolved, vectors, wanted, allowed),
         )  # fmt: skip
     catalog = store_catalog(db, index.version_)
     lam = float(db.config.kernel.lam)
@@ -489,6 +495,33 @@ def _search_with_views(
                 lists.append(_among(index, own_view, k, allowed, sparse_ids, inside=True))
         out_ids[row], out_d[row] = _nearest(lists, k)
     return out_ids, out_d
+
+
+def _sparse_lists(
+    index: Any,
+    queries: list[_Query],
+    vectors: NDArray[np.float64],
+    wanted: int,
+    allowed: NDArray[np.int64] | None,
+) -> tuple[NDArray[np.int64], NDArray[np.float64]] | None:
+    """Candidate lists (q, wanted) of a store of dense shapes; None when no query is sparse.
+
+    A sparse cloud's list keeps each shape at the nearer of its own feature's and its
+    reconstruction's distance (the reconstruction's search merged, :func:`_nearest`);
+    every other query's is the index's search of its own feature.
+    """
+    if not any(q.sparse for q in queries):
+        return None
+    ids, dist = index.search(vectors, wanted, allowed=allowed)
+    ids, dist = np.array(ids, np.int64), np.array(dist, np.float64)
+    for row, q in enumerate(queries):
+        recon = q.view_feature() if q.sparse else None
+        if recon is not None:
+            own = (ids[row : row + 1], dist[row : row + 1])
+            ids[row], dist[row] = _nearest(
+                [own, index.search(recon[None], wanted, allowed=allowed)], wanted
+            )
+    return ids, dist
 
 
 #: Up to this many ids, a search restricted to them scans them; beyond, the index is

@@ -305,6 +305,7 @@ def search(
     arrays: ArrayReader | None = None,
     query_arrays: Mapping[str, NDArray[np.float64]] | None = None,
     stored_distances: bool = False,
+    candidates: tuple[NDArray[np.int64], NDArray[np.float64]] | None = None,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """The index's search followed by the re-ranking stage ``scorer``.
 
@@ -332,6 +333,11 @@ def search(
     stored_distances : bool
         Return each result's stored distance (the index's) instead of the scorer's;
         the order is the scorer's either way.
+    candidates : (ids, distances), optional
+        The queries' lists in stored-distance order, (q, c) int64 and float64, -1 / inf
+        pads, with at least ``max(k, K)`` entries where the store holds that many: used
+        instead of the index's search of ``queries`` (a sparse cloud's list merges its
+        reconstruction's, :mod:`query.search.engine`).
 
     Returns
     -------
@@ -339,11 +345,13 @@ def search(
         As :meth:`FeatureIndex.search`; the first ``K`` re-ranked by the scorer.
     """
     if scorer is None or not len(np.asarray(index.features_)):
+        if candidates is not None:
+            return _first(candidates, k)
         return index.search(queries, k, allowed=allowed)  # type: ignore[no-any-return]
     q = np.atleast_2d(np.asarray(queries, np.float64))
     qid = np.full(len(q), -1, np.int64) if query_ids is None else np.asarray(query_ids, np.int64)
     wanted = max(int(k), int(scorer.tuning.candidates))
-    cand, dist = index.search(q, wanted, allowed=allowed)
+    cand, dist = index.search(q, wanted, allowed=allowed) if candidates is None else candidates
     out_i = np.full((len(q), k), -1, np.int64)
     out_d = np.full((len(q), k), np.inf)
     for s in range(0, len(q), _CHUNK):
@@ -363,4 +371,16 @@ def search(
                 order = np.argsort(listed, kind="stable")
                 at = order[np.searchsorted(listed, got_i[row][keep], sorter=order)]
                 out_d[s + row][keep] = batch.distances[row][at]
+    return out_i, out_d
+
+
+def _first(
+    lists: tuple[NDArray[np.int64], NDArray[np.float64]], k: int
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """The first ``k`` entries of lists ((q, c) ids and distances), -1 / inf padded to ``k``."""
+    ids, dist = (np.atleast_2d(np.asarray(a)) for a in lists)
+    out_i = np.full((len(ids), k), -1, np.int64)
+    out_d = np.full((len(ids), k), np.inf)
+    m = min(k, ids.shape[1])
+    out_i[:, :m], out_d[:, :m] = ids[:, :m], dist[:, :m]
     return out_i, out_d
