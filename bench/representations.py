@@ -23,7 +23,10 @@ parts; CAPOD holds re-posed copies and exact duplicates). Methods:
 ``default``
     today's default store: the descriptor of :mod:`shapedb.signature.descriptor`; a sparse
     cloud and a mesh are as far apart as the nearer of the cloud's own feature and
-    its kept reconstruction's (:mod:`shapedb.mdbd.reconstruct`, :mod:`query.search.engine`);
+    its kept reconstruction's (:mod:`shapedb.mdbd.reconstruct`, :mod:`query.search.engine`),
+    the descriptor alone: the product's search then re-ranks that list with the light
+    fields in a store of meshes, which this bench does not (``python -m bench.quality
+    --queries even vertex`` measures the product's path);
 ``paper``
     the paper's kernel (Eq. 1-3, ``KernelConfig(method="paper")``), own features;
 ``D2``
