@@ -24,7 +24,9 @@ At each size (:mod:`bench.support.scale_measures`):
   pyarrow scan over the same Parquet files as baselines;
 * **parts**: the part index (``shapedb match``) up to ``--part-max`` shapes: build,
   memory, p50 / p99, recall@10 against its exact scan;
-* **ingest**: one real file into the grown store against the same into an empty store.
+* **ingest**: one real file into the grown store against the same into an empty store;
+* **compressed vectors** (``--vectors``, after the sizes): the descriptor index alone at
+  10^7 vectors made from the grown store's, compressed (:mod:`bench.support.scale_vectors`).
 
 Writes ``bench/results/scale.json`` after every phase (a long run keeps what it measured)
 and prints the table after every size. The store lives in ``--dir``, which is kept (a
@@ -158,6 +160,25 @@ def serve_figures(root: Path, ids: np.ndarray) -> dict[str, Any]:
         server.stop()
 
 
+def vector_figures(db: Any, n: int, folder: Path) -> dict[str, Any]:
+    """The compressed descriptor index of ``n`` vectors made from the store's weighted
+    descriptors (:func:`bench.support.scale_vectors.compressed_figures`); its float32
+    vectors are written to a temporary file in ``folder`` and removed after."""
+    from bench.support.scale_vectors import compressed_figures
+    from query.search.index import open_index
+
+    index = open_index(db)
+    live = np.flatnonzero(index.alive_)
+    take = np.sort(np.random.default_rng(1).choice(live, min(len(live), 1_000_000), replace=False))
+    source = np.asarray(index.features_[take], np.float32) * np.asarray(index.weights_, np.float32)
+    free = shutil.disk_usage(folder).free
+    if free < 1.2 * n * source.shape[1] * 4:
+        raise SystemExit(f"{folder}: {free / 1e9:.1f} GB free, {n:,} vectors need "
+                         f"{n * source.shape[1] * 4 / 1e9:.1f} GB")  # fmt: skip
+    with tempfile.TemporaryDirectory(prefix="scale-vectors-", dir=folder) as tmp:
+        return compressed_figures(source, n, Path(tmp))
+
+
 def drop_derived(db: Any, names: tuple[str, ...], why: str) -> None:
     """Remove derived folders of the benchmark's own store (the stage's side tables, the
     part index), so growing past ``--tables-max`` or ``--part-max`` does not keep them up
@@ -180,6 +201,10 @@ def measure(db: Any, args: argparse.Namespace, seeds: list[Any], rng: np.random.
     save()
     if n <= args.tables_max:
         out.update(m.table_figures(db))
+    # serve first: the server holds its own indexes, and this process's copy (loaded by
+    # the searches below) would take the page cache its memory-mapped rows need
+    out.update(serve_figures(Path(db.path), rng.choice(ids, args.queries + 1, replace=False)))
+    save()
     sample = rng.choice(ids, args.queries + 1, replace=False)
     searched = m.search_figures(db, sample)
     results = searched.pop("results")
@@ -192,8 +217,6 @@ def measure(db: Any, args: argparse.Namespace, seeds: list[Any], rng: np.random.
         if ref is not None:
             got = [len(set(results[i]) & set(ref[i])) / 10 for i in wanted]
             out["recall@10"] = float(np.mean(got))
-    save()
-    out.update(serve_figures(Path(db.path), rng.choice(ids, args.queries + 1, replace=False)))
     save()
     if n <= args.part_max:
         out.update(m.part_figures(db, rng))
@@ -283,6 +306,12 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="keep the grown temporary store (a --dir is always kept; a store there grows)",
     )
+    p.add_argument(
+        "--vectors",
+        type=int,
+        default=10_000_000,
+        help="vectors of the compressed descriptor index measured last (0: skip)",
+    )
     p.add_argument("--out", type=Path, default=RESULTS)
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
@@ -315,6 +344,12 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             measure(db, args, seeds, rng, row, save)
             print(report(rows), flush=True)
+        if args.vectors:
+            vectors = vector_figures(db, args.vectors, root.parent)
+            write_json(args.out, {"seeds": len(seeds), "sizes": rows, "vectors": vectors,
+                                  "load": os.getloadavg()})  # fmt: skip
+            print(format_table("bench.scale: compressed descriptor index", ["figure", "value"],
+                               [[k, str(v)] for k, v in vectors.items()]), flush=True)  # fmt: skip
     finally:
         if args.dir is None and not args.keep:  # a --dir given is the user's: kept
             shutil.rmtree(root.parent, ignore_errors=True)

@@ -12,6 +12,7 @@ import pytest
 
 import shapedb
 from bench import scale
+from bench.support.scale_vectors import compressed_figures, make_vectors
 from bench.support.synthetic_records import MAX_DROPPED, RecordMaker
 
 PINNED = Path(__file__).resolve().parents[1] / "data" / "pinned" / "store"
@@ -52,10 +53,13 @@ def test_the_bench_grows_one_store_and_measures_every_figure(seeds, tmp_path, ca
     out = tmp_path / "scale.json"
     argv = ["--sizes", "120", "240", "--dir", str(tmp_path / "grown"), "--seed-store",
             str(seed_root), "--queries", "4", "--reference-queries", "3", "--part-max", "120",
-            "--tables-max", "120", "--keep", "--out", str(out)]  # fmt: skip
+            "--tables-max", "120", "--vectors", "3000", "--keep", "--out",
+            str(out)]  # fmt: skip
     assert scale.main(argv) == 0
-    rows = json.loads(out.read_text())["sizes"]
+    saved = json.loads(out.read_text())
+    rows = saved["sizes"]
     assert [r["shapes"] for r in rows] == [120, 240]
+    assert saved["vectors"]["vectors"] == 3000 and saved["vectors"]["compressed_p50_ms"] > 0
     first, second = rows
     assert first["tables_s"] > 0 and "tables_s" not in second  # built once, dropped past 120
     assert first["recall@10"] == 1.0  # a flat index and exact tables: the exact ranking
@@ -68,4 +72,21 @@ def test_the_bench_grows_one_store_and_measures_every_figure(seeds, tmp_path, ca
         assert row["ingest_one_s"] > 0 and row["ingest_one_empty_s"] > 0
     db = shapedb.connect(tmp_path / "grown", create=False)
     assert len(db) == 241  # grown to 240, then the second probe file
-    assert "serve p50 / p99 ms" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "serve p50 / p99 ms" in printed and "compressed_recall@10" in printed
+
+
+def test_compressed_vectors_find_the_exact_ten_after_the_re_rank(tmp_path) -> None:
+    """Clustered vectors (mixtures of 40 points) through IVF-PQ proposals and an exact L1
+    re-rank: the re-rank of many proposals recovers the exact ten, of few does not."""
+    rng = np.random.default_rng(0)
+    source = rng.random((40, 24)).astype(np.float32)
+    made = make_vectors(source, 5, np.random.default_rng(1))
+    assert made.shape == (5, 24) and made.dtype == np.float32
+    wide = compressed_figures(source, 4000, tmp_path, lists=16, m=8, nprobe=16, rerank=400,
+                              queries=20)  # fmt: skip
+    assert wide["compressed_recall@10"] >= 0.95
+    assert wide["index_bytes"] < wide["vector_file_bytes"]
+    narrow = compressed_figures(source, 4000, tmp_path, lists=16, m=8, nprobe=1, rerank=10,
+                                queries=20)  # fmt: skip
+    assert narrow["compressed_recall@10"] < wide["compressed_recall@10"]
