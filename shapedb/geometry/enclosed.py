@@ -59,7 +59,8 @@ def enclosed_sides(dist_cells: NDArray[np.floating], gap_cells: float = 0.0) -> 
         0: the flood passes any gap between walls. ``g > 0``: the flood runs between
         walls ``g`` cells thicker, then grows back by ``ceil(sqrt(3) g)`` face steps
         that never cross a wall, so a hole narrower than about ``2 g`` cells (an open
-        mesh's missing faces) lets nothing in, and a slot that narrow is filled.
+        mesh's missing faces) lets nothing in (but for a dent of that many steps
+        under it), and a slot that narrow is filled.
 
     Returns
     -------
