@@ -41,9 +41,7 @@ _PER_LIST = 64
 TRAIN = 200_000
 
 
-def make_vectors(
-    source: NDArray[Any], n: int, rng: np.random.Generator
-) -> NDArray[np.float32]:
+def make_vectors(source: NDArray[Any], n: int, rng: np.random.Generator) -> NDArray[np.float32]:
     """(n, d) float32 mixtures of random pairs of ``source`` rows (module docstring)."""
     a = source[rng.integers(0, len(source), n)].astype(np.float32)
     b = source[rng.integers(0, len(source), n)].astype(np.float32)
@@ -60,7 +58,9 @@ def _padded(x: NDArray[np.float32], dim: int) -> NDArray[np.float32]:
     return out
 
 
-def _exact_l1(vectors: NDArray[np.float32], queries: NDArray[np.float32], k: int) -> NDArray[np.int64]:
+def _exact_l1(
+    vectors: NDArray[np.float32], queries: NDArray[np.float32], k: int
+) -> NDArray[np.int64]:
     """(q, k) positions of the exact L1 nearest, by faiss's brute force over blocks."""
     import faiss
 
