@@ -125,11 +125,6 @@ class MDBDConfig:
         (:func:`shapedb.geometry.sheet.sheet_region`), so the wings of an airplane with
         a closed fuselage get a solid. ``"whole"``: only the whole-model rule (stores
         written before the field, whose sheets in such models had no inside).
-    gap_cells : float
-        Under ``sheet_rule="enclosed"``, the flood from outside does not pass a hole in
-        the surface narrower than about twice this many grid cells (missing faces, an
-        open seam), and slots that narrow are filled
-        (:func:`shapedb.geometry.enclosed.enclosed_sides`); 0: any gap lets it in. In [0, 8].
     """
 
     resolution: int = 128
@@ -144,7 +139,6 @@ class MDBDConfig:
     tie_rule: str = "middle"
     sheet_cells: float = 1.0
     sheet_rule: str = "enclosed"
-    gap_cells: float = 0.0
 
     def __post_init__(self) -> None:
         _check(
@@ -185,7 +179,6 @@ class MDBDConfig:
         )
         _check(0.0 <= self.tie_cells <= 4, "tie_cells", self.tie_cells, "must be in [0, 4]")
         _check(0.0 <= self.sheet_cells <= 8, "sheet_cells", self.sheet_cells, "must be in [0, 8]")
-        _check(0.0 <= self.gap_cells <= 8, "gap_cells", self.gap_cells, "must be in [0, 8]")
         _check(
             self.sheet_rule in ("enclosed", "local", "whole"),
             "sheet_rule",

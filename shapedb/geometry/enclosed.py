@@ -47,7 +47,7 @@ TIE_CELLS = 1e-9
 _FACES = ndimage.generate_binary_structure(3, 1)
 
 
-def enclosed_sides(dist_cells: NDArray[np.floating], gap_cells: float = 0.0) -> NDArray[np.bool_]:
+def enclosed_sides(dist_cells: NDArray[np.floating]) -> NDArray[np.bool_]:
     """The cells on the enclosed side of the surface, from its unsigned distance field.
 
     Parameters
@@ -55,35 +55,25 @@ def enclosed_sides(dist_cells: NDArray[np.floating], gap_cells: float = 0.0) -> 
     dist_cells : (nx, ny, nz) float
         Distance of every cell centre to the surface, in cells (exact within a cell of
         the surface; an upper bound elsewhere is fine).
-    gap_cells : float
-        0: the flood passes any gap between walls. ``g > 0``: the flood runs between
-        walls ``g`` cells thicker, then grows back by ``ceil(sqrt(3) g)`` face steps
-        that never cross a wall, so a hole narrower than about ``2 g`` cells (an open
-        mesh's missing faces) lets nothing in (but for a dent of that many steps
-        under it), and a slot that narrow is filled.
 
     Returns
     -------
     (nx, ny, nz) bool
-        True for the cells the flood cannot reach, and for the wall cells (within
-        :data:`BARRIER_CELLS`) that touch such a cell and no reached one; False
-        elsewhere.
+        True for the cells a flood from the grid's border cannot reach, and for the
+        wall cells (within :data:`BARRIER_CELLS`) that touch such a cell and no
+        reached one; False elsewhere.
     """
-    dist = np.asarray(dist_cells)
-    wall = dist <= BARRIER_CELLS
-    labels, n = ndimage.label(dist > BARRIER_CELLS + gap_cells, structure=_FACES)
+    wall = np.asarray(dist_cells) <= BARRIER_CELLS
+    labels, n = ndimage.label(~wall, structure=_FACES)
     border = np.zeros(n + 1, dtype=bool)
     for axis in range(3):
         for end in (0, -1):
             border[np.take(labels, end, axis=axis).ravel()] = True
     border[0] = False  # walls
-    reached = (labels > 0) & border[labels]
-    if gap_cells > 0 and reached.any():
-        steps = int(np.ceil(np.sqrt(3.0) * gap_cells))
-        reached = ndimage.binary_dilation(reached, structure=_FACES, iterations=steps, mask=~wall)
-    enclosed = ~wall & ~reached
+    enclosed = (labels > 0) & ~border[labels]
     if not enclosed.any():
         return enclosed
+    reached = (labels > 0) & border[labels]
     near_enclosed = ndimage.binary_dilation(enclosed, structure=_FACES)
     near_reached = ndimage.binary_dilation(reached, structure=_FACES)
     return enclosed | (wall & near_enclosed & ~near_reached)

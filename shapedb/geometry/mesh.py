@@ -464,16 +464,12 @@ class TriangleMesh(Geometry):
         out = np.where(inside, dist, -dist) * np.float32(grid.spacing)
         return out.astype(np.float32, copy=False)
 
-    def enclosed_solid(
-        self, grid: Grid, thickness: float, gap_cells: float = 0.0
-    ) -> tuple[Enclosed, NDArray[np.float32]]:
+    def enclosed_solid(self, grid: Grid, thickness: float) -> tuple[Enclosed, NDArray[np.float32]]:
         """This surface's enclosed solid on ``grid`` and its field there.
 
         The solid a flood from the grid's border cannot reach, plus every point within
         ``thickness`` (model units, > 0) of the surface
         (:mod:`shapedb.geometry.enclosed`); face orientation and closedness are not used.
-        ``gap_cells``: the flood does not pass holes narrower than about twice this many
-        cells (:func:`~shapedb.geometry.enclosed.enclosed_sides`).
 
         Returns
         -------
@@ -492,7 +488,7 @@ class TriangleMesh(Geometry):
             raise DegenerateGeometryError(
                 f"the surface lies outside the grid {grid.shape}", source=self.name
             )
-        sides = enclosed_sides(dist, gap_cells)
+        sides = enclosed_sides(dist)
         refine_closest(dist, owner, closest, sides & ~band)
         h = grid.spacing
         field = enclosed_field(dist, sides, thickness / h) * np.float32(h)

@@ -218,7 +218,7 @@ def prepare_field(geometry: Geometry, cfg: MDBDConfig) -> PreparedField:
     thickness = cfg.sheet_cells * grid.spacing
     enclosing = cfg.sheet_rule == "enclosed" and cfg.sheet_cells > 0
     if enclosing and isinstance(local, TriangleMesh) and not local.closed:
-        local, F = local.enclosed_solid(grid, thickness, cfg.gap_cells)
+        local, F = local.enclosed_solid(grid, thickness)
         timings["sdf"] = time.perf_counter() - t0
         return PreparedField(local, grid, F, frame, timings, scale)
     F = np.ascontiguousarray(local.grid_sdf(grid), dtype=np.float32)

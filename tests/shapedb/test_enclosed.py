@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-from scipy import ndimage
 
 from shapedb.geometry.base import Grid
 from shapedb.geometry.enclosed import Enclosed, enclosed_sides
@@ -132,51 +131,3 @@ def test_off_grid_queries_agree_with_the_grid() -> None:
     near = np.abs(want) < 3 * grid.spacing  # where the grid's distances are exact
     np.testing.assert_allclose(got[near], want[near], atol=1e-4)
     np.testing.assert_array_equal(solid.contains(pts), got > 0)
-
-
-def _shell_with_hole(hole: int) -> np.ndarray:
-    """Exact distances (cells) to a 20-cell hollow box's faces, ``hole`` cells cut in its top."""
-    surface = np.zeros((40, 40, 40), dtype=bool)
-    for axis in range(3):
-        for at in (10, 29):
-            index: list[object] = [slice(10, 30)] * 3
-            index[axis] = at
-            surface[tuple(index)] = True
-    surface[20 : 20 + hole, 20 : 20 + hole, 29] = False
-    return ndimage.distance_transform_edt(~surface)
-
-
-@pytest.mark.parametrize("hole", [2, 3, 4])
-def test_a_gap_narrower_than_twice_gap_cells_keeps_the_flood_out(hole: int) -> None:
-    dist = _shell_with_hole(hole)
-    assert not enclosed_sides(dist)[20, 20, 20]  # any gap lets the flood in
-    sides = enclosed_sides(dist, gap_cells=2.0)
-    assert sides[12:28, 12:28, 12:24].all()  # the room is enclosed
-    assert sides[12:28, 12:28, 24:28].mean() > 0.95  # but for a dent under the hole
-    assert not sides[2:8].any() and not sides[:, :, 32:].any()  # outside stays outside
-
-
-def test_a_gap_wider_than_twice_gap_cells_still_lets_the_flood_in() -> None:
-    sides = enclosed_sides(_shell_with_hole(10), gap_cells=2.0)
-    assert not sides[12:28, 12:28, 12:28].any()
-
-
-def test_the_regrown_flood_never_crosses_a_wall() -> None:
-    """A closed box whose wall is one cell thick: regrowing the outside by ceil(sqrt(3) g)
-    steps must not pass the wall into the room."""
-    dist = _shell_with_hole(0)
-    for gap in (0.0, 1.0, 3.0):
-        sides = enclosed_sides(dist, gap_cells=gap)
-        assert sides[11:29, 11:29, 11:29].all() and not sides[:9].any()
-
-
-def test_gap_cells_reaches_the_decomposition() -> None:
-    """An open box whose missing top is a narrow slit decomposes as a solid box under
-    gap_cells, as a shell without."""
-    slit = BOX.face_normals[:, 2] < 0.5  # no top: close the top but for a slit
-    top = trimesh.creation.box((1.0, 0.94, 1e-3))
-    top.apply_translation((0, 0.03, 0.5))
-    open_box = _soup(trimesh.util.concatenate([_without(BOX, slit), top]))
-    shell = decompose(open_box, resolution=RES, n_balls=8)
-    solid = decompose(open_box, resolution=RES, n_balls=8, gap_cells=2.0)
-    assert solid.radii[0] > 2 * shell.radii[0]
