@@ -251,7 +251,14 @@ VARIANTS = (
     "mesh_turn_0.01",
     "mesh_turn_0.5",
     "mesh_turn_2",
+    "pointcloud_scan",
+    "pointcloud_scan_recon",
+    "mesh_cropped",
 )
+
+#: The :mod:`bench.sets.scans` variants and the query kind whose seed they share with
+#: ``python -m bench.quality --queries`` (:mod:`bench.support.scan_queries`).
+SCAN_VARIANTS = {"pointcloud_scan": "one-sided", "mesh_cropped": "cropped"}
 
 #: Axis (unit) of the ``mesh_turn_*`` variants' rotations about the vertex centroid.
 TURN_AXIS = np.array([0.6, 0.64, 0.48])
@@ -510,9 +517,19 @@ def cache_path(
     key = [_source_key(model), variant, params, version]
     if variant.startswith(("pointcloud_noisy", "pointcloud_partial")):
         key.append(people_version("scans"))  # bench.sets.people makes these clouds
+    if variant.startswith(tuple(SCAN_VARIANTS)):
+        key.append(_scans_version())
     text = json.dumps(key, sort_keys=True)
     digest = hashlib.sha256(text.encode()).hexdigest()[:20]
     return CACHE_DIR / "dec" / f"{digest}.npz"
+
+
+@functools.lru_cache(maxsize=1)
+def _scans_version() -> str:
+    """sha256 (8 hex) of :mod:`bench.sets.scans`, which makes the scan variants."""
+    from bench.sets import scans
+
+    return hashlib.sha256(Path(scans.__file__).read_bytes()).hexdigest()[:8]
 
 
 def existing_cache_path(
@@ -561,6 +578,9 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
     ``pointcloud_turn_<axis>`` the paper's point cloud in its canonical frame turned by
     :data:`CLOUD_TURN_DEGREES` about that frame axis (0-2) and decomposed without
     the canonical frame: another packing of the same cloud;
+    ``pointcloud_scan`` what one depth camera sees (:func:`bench.sets.scans.one_sided_scan`),
+    ``mesh_cropped`` half of the mesh (:func:`bench.sets.scans.cropped_mesh`), seeded as
+    ``python -m bench.quality --queries one-sided cropped``;
     ``mesh_subdivide`` every triangle split in four at its edge midpoints (the same
     solid, other triangles); ``view_<cells>`` the mesh's sparse view
     (:func:`shapedb.geometry.view.view_geometry`, one sample per ``<cells>`` grid cells of its
@@ -611,6 +631,14 @@ def variant_geometry(model: Model, variant: str, config: MDBDConfig) -> Any:
         if variant == "pointcloud_noisy":
             return PointCloud(noisy_cloud(paper, v, seed=seed))
         return PointCloud(partial_cloud(paper, v, f, seed=seed))
+    if variant in SCAN_VARIANTS:
+        from bench.sets import scans
+        from shapedb.geometry.pointcloud import PointCloud
+
+        seed = stable_seed(model.name, SCAN_VARIANTS[variant])
+        if variant == "mesh_cropped":
+            return TriangleMesh(*scans.cropped_mesh(v, f, seed=seed), name=model.name)
+        return PointCloud(scans.one_sided_scan(v, f, seed=seed), name=model.name)
     if variant == "pointcloud_dense":
         from bench.support.baselines import sample_surface
         from shapedb.geometry.pointcloud import PointCloud

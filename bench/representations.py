@@ -12,6 +12,11 @@ Each method compares query clouds with the mesh database as a store does:
 ``partial->mesh``
     the part of the cloud one horizontal depth camera sees (the far side missing,
     :func:`bench.sets.people.partial_cloud`);
+``one-sided->mesh`` (``--kinds one-sided``)
+    what one depth camera sees from a random viewpoint, with range and incidence
+    fall-off and depth noise (:func:`bench.sets.scans.one_sided_scan`);
+``cropped->mesh`` (``--kinds cropped``)
+    half of the mesh, cut by a random plane (:func:`bench.sets.scans.cropped_mesh`);
 ``mixture``
     an even, seeded half of the models as clouds, the rest as meshes, all against all.
 
@@ -105,7 +110,11 @@ KINDS = {
     "cloud": ("pointcloud", "pointcloud_recon"),
     "noisy": ("pointcloud_noisy", "pointcloud_noisy_recon"),
     "partial": ("pointcloud_partial", "pointcloud_partial_recon"),
+    "one-sided": ("pointcloud_scan", "pointcloud_scan_recon"),
+    "cropped": ("mesh_cropped", "mesh_cropped_recon"),  # a mesh: never reconstructed
 }
+#: The kinds a run measures unless ``--kinds`` says otherwise.
+DEFAULT_KINDS = ("cloud", "noisy", "partial")
 
 
 def kind_recon(kind: str, depth: int) -> str:
@@ -353,6 +362,14 @@ def d2_points(points: NDArray[np.float64], config: D2Config) -> NDArray[np.float
     return pdf / max(pdf.sum(), 1e-300)
 
 
+def _d2_query(geometry: Any, cfg: D2Config) -> NDArray[np.float64]:
+    """D2 of a query: a cloud's own points, a (cropped) mesh's surface samples."""
+    points = getattr(geometry, "points", None)
+    if points is not None:
+        return d2_points(np.asarray(points), cfg)
+    return d2_descriptor(np.asarray(geometry.vertices), np.asarray(geometry.faces), cfg)
+
+
 def d2_method(data: SetData) -> Distances:
     """Osada's D2 (surface samples of meshes, the cloud's own points)."""
     cfg = D2Config(n_pairs=D2_PAIRS)
@@ -363,12 +380,8 @@ def d2_method(data: SetData) -> Distances:
     cloud, query = {}, {}
     for k in data.clouds:
         t0 = time.perf_counter()
-        fc = np.stack(
-            [
-                d2_points(np.asarray(variant_geometry(m, KINDS[k][0], mdbd).points), cfg)
-                for m in data.ds.models
-            ]
-        )
+        fc = np.stack([_d2_query(variant_geometry(m, KINDS[k][0], mdbd), cfg)
+                       for m in data.ds.models])  # fmt: skip
         cloud[k] = l1_matrix(fc, fm)
         query[k] = np.full(len(fc), (time.perf_counter() - t0) / len(fc))
         if k == "cloud":
@@ -462,8 +475,9 @@ def cost_table(ds: Dataset, n: int) -> tuple[str, list[list[Any]]]:
 
     Per configuration of :data:`COST_CONFIGS` (those equal to the default left out):
     median wall seconds of a mesh ingest, a mesh query and a cloud query, the median
-    of the per-model ratios cloud / mesh query, and the cloud query's median against
-    the default's.
+    and largest per-model ratio cloud / mesh query, the cloud query's median against
+    the default's, then a one-sided scan's and a half mesh's query and their median
+    ratios to the mesh query.
     """
     from bench.support.cost import measure
 
@@ -477,22 +491,28 @@ def cost_table(ds: Dataset, n: int) -> tuple[str, list[list[Any]]]:
     rows: list[list[Any]] = []
     ref = float(np.median(got["default"]["cloud"]))
     for name, t in got.items():
-        ratio = np.asarray(t["cloud"]) / np.asarray(t["mesh"])
+        mesh = np.asarray(t["mesh"])
+        ratio = {k: np.asarray(t[k]) / mesh for k in ("cloud", "one-sided", "cropped")}
         cloud = float(np.median(t["cloud"]))
         rows.append(
             [
                 name,
                 float(np.median(t["ingest"])),
-                float(np.median(t["mesh"])),
+                float(np.median(mesh)),
                 cloud,
-                float(np.median(ratio)),
-                float(np.max(ratio)),
+                float(np.median(ratio["cloud"])),
+                float(np.max(ratio["cloud"])),
                 cloud / ref,
+                float(np.median(t["one-sided"])),
+                float(np.median(ratio["one-sided"])),
+                float(np.median(t["cropped"])),
+                float(np.median(ratio["cropped"])),
             ]
         )
     title = (
         f"{ds.name}: cost of the first {n} models through the facade, one run, wall s "
-        "(db.ingest of a mesh, db.search of a mesh, db.search of its 20 % cloud)"
+        "(db.ingest of a mesh; db.search of a mesh, of its 20 % cloud, of a one-sided "
+        "scan of it and of its half)"
     )
     return title, rows
 
@@ -505,6 +525,10 @@ COST_COLUMNS = (
     "cloud/mesh (median)",
     "cloud/mesh (max)",
     "x default",
+    "one-sided query",
+    "one-sided/mesh",
+    "cropped query",
+    "cropped/mesh",
 )
 
 
@@ -561,7 +585,7 @@ def main(argv: list[str] | None = None) -> None:
         help="also people-xl (validation: 12 more subjects) and generic",
     )
     ap.add_argument("--split", default="test", choices=("all", "test", "validation"))
-    ap.add_argument("--kinds", nargs="+", default=list(KINDS), choices=list(KINDS))
+    ap.add_argument("--kinds", nargs="+", default=list(DEFAULT_KINDS), choices=list(KINDS))
     ap.add_argument("--methods", nargs="+", default=["default", "paper", "D2"])
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument(

@@ -32,7 +32,7 @@ def profile_cloud_query(model: Model, *, depth: int = 8) -> dict[str, float]:
     from shapedb.mdbd.reconstruct import reconstruct
     from shapedb.signature.kernel import features
 
-    mesh, cloud = geometries(model)
+    mesh, cloud, *_ = geometries(model)
     t0 = time.perf_counter()
     features(decompose(mesh))
     out = {"mesh": time.perf_counter() - t0}

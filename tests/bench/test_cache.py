@@ -192,3 +192,30 @@ def test_a_commit_before_the_sheet_rule_keys_without_it(model: Model) -> None:
     text = json.dumps([common._source_key(model), "mesh", params, version], sort_keys=True)
     expected = common.CACHE_DIR / "dec" / f"{hashlib.sha256(text.encode()).hexdigest()[:20]}.npz"
     assert common.cache_path(model, "mesh", CONFIG, engine_commit="32bb41a") == expected
+
+
+def test_scan_variants_are_the_quality_bench_queries(model: Model, cache: Path) -> None:
+    """bench.representations' one-sided and cropped kinds decompose the very queries
+    ``bench.quality --queries one-sided cropped`` searches with, and their cache keys
+    change with bench.sets.scans."""
+    from bench.support.scan_queries import query_geometry
+
+    scan = common.variant_geometry(model, "pointcloud_scan", CONFIG)
+    np.testing.assert_array_equal(scan.points, query_geometry(model, "one-sided").points)
+    half = common.variant_geometry(model, "mesh_cropped", CONFIG)
+    want = query_geometry(model, "cropped")
+    np.testing.assert_array_equal(half.vertices, want.vertices)
+    np.testing.assert_array_equal(half.faces, want.faces)
+    assert common.recon_variant("pointcloud_scan", 8) == "pointcloud_scan_recon"
+    assert common.recon_variant("pointcloud_scan", 8) in common.VARIANTS
+    key = common.cache_path(model, "pointcloud_scan", CONFIG)
+    common._scans_version.cache_clear()
+    try:
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(common, "_scans_version", lambda: "changed!")
+            assert common.cache_path(model, "pointcloud_scan", CONFIG) != key
+            assert common.cache_path(model, "mesh", CONFIG) == common.cache_path(
+                model, "mesh", CONFIG
+            )
+    finally:
+        common._scans_version.cache_clear()
