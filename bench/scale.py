@@ -125,8 +125,9 @@ def grow(db: Any, maker: RecordMaker, target: int, made: int) -> tuple[int, floa
 
 def serve_figures(root: Path, ids: np.ndarray) -> dict[str, Any]:
     """``GET /api/search?id=`` in ``shapedb serve``, one request at a time: two passes over
-    the ids as :func:`bench.support.scale_measures.search_figures` (cold, warm), and the
-    server's peak resident set."""
+    the ids as :func:`bench.support.scale_measures.search_figures` (cold, warm), the
+    server's peak resident set and, at the end, its anonymous part (what it holds itself,
+    without the pages of the memory-mapped rows it read)."""
     import http.client
 
     from bench.serve import Server, get_timed
@@ -155,6 +156,7 @@ def serve_figures(root: Path, ids: np.ndarray) -> dict[str, Any]:
             **{f"serve_{k}": v for k, v in m.percentiles(warm).items()},
             "serve_own_p50_ms": m.percentiles(own)["p50_ms"],
             "serve_peak_mb": m.rss_mb(server.proc.pid, "VmHWM"),
+            "serve_anon_mb": m.rss_mb(server.proc.pid, "RssAnon"),
         }
     finally:
         server.stop()
@@ -243,7 +245,7 @@ _COLUMNS = [
     ("serve cold p50 ms", "serve_cold_p50_ms", "{:.0f}"),
     ("serve p50 / p99 ms", ("serve_p50_ms", "serve_p99_ms"), "{:.1f} / {:.1f}"),
     ("serve's own p50 ms", "serve_own_p50_ms", "{:.1f}"),
-    ("serve peak MB", "serve_peak_mb", "{:,.0f}"),
+    ("serve peak MB (own at the end)", ("serve_peak_mb", "serve_anon_mb"), "{:,.0f} ({:,.0f})"),
     ("cand. recall@100", "candidate_recall@100", "{:.3f}"),
     ("field recall@200", "field_recall@200", "{:.3f}"),
     ("recall@10", "recall@10", "{:.3f}"),

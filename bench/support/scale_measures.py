@@ -42,7 +42,8 @@ __all__ = [
 
 
 def rss_mb(pid: int | str = "self", field: str = "VmRSS") -> float:
-    """Resident set (``VmRSS``) or its peak (``VmHWM``) of a process, MB."""
+    """Resident set (``VmRSS``), its peak (``VmHWM``) or its anonymous part (``RssAnon``:
+    not the pages of memory-mapped files, which the system reclaims) of a process, MB."""
     with open(f"/proc/{pid}/status") as fh:
         for line in fh:
             if line.startswith(field + ":"):

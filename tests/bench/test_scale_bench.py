@@ -67,7 +67,8 @@ def test_the_bench_grows_one_store_and_measures_every_figure(seeds, tmp_path, ca
     for row in rows:
         assert row["table_bytes_per_shape"] > 1000 and row["check_ok"]
         assert row["db_commit_s"] >= row["store_commit_s"] > 0
-        assert row["p50_ms"] > 0 and row["serve_p50_ms"] > 0 and row["serve_peak_mb"] > 0
+        assert row["p50_ms"] > 0 and row["serve_p50_ms"] > 0
+        assert row["serve_peak_mb"] >= row["serve_anon_mb"] > 0
         assert row["sql_balls_aggregate_s"] > 0 and row["duckdb_balls_aggregate_s"] > 0
         assert row["ingest_one_s"] > 0 and row["ingest_one_empty_s"] > 0
     db = shapedb.connect(tmp_path / "grown", create=False)
