@@ -65,6 +65,8 @@ CAPOD = Path(__file__).resolve().parents[2] / "shared" / "data" / "capod"
 GROW_BATCH = 10_000
 #: 1,000-shape commits timed at the end of each growth.
 TIMED_COMMITS = 3
+#: Fewest vectors of the compressed index (its product quantiser trains 256 centroids).
+MIN_VECTORS = 1000
 #: Seconds one search over HTTP may take (a cold one at 10^6 took over 120 s on 2 busy cores).
 COLD_TIMEOUT = 1800.0
 
@@ -316,6 +318,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--out", type=Path, default=RESULTS)
     args = p.parse_args(argv)
+    if args.vectors and args.vectors < MIN_VECTORS:
+        p.error(f"--vectors {args.vectors}: 0 (skip) or at least {MIN_VECTORS:,}")
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
     import shapedb
 

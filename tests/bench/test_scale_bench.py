@@ -91,3 +91,10 @@ def test_compressed_vectors_find_the_exact_ten_after_the_re_rank(tmp_path) -> No
     assert got["compressed_recall@10"] == wide["recall@10"]  # the first to reach 0.95
     assert got["index"].startswith("IVF16,PQ8 nprobe 16")
     assert got["index_bytes"] < got["vector_file_bytes"]
+
+
+@pytest.mark.parametrize("vectors", ["-5", "10"])
+def test_too_few_compressed_vectors_is_refused_before_anything_runs(vectors, capsys) -> None:
+    with pytest.raises(SystemExit):
+        scale.main(["--sizes", "10", "--vectors", vectors])
+    assert "--vectors" in capsys.readouterr().err
