@@ -196,13 +196,17 @@ class Hit:
     similarity : float
         Whole path: the Eq. 3 kernel value ``exp(-lam * distance)``, in (0, 1]. Partial
         path: how much of the query the shape holds, in (0, 1]
-        (:mod:`query.parts.partial`).
+        (:mod:`query.parts.partial`). View path: ``exp(-distance / VIEW_UNIT)``
+        (:mod:`query.search.view_search`).
     distance : float
         Whole path: the Eq. 2 weighted L1 distance between the query's and the shape's
         features. Partial path: ``-log(similarity) / lam`` with the part kernel's ``lam``.
+        View path: the L1 distance of the scan's silhouette features to the shape's
+        nearest view.
     path : str
-        The search that found it: ``"whole"`` (the whole-shape features) or
-        ``"partial"`` (the query's parts against the store's part index).
+        The search that found it: ``"whole"`` (the whole-shape features),
+        ``"partial"`` (the query's parts against the store's part index) or ``"view"``
+        (a one-sided scan's silhouette against the stored light fields' views).
     """
 
     id: int

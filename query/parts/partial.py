@@ -16,10 +16,14 @@ index (:mod:`query.parts.index`, built on demand as ``db.match`` does):
    query neighbourhood weighted by its centre ball's volume (``r^3``). A shape holding
    every part of the query scores high, one holding a few parts low.
 
-``partial=True`` takes the partial path for every query of a call; ``False`` and ``None``
-(the default) the whole one: measured on one-sided views and halves of generated shapes,
-the partial path found their class no more often than the whole-shape search
-(docs/studies.md, "Partial-to-whole search"), so it runs on request.
+``partial=True`` takes the partial path for every query of a call; ``False`` the whole
+one. ``None`` (the default) lets the search decide: a point cloud whose normals lie on
+one side (a depth camera's scan, :func:`shapedb.geometry.view.viewing_direction`) is
+matched by its silhouette against the stored light fields' views
+(:mod:`query.search.view_search`, ``path="view"``), everything else by the whole path.
+Measured on one-sided views and halves of generated shapes, the partial path found their
+class no more often than the whole-shape search (docs/studies.md, "Partial-to-whole
+search"), so it runs on request.
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ from numpy.typing import NDArray
 from query.search.catalog import catalog
 from query.search.engine import checked_k
 from query.search.engine import search_batch as whole_search_batch
+from query.search.view_search import view_search
 from shapedb.config.part import PartConfig
 from shapedb.errors import QueryError
 from shapedb.results import Hit
@@ -86,7 +91,8 @@ def search(
         A learned whole-shape similarity (whole path only).
     partial : bool or None
         True: the partial path; False: the whole path (:mod:`query.search.engine`);
-        None: the whole path too (the default; see the module docstring).
+        None (the default): the view path for a one-sided point cloud in a store with
+        light fields, else the whole path (see the module docstring).
 
     Returns
     -------
@@ -114,12 +120,14 @@ def search_batch(
     """
     if partial is not None and not isinstance(partial, bool):
         raise QueryError("partial must be True, False or None", source=f"partial={partial!r}")
-    if partial is not True or isinstance(queries, (str, bytes, os.PathLike)):
+    if partial is False or isinstance(queries, (str, bytes, os.PathLike)):
         return _whole(db, queries, k, where, metric)  # the engine checks the sequence
     if isinstance(queries, np.ndarray) and queries.ndim == 2:
         queries = list(queries)
     if not isinstance(queries, Sequence):
         return _whole(db, queries, k, where, metric)
+    if partial is None:
+        return _whole_or_view(db, queries, k, where, metric)
     if metric is not None:
         raise QueryError(
             "a learned metric weighs whole-shape features: search by parts without it",
@@ -133,6 +141,38 @@ def _whole(
 ) -> list[list[Hit]]:
     found: list[list[Hit]] = whole_search_batch(db, queries, k=k, where=where, metric=metric)
     return found
+
+
+def _whole_or_view(
+    db: StoreHandle, queries: Sequence[Any], k: int, where: str | None, metric: Any
+) -> list[list[Hit]]:
+    """One-sided clouds by their silhouette (:mod:`query.search.view_search`) where the
+    store keeps light fields and no learned metric is asked for; the rest by the whole
+    path, in one engine call."""
+    from shapedb.geometry.pointcloud import PointCloud
+    from shapedb.geometry.view import viewing_direction
+
+    out: list[list[Hit] | None] = [None] * len(queries)
+    whole: list[int] = []
+    loaded = list(queries)
+    allowed: NDArray[np.int64] | None = None
+    for i, query in enumerate(queries):
+        if metric is None and not isinstance(query, (np.ndarray, list, tuple, int, np.integer)):
+            loaded[i] = _load(query)
+        direction = viewing_direction(loaded[i]) if isinstance(loaded[i], PointCloud) else None
+        if direction is not None:
+            if allowed is None and where is not None:
+                from query.sql import allowed_ids
+
+                allowed = allowed_ids(db, where)
+            out[i] = view_search(db, loaded[i], direction, k=checked_k(k), allowed=allowed)
+        if out[i] is None:
+            whole.append(i)
+    if whole:
+        found = _whole(db, [loaded[i] for i in whole], k, where, metric)
+        for i, hits in zip(whole, found, strict=True):
+            out[i] = hits
+    return [hits if hits is not None else [] for hits in out]
 
 
 def _load(query: Any) -> Any:

@@ -39,6 +39,7 @@ __all__ = [
     "silhouette_features",
     "light_field_dim",
     "light_field_distance",
+    "silhouette_dim",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -213,10 +214,21 @@ def silhouette_features(images: ArrayLike, config: LightFieldConfig | None = Non
     return np.hstack([zern, cfg.fourier_weight * four])
 
 
+def _zernike_count(order: int) -> int:
+    return sum(1 for n in range(order + 1) for _ in range(n % 2, n + 1, 2))
+
+
+def silhouette_dim(config: LightFieldConfig | None = None) -> int:
+    """Numbers of :func:`silhouette_features` per image under ``config`` (Zernike, Fourier):
+    the leading part of each view of :func:`ball_light_field`."""
+    cfg = config or LightFieldConfig()
+    return _zernike_count(cfg.zernike_order) + cfg.fourier
+
+
 def light_field_dim(config: LightFieldConfig | None = None) -> int:
     """Numbers per view of :func:`ball_light_field` under ``config``."""
     cfg = config or LightFieldConfig()
-    z = sum(1 for n in range(cfg.zernike_order + 1) for _ in range(n % 2, n + 1, 2))
+    z = _zernike_count(cfg.zernike_order)
     return z + cfg.fourier + (2 * z if cfg.depth_weight > 0 else 0)
 
 

@@ -145,19 +145,46 @@ def _cube_points(n: int, faces: int = 6, seed: int = 0) -> np.ndarray:
     return p
 
 
+def _sphere_scan(axis: np.ndarray, step: float = 0.04) -> np.ndarray:
+    """The unit sphere as an orthographic depth camera on ``axis`` sees it: a pixel grid
+    over the disc, each pixel's first hit (few points where the surface turns away)."""
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    u = np.cross(a, [0.0, 0.0, 1.0] if abs(a[2]) < 0.9 else [1.0, 0.0, 0.0])
+    u /= np.linalg.norm(u)
+    w = np.cross(a, u)
+    g = np.arange(-1.0, 1.0, step) + step / 2
+    x, y = (m.ravel() for m in np.meshgrid(g, g))
+    inside = x * x + y * y < 1.0
+    x, y = x[inside], y[inside]
+    return np.outer(x, u) + np.outer(y, w) + np.outer(np.sqrt(1.0 - x * x - y * y), a)
+
+
 def test_one_sided_clouds_are_told_from_closed_ones() -> None:
-    from shapedb.geometry.view import ONE_SIDED_RESULTANT, is_one_sided, normal_resultant
+    from shapedb.geometry.view import ONE_SIDED_LAYERS, is_one_sided, layered_fraction
 
     sphere = _sphere_points(3000)
     assert not is_one_sided(PointCloud(sphere))
-    assert is_one_sided(PointCloud(sphere[sphere[:, 0] > 0]))  # the half facing +x
+    assert is_one_sided(PointCloud(_sphere_scan([1.0, 0.0, 0.0])))
     assert not is_one_sided(PointCloud(_cube_points(3000)))
     assert is_one_sided(PointCloud(_cube_points(1500, faces=3)))  # the visible three faces
-    assert normal_resultant(PointCloud(sphere)) < 0.1 < ONE_SIDED_RESULTANT
+    assert layered_fraction(sphere)[0] > 0.5 > ONE_SIDED_LAYERS
+    assert not is_one_sided(PointCloud(_sphere_scan([1.0, 0.0, 0.0], step=0.2)))  # too few
+
+
+def test_a_one_sided_cloud_knows_where_it_was_seen_from() -> None:
+    from shapedb.geometry.view import viewing_direction
+
+    for axis in [*np.eye(3), np.array([0.3, -0.5, 0.8])]:
+        d = viewing_direction(PointCloud(_sphere_scan(axis)))
+        a = axis / np.linalg.norm(axis)
+        assert d is not None and abs(float(d @ a)) > np.cos(np.radians(10))
+    d = viewing_direction(PointCloud(_cube_points(3000, faces=3)))
+    assert d is not None and abs(float(d @ np.ones(3))) / np.sqrt(3) > np.cos(np.radians(15))
+    assert viewing_direction(PointCloud(_sphere_points(3000))) is None
 
 
 def test_only_point_clouds_are_one_sided() -> None:
-    from shapedb.geometry.view import is_one_sided, normal_resultant
+    from shapedb.geometry.view import is_one_sided, viewing_direction
 
-    assert normal_resultant(Sphere([0, 0, 0], 1.0)) == 0.0
+    assert viewing_direction(Sphere([0, 0, 0], 1.0)) is None
     assert not is_one_sided(Sphere([0, 0, 0], 1.0))
