@@ -24,6 +24,7 @@ import functools
 from math import factorial
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from shapedb.config.core import LightFieldConfig
@@ -238,18 +239,40 @@ def light_field_dim(config: LightFieldConfig | None = None) -> int:
 
 
 @functools.lru_cache(maxsize=1)
-def _permutation_matrix() -> FloatArray:
-    """(100, 60): column r sums the view distances D[v, perm[r, v]] of a flattened (10, 10) D."""
-    perm = view_permutations()
-    out = np.zeros((100, 60))
-    for r in range(60):
-        out[np.arange(10) * 10 + perm[r], r] = 1.0
+def _permutations() -> NDArray[np.int64]:
+    """(60, 10) int64: rotation r takes view v to view ``perm[r, v]``."""
+    return np.ascontiguousarray(view_permutations(), dtype=np.int64)
+
+
+@njit(cache=True, fastmath=True)
+def _nearest_turn(a: FloatArray, b: FloatArray, perm: NDArray[np.int64]) -> FloatArray:
+    """(m,) per shape of ``b`` (m, fb * 10, d) the least, over light-field pairs and the 60
+    rotations ``perm`` (60, 10), of the summed L1 distances of corresponding views of ``a``
+    (fa * 10, d) and it: one shape's 10 x 10 view distances at a time, in cache."""
+    fa, d = a.shape[0] // 10, a.shape[1]
+    m, fb = b.shape[0], b.shape[1] // 10
+    out = np.empty(m)
+    views = np.empty((fa * 10, fb * 10))
+    for j in range(m):
+        for u in range(fa * 10):
+            for v in range(fb * 10):
+                s = 0.0
+                for t in range(d):
+                    s += abs(a[u, t] - b[j, v, t])
+                views[u, v] = s
+        best = np.inf
+        for p in range(fa):
+            for q in range(fb):
+                for r in range(60):
+                    s = 0.0
+                    for u in range(10):
+                        s += views[p * 10 + u, q * 10 + perm[r, u]]
+                    best = min(best, s)
+        out[j] = best
     return out
 
 
-def light_field_distance(
-    descriptors: ArrayLike, others: ArrayLike | None = None, *, chunk: int = 64
-) -> FloatArray:
+def light_field_distance(descriptors: ArrayLike, others: ArrayLike | None = None) -> FloatArray:
     """Light field distances between shapes: (n, m) float64.
 
     Parameters
@@ -258,9 +281,6 @@ def light_field_distance(
         Query shapes' light fields (e.g. :func:`ball_light_field`).
     others : (m, fields', 10, d) float, optional
         Candidate shapes' light fields; defaults to ``descriptors``.
-    chunk : int
-        Candidates compared at once (bounds memory: about ``chunk * fields * fields' *
-        800`` bytes).
 
     Returns
     -------
@@ -274,8 +294,6 @@ def light_field_distance(
     ValueError
         If the arrays are not (count, fields, 10, d) with the same ``d``.
     """
-    from scipy.spatial.distance import cdist
-
     a = np.asarray(descriptors, dtype=np.float64)
     b = a if others is None else np.asarray(others, dtype=np.float64)
     if (
@@ -288,17 +306,14 @@ def light_field_distance(
         raise ValueError(f"light fields of shapes {a.shape} and {b.shape} do not match")
     n, fa, _, d = a.shape
     m, fb = b.shape[0], b.shape[1]
-    perm = _permutation_matrix()
-    bf = b.reshape(m * fb * 10, d)
+    perm = _permutations()
+    af = np.ascontiguousarray(a.reshape(n, fa * 10, d))
+    bf = np.ascontiguousarray(b.reshape(m, fb * 10, d))
     symmetric = others is None
     out = np.zeros((n, m))
     for i in range(n):
-        for s in range(i if symmetric else 0, m, chunk):
-            e = min(s + chunk, m)
-            dist = cdist(a[i].reshape(fa * 10, d), bf[s * fb * 10 : e * fb * 10], "cityblock")
-            dist = dist.reshape(fa, 10, e - s, fb, 10).transpose(2, 0, 3, 1, 4)
-            sums = dist.reshape(e - s, fa * fb, 100) @ perm
-            out[i, s:e] = sums.reshape(e - s, -1).min(axis=1)
+        start = i if symmetric else 0
+        out[i, start:] = _nearest_turn(af[i], bf[start:], perm)
     if symmetric:
         out = np.triu(out) + np.triu(out, 1).T
     return out

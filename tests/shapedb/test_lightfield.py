@@ -99,7 +99,7 @@ def test_the_distance_is_symmetric_between_query_and_candidates() -> None:
     rng = np.random.default_rng(0)
     a = rng.random((4, 3, 10, 46))
     b = rng.random((5, 2, 10, 46))
-    ab = light_field_distance(a, b, chunk=2)
+    ab = light_field_distance(a, b)
     assert ab.shape == (4, 5)
     assert np.allclose(ab, light_field_distance(b, a).T)
     full = light_field_distance(a)
@@ -107,6 +107,23 @@ def test_the_distance_is_symmetric_between_query_and_candidates() -> None:
     # a rotation of the views (a permutation of the 10 images) costs nothing
     turned = a[:, :, view_permutations()[11]]
     assert np.allclose(np.diag(light_field_distance(a, turned)), 0.0)
+
+
+def test_the_distance_is_the_least_rotated_sum_of_view_distances() -> None:
+    rng = np.random.default_rng(3)
+    a, b = rng.random((2, 2, 10, 7)), rng.random((3, 3, 10, 7))
+    perm = view_permutations()
+    expected = np.array([
+        [
+            min(
+                np.abs(a[i, p] - b[j, q][perm[r]]).sum()
+                for p in range(2) for q in range(3) for r in range(60)
+            )
+            for j in range(3)
+        ]
+        for i in range(2)
+    ])  # fmt: skip
+    assert np.allclose(light_field_distance(a, b), expected, rtol=1e-12)
 
 
 def test_errors_name_the_reason() -> None:
