@@ -77,14 +77,15 @@ def search_arguments(s: argparse.ArgumentParser) -> None:
         action="store_const",
         const=True,
         help="find the shapes that contain QUERY (a scan, a crop, a part), by its parts "
-        "(default: whole shapes)",
+        "(default: whole shapes; a one-sided scan by its silhouette)",
     )
     path.add_argument(
         "--whole",
         dest="partial",
         action="store_const",
         const=False,
-        help="compare whole shapes (the default)",
+        help="compare whole shapes, one-sided scans too (default: a one-sided scan by its "
+        "silhouette against the stored light fields' views, everything else whole)",
     )
     s.add_argument("--json", action="store_true")
 

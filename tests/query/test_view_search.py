@@ -109,3 +109,19 @@ def test_a_store_without_light_fields_searches_scans_whole(
     )
     hits = store.search(PointCloud(scan(MESHES["box"])), k=2)
     assert {h.path for h in hits} == {"whole"}
+
+
+def test_the_cli_searches_a_scan_file_by_its_silhouette(
+    db: Any, tmp_path: Any, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import json
+
+    from query.cli import main
+
+    path = tmp_path / "scan.xyz"
+    np.savetxt(path, scan(MESHES["cone"]))
+    assert main(["search", str(path), "--db", str(db.path), "-k", "2", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert rows[0]["name"] == "cone" and {r["path"] for r in rows} == {"view"}
+    assert main(["search", str(path), "--db", str(db.path), "-k", "2", "--whole", "--json"]) == 0
+    assert {r["path"] for r in json.loads(capsys.readouterr().out)} == {"whole"}
