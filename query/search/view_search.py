@@ -137,6 +137,13 @@ def view_search(
         if found_name is None:  # deleted by a commit made while we searched
             continue
         hits.append(
-            Hit(int(sid), found_name[0], found_name[1], float(np.exp(-d / VIEW_UNIT)), float(d), "view")
+            Hit(
+                int(sid),
+                found_name[0],
+                found_name[1],
+                float(np.exp(-d / VIEW_UNIT)),
+                float(d),
+                "view",
+            )
         )
     return hits

@@ -51,9 +51,7 @@ def _splat(xy: NDArray[np.float64], radius: float, res: int) -> NDArray[np.bool_
     return img
 
 
-def scan_silhouette(
-    points: ArrayLike, direction: ArrayLike, resolution: int
-) -> NDArray[np.bool_]:
+def scan_silhouette(points: ArrayLike, direction: ArrayLike, resolution: int) -> NDArray[np.bool_]:
     """The silhouette of ``points`` seen along ``direction``, framed as a light field view.
 
     Parameters
