@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.distance import cdist
+from scipy.spatial.distance import pdist, squareform
 
 __all__ = ["candidate_shared", "context_distance"]
 
@@ -59,7 +59,7 @@ def candidate_shared(
         return out
     w = np.asarray(weights, np.float64)
     xw = np.asarray(features, np.float64)[others] * w
-    pair = cdist(xw, xw, "cityblock")
+    pair = squareform(pdist(xw, "cityblock"))  # each pair once: the same sums as cdist
     # Pool P = the query (index 0) and the head: the query is at d from each.
     full = np.empty((m + 1, m + 1))
     full[0, 0] = np.inf
