@@ -125,3 +125,36 @@ def test_the_cli_searches_a_scan_file_by_its_silhouette(
     assert rows[0]["name"] == "cone" and {r["path"] for r in rows} == {"view"}
     assert main(["search", str(path), "--db", str(db.path), "-k", "2", "--whole", "--json"]) == 0
     assert {r["path"] for r in json.loads(capsys.readouterr().out)} == {"whole"}
+
+
+def test_without_the_array_cache_the_column_is_read(
+    db: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from query.search import view_search
+
+    cloud = PointCloud(scan(MESHES["torus"]))
+    cached = db.search(cloud, k=len(MESHES))
+    monkeypatch.setattr(view_search, "open_column", lambda db, column: None)
+    read = db.search(cloud, k=len(MESHES))
+    assert [h.name for h in read] == [h.name for h in cached]
+    assert np.allclose([h.distance for h in read], [h.distance for h in cached])
+
+
+def test_a_deleted_shape_is_not_found(tmp_path_factory: pytest.TempPathFactory) -> None:
+    import shapedb
+
+    store = shapedb.connect(tmp_path_factory.mktemp("gone") / "store", resolution=32, n_balls=32)
+    store.ingest(
+        [
+            (n, n, TriangleMesh(MESHES[n].vertices, MESHES[n].faces))
+            for n in ("box", "cone", "torus")
+        ],
+        workers=1,
+        progress=False,
+    )
+    cloud = PointCloud(scan(MESHES["cone"]))
+    assert store.search(cloud, k=1)[0].name == "cone"
+    store.delete(["cone"])
+    hits = store.search(cloud, k=3)
+    assert [h.path for h in hits] == ["view", "view"] and "cone" not in {h.name for h in hits}
+    assert store.search(cloud, k=3, where="label = 'nothing'") == []
