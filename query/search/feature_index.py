@@ -583,6 +583,15 @@ def faiss_knn_l1(queries: NDArray[np.float32], vectors: NDArray[np.float32], k: 
         return faiss.knn(queries, vectors, int(k), metric=faiss.METRIC_L1)[1]
 
 
+def faiss_pairwise_l1(queries: NDArray[np.float32], vectors: NDArray[np.float32]) -> Any:
+    """(q, n) float32 L1 distances between ``queries`` (q, d) and every row of ``vectors``
+    (n, d), both C-contiguous float32 (faiss's brute force; a few queries on one OpenMP
+    thread)."""
+    faiss = _faiss()
+    with _threads_for(len(queries)):
+        return faiss.pairwise_distances(queries, vectors, metric=faiss.METRIC_L1)
+
+
 def _check_rows(
     ids: ArrayLike, features: ArrayLike, d: int
 ) -> tuple[NDArray[np.int64], NDArray[np.float32]]:

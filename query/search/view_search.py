@@ -8,7 +8,8 @@ light fields, the ``light_field`` column). :func:`view_search` compares the scan
 silhouette (:func:`shapedb.signature.scan_view.scan_view_features`, seen along the
 cloud's viewing direction) with every view of every stored shape and ranks the shapes
 by their nearest view: an exact scan of the memory-mapped light fields, linear in the
-store (about 30 ms a query at 10^4 shapes on one core).
+store (faiss's brute force L1: about 4 ms a query at 10^4 shapes and 50 ms at 10^5 on one
+loaded core; at 10^6 half a second, where an index over the views would be the next step).
 
 ``db.search`` takes this path by itself for a point cloud whose normals lie on one side
 (:func:`shapedb.geometry.view.viewing_direction`), in a store that keeps light fields;
@@ -24,6 +25,7 @@ from numpy.typing import NDArray
 
 from query.search.array_cache import open_column
 from query.search.catalog import catalog
+from query.search.feature_index import faiss_pairwise_l1
 from query.search.rerank_lightfield import COLUMN
 from shapedb.results import Hit
 from shapedb.signature.lightfield_descriptor import light_field_dim, silhouette_dim
@@ -33,7 +35,7 @@ if TYPE_CHECKING:
     from shapedb.geometry.pointcloud import PointCloud
     from shapedb.store.handle import StoreHandle
 
-__all__ = ["VIEW_UNIT", "view_search", "view_distances"]
+__all__ = ["VIEW_UNIT", "view_search", "view_distances", "nearest_view"]
 
 #: Distances over this unit give a hit's similarity ``exp(-distance / VIEW_UNIT)``: the
 #: median distance of CAPOD validation scans to shapes of other classes (3.0) over ln 10,
@@ -73,8 +75,8 @@ def view_distances(
         start = 0
         for chunk in cache.chunks:
             for s in range(0, len(chunk), BLOCK):
-                block = np.asarray(chunk[s : s + BLOCK]).reshape(-1, views, full)[:, :, :part]
-                per_row[start + s : start + s + len(block)] = np.abs(block - q).sum(-1).min(-1)
+                block = np.asarray(chunk[s : s + BLOCK], np.float32)
+                per_row[start + s : start + s + len(block)] = nearest_view(block, q, views, full)
             start += len(chunk)
         rows = cache.rows
         return cache.ids, np.where(rows >= 0, per_row[np.maximum(rows, 0)], np.inf)
@@ -87,9 +89,24 @@ def view_distances(
         return None
     for i, v in enumerate(values):
         if v is not None and len(v) == views * full:
-            block = np.asarray(v, np.float32).reshape(views, full)[:, :part]
-            out[i] = float(np.abs(block - q[0]).sum(-1).min())
+            out[i] = float(
+                nearest_view(np.asarray(v, np.float32).reshape(1, -1), q, views, full)[0]
+            )
     return ids, out
+
+
+def nearest_view(
+    rows: NDArray[np.float32], q: NDArray[np.float32], views: int, full: int
+) -> NDArray[np.float64]:
+    """(r,) each row's (r, views * full) least L1 distance between a view's silhouette part
+    and ``q`` (1, 1, part): faiss's brute force over the views when they hold nothing
+    else (ten times numpy's speed), numpy over the leading part otherwise."""
+    part = q.shape[-1]
+    if part == full and rows.flags.c_contiguous:
+        d = faiss_pairwise_l1(q.reshape(1, part), rows.reshape(-1, part))
+        return np.asarray(d.reshape(-1, views).min(axis=1), np.float64)
+    block = rows.reshape(-1, views, full)[:, :, :part]
+    return np.asarray(np.abs(block - q).sum(-1).min(-1), np.float64)
 
 
 def view_search(

@@ -158,3 +158,19 @@ def test_a_deleted_shape_is_not_found(tmp_path_factory: pytest.TempPathFactory) 
     hits = store.search(cloud, k=3)
     assert [h.path for h in hits] == ["view", "view"] and "cone" not in {h.name for h in hits}
     assert store.search(cloud, k=3, where="label = 'nothing'") == []
+
+
+def test_the_nearest_view_is_the_same_by_faiss_and_by_numpy() -> None:
+    from query.search.view_search import nearest_view
+
+    rng = np.random.default_rng(0)
+    rows = rng.random((50, 30 * 46), dtype=np.float32)
+    q = rng.random((1, 1, 46), dtype=np.float32)
+    fast = nearest_view(rows, q, 30, 46)  # faiss over the contiguous views
+    plain = nearest_view(np.asfortranarray(rows), q, 30, 46)  # numpy
+    exact = np.abs(rows.reshape(50, 30, 46).astype(np.float64) - q).sum(-1).min(-1)
+    assert np.allclose(fast, exact, rtol=1e-5) and np.allclose(plain, exact, rtol=1e-5)
+    # views holding more than their silhouette part (depth images): numpy over the part
+    wide = rng.random((50, 30 * 50), dtype=np.float32)
+    part = nearest_view(wide, q, 30, 50)
+    assert np.allclose(part, np.abs(wide.reshape(50, 30, 50)[:, :, :46] - q).sum(-1).min(-1))
