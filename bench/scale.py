@@ -205,8 +205,10 @@ def measure(db: Any, args: argparse.Namespace, seeds: list[Any], rng: np.random.
     save()
     if n <= args.tables_max:
         out.update(m.table_figures(db))
-    # serve first: the server holds its own indexes, and this process's copy (loaded by
-    # the searches below) would take the page cache its memory-mapped rows need
+    # serve first, with this process's indexes released: the growth's commits kept the
+    # feature index and array copies here (10.7 GB at 10^6), and with them held the
+    # server's memory-mapped rows left the page cache (warm p50 1.75 s against 24 ms)
+    db.close()
     out.update(serve_figures(Path(db.path), rng.choice(ids, args.queries + 1, replace=False)))
     save()
     sample = rng.choice(ids, args.queries + 1, replace=False)

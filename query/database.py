@@ -144,6 +144,37 @@ class Database:
         return f"<Database {str(self.store.path)!r} shapes={len(self.store)}>"
 
     # ---------------------------------------------------------------- commits
+    def close(self) -> None:
+        """Release what this process keeps in memory for the store: its feature, field
+        vector and part indexes, the memory-mapped arrays, the stage's side tables and the
+        catalog. The store on disk is untouched and the handle stays usable: the next
+        search loads what it needs again. A long-lived process (a server, a benchmark that
+        grew a store) calls it before handing the memory to another.
+        """
+        import gc
+
+        from query import sql
+        from query.parts import store_index
+        from query.search import (
+            catalog,
+            field_index,
+            index,
+            lightfield_neighbours,
+            lightfield_spread,
+            rerank_lightfield,
+        )
+
+        path = os.fspath(self.store.path)
+        index.forget(self)
+        store_index.forget(self)
+        field_index.forget(path)
+        rerank_lightfield.forget(path)  # and the array caches it reads
+        lightfield_neighbours.forget(path)
+        lightfield_spread.forget(path)
+        catalog.forget(path)
+        sql.forget(path)
+        gc.collect()
+
     def commit(
         self,
         records: Sequence[ShapeRecord] = (),

@@ -62,6 +62,7 @@ if TYPE_CHECKING:
     from shapedb.store.handle import StoreHandle
 
 __all__ = [
+    "forget",
     "sql",
     "connect",
     "script",
@@ -520,6 +521,14 @@ def _short(statement: str, limit: int = 200) -> str:
 
 
 _CONNECTIONS: dict[str, tuple[int, Any]] = {}
+
+
+def forget(path: str) -> None:
+    """Close the DuckDB connection this process keeps for ``where`` filters of the store at
+    ``path``, if any."""
+    cached = _CONNECTIONS.pop(path, None)
+    if cached is not None:
+        cached[1].close()
 
 
 def allowed_ids(db: StoreHandle, where: str) -> NDArray[np.int64]:

@@ -30,7 +30,7 @@ from shapedb.errors import StoreError
 if TYPE_CHECKING:
     from shapedb.store.handle import StoreHandle
 
-__all__ = ["open_parts_index", "on_commit"]
+__all__ = ["open_parts_index", "on_commit", "forget"]
 
 log = logging.getLogger(__name__)
 
@@ -166,7 +166,8 @@ def on_commit(db: StoreHandle, *args: Any, **kwargs: Any) -> None:
             open_parts_index(db, cfg)
 
 
-def _forget(db: StoreHandle) -> None:  # drop a store's in-process cache entries (tests)
+def forget(db: StoreHandle) -> None:
+    """Drop the part indexes this process keeps for ``db``'s store (as a new process)."""
     path = os.fspath(db.store.path)
     for key in [k for k in _CACHE if k[0] == path]:
         _CACHE.pop(key, None)

@@ -36,7 +36,9 @@ if TYPE_CHECKING:
     from shapedb.config.core import Config
     from shapedb.store.handle import StoreHandle
 
-__all__ = ["FeatureIndex", "open_index", "build_index", "on_commit", "keep_beside", "INDEX_DIR"]
+__all__ = [
+    "FeatureIndex", "open_index", "build_index", "on_commit", "keep_beside", "forget", "INDEX_DIR"
+]  # fmt: skip
 
 log = logging.getLogger(__name__)
 
@@ -210,7 +212,8 @@ def on_commit(db: StoreHandle, *args: Any, **kwargs: Any) -> None:
             open_index(db, view=view)
 
 
-def _forget(db: StoreHandle) -> None:  # drop a store's in-process cache entries (tests)
+def forget(db: StoreHandle) -> None:
+    """Drop the feature indexes this process keeps for ``db``'s store (as a new process)."""
     root = _store_key(db)
     for key in [k for k in _CACHE if k == root or k.startswith(root + "#")]:
         _CACHE.pop(key, None)

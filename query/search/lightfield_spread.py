@@ -59,6 +59,7 @@ if TYPE_CHECKING:
     from shapedb.store.handle import StoreHandle
 
 __all__ = [
+    "forget",
     "SPREAD_DIR",
     "FULL_AT_COMMIT",
     "commit_distances",
@@ -85,6 +86,13 @@ _CHUNK = 256
 FULL_AT_COMMIT = 10_000
 _CACHE: dict[tuple[str, int], SpreadTable] = {}
 _LOCK = threading.Lock()
+
+
+def forget(path: str) -> None:
+    """Drop the tables this process keeps for the store at ``path`` (as a new process)."""
+    with _LOCK:
+        for key in [k for k in _CACHE if k[0] == path]:
+            _CACHE.pop(key, None)
 
 
 def calibration(config: Config) -> float:

@@ -30,17 +30,7 @@ def tmp_db(tmp_path: Path, example_records: list[ShapeRecord]) -> Iterator[Any]:
 
 
 def _forget(db: Any) -> None:
-    from query import sql
-    from query.search import catalog, field_index, index, rerank_lightfield
-
-    index._forget(db)
-    key = index._store_key(db)
-    catalog.forget(key)
-    rerank_lightfield.forget(str(db.store.path))
-    field_index.forget(str(db.store.path))
-    cached = sql._CONNECTIONS.pop(key, None)
-    if cached is not None:
-        cached[1].close()
+    db.close()
 
 
 @pytest.fixture(scope="session")

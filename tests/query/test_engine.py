@@ -175,9 +175,9 @@ def test_index_is_rebuilt_when_damaged(tmp_db):
     open_index(tmp_db)
     sub = Path(tmp_db.store.path) / INDEX_DIR
     (sub / index_dir_name(sub) / "faiss.index").write_bytes(b"garbage")
-    from query.search.index import _forget
+    from query.search.index import forget
 
-    _forget(tmp_db)
+    forget(tmp_db)
     assert search(tmp_db, "box0", k=1)[0].name == "box0"
 
 

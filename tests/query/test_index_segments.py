@@ -20,7 +20,7 @@ from query_helpers import CONFIG, make_record
 
 import query.search.field_rows as field_rows_module
 import query.search.index_segments as segments_module
-from query.search.index import INDEX_DIR, VIEW_INDEX_DIR, FeatureIndex, _forget, open_index
+from query.search.index import INDEX_DIR, VIEW_INDEX_DIR, FeatureIndex, forget, open_index
 from shapedb.geometry.implicit import Box
 from shapedb.signature.kernel import weights
 
@@ -54,7 +54,7 @@ def feat_db(tmp_path: Path) -> Iterator[Any]:
     for k in range(3):
         db.store.commit(_records(_features(100, k), f"s{k}-", views=True))
     yield db
-    _forget(db)
+    forget(db)
 
 
 @pytest.fixture
@@ -143,7 +143,7 @@ def test_a_new_process_loads_the_saved_copy_and_catches_up(
     feat_db.store.commit(_records(_features(3, 8), "few-"))  # 1% of the index: not saved
     open_index(feat_db)
     assert json.loads(pointer.read_text())["version"] == saved
-    _forget(feat_db)  # a new process
+    forget(feat_db)  # a new process
     reads["features"].clear()
     index = open_index(feat_db)
     assert reads["features"] == _files(feat_db)[-1:] and index.n_alive == 303
@@ -165,7 +165,7 @@ def test_a_saved_copy_behind_deletions_and_a_compaction_catches_up(
         feat_db.store.delete([victim])
         open_index(feat_db)
     feat_db.store.compact(target_shapes=1000)
-    _forget(feat_db)  # a new process: the saved copy names none of the merged segment's
+    forget(feat_db)  # a new process: the saved copy names none of the merged segment's
     reads["features"].clear()
     index = open_index(feat_db)
     assert reads["features"] == _files(feat_db) and index.n_alive == 297

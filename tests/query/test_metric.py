@@ -193,7 +193,7 @@ def test_store_metric_search_and_evaluate(tmp_db: Any) -> None:
 def test_metric_index_is_kept_on_disk_and_follows_commits(
     tmp_db: Any, example_records: list[Any]
 ) -> None:
-    from query.search.index import _forget, open_index
+    from query.search.index import forget, open_index
 
     m = _handmade(tmp_db)
     sid = int(tmp_db.store.features()[0][0])
@@ -203,7 +203,7 @@ def test_metric_index_is_kept_on_disk_and_follows_commits(
     np.testing.assert_allclose(
         open_index(tmp_db, metric=m).weights_, m.dim_weights() * open_index(tmp_db).weights_
     )
-    _forget(tmp_db)  # a new process: loaded from disk, same answer
+    forget(tmp_db)  # a new process: loaded from disk, same answer
     assert tmp_db.search(sid, k=3, metric=m) == first
     # a commit adds a shape: the metric's index catches up at its next search
     rec = example_records[0]

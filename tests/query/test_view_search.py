@@ -174,3 +174,17 @@ def test_the_nearest_view_is_the_same_by_faiss_and_by_numpy() -> None:
     wide = rng.random((50, 30 * 50), dtype=np.float32)
     part = nearest_view(wide, q, 30, 50)
     assert np.allclose(part, np.abs(wide.reshape(50, 30, 50)[:, :, :46] - q).sum(-1).min(-1))
+
+
+def test_close_releases_what_the_process_keeps_and_the_store_stays_usable(db: Any) -> None:
+    from query.search import array_cache, catalog, field_index, index
+
+    path = str(db.path)
+    before = db.search("box", k=3)
+    db.search(PointCloud(scan(MESHES["box"])), k=2, where="name <> 'cone'")
+    assert any(k[0] == path for k in array_cache._OPEN) and path in catalog._CATALOGS
+    db.close()
+    assert not any(k[0] == path for k in array_cache._OPEN)
+    assert path not in catalog._CATALOGS and path not in index._CACHE
+    assert not any(k[0] == path for k in field_index._INDEXES)
+    assert [h.name for h in db.search("box", k=3)] == [h.name for h in before]
