@@ -18,6 +18,7 @@ each hit's ``path`` is ``"view"``.
 
 from __future__ import annotations
 
+import logging
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -36,6 +37,8 @@ if TYPE_CHECKING:
     from shapedb.store.handle import StoreHandle
 
 __all__ = ["VIEW_UNIT", "view_search", "view_distances", "nearest_view"]
+
+log = logging.getLogger(__name__)
 
 #: Distances over this unit give a hit's similarity ``exp(-distance / VIEW_UNIT)``: the
 #: median distance of CAPOD validation scans to shapes of other classes (3.0) over ln 10,
@@ -136,9 +139,14 @@ def view_search(
     list of Hit or None
         ``path="view"``, ``distance`` the nearest view's L1 distance, ``similarity``
         ``exp(-distance / VIEW_UNIT)``; ties by ascending id. None when the store keeps
-        no light fields (the caller searches the whole path instead).
+        no light fields or the scan has no silhouette to draw (the caller searches the
+        whole path instead).
     """
-    features = scan_view_features(cloud.points, direction, db.config.light_field)
+    try:
+        features = scan_view_features(cloud.points, direction, db.config.light_field)
+    except ValueError as exc:  # no silhouette to draw (points on a line along the view)
+        log.info("view path: %s; the whole path instead", exc)
+        return None
     found = view_distances(db, features)
     if found is None:
         return None

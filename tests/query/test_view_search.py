@@ -188,3 +188,16 @@ def test_close_releases_what_the_process_keeps_and_the_store_stays_usable(db: An
     assert path not in catalog._CATALOGS and path not in index._CACHE
     assert not any(k[0] == path for k in field_index._INDEXES)
     assert [h.name for h in db.search("box", k=3)] == [h.name for h in before]
+
+
+def test_a_scan_without_a_silhouette_falls_back_to_the_whole_path(
+    db: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from query.search import view_search
+
+    def refuse(*args: Any, **kwargs: Any) -> None:
+        raise ValueError("the scan's points project to one spot")
+
+    monkeypatch.setattr(view_search, "scan_view_features", refuse)
+    hits = db.search(PointCloud(scan(MESHES["box"])), k=2)
+    assert {h.path for h in hits} == {"whole"}
