@@ -29,7 +29,7 @@ from shapedb.signature.lightfield_descriptor import image_axes, silhouette_featu
 __all__ = ["CLOSING_PX", "scan_silhouette", "scan_view_features"]
 
 #: Pixels of binary closing after splatting; on CAPOD validation scans 1-2x the points'
-#: spacing as the splat and 2 pixels of closing were within a query of each other.
+#: spacing as the splat were within two queries of each other (60 scans, 2 pixels of closing).
 CLOSING_PX = 2
 
 
