@@ -175,6 +175,13 @@ class Database:
         sql.forget(path)
         gc.collect()
 
+    def __enter__(self) -> Database:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        """``with shapedb.connect(path) as db:`` releases the memory at the end (:meth:`close`)."""
+        self.close()
+
     def commit(
         self,
         records: Sequence[ShapeRecord] = (),

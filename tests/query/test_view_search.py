@@ -201,3 +201,14 @@ def test_a_scan_without_a_silhouette_falls_back_to_the_whole_path(
     monkeypatch.setattr(view_search, "scan_view_features", refuse)
     hits = db.search(PointCloud(scan(MESHES["box"])), k=2)
     assert {h.path for h in hits} == {"whole"}
+
+
+def test_a_with_block_closes_the_store(db: Any) -> None:
+    import shapedb
+    from query.search import catalog
+
+    with shapedb.connect(db.path, create=False) as again:
+        assert again.search("torus", k=1)[0].name == "torus"
+        assert str(db.path) in catalog._CATALOGS
+    assert str(db.path) not in catalog._CATALOGS
+    assert db.search("torus", k=1)[0].name == "torus"  # the store stays usable
