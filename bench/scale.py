@@ -292,8 +292,8 @@ def main(argv: list[str] | None = None) -> int:
         "--seed-store", type=Path, default=Path(tempfile.gettempdir()) / "shapedb-scale-seed"
     )
     p.add_argument("--queries", type=int, default=50, help="searches timed at each size")
-    p.add_argument("--reference-queries", type=int, default=15)
-    p.add_argument("--reference-max", type=int, default=100_000)
+    p.add_argument("--reference-queries", type=int, default=10)
+    p.add_argument("--reference-max", type=int, default=1_000_000)
     p.add_argument("--reference-timeout", type=float, default=3600.0)
     p.add_argument(
         "--part-max", type=int, default=10_000, help="build the part index up to this size"
