@@ -74,6 +74,12 @@ LAYER_DIRECTIONS = 200
 #: Image cells across the cloud's extent in :func:`layered_fraction`; two points of a
 #: cell more than two cells apart in depth lie on two layers.
 LAYER_CELLS = 24
+#: Image cells across the extent when :func:`layered_fraction` looks for the viewing
+#: direction: finer than the test's cells, where only the camera's own cap of directions
+#: stays one layer deep. Validation scans of CAPOD and parts: the camera's axis missed by
+#: 11.8 degrees at the median (25.8 at the 90th percentile) against 23.0 (56.7) at 24
+#: cells; 32, 48, 64, 128 and 192 cells: 17.3, 15.6, 12.5, 11.0 and 9.9 at the median.
+DIRECTION_CELLS = 96
 #: Directions whose share of two-layer points is within this of the least make the cap
 #: whose centre :func:`layered_fraction` returns.
 LAYER_CAP = 0.02
@@ -106,6 +112,31 @@ def _half_sphere(n: int) -> NDArray[np.float64]:
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
 
 
+def _two_layer_shares(
+    p: NDArray[np.float64], dirs: NDArray[np.float64], cells: int, extent: float
+) -> NDArray[np.float64]:
+    """(directions,) share of the points ``p`` (n, 3, centred) in image cells (``cells``
+    across ``2 * extent``) whose points span more than two cells in depth along each of
+    ``dirs`` (half-sphere unit vectors)."""
+    cell = 2.0 * extent / cells
+    u = np.cross(dirs, [1.0, 0.0, 0.0])  # no direction of the half sphere lies along x
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    w = np.cross(dirs, u)
+    col = np.floor((p @ u.T) / cell).astype(np.int64) + cells
+    row = np.floor((p @ w.T) / cell).astype(np.int64) + cells
+    depth = p @ dirs.T  # (n, directions)
+    key = row * (4 * cells) + col
+    shares = np.empty(len(dirs))
+    for j in range(len(dirs)):
+        order = np.argsort(key[:, j], kind="stable")
+        k, z = key[order, j], depth[order, j]
+        starts = np.r_[0, np.flatnonzero(np.diff(k)) + 1]
+        spread = np.maximum.reduceat(z, starts) - np.minimum.reduceat(z, starts)
+        counts = np.diff(np.r_[starts, len(k)])
+        shares[j] = float(counts[spread > 2.0 * cell].sum()) / len(p)
+    return shares
+
+
 def layered_fraction(points: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
     """How far a cloud is from one depth camera's view, and the direction it is nearest to.
 
@@ -115,6 +146,7 @@ def layered_fraction(points: NDArray[np.float64]) -> tuple[float, NDArray[np.flo
     depth camera samples sparsely (measured: a gap test instead, which lets walls pass,
     took thin web models' whole clouds for scans). A depth scan is one layer deep along its
     camera's axis; a cloud around a whole surface is at least two along every direction.
+    The direction comes from the same count on finer cells (:data:`DIRECTION_CELLS`).
 
     Parameters
     ----------
@@ -125,8 +157,8 @@ def layered_fraction(points: NDArray[np.float64]) -> tuple[float, NDArray[np.flo
     -------
     (float, (3,) float64)
         The least share of points in two-layer cells over :data:`LAYER_DIRECTIONS`
-        directions (in [0, 1]), and the centre (unit) of the directions within
-        :data:`LAYER_CAP` of it.
+        directions (in [0, 1]), and the centre (unit) of the directions whose share on
+        :data:`DIRECTION_CELLS` cells is within :data:`LAYER_CAP` of that count's least.
     """
     p = np.asarray(points, np.float64).reshape(-1, 3)
     p = p - p.mean(axis=0)
@@ -134,28 +166,14 @@ def layered_fraction(points: NDArray[np.float64]) -> tuple[float, NDArray[np.flo
     dirs = _half_sphere(LAYER_DIRECTIONS)
     if not extent > 0:
         return 0.0, dirs[-1]
-    cell = 2.0 * extent / LAYER_CELLS
-    u = np.cross(dirs, [1.0, 0.0, 0.0])  # no direction of the half sphere lies along x
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
-    w = np.cross(dirs, u)
-    col = np.floor((p @ u.T) / cell).astype(np.int64) + LAYER_CELLS
-    row = np.floor((p @ w.T) / cell).astype(np.int64) + LAYER_CELLS
-    depth = p @ dirs.T  # (n, directions)
-    key = row * (4 * LAYER_CELLS) + col
-    shares = np.empty(len(dirs))
-    for j in range(len(dirs)):
-        order = np.argsort(key[:, j], kind="stable")
-        k, z = key[order, j], depth[order, j]
-        starts = np.r_[0, np.flatnonzero(np.diff(k)) + 1]
-        spread = np.maximum.reduceat(z, starts) - np.minimum.reduceat(z, starts)
-        counts = np.diff(np.r_[starts, len(k)])
-        shares[j] = float(counts[spread > 2.0 * cell].sum()) / len(p)
-    best = int(np.argmin(shares))
+    share = float(_two_layer_shares(p, dirs, LAYER_CELLS, extent).min())
+    fine = _two_layer_shares(p, dirs, DIRECTION_CELLS, extent)
+    best = int(np.argmin(fine))
     # a scan is one layer deep over a cap of directions about its camera's: its centre
-    cap = dirs[shares <= shares[best] + LAYER_CAP]
+    cap = dirs[fine <= fine[best] + LAYER_CAP]
     cap = cap * np.sign(cap @ dirs[best])[:, None]
     mean = cap.sum(axis=0)
-    return float(shares[best]), np.asarray(mean / np.linalg.norm(mean))
+    return share, np.asarray(mean / np.linalg.norm(mean))
 
 
 def viewing_direction(geometry: Geometry) -> NDArray[np.float64] | None:
