@@ -215,6 +215,7 @@ class Api:
         """The k stored shapes most like an uploaded model (decomposed with the store's
         configuration); the response header ``X-Query`` names the query for
         ``/api/queries/{key}`` and ``/api/match``."""
+        from shapedb.geometry.pointcloud import PointCloud
         from shapedb.geometry.view import is_sparse
         from shapedb.mdbd.decomposition import decompose
 
@@ -230,8 +231,14 @@ class Api:
                 keep_inside=db.config.light_field_inside,
             )  # fmt: skip
             # the decomposition stands for the geometry exactly when the search needs
-            # nothing else of it: a dense query in a store without sparse views
-            exact = not is_sparse(d.sampling, d.spacing) and not db.config.cloud.view_cells
+            # nothing else of it: a dense query in a store without sparse views, and no
+            # point cloud (a one-sided scan is searched by its silhouette, any cloud's
+            # light fields are drawn from its points)
+            exact = (
+                not isinstance(geometry, PointCloud)
+                and not is_sparse(d.sampling, d.spacing)
+                and not db.config.cloud.view_cells
+            )
             hits = db.search(d if exact else geometry, k=k, where=where)
         except ShapeDBError as exc:
             raise _scrub(exc, folder, {str(path_in(folder, file)): name}) from exc

@@ -70,6 +70,7 @@ __all__ = [
     "record_light_field",
     "inside_light_field",
     "decomposition_light_field",
+    "cloud_light_field",
     "light_field_dim",
     "light_field_distance",
 ]
@@ -482,3 +483,62 @@ def decomposition_light_field(
         tol = decomposition.config.contact_tol_cells * decomposition.spacing
         edges = contact_edges(centers, radii, tol)
     return record_light_field(centers, radii, cfg, edges=edges)
+
+
+#: Largest number of a cloud's points :func:`cloud_light_field` splats (a seeded random
+#: subset of a larger cloud: 20,000 discs render 30 views in well under a second).
+CLOUD_POINTS = 20_000
+#: Pixels of closing of a cloud's splatted silhouettes, bridging the gaps its sampling
+#: leaves: on CAPOD validation clouds of 3,000 points NN by the light fields alone 0.967
+#: at 2 pixels against 0.933-0.967 at none, discs of the median spacing.
+CLOUD_CLOSE_PX = 2
+
+
+def cloud_light_field(
+    points: ArrayLike, config: LightFieldConfig | None = None
+) -> NDArray[np.float32]:
+    """Light fields of the surface a point cloud samples, as a store keeps a shape's.
+
+    Seen from any direction, the samples of a surface all around a solid cover the
+    solid's silhouette, so a cloud's silhouettes need no inside: every point is drawn as
+    a disc of the points' median spacing (:func:`record_light_field` of those discs, about
+    the points' mean, closed by :data:`CLOUD_CLOSE_PX` pixels), which a sparse cloud's
+    decomposed inside draws far less faithfully. A cloud of more than
+    :data:`CLOUD_POINTS` points is drawn from a seeded random subset of them.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        Surface samples, any units; n >= 3, finite.
+    config : LightFieldConfig, optional
+        The store's (``close_px`` and ``edges`` are this function's own).
+
+    Returns
+    -------
+    (config.n_fields, 10, dim) float32
+        Comparable view for view with :func:`decomposition_light_field` of a stored shape
+        of the same configuration.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 3 distinct finite points.
+    """
+    from scipy.spatial import cKDTree
+
+    cfg = config or LightFieldConfig()
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if not np.all(np.isfinite(p)):
+        raise ValueError("a cloud's light fields need finite points")
+    p = np.unique(p, axis=0)
+    if len(p) < 3:
+        raise ValueError(f"a cloud's light fields need 3 or more distinct points ({len(p)} given)")
+    if len(p) > CLOUD_POINTS:
+        keep = np.random.default_rng(0).choice(len(p), CLOUD_POINTS, replace=False)
+        p = p[np.sort(keep)]
+    spacing = float(np.median(cKDTree(p).query(p, k=2)[0][:, 1]))
+    centre = p.mean(axis=0)
+    extent = float(np.linalg.norm(p - centre, axis=1).max()) + spacing
+    radii = np.full(len(p), spacing)
+    splat = replace(cfg, close_px=CLOUD_CLOSE_PX, edges=False)
+    return record_light_field(p, radii, splat, frame=(centre, extent))

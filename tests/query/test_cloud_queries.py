@@ -114,3 +114,24 @@ def test_a_cloud_is_as_far_as_the_nearer_of_its_feature_and_reconstruction(mesh_
     assert {h.id: round(h.distance, 4) for h in hits} == {
         int(i): round(float(w), 4) for i, w in zip(ids, want, strict=True)
     }
+
+
+def test_a_clouds_light_fields_are_drawn_from_its_points(
+    mesh_db: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Its decomposed inside would draw them too, less faithfully: the stage reads the
+    points' own (and a mesh query keeps its decomposition's)."""
+    import shapedb.signature.lightfield as lf
+
+    drawn: list[int] = []
+    real = lf.cloud_light_field
+
+    def spy(points: Any, config: Any = None) -> Any:
+        drawn.append(len(points))
+        return real(points, config)
+
+    monkeypatch.setattr(lf, "cloud_light_field", spy)
+    hits = mesh_db.search(_cloud(_meshes()["torus"]), k=3)
+    assert drawn == [600] and hits[0].name == "torus"
+    mesh_db.search(_meshes()["torus"], k=3)
+    assert drawn == [600]

@@ -293,3 +293,80 @@ def test_view_framing_ignores_where_the_frame_is_centred() -> None:
 def test_a_bad_framing_names_the_option() -> None:
     with pytest.raises(ConfigError, match="lf_framing"):
         LightFieldConfig(framing="box")
+
+
+# --------------------------------------------------------------------------------------
+# A point cloud's own light fields
+# --------------------------------------------------------------------------------------
+
+
+def _box_surface(n: int, extents: tuple[float, float, float], seed: int = 0) -> np.ndarray:
+    """n points uniform by area over the surface of a box of ``extents`` at the origin."""
+    rng = np.random.default_rng(seed)
+    e = np.asarray(extents, float) / 2
+    areas = np.array([e[1] * e[2], e[0] * e[2], e[0] * e[1]] * 2)
+    face = rng.choice(6, n, p=areas / areas.sum())
+    p = rng.uniform(-1.0, 1.0, (n, 3)) * e
+    p[np.arange(n), face % 3] = np.where(face < 3, 1.0, -1.0) * e[face % 3]
+    return p
+
+
+def _box_cells(extents: tuple[float, float, float], cell: float = 0.05) -> np.ndarray:
+    """Centres of the grid cells filling a box of ``extents`` at the origin."""
+    axes = [np.arange(-e / 2 + cell / 2, e / 2, cell) for e in extents]
+    return np.stack([m.ravel() for m in np.meshgrid(*axes, indexing="ij")], axis=1)
+
+
+def test_a_clouds_light_fields_are_its_solids() -> None:
+    # samples of a box's surface draw the silhouettes of the solid box (its cells, each a
+    # ball of half a cell, as a store draws a field's inside): far nearer to them than
+    # the samples of boxes a fifth to a half thinner along one side
+    from shapedb.signature.lightfield import cloud_light_field
+
+    cfg = LightFieldConfig(n_fields=2, resolution=48)
+    cells = _box_cells((2.0, 1.0, 0.5))
+    solid = ball_light_field(cells, np.full(len(cells), 0.025), cfg)[None]
+    others = [(2.0, 1.0, 0.1), (2.0, 0.6, 0.5), (1.5, 1.0, 0.5)]
+    near = light_field_distance(
+        cloud_light_field(_box_surface(3000, (2.0, 1.0, 0.5)), cfg)[None], solid
+    )
+    far = [
+        light_field_distance(cloud_light_field(_box_surface(3000, e), cfg)[None], solid)
+        for e in others
+    ]
+    assert near[0, 0] < 0.2 * min(float(f[0, 0]) for f in far)
+
+
+def test_a_clouds_light_fields_ignore_order_pose_and_duplicates() -> None:
+    from shapedb.signature.lightfield import cloud_light_field
+
+    cfg = LightFieldConfig(n_fields=2, resolution=48)
+    p = _box_surface(2000, (2.0, 1.0, 0.5))
+    a = cloud_light_field(p, cfg)
+    assert a.shape == (2, 10, light_field_dim(cfg)) and a.dtype == np.float32
+    shuffled = np.random.default_rng(1).permutation(p)
+    np.testing.assert_array_equal(cloud_light_field(np.vstack([shuffled, p[:50]]), cfg), a)
+    moved = 3.0 * p + [5.0, -2.0, 1.0]
+    np.testing.assert_allclose(cloud_light_field(moved, cfg), a, atol=1e-3)
+
+
+def test_a_large_cloud_is_drawn_from_a_seeded_subset(monkeypatch: pytest.MonkeyPatch) -> None:
+    import shapedb.signature.lightfield as lf
+
+    cfg = LightFieldConfig(n_fields=1, resolution=32)
+    p = _box_surface(3000, (2.0, 1.0, 0.5))
+    monkeypatch.setattr(lf, "CLOUD_POINTS", 1000)
+    a = lf.cloud_light_field(p, cfg)
+    np.testing.assert_array_equal(lf.cloud_light_field(p, cfg), a)
+    assert light_field_distance(a[None], lf.cloud_light_field(p[:1000], cfg)[None])[0, 0] > 0
+
+
+@pytest.mark.parametrize(
+    ("points", "reason"),
+    [(np.zeros((5, 3)), "3 or more distinct"), (np.full((5, 3), np.nan), "finite")],
+)
+def test_a_cloud_without_a_surface_has_no_light_fields(points: np.ndarray, reason: str) -> None:
+    from shapedb.signature.lightfield import cloud_light_field
+
+    with pytest.raises(ValueError, match=reason):
+        cloud_light_field(points)
