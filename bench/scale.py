@@ -209,6 +209,7 @@ def measure(db: Any, args: argparse.Namespace, seeds: list[Any], rng: np.random.
     # feature index and array copies here (10.7 GB at 10^6), and with them held the
     # server's memory-mapped rows left the page cache (warm p50 1.75 s against 24 ms)
     db.close()
+    out["bench_rss_at_serve_mb"] = m.trim_memory()
     out.update(serve_figures(Path(db.path), rng.choice(ids, args.queries + 1, replace=False)))
     save()
     sample = rng.choice(ids, args.queries + 1, replace=False)
@@ -250,6 +251,7 @@ _COLUMNS = [
     ("serve p50 / p99 ms", ("serve_p50_ms", "serve_p99_ms"), "{:.1f} / {:.1f}"),
     ("serve's own p50 ms", "serve_own_p50_ms", "{:.1f}"),
     ("serve peak MB (own at the end)", ("serve_peak_mb", "serve_anon_mb"), "{:,.0f} ({:,.0f})"),
+    ("bench's own MB beside serve", "bench_rss_at_serve_mb", "{:,.0f}"),
     ("cand. recall@100", "candidate_recall@100", "{:.3f}"),
     ("field recall@200", "field_recall@200", "{:.3f}"),
     ("recall@10", "recall@10", "{:.3f}"),

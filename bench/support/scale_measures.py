@@ -8,6 +8,7 @@ memory is the process's resident set (``/proc/self/status``), or a child's.
 
 from __future__ import annotations
 
+import ctypes
 import gc
 import os
 import resource
@@ -27,6 +28,7 @@ import pyarrow.dataset as ds
 __all__ = [
     "rss_mb",
     "peak_mb",
+    "trim_memory",
     "timed",
     "percentiles",
     "store_figures",
@@ -54,6 +56,18 @@ def rss_mb(pid: int | str = "self", field: str = "VmRSS") -> float:
 def peak_mb() -> float:
     """This process's peak resident set so far, MB."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def trim_memory() -> float:
+    """Collect garbage and hand the freed heap back to the system (glibc keeps freed
+    blocks for reuse, so a process that released its indexes still holds their pages);
+    returns this process's resident set afterwards, MB."""
+    gc.collect()
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc: nothing to hand back this way
+        pass
+    return rss_mb()
 
 
 def timed(fn: Callable[[], Any]) -> tuple[float, Any]:

@@ -69,6 +69,7 @@ def test_the_bench_grows_one_store_and_measures_every_figure(seeds, tmp_path, ca
         assert row["db_commit_s"] >= row["store_commit_s"] > 0
         assert row["p50_ms"] > 0 and row["serve_p50_ms"] > 0
         assert row["serve_peak_mb"] >= row["serve_anon_mb"] > 0
+        assert row["bench_rss_at_serve_mb"] > 0  # what the bench held beside the server
         assert row["sql_balls_aggregate_s"] > 0 and row["duckdb_balls_aggregate_s"] > 0
         assert row["ingest_one_s"] > 0 and row["ingest_one_empty_s"] > 0
     db = shapedb.connect(tmp_path / "grown", create=False)
