@@ -257,11 +257,12 @@ print(json.dumps(out))
 """
 
 
-def reference_ranks(db: Any, ids: list[int], timeout: float) -> dict[int, list[int]] | None:
+def reference_ranks(db: Any, ids: list[int], timeout: float) -> dict[int, list[int]] | str | None:
     """The exact default ranking of stored ids: in a child process, over a view of the
     same segments (a new folder whose manifest is a copy and whose ``data`` is a link), with
     an exact feature index, exact field vector proposals and side tables computed fresh.
-    None when it does not finish within ``timeout`` seconds."""
+    None when it does not finish within ``timeout`` seconds; the last line of its error
+    output (or its exit status) when it fails."""
     import json
 
     with tempfile.TemporaryDirectory(prefix="scale-ref-") as tmp:
@@ -276,6 +277,9 @@ def reference_ranks(db: Any, ids: list[int], timeout: float) -> dict[int, list[i
             )  # fmt: skip
         except subprocess.TimeoutExpired:
             return None
+        except subprocess.CalledProcessError as exc:
+            lines = (exc.stderr or "").strip().splitlines()
+            return lines[-1] if lines else f"exit status {exc.returncode}"
         got = json.loads(done.stdout.strip().splitlines()[-1])
         return {int(k): v for k, v in got.items()}
 

@@ -99,3 +99,17 @@ def test_too_few_compressed_vectors_is_refused_before_anything_runs(vectors, cap
     with pytest.raises(SystemExit):
         scale.main(["--sizes", "10", "--vectors", vectors])
     assert "--vectors" in capsys.readouterr().err
+
+
+def test_a_failed_reference_says_why(tmp_path) -> None:
+    """The exact reference runs in a child process; when it fails (at 10^6 it once ran
+    out of memory) the bench keeps the reason instead of stopping."""
+    from types import SimpleNamespace
+
+    from bench.support.scale_measures import reference_ranks
+
+    root = tmp_path / "broken"
+    (root / "data").mkdir(parents=True)
+    (root / "manifest.json").write_text("{not json")
+    why = reference_ranks(SimpleNamespace(path=str(root)), [1, 2], timeout=300)
+    assert isinstance(why, str) and "manifest" in why.lower()
