@@ -208,7 +208,7 @@ def test_bad_values_name_the_number(options: dict[str, Any], match: str) -> None
 
 
 def test_the_product_turns_the_term_on() -> None:
-    assert (PRODUCT.shared_neighbours, PRODUCT.shared_weight) == (3, 1.6)
+    assert (PRODUCT.shared_neighbours, PRODUCT.shared_weight) == (6, 1.6)
     assert PRODUCT.shares_neighbours and not replace(PRODUCT, shared_weight=0.0).shares_neighbours
 
 
