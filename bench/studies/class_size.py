@@ -2,7 +2,7 @@
 
 Usage (from the repository root)::
 
-    python -m bench.studies.class_size --variants product k5 k8
+    python -m bench.studies.class_size --variants k3 k6
 
 Each family's validation split holds a third of each class (CAPOD 4 a class, the
 generated sets 3-7), its test split two thirds (8-13): a term that reads a query's ``k``
@@ -37,11 +37,7 @@ RESULTS = Path(__file__).resolve().parents[1] / "results" / "studies"
 
 #: The stage variants this study can score (fields of ``StageTuning``).
 VARIANTS: dict[str, dict[str, Any]] = {
-    "product": {},
-    "k4": {"shared_neighbours": 4},
-    "k5": {"shared_neighbours": 5},
-    "k6": {"shared_neighbours": 6},
-    "k8": {"shared_neighbours": 8},
+    f"k{k}": {"shared_neighbours": k} for k in (3, 4, 5, 6, 7, 8)
 }
 
 #: Models added to each class of a family's validation split: enough to reach its test
