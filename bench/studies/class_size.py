@@ -114,7 +114,9 @@ def run(stores: dict[str, Any], variants: Sequence[str]) -> dict[str, Any]:
     for v in variants:
         with tuned(replace(PRODUCT, **VARIANTS[v])):
             scores = {f: store_scores(db) for f, db in stores.items()}
-        macro = float(np.mean([(s["nn"] + s["first_tier"] + s["dcg"]) / 3 for s in scores.values()]))
+        macro = float(
+            np.mean([(s["nn"] + s["first_tier"] + s["dcg"]) / 3 for s in scores.values()])
+        )
         out[v] = {"families": scores, "macro": macro}
         print(f"  {v}: macro {macro:.4f}", flush=True)
     return out
@@ -147,7 +149,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     for which in ("validation", "large validation"):
         stores, sizes = {}, {}
         for name in args.datasets:
-            ds = family_split(name, "validation") if which == "validation" else large_validation(name)
+            ds = (
+                family_split(name, "validation")
+                if which == "validation"
+                else large_validation(name)
+            )
             sizes[name] = _class_size(ds)
             stores[name] = split_store(ds, {}, workers=args.workers)
         print(f"{which}: median class size {sizes}", flush=True)

@@ -235,7 +235,8 @@ class _Query:
     ``sid`` is the stored shape's id when the query is one, else -1; ``decomposition``
     the query's own decomposition when it has one (a stored shape's is not read);
     ``light_field`` and ``field_vector`` an unstored record's own light fields and field
-    vector, when it carries them; ``light_field`` also a point cloud's, drawn from its points.
+    vector, when it carries them; ``light_field`` also a point cloud's, drawn from its points
+    (``from_points``).
     """
 
     feature: NDArray[np.float64]
@@ -245,6 +246,7 @@ class _Query:
     decomposition: Any = None
     light_field: Any = None
     field_vector: Any = None
+    from_points: bool = False
 
     def view_feature(self) -> NDArray[np.float64] | None:
         if callable(self.view):
@@ -257,7 +259,8 @@ def _stored_arrays(db: StoreHandle, resolved: list[_Query]) -> tuple[Any, Any]:
 
     Only a store that keeps light fields (``Config.stores_light_fields``) has any: its
     records' ``light_field`` column, and each outside query's light fields computed from
-    its decomposition (NaN for a stored query, read by id, or a raw vector); in a store
+    its decomposition (NaN for a stored query, read by id, or a raw vector), or drawn from
+    a point cloud's points (then marked in ``FROM_POINTS``); in a store
     with field vectors (:mod:`query.search.field_fusion`) also their ``field_vector`` column and
     each outside query's own field vector, when its stage reads them (a field weight or
     extra candidates).
@@ -265,7 +268,12 @@ def _stored_arrays(db: StoreHandle, resolved: list[_Query]) -> tuple[Any, Any]:
     if not db.config.stores_light_fields:
         return None, None
     from query.search.field_fusion import FIELD, FieldFusion, query_field_vectors
-    from query.search.rerank_lightfield import COLUMN, query_light_fields, stored_arrays
+    from query.search.rerank_lightfield import (
+        COLUMN,
+        FROM_POINTS,
+        query_light_fields,
+        stored_arrays,
+    )
 
     own = [r.decomposition if r.sid < 0 and r.light_field is None else None for r in resolved]
     fields = query_light_fields(db.config, own)
@@ -273,6 +281,9 @@ def _stored_arrays(db: StoreHandle, resolved: list[_Query]) -> tuple[Any, Any]:
         if r.sid < 0 and r.light_field is not None:  # a record's own, or a cloud's from its points
             fields[k] = np.asarray(r.light_field, dtype=np.float64)
     out = {COLUMN: fields}
+    points = [r.sid < 0 and r.from_points for r in resolved]
+    if any(points):
+        out[FROM_POINTS] = np.asarray(points, np.float64)
     fusion = FieldFusion.from_config(db.config)
     if fusion.active or fusion.proposes:
         own = [r.decomposition if r.sid < 0 and r.field_vector is None else None for r in resolved]
@@ -428,9 +439,10 @@ def _from_geometry(db: StoreHandle, geometry: Any) -> _Query:
             else None
         )
         recon = None if found is None else _featurise(found, config)
+        lf = _cloud_light_field(geometry, config)
         return _Query(
-            _featurise(d, config), True, recon, decomposition=d,
-            light_field=_cloud_light_field(geometry, config),
+            _featurise(d, config), True, recon, decomposition=d, light_field=lf,
+            from_points=lf is not None,
         )  # fmt: skip
 
     def view() -> NDArray[np.float64] | None:
@@ -442,9 +454,10 @@ def _from_geometry(db: StoreHandle, geometry: Any) -> _Query:
             return None
         return _featurise(found, config) if found is not None and found.n_balls else None
 
+    lf = _cloud_light_field(geometry, config)
     return _Query(
         _featurise(d, config), False, view if config.cloud.view_cells else None, decomposition=d,
-        light_field=_cloud_light_field(geometry, config),
+        light_field=lf, from_points=lf is not None,
     )  # fmt: skip
 
 

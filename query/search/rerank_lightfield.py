@@ -13,8 +13,10 @@ distance already sets the query's nearest apart (a low contrast).
 
 The candidates' light fields are read by id (``Candidates.arrays``); the query's are
 read by its id when it is a stored shape, else taken from ``Candidates.query_arrays``
-(computed from the query's own decomposition: :func:`query_light_fields`). The stored
-local spreads are read by id too, as the array :data:`SPREAD`.
+(computed from the query's own decomposition: :func:`query_light_fields`, or drawn from a
+point cloud's points, a row :data:`FROM_POINTS` marks: its light field rank weighs
+``StageTuning.cloud_weight``). The stored local spreads are read by id too, as the array
+:data:`SPREAD`.
 
 Records without light fields (a store written before the column, or with another scorer
 when the records were built): the query's row keeps the stored-distance order (the
@@ -71,6 +73,7 @@ __all__ = [
     "query_light_fields",
     "forget",
     "COLUMN",
+    "FROM_POINTS",
     "SPREAD",
     "NEIGHBOURS",
 ]
@@ -79,6 +82,10 @@ log = logging.getLogger(__name__)
 
 #: The per-record column (and ``Candidates.query_arrays`` key) of the light fields.
 COLUMN = "light_field"
+#: The ``Candidates.query_arrays`` key of a (q,) array, 1 where a query's light fields were
+#: drawn from its own points (a point cloud: :func:`shapedb.signature.lightfield.cloud_light_field`)
+#: and its light field rank is weighted by ``StageTuning.cloud_weight``, 0 elsewhere.
+FROM_POINTS = "light_field_from_points"
 #: The per-record array of the stored shapes' local light field spreads
 #: (:mod:`query.search.lightfield_spread`), read through ``Candidates.arrays`` like a column.
 SPREAD = "light_field_spread"
@@ -140,6 +147,7 @@ class LightFieldFusion:
         shared: NDArray[np.float64] | None = None,
         ids: NDArray[np.int64] | None = None,
         context: NDArray[np.float64] | None = None,
+        weight: float | None = None,
     ) -> NDArray[np.float64]:
         """Fused scores (c,) of one query's candidates.
 
@@ -175,8 +183,12 @@ class LightFieldFusion:
             The stored distance with its shared-neighbour term
             (:func:`query.search.candidate_neighbours.context_distance`): ``rank_d`` ranks by it,
             its nearest other kept first; None: by ``d``.
+        weight : float, optional
+            The light field's rank weight ``w``; None: ``StageTuning.weight`` (a point
+            cloud's query passes ``StageTuning.cloud_weight``: :meth:`score`).
         """
         f = self.tuning
+        w = f.weight if weight is None else float(weight)
         d4 = d / self.calibration
         if context is not None and ids is not None:
             fused = 1.0 / (f.offset + _ranks(keep_first(d4, context, own, ids)))
@@ -185,12 +197,12 @@ class LightFieldFusion:
         g = self.gate(d4, dl, own, spreads) if gate is None else float(gate)
         if g <= 0:
             return np.maximum(1.0 / f.offset - fused, 0.0)
-        top = (1.0 + f.weight * g) / f.offset
-        plain = np.maximum(top - (fused + f.weight * g / (f.offset + _ranks(dl))), 0.0)
+        top = (1.0 + w * g) / f.offset
+        plain = np.maximum(top - (fused + w * g / (f.offset + _ranks(dl))), 0.0)
         if shared is None or ids is None:
             return plain
         rank_s = _ranks(dl / self.scale - f.shared_weight * np.asarray(shared, np.float64))
-        term = np.maximum(top - (fused + f.weight * g / (f.offset + rank_s)), 0.0)
+        term = np.maximum(top - (fused + w * g / (f.offset + rank_s)), 0.0)
         return keep_first(plain, term, own, ids)
 
     @property
@@ -309,10 +321,17 @@ class LightFieldFusion:
             if spreads is not None:
                 sp = np.array([spreads[int(i)] for i in batch.ids[row, cols]])
             gates.append(self.gate(batch.distances[row, cols] / self.calibration, dl, own, sp))
-        term_on = [r for r, g in zip(rows, gates, strict=True) if g > 0 and self.tuning.weight > 0]
-        lists = self._lists(batch, term_on)
+        points = (batch.query_arrays or {}).get(FROM_POINTS)
+        weights = [
+            self.tuning.cloud_weight
+            if points is not None and points[row] > 0
+            else self.tuning.weight
+            for row, _, _, _ in rows
+        ]
+        on = zip(rows, gates, weights, strict=True)
+        lists = self._lists(batch, [r for r, g, w in on if g > 0 and w > 0])
         k = int(self.tuning.shared_neighbours)
-        for (row, cols, dl, own), g in zip(rows, gates, strict=True):
+        for (row, cols, dl, own), g, w in zip(rows, gates, weights, strict=True):
             ids = batch.ids[row, cols]
             shared = None
             if lists is not None and g > 0:
@@ -321,8 +340,9 @@ class LightFieldFusion:
                 shared = shared_scores(mine, int(batch.query_ids[row]), ids, theirs, k)
             context = self._context(batch, row, cols, own)
             out[row, cols] = self.fuse(
-                batch.distances[row, cols], dl, own, gate=g, shared=shared, ids=ids, context=context
-            )
+                batch.distances[row, cols], dl, own, gate=g, shared=shared, ids=ids,
+                context=context, weight=w,
+            )  # fmt: skip
         return out
 
     def _context(

@@ -19,6 +19,7 @@ import pytest
 import trimesh
 
 import shapedb
+from query.search.tuning import PRODUCT
 from shapedb.config.core import Config
 from shapedb.geometry.mesh import TriangleMesh
 from shapedb.geometry.pointcloud import PointCloud
@@ -135,3 +136,25 @@ def test_a_clouds_light_fields_are_drawn_from_its_points(
     assert drawn == [600] and hits[0].name == "torus"
     mesh_db.search(_meshes()["torus"], k=3)
     assert drawn == [600]
+
+
+def test_the_stage_weighs_a_clouds_light_fields_by_the_cloud_weight(
+    mesh_db: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A cloud's row is marked as drawn from its points (``StageTuning.cloud_weight``); a
+    mesh query's is not."""
+    from query.search.rerank_lightfield import LightFieldFusion
+
+    weights: list[float] = []
+    real = LightFieldFusion.fuse
+
+    def spy(self: Any, *args: Any, **kwargs: Any) -> Any:
+        weights.append(kwargs.get("weight"))
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(LightFieldFusion, "fuse", spy)
+    mesh_db.search(_cloud(_meshes()["torus"]), k=3)
+    mesh_db.search(_meshes()["torus"], k=3)
+    mesh_db.search(1, k=3)
+    assert weights == [PRODUCT.cloud_weight, PRODUCT.weight, PRODUCT.weight]
+    assert PRODUCT.cloud_weight != PRODUCT.weight
