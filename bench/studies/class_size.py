@@ -46,50 +46,43 @@ VARIANTS: dict[str, dict[str, Any]] = {
 EXTRA = {"generic": 6, "web": 6, "enclosures": 6, "figures": 6, "parts": 4, "people": 4}
 
 
+def _grid(classes: Sequence[Any], seeds: range, name: str, label: str, source: str) -> list[Model]:
+    """Validation models of every class and seed; ``name``, ``label`` and ``source`` are
+    format strings of ``c`` (the class) and ``i`` (the seed)."""
+    return [
+        Model(name.format(c=c, i=i), label.format(c=c), source.format(c=c, i=i), split="validation")
+        for c in classes
+        for i in seeds
+    ]
+
+
 def _extra_models(name: str, extra: int) -> list[Model]:
     """``extra`` new models of each class of family ``name`` (seeds past the set's own)."""
     if name == "generic":
         from bench.sets.generic_shapes import KINDS
 
-        return [
-            Model(f"{k}_{i:02d}", k, f"generic:{k}:{i}", split="validation")
-            for k in KINDS
-            for i in range(20, 20 + extra)
-        ]
-    if name in ("web", "enclosures"):
-        if name == "web":
-            from bench.sets.web_shapes import KINDS, web_version
+        return _grid(KINDS, range(20, 20 + extra), "{c}_{i:02d}", "{c}", "generic:{c}:{i}")
+    if name == "web":
+        from bench.sets.web_shapes import KINDS, web_version
 
-            prefix, version = "web", web_version()
-        else:
-            from bench.sets.enclosures import KINDS, enclosure_version
+        source = "web:{c}:{i}:" + web_version()
+        return _grid(KINDS, range(20, 20 + extra), "{c}_{i:02d}", "{c}", source)
+    if name == "enclosures":
+        from bench.sets.enclosures import KINDS as ENCLOSURE_KINDS
+        from bench.sets.enclosures import enclosure_version
 
-            prefix, version = "enclosure", enclosure_version()
-        return [
-            Model(f"{k}_{i:02d}", k, f"{prefix}:{k}:{i}:{version}", split="validation")
-            for k in KINDS
-            for i in range(20, 20 + extra)
-        ]
+        source = "enclosure:{c}:{i}:" + enclosure_version()
+        return _grid(ENCLOSURE_KINDS, range(20, 20 + extra), "{c}_{i:02d}", "{c}", source)
     if name == "figures":
-        return [
-            Model(f"s{s:02d}_p{p:02d}", f"subject{s:02d}", f"figure:{s}:{p}", split="validation")
-            for s in range(15)
-            for p in range(20, 20 + extra)
-        ]
+        seeds = range(20, 20 + extra)
+        return _grid(range(15), seeds, "s{c:02d}_p{i:02d}", "subject{c:02d}", "figure:{c}:{i}")
     if name == "parts":
         from bench.sets.datasets import part_kinds
 
-        return [
-            Model(f"{k}_{i:02d}", k, f"part:{k}:{i}", split="validation")
-            for k in part_kinds()
-            for i in range(12, 12 + extra)
-        ]
+        return _grid(part_kinds(), range(12, 12 + extra), "{c}_{i:02d}", "{c}", "part:{c}:{i}")
     if name == "people":
-        return [
-            Model(f"h{s:02d}_p{p:02d}", f"person{s:02d}", f"person:{s}:{p}", split="validation")
-            for s in range(12)
-            for p in range(10, 10 + extra)
-        ]
+        seeds = range(10, 10 + extra)
+        return _grid(range(12), seeds, "h{c:02d}_p{i:02d}", "person{c:02d}", "person:{c}:{i}")
     return []
 
 
