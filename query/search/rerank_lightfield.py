@@ -328,8 +328,8 @@ class LightFieldFusion:
             else self.tuning.weight
             for row, _, _, _ in rows
         ]
-        on = zip(rows, gates, weights, strict=True)
-        lists = self._lists(batch, [r for r, g, w in on if g > 0 and w > 0])
+        on = [r for r, g, w in zip(rows, gates, weights, strict=True) if g > 0 and w > 0]
+        lists = self._lists(batch, on)
         k = int(self.tuning.shared_neighbours)
         for (row, cols, dl, own), g, w in zip(rows, gates, weights, strict=True):
             ids = batch.ids[row, cols]
