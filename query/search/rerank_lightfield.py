@@ -2,8 +2,8 @@
 
 A store created with ``rerank="lightfield"`` keeps each record's light fields (the
 ``light_field`` column: :func:`shapedb.signature.lightfield.record_light_field` of its balls under
-``Config.light_field``). The scorer (:class:`LightFieldFusion`, registered through
-:data:`query.search.rerank.SCORER_MODULES`) re-ranks a query's candidates by the gated
+``Config.light_field``). The scorer (:class:`LightFieldFusion`, which
+:func:`query.search.stage.scorer_for` gives such a store) re-ranks a query's candidates by the gated
 reciprocal rank fusion of :class:`query.search.tuning.StageTuning`: the stored
 distance's rank plus the light field distance's rank, the latter weighted by a gate that
 is off where the light field spreads near neighbours more than the stored distance does
