@@ -222,3 +222,43 @@ def test_only_point_clouds_are_one_sided() -> None:
 
     assert viewing_direction(Sphere([0, 0, 0], 1.0)) is None
     assert not is_one_sided(Sphere([0, 0, 0], 1.0))
+
+
+def _tray(n: int = 3000, h: float = 0.2, seed: int = 1) -> np.ndarray:
+    """Even samples of a 2 x 2 zero-thickness tray: its bottom at z = 0 and four walls
+    ``h`` high (one layer deep from above: the walls are thinner than two cells)."""
+    rng = np.random.default_rng(seed)
+    areas = np.array([4.0] + [2.0 * h] * 4)
+    part = rng.choice(5, n, p=areas / areas.sum())
+    u, v = rng.uniform(-1.0, 1.0, n), rng.uniform(0.0, h, n)
+    p = np.column_stack([u, rng.uniform(-1.0, 1.0, n), np.zeros(n)])
+    for k, (axis, side) in enumerate([(0, -1.0), (0, 1.0), (1, -1.0), (1, 1.0)], start=1):
+        wall = part == k
+        p[wall, axis] = side
+        p[wall, 1 - axis] = u[wall]
+        p[wall, 2] = v[wall]
+    return p
+
+
+def test_a_whole_thin_model_one_layer_deep_is_not_taken_for_a_scan() -> None:
+    from shapedb.geometry.view import (
+        GRAZING_SHARE,
+        ONE_SIDED_LAYERS,
+        grazing_share,
+        is_one_sided,
+        layered_fraction,
+    )
+
+    tray = _tray()
+    g = np.arange(-1.0, 1.0, 0.04) + 0.02
+    x, y = (m.ravel() for m in np.meshgrid(g, g))
+    scan = np.column_stack([x, y, np.zeros(x.size)])  # a camera above sees the bottom
+    scan[np.abs(scan[:, :2]).max(axis=1) > 0.98, 2] = 0.2  # and the walls' top edges
+    up = np.array([0.0, 0.0, 1.0])
+    # the walls are a fifth of the tray's area, all edge-on from above; a scan sees none
+    assert grazing_share(tray, up) == pytest.approx(0.8 / 4.8, abs=0.03)
+    assert grazing_share(scan, up) == 0.0
+    assert layered_fraction(tray)[0] < ONE_SIDED_LAYERS  # the layer count alone: a scan
+    assert grazing_share(tray, layered_fraction(tray)[1]) >= GRAZING_SHARE
+    assert not is_one_sided(PointCloud(tray))
+    assert is_one_sided(PointCloud(scan))
