@@ -230,10 +230,17 @@ def grazing_share(points: NDArray[np.float64], direction: NDArray[np.float64]) -
     -------
     float
         In [0, 1].
+
+    Raises
+    ------
+    ValueError
+        Fewer than 3 points.
     """
     from scipy.spatial import cKDTree
 
     p = np.asarray(points, np.float64).reshape(-1, 3)
+    if len(p) < 3:
+        raise ValueError(f"grazing_share needs 3 or more points ({len(p)} given)")
     if len(p) > GRAZING_POINTS:
         p = p[np.sort(np.random.default_rng(0).choice(len(p), GRAZING_POINTS, replace=False))]
     k = min(GRAZING_NEIGHBOURS, len(p))

@@ -262,3 +262,5 @@ def test_a_whole_thin_model_one_layer_deep_is_not_taken_for_a_scan() -> None:
     assert grazing_share(tray, layered_fraction(tray)[1]) >= GRAZING_SHARE
     assert not is_one_sided(PointCloud(tray))
     assert is_one_sided(PointCloud(scan))
+    with pytest.raises(ValueError, match="3 or more points"):
+        grazing_share(tray[:2], up)
