@@ -29,7 +29,10 @@ views and sparse clouds one more (point-cloud) decomposition.
 
 In a store of dense shapes only (the default store of meshes) a sparse cloud's candidate
 list holds each shape at the nearer of its own feature's and its reconstruction's
-distance, and the re-ranking stage orders it as any query's: a stored mesh that is not
+distance, and the re-ranking stage orders it as any query's; a point cloud then ranks
+the stored shapes as a search for its proxy does, the nearest of its first results by
+its light fields drawn from its points (:mod:`query.search.cloud_proxy`), each hit at
+its own distance to the cloud. A stored mesh that is not
 closed packs its enclosed solid (:mod:`shapedb.geometry.enclosed`), a shell two cells
 thick wherever a hole lets the flood in, while a cloud (and its closed reconstruction)
 packs the solid its samples enclose, so their features can disagree where their light
@@ -166,11 +169,20 @@ def search_batch(
         arrays, query_arrays = _stored_arrays(db, resolved)
         scorer = scorer_for(db.config)
         wanted = max(int(k), int(scorer.tuning.candidates)) if scorer is not None else int(k)
+        clouds = [
+            r.sid < 0 and r.from_points for r in resolved
+        ] if scorer is not None and scorer.tuning.proxy and arrays is not None else []  # fmt: skip
+        first = wanted if any(clouds) else int(k)  # a cloud's proxy is among its first K
         ids, dist = rerank_search(
-            index, vectors, int(k), config=db.config, query_ids=qids, allowed=allowed,
+            index, vectors, first, config=db.config, query_ids=qids, allowed=allowed,
             scorer=scorer, arrays=arrays, query_arrays=query_arrays, stored_distances=True,
             candidates=_sparse_lists(index, resolved, vectors, wanted, allowed),
         )  # fmt: skip
+        if any(clouds):
+            ids, dist = _by_proxy(
+                db, index, np.flatnonzero(clouds), resolved, (ids, dist), int(k), allowed,
+                (scorer, arrays, query_arrays),
+            )  # fmt: skip
     catalog = store_catalog(db, index.version_)
     lam = float(db.config.kernel.lam)
     out: list[list[Hit]] = []
@@ -260,7 +272,7 @@ def _stored_arrays(db: StoreHandle, resolved: list[_Query]) -> tuple[Any, Any]:
     Only a store that keeps light fields (``Config.stores_light_fields``) has any: its
     records' ``light_field`` column, and each outside query's light fields computed from
     its decomposition (NaN for a stored query, read by id, or a raw vector), or drawn from
-    a point cloud's points (then marked in ``FROM_POINTS``); in a store
+    a point cloud's points; in a store
     with field vectors (:mod:`query.search.field_fusion`) also their ``field_vector`` column and
     each outside query's own field vector, when its stage reads them (a field weight or
     extra candidates).
@@ -270,7 +282,6 @@ def _stored_arrays(db: StoreHandle, resolved: list[_Query]) -> tuple[Any, Any]:
     from query.search.field_fusion import FIELD, FieldFusion, query_field_vectors
     from query.search.rerank_lightfield import (
         COLUMN,
-        FROM_POINTS,
         query_light_fields,
         stored_arrays,
     )
@@ -281,9 +292,6 @@ def _stored_arrays(db: StoreHandle, resolved: list[_Query]) -> tuple[Any, Any]:
         if r.sid < 0 and r.light_field is not None:  # a record's own, or a cloud's from its points
             fields[k] = np.asarray(r.light_field, dtype=np.float64)
     out = {COLUMN: fields}
-    points = [r.sid < 0 and r.from_points for r in resolved]
-    if any(points):
-        out[FROM_POINTS] = np.asarray(points, np.float64)
     fusion = FieldFusion.from_config(db.config)
     if fusion.active or fusion.proposes:
         own = [r.decomposition if r.sid < 0 and r.field_vector is None else None for r in resolved]
@@ -531,6 +539,54 @@ def _search_with_views(
                 lists.append(_among(index, own_view, k, allowed, sparse_ids, inside=True))
         out_ids[row], out_d[row] = _nearest(lists, k)
     return out_ids, out_d
+
+
+def _by_proxy(
+    db: StoreHandle,
+    index: Any,
+    rows: NDArray[np.intp],
+    resolved: list[_Query],
+    found: tuple[NDArray[np.int64], NDArray[np.float64]],
+    k: int,
+    allowed: NDArray[np.int64] | None,
+    stage: tuple[Any, Any, Any],
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """The first ``k`` results of each query, the point clouds' (``rows``) as their proxy's.
+
+    A cloud whose light fields come from its points ranks the stored shapes as a search
+    for its proxy does (:mod:`query.search.cloud_proxy`: the nearest of its first results
+    by light field distance), each hit at its stored distance to the cloud (the nearer of
+    its own feature's and its reconstruction's, as in its candidate list); the other
+    queries keep ``found``'s first ``k``.
+    """
+    from query.search.cloud_proxy import proxies
+    from query.search.rerank import search as rerank_search
+    from query.search.rerank_lightfield import COLUMN
+
+    scorer, arrays, query_arrays = stage
+    ids, dist = found[0][:, :k].copy(), found[1][:, :k].copy()
+    proxy = proxies(query_arrays[COLUMN][rows], found[0][rows], arrays)
+    rows, proxy = rows[proxy >= 0], proxy[proxy >= 0]
+    if not len(rows):
+        return ids, dist
+    got, _ = rerank_search(
+        index, np.stack([index.features_of(int(x)) for x in proxy]), k, config=db.config,
+        query_ids=proxy, allowed=allowed, scorer=scorer, arrays=arrays,
+    )  # fmt: skip
+    for row, hits in zip(rows, got, strict=True):
+        keep = hits[hits >= 0]
+        ids[row], dist[row] = -1, np.inf
+        query = resolved[row]
+        recon = query.view_feature() if query.sparse else None
+        lists = [
+            index.search(v[None], max(len(keep), 1), allowed=keep)
+            for v in (query.feature, recon) if v is not None
+        ]  # fmt: skip
+        near, d = _nearest(lists, max(len(keep), 1))
+        by_id = dict(zip(near.tolist(), d.tolist(), strict=True))
+        ids[row, : len(keep)] = keep
+        dist[row, : len(keep)] = [by_id.get(int(i), np.inf) for i in keep]
+    return ids, dist
 
 
 def _sparse_lists(

@@ -14,8 +14,7 @@ distance already sets the query's nearest apart (a low contrast).
 The candidates' light fields are read by id (``Candidates.arrays``); the query's are
 read by its id when it is a stored shape, else taken from ``Candidates.query_arrays``
 (computed from the query's own decomposition: :func:`query_light_fields`, or drawn from a
-point cloud's points, a row :data:`FROM_POINTS` marks: its light field rank weighs
-``StageTuning.cloud_weight``). The stored local spreads are read by id too, as the array
+point cloud's points). The stored local spreads are read by id too, as the array
 :data:`SPREAD`.
 
 Records without light fields (a store written before the column, or with another scorer
@@ -73,7 +72,6 @@ __all__ = [
     "query_light_fields",
     "forget",
     "COLUMN",
-    "FROM_POINTS",
     "SPREAD",
     "NEIGHBOURS",
 ]
@@ -82,10 +80,6 @@ log = logging.getLogger(__name__)
 
 #: The per-record column (and ``Candidates.query_arrays`` key) of the light fields.
 COLUMN = "light_field"
-#: The ``Candidates.query_arrays`` key of a (q,) array, 1 where a query's light fields were
-#: drawn from its own points (a point cloud: :func:`shapedb.signature.lightfield.cloud_light_field`)
-#: and its light field rank is weighted by ``StageTuning.cloud_weight``, 0 elsewhere.
-FROM_POINTS = "light_field_from_points"
 #: The per-record array of the stored shapes' local light field spreads
 #: (:mod:`query.search.lightfield_spread`), read through ``Candidates.arrays`` like a column.
 SPREAD = "light_field_spread"
@@ -184,8 +178,7 @@ class LightFieldFusion:
             (:func:`query.search.candidate_neighbours.context_distance`): ``rank_d`` ranks by it,
             its nearest other kept first; None: by ``d``.
         weight : float, optional
-            The light field's rank weight ``w``; None: ``StageTuning.weight`` (a point
-            cloud's query passes ``StageTuning.cloud_weight``: :meth:`score`).
+            The light field's rank weight ``w``; None: ``StageTuning.weight``.
         """
         f = self.tuning
         w = f.weight if weight is None else float(weight)
@@ -321,17 +314,11 @@ class LightFieldFusion:
             if spreads is not None:
                 sp = np.array([spreads[int(i)] for i in batch.ids[row, cols]])
             gates.append(self.gate(batch.distances[row, cols] / self.calibration, dl, own, sp))
-        points = (batch.query_arrays or {}).get(FROM_POINTS)
-        weights = [
-            self.tuning.cloud_weight
-            if points is not None and points[row] > 0
-            else self.tuning.weight
-            for row, _, _, _ in rows
-        ]
-        on = [r for r, g, w in zip(rows, gates, weights, strict=True) if g > 0 and w > 0]
+        w = self.tuning.weight
+        on = [r for r, g in zip(rows, gates, strict=True) if g > 0 and w > 0]
         lists = self._lists(batch, on)
         k = int(self.tuning.shared_neighbours)
-        for (row, cols, dl, own), g, w in zip(rows, gates, weights, strict=True):
+        for (row, cols, dl, own), g in zip(rows, gates, strict=True):
             ids = batch.ids[row, cols]
             shared = None
             if lists is not None and g > 0:

@@ -51,10 +51,6 @@ class StageTuning:
         K, the index's nearest candidates the stage re-ranks.
     weight : float
         Weight of the light field's rank term at ``g = 1``.
-    cloud_weight : float
-        That weight for a point cloud's query, whose light fields are drawn from its own
-        points while its stored distance is read from a decomposition of its sparse
-        points, which its mesh's does not match as closely.
     neighbours : int
         Size of the query's neighbourhood the contrast reads.
     ceiling, ramp : float
@@ -86,6 +82,10 @@ class StageTuning:
     descriptor_shared_weight : float
         ``beta`` of the stored distance's shared-neighbour term among the candidates
         (:mod:`query.search.candidate_neighbours`; 0: off).
+    proxy : bool
+        A point cloud ranks as its proxy does (:mod:`query.search.cloud_proxy`): the
+        stored shape nearest to it by light fields among its first ``candidates``, or by
+        its silhouette on the view path. False: by its own stage row (studies).
     """
 
     # K: the index's 100 nearest, re-ranked (the stage's candidates since it was introduced;
@@ -97,10 +97,6 @@ class StageTuning:
     # 2,304 settings of the gate's ratio grid that keep both margins (jointed sets shut,
     # rigid ones open): python -m bench.studies.lightfield_gate --split validation --grid ratio
     weight: float = 8.0
-    # A point cloud's weight 16: the highest mean objective of 8, 16, 24, 32 and 64 over the
-    # even clouds of the generic, enclosure, CAPOD and parts validation splits (8: 0.822,
-    # 16: 0.839, 24: 0.838), no family losing NN to 8.
-    cloud_weight: float = 16.0
     spread_candidates: int = 3
     ratio_weight: float = 0.2
     ratio_candidates: int = 100
@@ -148,10 +144,20 @@ class StageTuning:
     # the highest validation objective of 0.1, 0.2, 0.3, 0.4, 0.6, 0.8 and 1.6 (0.8183; off,
     # 0.8105: python -m bench.studies.stage_parts, "no stored-distance neighbours").
     descriptor_shared_weight: float = 0.2
+    # The proxy: on the validation splits' even, vertex and fall-off clouds of CAPOD,
+    # parts, enclosures and generic models NN 0.950 / 0.950 / 0.850, 0.979 / 0.979 / 0.958,
+    # 0.774 / 0.762 / 0.690 and 0.929 / 0.940 / 0.857 without it, 1.000 / 1.000 / 0.967,
+    # 0.979 / 0.979 / 0.958, 0.821 / 0.833 / 0.786 and 0.984 / 0.984 / 0.912 with it
+    # (python -m bench.studies.cloud_proxy).
+    proxy: bool = True
 
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
+            if f.type == "bool":
+                if not isinstance(value, bool):
+                    raise ConfigError(f"StageTuning.{f.name} must be True or False, got {value!r}")
+                continue
             integer = isinstance(value, int) and not isinstance(value, bool)
             ok = integer if f.type == "int" else integer or isinstance(value, float)
             if not ok or not 0 <= value < float("inf"):

@@ -138,23 +138,33 @@ def test_a_clouds_light_fields_are_drawn_from_its_points(
     assert drawn == [600]
 
 
-def test_the_stage_weighs_a_clouds_light_fields_by_the_cloud_weight(
-    mesh_db: Any, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """A cloud's row is marked as drawn from its points (``StageTuning.cloud_weight``); a
-    mesh query's is not."""
-    from query.search.rerank_lightfield import LightFieldFusion
+def test_a_cloud_ranks_as_its_proxy(mesh_db: Any) -> None:
+    """The stored shape its light fields find nearest comes first, the rest as a search
+    for that shape ranks them; each hit at its distance to the cloud."""
+    from query.search.cloud_proxy import proxies
+    from query.search.rerank_lightfield import stored_arrays
+    from shapedb.signature.lightfield import cloud_light_field
 
-    weights: list[float] = []
-    real = LightFieldFusion.fuse
+    for name in ("torus", "holed-box"):
+        cloud = _cloud(_meshes()[name])
+        hits = mesh_db.search(cloud, k=len(mesh_db))
+        ids = np.array([h.id for h in hits], np.int64)
+        lf = cloud_light_field(cloud.points, mesh_db.config.light_field)
+        proxy = proxies(lf[None].astype(np.float64), ids[None], stored_arrays(mesh_db))[0]
+        assert hits[0].id == proxy and hits[0].name == name
+        assert [h.id for h in mesh_db.search(int(proxy), k=len(mesh_db))] == ids.tolist()
 
-    def spy(self: Any, *args: Any, **kwargs: Any) -> Any:
-        weights.append(kwargs.get("weight"))
-        return real(self, *args, **kwargs)
 
-    monkeypatch.setattr(LightFieldFusion, "fuse", spy)
-    mesh_db.search(_cloud(_meshes()["torus"]), k=3)
-    mesh_db.search(_meshes()["torus"], k=3)
-    mesh_db.search(1, k=3)
-    assert weights == [PRODUCT.cloud_weight, PRODUCT.weight, PRODUCT.weight]
-    assert PRODUCT.cloud_weight != PRODUCT.weight
+def test_without_the_proxy_a_cloud_keeps_its_own_row(mesh_db: Any) -> None:
+    """``StageTuning.proxy`` off (studies): the cloud's own stage row orders its hits."""
+    from dataclasses import replace
+
+    from query.search.tuning import tuned
+
+    cloud = _cloud(_meshes()["holed-box"])
+    with_proxy = [h.name for h in mesh_db.search(cloud, k=len(mesh_db))]
+    with tuned(replace(PRODUCT, proxy=False)):
+        own_row = [h.name for h in mesh_db.search(cloud, k=len(mesh_db))]
+    as_proxy = [h.name for h in mesh_db.search(with_proxy[0], k=len(mesh_db))]
+    assert with_proxy == as_proxy
+    assert own_row != as_proxy

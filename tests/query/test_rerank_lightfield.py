@@ -18,7 +18,7 @@ from bench.studies.lightfield_balls import fuse
 from query.evaluate import evaluate, retrieval_scores
 from query.search import rerank
 from query.search.index import FeatureIndex
-from query.search.rerank_lightfield import COLUMN, FROM_POINTS, LightFieldFusion, stored_arrays
+from query.search.rerank_lightfield import COLUMN, LightFieldFusion, stored_arrays
 from query.search.stage import scorer_for
 from query.search.tuning import PRODUCT
 from shapedb.config.core import Config, parse_options
@@ -80,33 +80,6 @@ def test_with_every_shape_a_candidate_the_legacy_gate_ranks_as_the_study() -> No
     plain = np.argsort(d, axis=1, kind="stable")
     assert np.array_equal(got, want)
     assert not np.array_equal(want, plain)  # the fusion moved some rankings
-
-
-def test_a_query_whose_light_fields_come_from_its_points_ranks_with_the_cloud_weight() -> None:
-    config, x, lf, _ = _study_case()
-    w = weights(config)
-    index = FeatureIndex(kind="flat").fit(np.arange(len(x)), x.astype(np.float32), w)
-    rng = np.random.default_rng(1)
-    q = x[:8] + 0.05 * rng.random((8, x.shape[1]))  # outside queries near the first shapes
-    q_lf = lf[:8] + 0.3 * rng.random(lf[:8].shape)
-    open_gate = replace(LEGACY, ceiling=0.0, candidates=len(x), weight=1.0, cloud_weight=50.0)
-
-    def ranks(tuning: Any, points: np.ndarray | None) -> np.ndarray:
-        given = {COLUMN: q_lf} if points is None else {COLUMN: q_lf, FROM_POINTS: points}
-        got, _ = rerank.search(
-            index, q, len(x), config=config, query_ids=np.full(8, -1), query_arrays=given,
-            arrays=lambda name, ids: lf[ids] if name == COLUMN else None,
-            scorer=LightFieldFusion(config, tuning=tuning),
-        )  # fmt: skip
-        return got
-
-    flags = np.array([1.0, 0, 1, 0, 1, 0, 1, 0])
-    mixed = ranks(open_gate, flags)
-    as_cloud = ranks(replace(open_gate, weight=50.0), None)
-    as_mesh = ranks(open_gate, None)
-    assert np.array_equal(mixed[flags > 0], as_cloud[flags > 0])
-    assert np.array_equal(mixed[flags == 0], as_mesh[flags == 0])
-    assert not np.array_equal(as_cloud[flags > 0], as_mesh[flags > 0])  # the weight matters
 
 
 def test_without_light_fields_the_stored_order_is_kept_with_a_warning(
