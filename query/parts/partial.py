@@ -20,9 +20,7 @@ index (:mod:`query.parts.index`, built on demand as ``db.match`` does):
 one. ``None`` (the default) lets the search decide: a point cloud whose normals lie on
 one side (a depth camera's scan, :func:`shapedb.geometry.view.viewing_direction`) is
 matched by its silhouette against the stored light fields' views
-(:mod:`query.search.view_search`, ``path="view"``) and ranks as its proxy, the shape
-with the nearest view, does (:mod:`query.search.cloud_proxy`); everything else by the
-whole path.
+(:mod:`query.search.view_search`, ``path="view"``), everything else by the whole path.
 Measured on one-sided views and halves of generated shapes, the partial path found their
 class no more often than the whole-shape search (docs/studies.md, "Partial-to-whole
 search"), so it runs on request.
@@ -42,8 +40,7 @@ from numpy.typing import NDArray
 from query.search.catalog import catalog
 from query.search.engine import checked_k
 from query.search.engine import search_batch as whole_search_batch
-from query.search.tuning import active
-from query.search.view_search import nearest_first, scan_distances, view_hits
+from query.search.view_search import view_search
 from shapedb.config.part import PartConfig
 from shapedb.errors import QueryError
 from shapedb.results import Hit
@@ -150,9 +147,8 @@ def _whole_or_view(
     db: StoreHandle, queries: Sequence[Any], k: int, where: str | None, metric: Any
 ) -> list[list[Hit]]:
     """One-sided clouds by their silhouette (:mod:`query.search.view_search`) where the
-    store keeps light fields: the shape with the nearest view first, the rest as a
-    whole-path search for that shape ranks them, each at its view distance
-    (``StageTuning.proxy``); the other queries by the whole path, in one engine call."""
+    store keeps light fields and no learned metric is asked for; the rest by the whole
+    path, in one engine call."""
     from shapedb.geometry.pointcloud import PointCloud
     from shapedb.geometry.view import viewing_direction
 
@@ -160,7 +156,6 @@ def _whole_or_view(
     whole: list[int] = []
     loaded = list(queries)
     allowed: NDArray[np.int64] | None = None
-    seen: dict[int, tuple[NDArray[np.int64], NDArray[np.float64]]] = {}
     for i, query in enumerate(queries):
         if metric is None and not isinstance(query, (np.ndarray, list, tuple, int, np.integer)):
             loaded[i] = _load(query)
@@ -170,19 +165,9 @@ def _whole_or_view(
                 from query.sql import allowed_ids
 
                 allowed = allowed_ids(db, where)
-            scanned = scan_distances(db, loaded[i], direction, allowed=allowed)
-            if scanned is not None and len(scanned[0]):
-                seen[i] = scanned
-        if i not in seen:
+            out[i] = view_search(db, loaded[i], direction, k=checked_k(k), allowed=allowed)
+        if out[i] is None:
             whole.append(i)
-    if seen and active().proxy:  # each scan ranks as its proxy, the nearest view's shape
-        proxies = [int(nearest_first(scanned)[0]) for scanned in seen.values()]
-        ranked = _whole(db, proxies, k, where, metric)
-        for (i, scanned), hits in zip(seen.items(), ranked, strict=True):
-            out[i] = view_hits(db, scanned, np.array([h.id for h in hits], np.int64))
-    else:
-        for i, scanned in seen.items():
-            out[i] = view_hits(db, scanned, nearest_first(scanned)[: checked_k(k)])
     if whole:
         found = _whole(db, [loaded[i] for i in whole], k, where, metric)
         for i, hits in zip(whole, found, strict=True):

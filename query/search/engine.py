@@ -25,7 +25,9 @@ view. A pair of a sparse cloud and a dense shape is as far apart as the nearest 
 cloud's own feature and the dense shape's own feature or view, and the cloud's
 reconstruction and the dense shape's own feature. A sparse geometry or file query
 costs a Poisson reconstruction and its decomposition; a dense one in a store with
-views and sparse clouds one more (point-cloud) decomposition.
+views and sparse clouds one more (point-cloud) decomposition. In a store of dense shapes
+with the light field stage a point cloud needs no reconstruction (it ranks as its proxy:
+below), and none is computed.
 
 In a store of dense shapes only (the default store of meshes) a sparse cloud's candidate
 list holds each shape at the nearer of its own feature's and its reconstruction's
@@ -176,7 +178,7 @@ def search_batch(
         ids, dist = rerank_search(
             index, vectors, first, config=db.config, query_ids=qids, allowed=allowed,
             scorer=scorer, arrays=arrays, query_arrays=query_arrays, stored_distances=True,
-            candidates=_sparse_lists(index, resolved, vectors, wanted, allowed),
+            candidates=_sparse_lists(index, resolved, vectors, wanted, allowed, clouds),
         )  # fmt: skip
         if any(clouds):
             ids, dist = _by_proxy(
@@ -441,16 +443,14 @@ def _from_geometry(db: StoreHandle, geometry: Any) -> _Query:
     if sparse:
         from shapedb.mdbd.reconstruct import reconstructed
 
-        found = (
-            reconstructed(geometry, d, config.mdbd, depth=config.cloud.reconstruct_depth)
-            if config.cloud.reconstruct
-            else None
-        )
-        recon = None if found is None else _featurise(found, config)
+        def recon() -> NDArray[np.float64] | None:
+            found = reconstructed(geometry, d, config.mdbd, depth=config.cloud.reconstruct_depth)
+            return None if found is None else _featurise(found, config)
+
         lf = _cloud_light_field(geometry, config)
         return _Query(
-            _featurise(d, config), True, recon, decomposition=d, light_field=lf,
-            from_points=lf is not None,
+            _featurise(d, config), True, recon if config.cloud.reconstruct else None,
+            decomposition=d, light_field=lf, from_points=lf is not None,
         )  # fmt: skip
 
     def view() -> NDArray[np.float64] | None:
@@ -555,9 +555,8 @@ def _by_proxy(
 
     A cloud whose light fields come from its points ranks the stored shapes as a search
     for its proxy does (:mod:`query.search.cloud_proxy`: the nearest of its first results
-    by light field distance), each hit at its stored distance to the cloud (the nearer of
-    its own feature's and its reconstruction's, as in its candidate list); the other
-    queries keep ``found``'s first ``k``.
+    by light field distance), each hit at its stored distance to the cloud's own feature;
+    the other queries keep ``found``'s first ``k``.
     """
     from query.search.cloud_proxy import proxies
     from query.search.rerank import search as rerank_search
@@ -576,14 +575,8 @@ def _by_proxy(
     for row, hits in zip(rows, got, strict=True):
         keep = hits[hits >= 0]
         ids[row], dist[row] = -1, np.inf
-        query = resolved[row]
-        recon = query.view_feature() if query.sparse else None
-        lists = [
-            index.search(v[None], max(len(keep), 1), allowed=keep)
-            for v in (query.feature, recon) if v is not None
-        ]  # fmt: skip
-        near, d = _nearest(lists, max(len(keep), 1))
-        by_id = dict(zip(near.tolist(), d.tolist(), strict=True))
+        near, d = index.search(resolved[row].feature, max(len(keep), 1), allowed=keep)
+        by_id = dict(zip(near[0].tolist(), d[0].tolist(), strict=True))
         ids[row, : len(keep)] = keep
         dist[row, : len(keep)] = [by_id.get(int(i), np.inf) for i in keep]
     return ids, dist
@@ -595,19 +588,25 @@ def _sparse_lists(
     vectors: NDArray[np.float64],
     wanted: int,
     allowed: NDArray[np.int64] | None,
+    proxied: Sequence[bool] = (),
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]] | None:
-    """Candidate lists (q, wanted) of a store of dense shapes; None when no query is sparse.
+    """Candidate lists (q, wanted) of a store of dense shapes; None when no query needs one.
 
     A sparse cloud's list keeps each shape at the nearer of its own feature's and its
-    reconstruction's distance (the reconstruction's search merged, :func:`_nearest`);
-    every other query's is the index's search of its own feature.
+    reconstruction's distance (the reconstruction's search merged, :func:`_nearest`),
+    unless the cloud ranks as its proxy (``proxied[row]``, :func:`_by_proxy`: its
+    reconstruction is never computed, it changed no validation query's results); every
+    other query's is the index's search of its own feature.
     """
-    if not any(q.sparse for q in queries):
+    recons = [
+        q.sparse and not (row < len(proxied) and proxied[row]) for row, q in enumerate(queries)
+    ]  # fmt: skip
+    if not any(recons):
         return None
     ids, dist = index.search(vectors, wanted, allowed=allowed)
     ids, dist = np.array(ids, np.int64), np.array(dist, np.float64)
     for row, q in enumerate(queries):
-        recon = q.view_feature() if q.sparse else None
+        recon = q.view_feature() if recons[row] else None
         if recon is not None:
             own = (ids[row : row + 1], dist[row : row + 1])
             ids[row], dist[row] = _nearest(

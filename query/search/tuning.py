@@ -83,9 +83,9 @@ class StageTuning:
         ``beta`` of the stored distance's shared-neighbour term among the candidates
         (:mod:`query.search.candidate_neighbours`; 0: off).
     proxy : bool
-        A point cloud ranks as its proxy does (:mod:`query.search.cloud_proxy`): the
-        stored shape nearest to it by light fields among its first ``candidates``, or by
-        its silhouette on the view path. False: by its own stage row (studies).
+        A point cloud on the whole path ranks as its proxy does
+        (:mod:`query.search.cloud_proxy`): the stored shape nearest to it by light fields
+        among its first ``candidates``. False: by its own stage row (studies).
     """
 
     # K: the index's 100 nearest, re-ranked (the stage's candidates since it was introduced;
@@ -144,11 +144,10 @@ class StageTuning:
     # the highest validation objective of 0.1, 0.2, 0.3, 0.4, 0.6, 0.8 and 1.6 (0.8183; off,
     # 0.8105: python -m bench.studies.stage_parts, "no stored-distance neighbours").
     descriptor_shared_weight: float = 0.2
-    # The proxy: on the validation splits' even, vertex and fall-off clouds of CAPOD,
-    # parts, enclosures and generic models NN 0.950 / 0.950 / 0.850, 0.979 / 0.979 / 0.958,
-    # 0.774 / 0.762 / 0.690 and 0.929 / 0.940 / 0.857 without it, 1.000 / 1.000 / 0.967,
-    # 0.979 / 0.979 / 0.958, 0.821 / 0.833 / 0.786 and 0.984 / 0.984 / 0.912 with it
-    # (python -m bench.studies.cloud_proxy).
+    # The proxy: validation clouds (even, vertex, fall-off) of CAPOD, parts, enclosures and
+    # generic models find their class more often (NN 0.762-0.979 -> 0.786-1.000; parts
+    # level), whether the store holds the cloud's model or not, except the enclosures'
+    # fall-off clouds without their models (0.778 -> 0.694): python -m bench.studies.cloud_proxy.
     proxy: bool = True
 
     def __post_init__(self) -> None:

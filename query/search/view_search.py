@@ -13,9 +13,7 @@ loaded core; at 10^6 half a second, where an index over the views would be the n
 
 ``db.search`` takes this path by itself for a point cloud whose normals lie on one side
 (:func:`shapedb.geometry.view.viewing_direction`), in a store that keeps light fields;
-each hit's ``path`` is ``"view"``. It ranks the shapes as the whole path ranks them for
-the scan's proxy, the shape with the nearest view (:mod:`query.parts.partial`, from
-:func:`scan_distances`, :func:`nearest_first` and :func:`view_hits`).
+each hit's ``path`` is ``"view"``.
 """
 
 from __future__ import annotations
@@ -38,15 +36,7 @@ if TYPE_CHECKING:
     from shapedb.geometry.pointcloud import PointCloud
     from shapedb.store.handle import StoreHandle
 
-__all__ = [
-    "VIEW_UNIT",
-    "view_search",
-    "scan_distances",
-    "nearest_first",
-    "view_hits",
-    "view_distances",
-    "nearest_view",
-]
+__all__ = ["VIEW_UNIT", "view_search", "view_distances", "nearest_view"]
 
 log = logging.getLogger(__name__)
 
@@ -122,80 +112,6 @@ def nearest_view(
     return np.asarray(np.abs(block - q).sum(-1).min(-1), np.float64)
 
 
-def scan_distances(
-    db: StoreHandle,
-    cloud: PointCloud,
-    direction: NDArray[np.float64],
-    *,
-    allowed: NDArray[np.int64] | None = None,
-) -> tuple[NDArray[np.int64], NDArray[np.float64]] | None:
-    """Every stored shape's distance to a scan's silhouette (:func:`view_distances`).
-
-    Parameters
-    ----------
-    db : shapedb.Database
-    cloud : PointCloud
-        A one-sided scan.
-    direction : (3,) float
-        Its viewing direction (:func:`shapedb.geometry.view.viewing_direction`).
-    allowed : (m,) int64, optional
-        Only these ids (a ``where`` predicate's).
-
-    Returns
-    -------
-    ((n,) int64, (n,) float64) or None
-        The ids (ascending) of the shapes with light fields, within ``allowed``, and
-        their nearest view's L1 distance; None when the store keeps no light fields or
-        the scan has no silhouette to draw (the caller searches the whole path instead).
-    """
-    try:
-        features = scan_view_features(cloud.points, direction, db.config.light_field)
-    except ValueError as exc:  # no silhouette to draw (points on a line along the view)
-        log.info("view path: %s; the whole path instead", exc)
-        return None
-    found = view_distances(db, features)
-    if found is None:
-        return None
-    ids, dist = found
-    keep = np.isfinite(dist)
-    if allowed is not None:
-        keep &= np.isin(ids, allowed)
-    return ids[keep], dist[keep]
-
-
-def nearest_first(found: tuple[NDArray[np.int64], NDArray[np.float64]]) -> NDArray[np.int64]:
-    """The ids of :func:`scan_distances`'s result, nearest first (ties by ascending id)."""
-    ids, dist = found
-    return ids[np.lexsort((ids, dist))]
-
-
-def view_hits(
-    db: StoreHandle,
-    found: tuple[NDArray[np.int64], NDArray[np.float64]],
-    order: NDArray[np.int64],
-) -> list[Hit]:
-    """Hits of the ids ``order`` (in that order) at their distances in ``found``
-    (:func:`scan_distances`): ``path="view"``, ``distance`` the nearest view's L1
-    distance (inf for an id not in ``found``), ``similarity`` ``exp(-distance /
-    VIEW_UNIT)``. Shapes deleted since are left out."""
-    ids, dist = found
-    at = np.searchsorted(ids, order)
-    known = (at < len(ids)) & (ids[np.minimum(at, len(ids) - 1)] == order) if len(ids) else None
-    d = np.full(len(order), np.inf)
-    if known is not None:
-        d[known] = dist[at[known]]
-    names = catalog(db, db.store.version).lookup(np.asarray(order, np.int64))
-    hits = []
-    for sid, di, found_name in zip(order, d, names, strict=True):
-        if found_name is None:  # deleted by a commit made while we searched
-            continue
-        hits.append(
-            Hit(int(sid), found_name[0], found_name[1], float(np.exp(-di / VIEW_UNIT)),
-                float(di), "view")
-        )  # fmt: skip
-    return hits
-
-
 def view_search(
     db: StoreHandle,
     cloud: PointCloud,
@@ -221,10 +137,38 @@ def view_search(
     Returns
     -------
     list of Hit or None
-        :func:`view_hits` of the nearest ``k`` by :func:`scan_distances` (ties by
-        ascending id); None where that is None.
+        ``path="view"``, ``distance`` the nearest view's L1 distance, ``similarity``
+        ``exp(-distance / VIEW_UNIT)``; ties by ascending id. None when the store keeps
+        no light fields or the scan has no silhouette to draw (the caller searches the
+        whole path instead).
     """
-    found = scan_distances(db, cloud, direction, allowed=allowed)
+    try:
+        features = scan_view_features(cloud.points, direction, db.config.light_field)
+    except ValueError as exc:  # no silhouette to draw (points on a line along the view)
+        log.info("view path: %s; the whole path instead", exc)
+        return None
+    found = view_distances(db, features)
     if found is None:
         return None
-    return view_hits(db, found, nearest_first(found)[:k])
+    ids, dist = found
+    keep = np.isfinite(dist)
+    if allowed is not None:
+        keep &= np.isin(ids, allowed)
+    ids, dist = ids[keep], dist[keep]
+    order = np.lexsort((ids, dist))[:k]
+    names = catalog(db, db.store.version).lookup(ids[order])
+    hits = []
+    for sid, d, found_name in zip(ids[order], dist[order], names, strict=True):
+        if found_name is None:  # deleted by a commit made while we searched
+            continue
+        hits.append(
+            Hit(
+                int(sid),
+                found_name[0],
+                found_name[1],
+                float(np.exp(-d / VIEW_UNIT)),
+                float(d),
+                "view",
+            )
+        )
+    return hits

@@ -101,10 +101,42 @@ def test_the_stage_lifts_the_holed_box_above_its_stored_distance(mesh_db: Any) -
     assert names.index("holed-box") <= 1
 
 
-def test_a_cloud_is_as_far_as_the_nearer_of_its_feature_and_reconstruction(mesh_db: Any) -> None:
-    """The stage's stored distances: each mesh at the nearer of the two comparisons."""
+def test_a_proxied_cloud_is_as_far_as_its_own_feature_and_is_not_reconstructed(
+    mesh_db: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Ranked as its proxy, a cloud needs no Poisson surface: each hit at its distance to
+    the cloud's own feature."""
+    import shapedb.mdbd.reconstruct as rec
+
+    calls: list[int] = []
+    real = rec.reconstructed
+
+    def spy(*args: Any, **kwargs: Any) -> Any:
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(rec, "reconstructed", spy)
     query = _cloud(_meshes()["torus"])
     hits = mesh_db.search(query, k=len(mesh_db))
+    ids, own = mesh_db.store.features()
+    dec = decompose(query, config=CONFIG.mdbd)
+    want = np.abs(own - features(dec, CONFIG.kernel)).sum(axis=1)
+    assert {h.id: round(h.distance, 4) for h in hits} == {
+        int(i): round(float(w), 4) for i, w in zip(ids, want, strict=True)
+    }
+    assert calls == []
+
+
+def test_a_cloud_is_as_far_as_the_nearer_of_its_feature_and_reconstruction(mesh_db: Any) -> None:
+    """Without the proxy (studies) the stage's stored distances put each mesh at the
+    nearer of the two comparisons."""
+    from dataclasses import replace
+
+    from query.search.tuning import tuned
+
+    query = _cloud(_meshes()["torus"])
+    with tuned(replace(PRODUCT, proxy=False)):
+        hits = mesh_db.search(query, k=len(mesh_db))
     ids, own = mesh_db.store.features()
     dec = decompose(query, config=CONFIG.mdbd)
     recon = reconstructed(query, dec, CONFIG.mdbd, depth=CONFIG.cloud.reconstruct_depth)
