@@ -541,14 +541,21 @@ def run(
     workers: int,
     cached: bool = False,
     cost_models: int = 0,
+    cost_only: bool = False,
 ) -> dict[str, Any]:
     """Every set's table (printed) and the JSON-ready results.
 
-    ``cost_models`` > 0 adds each set's live cost rows (:func:`cost_table`).
+    ``cost_models`` > 0 adds each set's live cost rows (:func:`cost_table`);
+    ``cost_only``: those rows alone, no retrieval table.
     """
     out: dict[str, Any] = {}
     columns = ("method", "query", "NN", "1-T", "DCG", "own-first", "cost s", "x default")
     for ds in datasets:
+        if cost_only:
+            title, crows = cost_table(ds, cost_models)
+            print(format_table(title, COST_COLUMNS, crows))
+            out[ds.name] = {"cost": {"columns": list(COST_COLUMNS), "table": crows}}
+            continue
         data = load_set(ds, mdbd, kinds, workers, cached=cached, depths=method_depths(methods))
         rows: list[list[Any]] = []
         base: dict[str, float] = {}
@@ -595,6 +602,9 @@ def main(argv: list[str] | None = None) -> None:
         metavar="N",
         help="live cost rows on the first N models of each set (0: none)",
     )
+    ap.add_argument(
+        "--cost-only", action="store_true", help="the live cost rows alone (no retrieval)"
+    )
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument(
         "--cached", action="store_true", help="decompose nothing: use what is in the cache"
@@ -619,6 +629,7 @@ def main(argv: list[str] | None = None) -> None:
         workers=args.workers,
         cached=args.cached,
         cost_models=args.cost,
+        cost_only=args.cost_only,
     )
     write_json(
         args.out,
