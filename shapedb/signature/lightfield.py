@@ -488,6 +488,15 @@ def decomposition_light_field(
 #: Largest number of a cloud's points :func:`cloud_light_field` splats (a seeded random
 #: subset of a larger cloud: 20,000 discs render 30 views in well under a second).
 CLOUD_POINTS = 20_000
+#: A cloud's points are first evened out to one per cube of this quantile of their
+#: nearest-neighbour distances (a voxel grid keeps one point a cell), so that a scanner's
+#: uneven density (dense near it, sparse far and at grazing angles) leaves no holes in the
+#: discs. Through ``db.search``, validation clouds with scanner fall-off found their class
+#: 0.958 -> 0.979 (parts), 0.786 -> 0.810 (enclosures), 0.907 -> 0.945 (generic), CAPOD
+#: 0.967 either way (0.5: generic 0.923, the rest as 0.9); even and vertex clouds the same.
+#: The discs grow with the spacing: an even box cloud's light fields lie 3.5 from its
+#: solid's instead of 1.1 (thinner boxes' 12.8).
+CLOUD_EVEN_QUANTILE = 0.9
 #: Pixels of closing of a cloud's splatted silhouettes, bridging the gaps its sampling
 #: leaves: on CAPOD validation clouds of 3,000 points NN by the light fields alone 0.967
 #: at 2 pixels against 0.933-0.967 at none, discs of the median spacing.
@@ -500,11 +509,12 @@ def cloud_light_field(
     """Light fields of the surface a point cloud samples, as a store keeps a shape's.
 
     Seen from any direction, the samples of a surface all around a solid cover the
-    solid's silhouette, so a cloud's silhouettes need no inside: every point is drawn as
-    a disc of the points' median spacing (:func:`record_light_field` of those discs, about
-    the points' mean, closed by :data:`CLOUD_CLOSE_PX` pixels), which a sparse cloud's
-    decomposed inside draws far less faithfully. A cloud of more than
-    :data:`CLOUD_POINTS` points is drawn from a seeded random subset of them.
+    solid's silhouette, so a cloud's silhouettes need no inside: the points, evened out
+    to one a cube of their :data:`CLOUD_EVEN_QUANTILE` spacing, are each drawn as a disc
+    of their median spacing (:func:`record_light_field` of those discs, about the points'
+    mean, closed by :data:`CLOUD_CLOSE_PX` pixels), which a sparse cloud's decomposed
+    inside draws far less faithfully. A cloud of more than :data:`CLOUD_POINTS` points is
+    drawn from a seeded random subset of them.
 
     Parameters
     ----------
@@ -536,9 +546,22 @@ def cloud_light_field(
     if len(p) > CLOUD_POINTS:
         keep = np.random.default_rng(0).choice(len(p), CLOUD_POINTS, replace=False)
         p = p[np.sort(keep)]
+    p = _evened(p, float(np.quantile(cKDTree(p).query(p, k=2)[0][:, 1], CLOUD_EVEN_QUANTILE)))
     spacing = float(np.median(cKDTree(p).query(p, k=2)[0][:, 1]))
     centre = p.mean(axis=0)
     extent = float(np.linalg.norm(p - centre, axis=1).max()) + spacing
     radii = np.full(len(p), spacing)
     splat = replace(cfg, close_px=CLOUD_CLOSE_PX, edges=False)
     return record_light_field(p, radii, splat, frame=(centre, extent))
+
+
+def _evened(points: NDArray[np.float64], cell: float) -> NDArray[np.float64]:
+    """``points`` (n, 3) kept one a cube of side ``cell`` (open3d's voxel grid: the mean
+    of each occupied cube's points); as they are when that leaves fewer than 3."""
+    import open3d as o3d
+
+    if not cell > 0:
+        return points
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    kept = np.asarray(cloud.voxel_down_sample(cell).points, np.float64)
+    return kept if len(kept) >= 3 else points
