@@ -181,10 +181,18 @@ def search_batch(
             candidates=_sparse_lists(index, resolved, vectors, wanted, allowed, clouds),
         )  # fmt: skip
         if any(clouds):
-            ids, dist = _by_proxy(
+            ids, dist, own = _by_proxy(
                 db, index, np.flatnonzero(clouds), resolved, (ids, dist), int(k), allowed,
                 (scorer, arrays, query_arrays),
             )  # fmt: skip
+            if len(own):  # clouds without a proxy: their own rows, reconstructions and all
+                ids[own], dist[own] = rerank_search(
+                    index, vectors[own], int(k), config=db.config, query_ids=qids[own],
+                    allowed=allowed, scorer=scorer, arrays=arrays,
+                    query_arrays={n: a[own] for n, a in query_arrays.items()},
+                    stored_distances=True, candidates=_sparse_lists(
+                        index, [resolved[i] for i in own], vectors[own], wanted, allowed),
+                )  # fmt: skip
     catalog = store_catalog(db, index.version_)
     lam = float(db.config.kernel.lam)
     out: list[list[Hit]] = []
@@ -550,24 +558,38 @@ def _by_proxy(
     k: int,
     allowed: NDArray[np.int64] | None,
     stage: tuple[Any, Any, Any],
-) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.intp]]:
     """The first ``k`` results of each query, the point clouds' (``rows``) as their proxy's.
 
     A cloud whose light fields come from its points ranks the stored shapes as a search
     for its proxy does (:mod:`query.search.cloud_proxy`: the nearest of its first results
-    by light field distance), each hit at its stored distance to the cloud's own feature;
-    the other queries keep ``found``'s first ``k``.
+    by light field distance) where the proxy's own search opens the stage's spread gate
+    (its nearest by stored distance are shapes whose silhouettes tell them apart: not
+    jointed subjects, :meth:`LightFieldFusion.spread_gate`), each hit at its stored
+    distance to the cloud's own feature; the other queries keep ``found``'s first ``k``.
+    Also returns the clouds left without a
+    proxy (their rows in ``found`` were ranked without their reconstructions: the caller
+    ranks them again).
     """
     from query.search.cloud_proxy import proxies
     from query.search.rerank import search as rerank_search
-    from query.search.rerank_lightfield import COLUMN
+    from query.search.rerank_lightfield import COLUMN, SPREAD
 
     scorer, arrays, query_arrays = stage
     ids, dist = found[0][:, :k].copy(), found[1][:, :k].copy()
     proxy = proxies(query_arrays[COLUMN][rows], found[0][rows], arrays)
+    for n, x in enumerate(proxy):  # where the proxy's own gate is shut, the cloud's row stands
+        if x < 0:
+            continue
+        pool, _ = index.search(index.features_of(int(x))[None], scorer.tuning.pool, allowed=allowed)
+        listed = pool[0][pool[0] >= 0]
+        spreads = arrays(SPREAD, listed) if len(listed) else None
+        if spreads is None or scorer.spread_gate(np.asarray(spreads, np.float64)) <= 0:
+            proxy[n] = -1
+    own = rows[proxy < 0]
     rows, proxy = rows[proxy >= 0], proxy[proxy >= 0]
     if not len(rows):
-        return ids, dist
+        return ids, dist, own
     got, _ = rerank_search(
         index, np.stack([index.features_of(int(x)) for x in proxy]), k, config=db.config,
         query_ids=proxy, allowed=allowed, scorer=scorer, arrays=arrays,
@@ -579,7 +601,7 @@ def _by_proxy(
         by_id = dict(zip(near[0].tolist(), d[0].tolist(), strict=True))
         ids[row, : len(keep)] = keep
         dist[row, : len(keep)] = [by_id.get(int(i), np.inf) for i in keep]
-    return ids, dist
+    return ids, dist, own
 
 
 def _sparse_lists(

@@ -224,18 +224,30 @@ class LightFieldFusion:
         g = 1.0
         if f.ceiling > 0:
             if f.pool > 0:
-                pool = None if spreads is None else spreads[: f.pool]
-                if pool is None or not np.isfinite(pool).any():
+                if spreads is None:
                     return 0.0
-                spread = float(pooled(pool, f.pool_quantile))
+                g *= self.spread_gate(spreads)
             else:  # the query's own statistic over its candidates
                 spread = local_statistic(d4[others], dl[others], self.tuning, self.scale)
-            g *= float(np.clip((f.ceiling - spread) / f.ramp, 0.0, 1.0))
+                g *= float(np.clip((f.ceiling - spread) / f.ramp, 0.0, 1.0))
         if f.contrast_floor > 0:
             far = d4[others[min(f.contrast_depth, len(others)) - 1]]
             contrast = float(np.median(d4[others[: f.neighbours]])) / max(float(far), 1e-300)
             g *= float(np.clip((contrast - f.contrast_floor) / f.contrast_ramp, 0.0, 1.0))
         return float(g)
+
+    def spread_gate(self, spreads: NDArray[np.float64]) -> float:
+        """The gate's spread-ceiling factor in [0, 1]: the ``pool_quantile`` of the stored
+        local spreads of a query's first ``pool`` candidates (``spreads``, (c,) in list
+        order, NaN unknown) under the ceiling; 0 when none is known, 1 without a ceiling
+        or a pool. Jointed subjects, whose silhouettes change with the pose, shut it."""
+        f = self.tuning
+        if f.ceiling <= 0 or f.pool <= 0:
+            return 1.0
+        pool = np.asarray(spreads, np.float64)[: f.pool]
+        if not np.isfinite(pool).any():
+            return 0.0
+        return float(np.clip((f.ceiling - float(pooled(pool, f.pool_quantile))) / f.ramp, 0.0, 1.0))
 
     def stage_rows(
         self, batch: Candidates
