@@ -14,10 +14,12 @@ re-ranked results (``StageTuning.candidates``), the stored shape nearest to it b
 field distance, its *proxy*; the stored shapes are then ranked as a search for the
 proxy ranks them (the proxy first), each hit keeping its stored distance to the cloud's
 own feature. The proxy is the cloud's own model when the store holds it, else the
-shape that looks most like it.
+shape that looks most like it. Where the proxy's own search shuts the stage's spread
+gate (jointed subjects, whose silhouettes do not tell one subject's poses from
+another's) the cloud keeps its own row, ranked with its reconstruction as before.
 
 A cloud so ranked needs no Poisson reconstruction (the engine skips it: no validation
-query's results changed without it), which halves its cost. The view path of one-sided
+query's results changed without it), which cuts its cost by about a third. The view path of one-sided
 scans does not use a proxy (its nearest view names the right class too rarely).
 
 Measured on the validation splits (even, vertex and scanner fall-off clouds through
