@@ -26,8 +26,9 @@ cloud's own feature and the dense shape's own feature or view, and the cloud's
 reconstruction and the dense shape's own feature. A sparse geometry or file query
 costs a Poisson reconstruction and its decomposition; a dense one in a store with
 views and sparse clouds one more (point-cloud) decomposition. In a store of dense shapes
-with the light field stage a point cloud needs no reconstruction (it ranks as its proxy:
-below), and none is computed.
+with the light field stage a point cloud that ranks as its proxy (below) needs no
+reconstruction, and none is computed; one that keeps its own row (jointed subjects) has
+its reconstruction computed then.
 
 In a store of dense shapes only (the default store of meshes) a sparse cloud's candidate
 list holds each shape at the nearer of its own feature's and its reconstruction's
@@ -567,9 +568,8 @@ def _by_proxy(
     (its nearest by stored distance are shapes whose silhouettes tell them apart: not
     jointed subjects, :meth:`LightFieldFusion.spread_gate`), each hit at its stored
     distance to the cloud's own feature; the other queries keep ``found``'s first ``k``.
-    Also returns the clouds left without a
-    proxy (their rows in ``found`` were ranked without their reconstructions: the caller
-    ranks them again).
+    Also returns the clouds left without a proxy (their rows in ``found`` were ranked
+    without their reconstructions: the caller ranks them again).
     """
     from query.search.cloud_proxy import proxies
     from query.search.rerank import search as rerank_search
