@@ -43,6 +43,7 @@ from query.search.engine import search_batch as whole_search_batch
 from query.search.view_search import view_search
 from shapedb.config.part import PartConfig
 from shapedb.errors import QueryError
+from shapedb.geometry.mesh import TriangleMesh
 from shapedb.results import Hit
 
 if TYPE_CHECKING:
@@ -206,7 +207,9 @@ def partial_search(
     ----------
     db : shapedb.Database
     query : id, name, path, Geometry, Decomposition, ShapeRecord or ContactGraph
-        Decomposed with the store's configuration.
+        Decomposed with the store's configuration; a triangle mesh with holes is
+        closed over them first where that makes it a solid (:meth:`TriangleMesh.capped`:
+        a cropped or broken part).
     k : int
     where : str, optional
         SQL predicate over ``shapes`` restricting the shapes searched.
@@ -229,6 +232,8 @@ def partial_search(
         )
     k = checked_k(k)
     cfg = part_config(config)
+    if isinstance(query, TriangleMesh):
+        query = query.capped()  # a part cut from a solid is that solid's part, not a shell
     graph = resolve(db, query, part=cfg).graph
     if not graph.n_nodes:
         raise QueryError("the query has no balls: nothing to search by parts", source="query")

@@ -131,3 +131,25 @@ def test_a_scan_file_is_searched_by_parts(
     assert main(["search", str(scan), "--db", str(db.path), "-k", "2", "--partial", "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)
     assert rows[0]["name"] == "sphere" and rows[0]["path"] == "partial"
+
+
+def test_a_mesh_cut_in_half_is_searched_as_half_a_solid(tmp_path: Path) -> None:
+    """Cut open, a block's mesh bounds a shell one cell thick: its parts are a hollow
+    block's. Closed over the cut (``TriangleMesh.capped``) it is half the block."""
+    import shapedb
+    from shapedb.geometry.implicit import Difference
+
+    store = shapedb.connect(tmp_path / "store", resolution=32, n_balls=32)
+    outer = Box([0, 0, 0], [2.4, 1.6, 1.2])
+    shapes = {
+        "block": outer,
+        "hollow block": Difference(outer, Box([0, 0, 0], [2.1, 1.3, 0.9])),
+        "ball": Sphere([0, 0, 0], 0.8),
+    }
+    store.ingest([(n, n, g) for n, g in shapes.items()], workers=1, progress=False)
+    mesh = trimesh.creation.box(extents=(2.4, 1.6, 1.2)).subdivide().subdivide().subdivide()
+    kept = mesh.faces[mesh.triangles_center[:, 0] > 0.0]
+    used, faces = np.unique(kept.ravel(), return_inverse=True)
+    half = TriangleMesh(mesh.vertices[used], faces.reshape(-1, 3))
+    assert not half.closed
+    assert store.search(half, k=1, partial=True)[0].name == "block"
