@@ -434,9 +434,17 @@ class TriangleMesh(Geometry):
         ones = np.ones(len(border))
         graph = coo_matrix((ones, (border[:, 0], border[:, 1])), shape=(len(v), len(v)))
         _, component = connected_components(graph, directed=False)
-        loops, centres = np.unique(component[border[:, 0]], return_inverse=True)
-        means = np.stack([v[np.unique(border[centres == i])].mean(0) for i in range(len(loops))])
-        fans = np.stack([border[:, 1], border[:, 0], len(v) + centres], axis=1)
+        loops = np.unique(component[border[:, 0]])
+        corner = np.unique(border)  # the boundary's vertices, each once
+        at = np.searchsorted(loops, component[corner])  # each one's loop
+        means = (
+            np.stack(
+                [np.bincount(at, weights=v[corner, i], minlength=len(loops)) for i in range(3)], 1
+            )
+            / np.bincount(at, minlength=len(loops))[:, None]
+        )
+        hub = len(v) + np.searchsorted(loops, component[border[:, 0]])
+        fans = np.stack([border[:, 1], border[:, 0], hub], axis=1)
         out = TriangleMesh(np.vstack([v, means]), np.vstack([f, fans]), name=self.name)
         if not out.closed:
             return self
