@@ -428,8 +428,7 @@ class PointCloud(Geometry):
 
         ``sum_i a_i (p_i - q) . n_i / (4 pi |p_i - q|^3)``; summed directly for a
         few query points (the refinement asks for 1-7 at a time), else by libigl's
-        Barnes-Hut approximation over an octree expansion built once per cloud (the
-        same numbers as building it per call, which cost 25 ms a call on 3,000 points).
+        Barnes-Hut approximation, whose tree costs milliseconds to build per call.
         """
         import igl
 
@@ -441,25 +440,9 @@ class PointCloud(Geometry):
             r = np.maximum(np.linalg.norm(d, axis=2), 1e-300)
             dot = np.einsum("qpk,pk->qp", d, self.normals)
             return np.asarray((self.areas * dot / (4 * np.pi * r**3)).sum(axis=1))
-        cells, children, centres, radii, terms = self._winding_expansion
         return np.asarray(
-            igl.fast_winding_number(
-                self._points, self.normals, self.areas, cells, children, centres, radii, terms, q
-            ),
-            dtype=np.float64,
+            igl.fast_winding_number(self._points, self.normals, self.areas, q), dtype=np.float64
         )
-
-    @cached_property
-    def _winding_expansion(self) -> tuple[Any, ...]:
-        """libigl's octree of the samples and its Taylor expansion (order 2) of the
-        winding number: (cells' point lists, children, centres of mass, radii, terms)."""
-        import igl
-
-        cells, children, _, _ = igl.octree(self._points)
-        centres, radii, terms = igl.fast_winding_number_precompute(
-            self._points, self.normals, self.areas, cells, children
-        )
-        return cells, children, centres, radii, terms
 
     def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
         """Point-membership classification (n,) bool: ``winding number > 0.5``.
