@@ -436,13 +436,42 @@ class PointCloud(Geometry):
         if len(q) == 0:
             return np.zeros(0)
         if len(q) * len(self._points) <= _DIRECT_WINDING_PAIRS:
-            d = self._points[None, :, :] - q[:, None, :]
-            r = np.maximum(np.linalg.norm(d, axis=2), 1e-300)
-            dot = np.einsum("qpk,pk->qp", d, self.normals)
-            return np.asarray((self.areas * dot / (4 * np.pi * r**3)).sum(axis=1))
+            return self._direct_winding_number(q)
         return np.asarray(
             igl.fast_winding_number(self._points, self.normals, self.areas, q), dtype=np.float64
         )
+
+    @cached_property
+    def _dipoles(self) -> tuple[NDArray[np.float64], ...]:
+        """The direct sum's per-sample terms, about the samples' centroid: centre (3,),
+        centred samples (n, 3), their squared norms (n,), ``p . n`` (n,), ``a / 4 pi`` (n,)."""
+        centre = self._points.mean(axis=0)
+        p = self._points - centre
+        return (
+            centre,
+            p,
+            np.einsum("ij,ij->i", p, p),
+            np.einsum("ij,ij->i", p, self.normals),
+            self.areas / (4.0 * np.pi),
+        )
+
+    def _direct_winding_number(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The winding number of query points q (m, 3) summed over every sample.
+
+        Written with matrix products (``|p - q|^2 = |p|^2 + |q|^2 - 2 p . q`` and
+        ``(p - q) . n = p . n - q . n``, about the centroid) instead of an (m, n, 3)
+        difference array: the refinement's queries of 1-7 points cost a sixth. A query
+        point within ``1e-12`` of the cloud's extent of a sample gets no term from it (the
+        term is 0 / 0 there).
+        """
+        centre, p, p2, pn, weight = self._dipoles
+        q = q - centre
+        r2 = p2[None, :] + np.einsum("ij,ij->i", q, q)[:, None] - 2.0 * (q @ p.T)
+        dot = pn[None, :] - q @ self.normals.T
+        tiny = (1e-12 * float(np.sqrt(p2.max()))) ** 2
+        far = r2 > tiny
+        r2 = np.where(far, r2, 1.0)
+        return np.asarray(np.where(far, weight * dot / (r2 * np.sqrt(r2)), 0.0).sum(axis=1))
 
     def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
         """Point-membership classification (n,) bool: ``winding number > 0.5``.

@@ -131,3 +131,21 @@ def test_surface_sampling_is_the_median_sample_spacing() -> None:
 
     d = decompose(cloud, resolution=24, n_balls=16)
     assert d.representation == "pointcloud" and d.sampling == cloud.surface_sampling
+
+
+def test_direct_winding_number_is_the_sum_over_samples() -> None:
+    """The few-point winding number (matrix products about the centroid) is the textbook
+    sum ``a (p - q) . n / (4 pi |p - q|^3)``, far from the origin too; a query point on a
+    sample takes no term from it instead of 0 / 0."""
+    pts, _ = trimesh.sample.sample_surface(trimesh.creation.icosphere(3), 800, seed=4)
+    offset = np.array([1e4, -2e4, 5e3])
+    cloud = PointCloud(pts + offset)
+    rng = np.random.default_rng(1)
+    q = offset + np.r_[rng.normal(scale=0.6, size=(6, 3)), [[0.0, 0.0, 0.0]]]
+    d = cloud.points[None] - q[:, None]
+    r = np.linalg.norm(d, axis=2)
+    expected = (cloud.areas * np.einsum("qpk,pk->qp", d, cloud.normals) / (4 * np.pi * r**3)).sum(1)
+    assert cloud.winding_number(q) == pytest.approx(expected, abs=1e-6)
+    assert cloud.winding_number(q[-1:])[0] > 0.75  # the centre (areas sum to 0.9 of it)
+    on = cloud.winding_number(cloud.points[:3])
+    assert np.all(np.isfinite(on)) and np.all(np.abs(on - 0.5) < 0.3)
