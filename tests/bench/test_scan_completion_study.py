@@ -25,7 +25,9 @@ def test_a_tube_seen_side_on_gets_its_volume_back() -> None:
     assert volume == pytest.approx(np.pi * r * r * length, rel=0.15)
     # the unseen side is closed at the tube's own depth, not left open behind it
     depth = np.flatnonzero(occupied.any(axis=(0, 1)))
-    assert (depth.max() - depth.min() + 1) * solid.pitch == pytest.approx(2 * r, abs=2 * solid.pitch)
+    assert (depth.max() - depth.min() + 1) * solid.pitch == pytest.approx(
+        2 * r, abs=2 * solid.pitch
+    )
 
 
 def test_the_camera_side_is_told_by_the_rims() -> None:
