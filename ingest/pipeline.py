@@ -140,6 +140,13 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
             t4 = time.perf_counter()
             field_vector = decomposition_field_vector(decomposition, config.field_vector)
             timings["field_vector"] = time.perf_counter() - t4
+        words = None
+        if config.stores_surface_words:
+            from shapedb.signature.surface_words import surface_points, surface_words
+
+            t5 = time.perf_counter()
+            words = surface_words(surface_points(geometry, decomposition.spacing))
+            timings["surface_words"] = time.perf_counter() - t5
         timings["load"] = t_load
         timings["features"] = t2 - t1
         timings["cpu"] = time.process_time() - c0  # this process's CPU seconds
@@ -163,6 +170,7 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
         view_feature=view,
         light_field=light_field,
         field_vector=field_vector,
+        surface_words=words,
     )
 
 

@@ -70,6 +70,7 @@ from shapedb.errors import ConfigError, NotFoundError, QueryError, ShapeDBError
 from shapedb.results import Hit  # defined there, re-exported here
 
 if TYPE_CHECKING:
+    from shapedb.config.core import Config
     from shapedb.store.handle import StoreHandle
 
 __all__ = ["Hit", "search", "search_batch", "query_features", "checked_k", "MAX_K"]
@@ -257,9 +258,10 @@ class _Query:
     the query has none (a raw vector, a decomposition, a rejected reconstruction).
     ``sid`` is the stored shape's id when the query is one, else -1; ``decomposition``
     the query's own decomposition when it has one (a stored shape's is not read);
-    ``light_field`` and ``field_vector`` an unstored record's own light fields and field
-    vector, when it carries them; ``light_field`` also a point cloud's, drawn from its points
-    (``from_points``).
+    ``light_field``, ``field_vector`` and ``surface_words`` an unstored record's own light
+    fields, field vector and surface words, when it carries them (a geometry's words are
+    computed from its surface); ``light_field`` also a point cloud's, drawn from its
+    points (``from_points``).
     """
 
     feature: NDArray[np.float64]
@@ -269,6 +271,7 @@ class _Query:
     decomposition: Any = None
     light_field: Any = None
     field_vector: Any = None
+    surface_words: Any = None
     from_points: bool = False
 
     def view_feature(self) -> NDArray[np.float64] | None:
@@ -311,6 +314,10 @@ def _stored_arrays(db: StoreHandle, resolved: list[_Query]) -> tuple[Any, Any]:
             if r.sid < 0 and r.field_vector is not None:  # a record's own
                 vectors[k] = np.asarray(r.field_vector, dtype=np.float64)
         out[FIELD] = vectors
+    if db.config.stores_surface_words:
+        from query.search.word_fusion import WORDS_COLUMN, query_words
+
+        out[WORDS_COLUMN] = query_words([r.surface_words if r.sid < 0 else None for r in resolved])
     return stored_arrays(db), out
 
 
@@ -365,6 +372,7 @@ def _resolve(db: StoreHandle, query: Any, index: Any) -> _Query:
             _vector(query.feature, dim, source=query.name), is_sparse(d.sampling, d.spacing), view,
             decomposition=d, light_field=query.light_field,
             field_vector=getattr(query, "field_vector", None),
+            surface_words=getattr(query, "surface_words", None),
         )  # fmt: skip
     if isinstance(query, os.PathLike) or (isinstance(query, str) and _is_file(query)):
         return _from_file(db, Path(query))
@@ -460,6 +468,7 @@ def _from_geometry(db: StoreHandle, geometry: Any) -> _Query:
         return _Query(
             _featurise(d, config), True, recon if config.cloud.reconstruct else None,
             decomposition=d, light_field=lf, from_points=lf is not None,
+            surface_words=_surface_words(geometry, d.spacing, config),
         )  # fmt: skip
 
     def view() -> NDArray[np.float64] | None:
@@ -475,7 +484,17 @@ def _from_geometry(db: StoreHandle, geometry: Any) -> _Query:
     return _Query(
         _featurise(d, config), False, view if config.cloud.view_cells else None, decomposition=d,
         light_field=lf, from_points=lf is not None,
+        surface_words=_surface_words(geometry, d.spacing, config),
     )  # fmt: skip
+
+
+def _surface_words(geometry: Any, spacing: float, config: Config) -> NDArray[np.float32] | None:
+    """The geometry's surface words when the store keeps them, else None."""
+    if not config.stores_surface_words:
+        return None
+    from shapedb.signature.surface_words import surface_points, surface_words
+
+    return surface_words(surface_points(geometry, spacing))
 
 
 def _cloud_light_field(geometry: Any, config: Any) -> NDArray[np.float32] | None:

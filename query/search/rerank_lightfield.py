@@ -61,6 +61,8 @@ from query.search.lightfield_neighbours import (
 from query.search.lightfield_spread import calibration, local_statistic, pooled, spread_table
 from query.search.rerank import Candidates
 from query.search.tuning import PRODUCT, StageTuning, active
+from query.search.word_fusion import WORDS_COLUMN, fuse_words
+from shapedb.signature.surface_words import words_distance
 
 if TYPE_CHECKING:
     from shapedb.config.core import Config
@@ -217,24 +219,38 @@ class LightFieldFusion:
         ``d4`` in calibrated units, list order; the arguments as :meth:`fuse`'s.
         """
         f = self.tuning
-        others = np.flatnonzero(~own)
-        if not len(others):
-            return 0.0
-        others = others[np.argsort(d4[others], kind="stable")]  # nearest by d first
-        g = 1.0
-        if f.ceiling > 0:
-            if f.pool > 0:
-                if spreads is None:
-                    return 0.0
-                g *= self.spread_gate(spreads)
-            else:  # the query's own statistic over its candidates
-                spread = local_statistic(d4[others], dl[others], self.tuning, self.scale)
-                g *= float(np.clip((f.ceiling - spread) / f.ramp, 0.0, 1.0))
-        if f.contrast_floor > 0:
+        g = self.pose_gate(d4, dl, own, spreads)
+        if g > 0 and f.contrast_floor > 0:
+            others = np.flatnonzero(~own)
+            others = others[np.argsort(d4[others], kind="stable")]  # nearest by d first
             far = d4[others[min(f.contrast_depth, len(others)) - 1]]
             contrast = float(np.median(d4[others[: f.neighbours]])) / max(float(far), 1e-300)
             g *= float(np.clip((contrast - f.contrast_floor) / f.contrast_ramp, 0.0, 1.0))
         return float(g)
+
+    def pose_gate(
+        self,
+        d4: NDArray[np.float64],
+        dl: NDArray[np.float64],
+        own: NDArray[np.bool_],
+        spreads: NDArray[np.float64] | None,
+    ) -> float:
+        """The gate's spread ceiling alone, in [0, 1]: 0 where the query's near neighbours
+        spread as a subject in many poses does (jointed subjects), 1 for rigid shapes.
+
+        0 for a query without other candidates; the arguments as :meth:`gate`'s.
+        """
+        f = self.tuning
+        others = np.flatnonzero(~own)
+        if not len(others):
+            return 0.0
+        if f.ceiling <= 0:
+            return 1.0
+        if f.pool > 0:
+            return 0.0 if spreads is None else self.spread_gate(spreads)
+        others = others[np.argsort(d4[others], kind="stable")]  # the query's own statistic
+        spread = local_statistic(d4[others], dl[others], self.tuning, self.scale)
+        return float(np.clip((f.ceiling - spread) / f.ramp, 0.0, 1.0))
 
     def spread_gate(self, spreads: NDArray[np.float64]) -> float:
         """The gate's spread-ceiling factor in [0, 1]: the ``pool_quantile`` of the stored
@@ -320,17 +336,19 @@ class LightFieldFusion:
             got = batch.arrays(SPREAD, wanted)
             if got is not None:
                 spreads = dict(zip(wanted.tolist(), got, strict=True))
-        gates = []
+        gates, pose_spreads = [], []
         for row, cols, dl, own in rows:
             sp = None
             if spreads is not None:
                 sp = np.array([spreads[int(i)] for i in batch.ids[row, cols]])
+            pose_spreads.append(sp)
             gates.append(self.gate(batch.distances[row, cols] / self.calibration, dl, own, sp))
         w = self.tuning.weight
         on = [r for r, g in zip(rows, gates, strict=True) if g > 0 and w > 0]
         lists = self._lists(batch, on)
         k = int(self.tuning.shared_neighbours)
-        for (row, cols, dl, own), g in zip(rows, gates, strict=True):
+        words = self._words(batch, rows)
+        for (row, cols, dl, own), g, sp in zip(rows, gates, pose_spreads, strict=True):
             ids = batch.ids[row, cols]
             shared = None
             if lists is not None and g > 0:
@@ -342,6 +360,38 @@ class LightFieldFusion:
                 batch.distances[row, cols], dl, own, gate=g, shared=shared, ids=ids,
                 context=context, weight=w,
             )  # fmt: skip
+            if words is not None and row in words:
+                d4 = batch.distances[row, cols] / self.calibration
+                pose = self.pose_gate(d4, dl, own, sp)
+                out[row, cols] = fuse_words(out[row, cols], words[row], pose, self.tuning)
+        return out
+
+    def _words(self, batch: Candidates, rows: list[Any]) -> dict[int, NDArray[np.float64]] | None:
+        """The words' distances of each row's candidates to its query, by row; None: off.
+
+        Rows whose query or some candidate has no words are left out (the stage's order).
+        """
+        if self.tuning.word_weight <= 0 or batch.arrays is None or not rows:
+            return None
+        wanted = np.unique(
+            np.concatenate([batch.ids[row, cols] for row, cols, _, _ in rows]
+                           + [batch.query_ids[batch.query_ids >= 0]])
+        )  # fmt: skip
+        stored = batch.arrays(WORDS_COLUMN, wanted)
+        if stored is None:
+            return None
+        pos = {int(i): k for k, i in enumerate(wanted)}
+        given = (batch.query_arrays or {}).get(WORDS_COLUMN)
+        out = {}
+        for row, cols, _, _ in rows:
+            wq = None
+            if given is not None and np.all(np.isfinite(given[row])):
+                wq = given[row]
+            elif batch.query_ids[row] >= 0:
+                wq = stored[pos[int(batch.query_ids[row])]]
+            wc = stored[[pos[int(i)] for i in batch.ids[row, cols]]]
+            if wq is not None and np.all(np.isfinite(wq)) and np.all(np.isfinite(wc)):
+                out[row] = words_distance(wq, wc)
         return out
 
     def _context(
@@ -439,13 +489,19 @@ class StoredArrays:
 
     def __init__(self, db: Any, *, preload: bool = False) -> None:
         self.db = db
-        self._columns = (COLUMN, FIELD) if stores_field_vectors(db.config) else (COLUMN,)
+        self._columns = (
+            (COLUMN,)
+            + ((FIELD,) if stores_field_vectors(db.config) else ())
+            + ((WORDS_COLUMN,) if db.config.stores_surface_words else ())
+        )
         self._cache: dict[str, dict[int, NDArray[np.float32]]] = {c: {} for c in self._columns}
         # read, and null (rows older than the column)
         self._absent: dict[str, set[int]] = {c: set() for c in self._columns}
         self._preload = {c: preload for c in self._columns}
         self._complete: set[str] = set()
-        self._shape = {COLUMN: (int(db.config.light_field.n_fields), 10, -1), FIELD: (-1,)}
+        self._shape = {
+            COLUMN: (int(db.config.light_field.n_fields), 10, -1), FIELD: (-1,), WORDS_COLUMN: (-1,),
+        }  # fmt: skip
         self._field_index: Any = None
         self._stage: LightFieldFusion | None = None
         self._mapped: dict[str, ColumnCache | None] = {}

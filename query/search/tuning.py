@@ -82,6 +82,9 @@ class StageTuning:
     descriptor_shared_weight : float
         ``beta`` of the stored distance's shared-neighbour term among the candidates
         (:mod:`query.search.candidate_neighbours`; 0: off).
+    word_offset, word_weight : float
+        The last fusion's rank offset and the surface words' weight
+        (:mod:`query.search.word_fusion`; weight 0: off).
     proxy : bool
         A point cloud on the whole path ranks as its proxy does
         (:mod:`query.search.cloud_proxy`): the stored shape nearest to it by light fields
@@ -144,6 +147,11 @@ class StageTuning:
     # the highest validation objective of 0.1, 0.2, 0.3, 0.4, 0.6, 0.8 and 1.6 (0.8183; off,
     # 0.8105: python -m bench.studies.stage_parts, "no stored-distance neighbours").
     descriptor_shared_weight: float = 0.2
+    # The surface words fused last, offset 4 (ranks from 0) and weight 0.75: the highest
+    # validation objective of the rigid families over offsets 2-31 and weights 0.25-1.5, no
+    # family losing NN (python -m bench.studies.surface_words).
+    word_offset: float = 4.0
+    word_weight: float = 0.75
     # The proxy: validation clouds (even, vertex, fall-off) of CAPOD, parts, enclosures and
     # generic models find their class more often (NN 0.762-0.979 -> 0.786-1.000; parts
     # level), whether the store holds the cloud's model or not, except the enclosures'
@@ -165,7 +173,7 @@ class StageTuning:
         for name in ("candidates", "neighbours", "spread_candidates", "ratio_candidates"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"StageTuning.{name} must be >= 1")
-        for name in ("ramp", "offset", "contrast_ramp", "scale", "light_field_unit"):
+        for name in ("ramp", "offset", "contrast_ramp", "scale", "light_field_unit", "word_offset"):
             if getattr(self, name) <= 0:
                 raise ConfigError(f"StageTuning.{name} must be > 0")
         if self.contrast_depth < 2 or self.pool_quantile > 1 or self.ratio_weight > 1:

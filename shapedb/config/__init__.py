@@ -1,8 +1,8 @@
 """The typed configuration a store is built with, and how older stores' read today.
 
 :class:`Config` composes one frozen section per concern (the decomposition, the kernel,
-the descriptor's version, sparse clouds, whether searches re-rank, the light fields and
-field vectors kept per record); it is stored with every record, so a store knows how it
+the descriptor's version, sparse clouds, whether searches re-rank, the light fields,
+field vectors and surface words kept per record); it is stored with every record, so a store knows how it
 was built. :mod:`shapedb.config.migrations` is the one place that reads older layouts.
 """
 
@@ -18,6 +18,7 @@ from shapedb.config.core import (
     LightFieldConfig,
     MDBDConfig,
     RerankConfig,
+    SurfaceWordsConfig,
     parse_options,
 )
 from shapedb.config.part import PartConfig
@@ -31,6 +32,7 @@ __all__ = [
     "RerankConfig",
     "LightFieldConfig",
     "FieldVectorConfig",
+    "SurfaceWordsConfig",
     "PartConfig",
     "OPTIONS",
     "parse_options",

@@ -12,7 +12,9 @@ A :class:`Config` composes the settings that determine a store's records:
 * :class:`LightFieldConfig` (module :mod:`shapedb.config.lightfield`): the light fields
   stored per record;
 * :class:`FieldVectorConfig` (module :mod:`shapedb.config.field_vector`): the field vector
-  (depth buffers and spherical harmonics of the field's inside) stored per record.
+  (depth buffers and spherical harmonics of the field's inside) stored per record;
+* :class:`SurfaceWordsConfig` (module :mod:`shapedb.config.surface_words`): the surface
+  words (local surface features over a fixed codebook) stored per record.
 
 :class:`shapedb.config.part.PartConfig` (substructure matching) embeds a :class:`KernelConfig`
 of its own.
@@ -26,7 +28,8 @@ On the command line and in :func:`shapedb.connect` every setting is one flat opt
 (:data:`OPTIONS`): the field's name, except ``descriptor`` for
 ``DescriptorConfig.version``, ``rerank`` for :class:`RerankConfig`,
 ``lf_<field>`` for the light field section and ``fv_<field>`` for
-:class:`FieldVectorConfig`.
+:class:`FieldVectorConfig` (:class:`SurfaceWordsConfig` has none: a new store keeps the
+words, an older one reads without them).
 """
 
 from __future__ import annotations
@@ -42,6 +45,7 @@ from shapedb.config.checks import build_section, check, is_int
 from shapedb.config.field_vector import FieldVectorConfig, product_field_vector
 from shapedb.config.lightfield import LightFieldConfig, product_light_field
 from shapedb.config.rerank import RerankConfig
+from shapedb.config.surface_words import SurfaceWordsConfig, product_surface_words
 from shapedb.errors import ConfigError
 
 __all__ = [
@@ -51,6 +55,7 @@ __all__ = [
     "CloudConfig",
     "LightFieldConfig",
     "FieldVectorConfig",
+    "SurfaceWordsConfig",
     "RerankConfig",
     "Config",
     "OPTIONS",
@@ -337,6 +342,7 @@ _SECTIONS: dict[str, type] = {
     "rerank": RerankConfig,
     "light_field": LightFieldConfig,
     "field_vector": FieldVectorConfig,
+    "surface_words": SurfaceWordsConfig,
 }
 
 
@@ -366,6 +372,7 @@ SPECIFICATION: dict[str, tuple[str, ...]] = {
         "depth_resolution", "depth_frequencies", "harmonic_shells", "harmonic_bands",
         "harmonic_angles",
     ),
+    "surface_words": ("enabled",),
 }  # fmt: skip
 
 #: Every flat option (``connect(path, **options)``, ``--set KEY=VALUE``) and the
@@ -404,6 +411,8 @@ class Config:
         silhouettes only, of the field's inside seen about its surface).
     field_vector : FieldVectorConfig
         The field vector stored per record when :attr:`stores_field_vectors`.
+    surface_words : SurfaceWordsConfig
+        The surface words stored per record when :attr:`stores_surface_words`.
     """
 
     mdbd: MDBDConfig = field(default_factory=MDBDConfig)
@@ -413,6 +422,7 @@ class Config:
     rerank: RerankConfig = field(default_factory=RerankConfig)
     light_field: LightFieldConfig = field(default_factory=product_light_field)
     field_vector: FieldVectorConfig = field(default_factory=product_field_vector)
+    surface_words: SurfaceWordsConfig = field(default_factory=product_surface_words)
 
     @property
     def stores_light_fields(self) -> bool:
@@ -449,6 +459,15 @@ class Config:
         from is then at hand).
         """
         return self.field_vector.enabled and self.light_field_inside
+
+    @property
+    def stores_surface_words(self) -> bool:
+        """Whether ingest computes and stores each record's surface words (``surface_words``).
+
+        True when ``SurfaceWordsConfig.enabled`` and the store keeps light fields (its
+        searches run the ``"lightfield"`` stage, which fuses the words).
+        """
+        return self.surface_words.enabled and self.stores_light_fields
 
     @property
     def dim(self) -> int:

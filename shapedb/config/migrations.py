@@ -29,6 +29,9 @@ Store configuration layouts (``Config.to_dict()``):
   An older store's ``lf_fusion`` and its other ``rerank`` fields are dropped: it searches
   with today's stage. A store of the retired ``"adaptive"`` scorer (an opt-in that lost on
   some set) reads ``"none"``: its stored vectors, ranked by the descriptor alone.
+* **7**: layout 6 plus ``"surface_words"`` (``SurfaceWordsConfig``: the bag of local
+  surface features a store keeps per record); a store of an earlier layout kept none
+  (``enabled`` False).
 
 Part-index configuration layouts (``PartConfig.to_dict()``):
 
@@ -65,7 +68,7 @@ __all__ = [
 ]
 
 #: The layout :meth:`Config.to_dict` writes.
-LAYOUT = 6
+LAYOUT = 7
 #: The layout :meth:`PartConfig.to_dict` writes.
 PART_LAYOUT = 2
 
@@ -100,6 +103,7 @@ ADDED: dict[str, dict[str, Any]] = {
         "framing": "sphere",
     },
     "field_vector": {"enabled": False},
+    "surface_words": {"enabled": False},
 }
 
 #: Fields added to a section after stores first wrote that section, and the value that
@@ -119,6 +123,7 @@ SECTIONS_ADDED: dict[str, int] = {
     "rerank": 3,
     "light_field": 4,
     "field_vector": 5,
+    "surface_words": 7,
 }
 
 #: Sections and fields layout 6 no longer stores: the stage's numbers, now constants.
@@ -156,7 +161,7 @@ def upgrade_config(data: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
     dict
         ``{section: {field: value}}`` for the sections ``mdbd``, ``kernel``,
         ``descriptor``, ``cloud``, ``rerank``, ``light_field``, ``lf_fusion``,
-        ``field_vector`` that ``data`` stores (without ``layout``),
+        ``field_vector``, ``surface_words`` that ``data`` stores (without ``layout``),
         and the sections its layout predates (:data:`SECTIONS_ADDED`); fields a stored
         section predates are filled in from :data:`ADDED` and :data:`STORED_ADDED`. Unknown keys are
         passed on, for the caller to refuse.

@@ -95,6 +95,9 @@ def shapes_schema(dim: int) -> pa.Schema:
         # the field vector (shapedb.signature.field_vector): depth buffers and harmonics of the
         # field's inside; null unless the store keeps them, and in rows older than it
         pa.field("field_vector", pa.list_(pa.float32())),
+        # the surface words (shapedb.signature.surface_words): a histogram of local surface
+        # features; null unless the store keeps them, and in rows older than it
+        pa.field("surface_words", pa.list_(pa.float32())),
     ]
     return pa.schema(fields, metadata={"shapedb.schema_version": str(SCHEMA_VERSION)})
 
@@ -208,6 +211,10 @@ class ShapeRecord:
         decomposition's inside under ``config.field_vector``, ``d =
         field_vector_dim(config)``), when the store keeps them
         (``config.stores_field_vectors``); None otherwise and in rows older than them.
+    surface_words : (WORDS,) float32 or None
+        The surface words (:func:`shapedb.signature.surface_words.surface_words` of the
+        shape's surface, summing to 1), when the store keeps them
+        (``config.stores_surface_words``); None otherwise and in rows older than them.
     """
 
     name: str
@@ -225,6 +232,7 @@ class ShapeRecord:
     view_feature: NDArray[np.float32] | None = None
     light_field: NDArray[np.float32] | None = None
     field_vector: NDArray[np.float32] | None = None
+    surface_words: NDArray[np.float32] | None = None
 
     @property
     def n_balls(self) -> int:
@@ -334,6 +342,9 @@ def shapes_table(records: Sequence[ShapeRecord], dim: int) -> pa.Table:
         "field_vector": [
             None if r.field_vector is None else _field_vector(r, r.field_vector) for r in records
         ],
+        "surface_words": [
+            None if r.surface_words is None else _surface_words(r, r.surface_words) for r in records
+        ],
     }
     schema = shapes_schema(dim)
     arrays = [
@@ -357,6 +368,17 @@ def _field_vector(record: ShapeRecord, vector: Any) -> NDArray[np.float32]:
     d = field_vector_dim(record.config)
     if v.shape != (d,) or not np.all(np.isfinite(v)):
         raise ValueError(f"record {record.name!r}: field vector must be {d} finite values")
+    return v
+
+
+def _surface_words(record: ShapeRecord, words: Any) -> NDArray[np.float32]:
+    from shapedb.signature.surface_words import WORDS
+
+    v = np.asarray(words, dtype=np.float32).ravel()
+    if v.shape != (WORDS,) or not np.all(np.isfinite(v)) or (v < 0).any():
+        raise ValueError(
+            f"record {record.name!r}: surface words must be {WORDS} finite values >= 0"
+        )
     return v
 
 
@@ -495,6 +517,11 @@ def record_from_rows(row: Mapping[str, Any], balls: pa.Table, edges: pa.Table) -
             None
             if row.get("field_vector") is None
             else np.asarray(row["field_vector"], dtype=np.float32)
+        ),
+        surface_words=(
+            None
+            if row.get("surface_words") is None
+            else np.asarray(row["surface_words"], dtype=np.float32)
         ),
     )
 

@@ -21,6 +21,7 @@ from shapedb.config.core import (
     with_options,
 )
 from shapedb.config.part import PartConfig
+from shapedb.config.surface_words import SurfaceWordsConfig
 from shapedb.errors import ConfigError
 
 
@@ -46,7 +47,7 @@ def test_each_concern_is_its_own_section() -> None:
     assert cfg.rerank == RerankConfig(scorer="none")
     assert set(cfg.to_dict()) == {
         "layout", "mdbd", "kernel", "descriptor", "cloud", "rerank", "light_field",
-        "field_vector",
+        "field_vector", "surface_words",
     }  # fmt: skip
     kernel_fields = {f.name for f in dataclasses.fields(KernelConfig)}
     assert kernel_fields == {"n_r", "t", "w", "la", "lb", "lam", "method"}
@@ -63,11 +64,12 @@ def test_every_flat_option_names_one_field() -> None:
         assert knob not in OPTIONS  # the stage's numbers are constants (query.search.tuning)
     assert OPTIONS["fv_enabled"] == ("field_vector", "enabled")
     assert "fv_harmonic_bands" not in OPTIONS and "lf_zernike_order" not in OPTIONS  # specs
+    assert not any(k.startswith("sw_") or k == "enabled" for k in OPTIONS)  # words: no option
     assert parse_options(["fv_enabled=false", "lf_resolution=32"]) == {
         "fv_enabled": False, "lf_resolution": 32
     }  # fmt: skip
     sections = (MDBDConfig, KernelConfig, DescriptorConfig, CloudConfig, RerankConfig,
-                LightFieldConfig, FieldVectorConfig)  # fmt: skip
+                LightFieldConfig, FieldVectorConfig, SurfaceWordsConfig)  # fmt: skip
     specs = sum(len(v) for v in SPECIFICATION.values())
     assert len(OPTIONS) == sum(len(dataclasses.fields(c)) for c in sections) - specs
     options = Config().options()

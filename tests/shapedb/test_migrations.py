@@ -22,6 +22,7 @@ from shapedb.config.core import (
     RerankConfig,
 )
 from shapedb.config.part import PartConfig
+from shapedb.config.surface_words import SurfaceWordsConfig
 from shapedb.errors import ConfigError
 
 STORE_LAYOUT1 = Path(__file__).resolve().parents[1] / "data" / "store_layout1"
@@ -84,7 +85,7 @@ def test_nothing_stored_is_todays_defaults_but_the_stage_the_layout_predates() -
     )
     plain = replace(plain, light_field=replace(plain.light_field, framing="sphere"))
     # and no field vectors, none fused (the sections' own defaults are the legacy ones)
-    plain = replace(plain, field_vector=FieldVectorConfig())
+    plain = replace(plain, field_vector=FieldVectorConfig(), surface_words=SurfaceWordsConfig())
     assert Config().rerank.scorer == "lightfield"
     assert Config.from_dict({}) == plain
     assert Config.from_dict({"kernel": {}, "mdbd": {}}) == plain
@@ -144,8 +145,9 @@ def _layout1_store_config() -> Config:
         light_field=LightFieldConfig(
             n_fields=3, resolution=64, n_balls=2048, source="balls", framing="sphere"
         ),
-        # before the field vectors: none stored
+        # before the field vectors and the surface words: none stored
         field_vector=FieldVectorConfig(),
+        surface_words=SurfaceWordsConfig(),
     )
 
 
@@ -308,16 +310,29 @@ def test_stores_written_before_the_field_vectors_keep_none() -> None:
     stored = new.to_dict()
     assert stored["layout"] == migrations.LAYOUT and Config.from_dict(stored) == new
     # a layout-4 store: no field_vector section (its lf_fusion section is dropped)
-    del stored["field_vector"]
+    del stored["field_vector"], stored["surface_words"]
     stored["layout"] = 4
     stored["lf_fusion"] = {"weight": 8.0}
     old = Config.from_dict(stored)
     assert old.field_vector == FieldVectorConfig() and not old.field_vector.enabled
     assert not old.stores_field_vectors
     # everything else as the store wrote it
-    assert replace(old, field_vector=new.field_vector) == new
+    assert replace(old, field_vector=new.field_vector, surface_words=new.surface_words) == new
     # a layout-3 store: neither light fields nor field vectors
     del stored["lf_fusion"], stored["light_field"]
     stored["layout"] = 3
     older = Config.from_dict(stored)
     assert not older.field_vector.enabled
+
+
+def test_stores_written_before_the_surface_words_keep_none() -> None:
+    new = Config()
+    assert new.stores_surface_words
+    stored = new.to_dict()
+    del stored["surface_words"]
+    stored["layout"] = 6
+    old = Config.from_dict(stored)
+    assert old.surface_words == SurfaceWordsConfig() and not old.stores_surface_words
+    assert replace(old, surface_words=new.surface_words) == new
+    # a store without the stage keeps no words, whatever the section says
+    assert not new.with_options(rerank="none").stores_surface_words

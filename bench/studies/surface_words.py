@@ -1,0 +1,165 @@
+"""Surface words beside the stage: the codebook, and the fusion's offset and weight.
+
+``python -m bench.studies.surface_words --write-codebook`` trains the codebook the product
+ships (:data:`shapedb.signature.surface_words.CODEBOOK_FILE`): faiss k-means of
+:data:`~shapedb.signature.surface_words.WORDS` words over the FPFH features of every mesh
+of the rigid families' validation splits (:data:`RIGID`), seeded.
+
+``python -m bench.studies.surface_words`` (the stores of ``bench.quality``, built or
+cached) ranks each split's meshes three ways: by the stage without the words
+(``StageTuning.word_weight`` 0), by the words alone (chi-square of the stored
+histograms), and by the two fused over whole rankings as
+:mod:`query.search.word_fusion` fuses a query's candidates, for every offset and weight
+of :data:`OFFSETS` x :data:`WEIGHTS`. The setting with the highest validation objective
+(mean of NN, 1-T and DCG over the rigid families) whose rigid families lose no NN is
+the product's (``StageTuning.word_offset``, ``word_weight``); the jointed families are
+reported fused too, though the stage's pose gate keeps the words from them. Written to
+``bench/results/studies/surface_words.json``; the product's own figures are
+``python -m bench.quality``'s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["RIGID", "JOINTED", "OFFSETS", "WEIGHTS", "fused", "main"]
+
+OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "surface_words.json"
+#: Rigid families (the codebook's and the fusion's choice) and jointed ones.
+RIGID = ("web", "generic", "enclosures", "capod", "parts")
+JOINTED = ("figures", "people")
+#: The fusion's grid (offsets of ranks from 0).
+OFFSETS = (2.0, 4.0, 11.0, 31.0)
+WEIGHTS = (0.25, 0.5, 0.75, 1.0, 1.5)
+
+
+def fused(stage: NDArray[np.float64], words: NDArray[np.float64], offset: float,
+          weight: float) -> NDArray[np.float64]:  # fmt: skip
+    """Similarity (n, n) fusing two 0-based rank matrices as the stage fuses a row."""
+    return 1.0 / (offset + stage) + weight / (offset + words)
+
+
+def _ranks(distance: NDArray[np.float64]) -> NDArray[np.float64]:
+    d = np.array(distance, dtype=np.float64, copy=True)
+    np.fill_diagonal(d, np.inf)
+    return np.argsort(np.argsort(d, axis=1, kind="stable"), axis=1).astype(np.float64)
+
+
+def _stage_ranks(db: Any, names: list[str]) -> NDArray[np.float64]:
+    """(n, n) 0-based ranks of each shape's others as the stage without words orders them."""
+    from query.search.tuning import PRODUCT, tuned
+
+    column = {name: j for j, name in enumerate(names)}
+    ranks = np.full((len(names), len(names)), np.inf)
+    with tuned(replace(PRODUCT, word_weight=0.0)):
+        for i, name in enumerate(names):
+            r = 0
+            for hit in db.search(name, k=len(names)):
+                if hit.name != name and hit.name in column:
+                    ranks[i, column[hit.name]] = r
+                    r += 1
+    return ranks
+
+
+def _stored_words(db: Any, names: list[str]) -> NDArray[np.float64]:
+    t = db.sql("SELECT name, surface_words FROM shapes").to_pylist()
+    got = {r["name"]: r["surface_words"] for r in t}
+    return np.array([got[n] for n in names], dtype=np.float64)
+
+
+def _scores(similarity: NDArray[np.float64], labels: NDArray[Any]) -> list[float]:
+    from bench.common import retrieval_scores
+
+    s = retrieval_scores(similarity, labels)
+    return [round(float(s[k]), 4) for k in ("nn", "first_tier", "dcg")]
+
+
+def write_codebook() -> Path:
+    """Train the codebook on the rigid validation splits and write the product's file."""
+    from bench.quality import family_split
+    from bench.sets.datasets import mesh_arrays
+    from shapedb.geometry.mesh import TriangleMesh
+    from shapedb.signature.surface_words import (
+        CODEBOOK_FILE,
+        surface_features,
+        surface_points,
+        train_codebook,
+    )
+
+    features = []
+    for name in RIGID:
+        for m in family_split(name, "validation").models:
+            mesh = TriangleMesh(*mesh_arrays(m), name=m.name)
+            features.append(surface_features(surface_points(mesh, 0.0)))
+    np.save(CODEBOOK_FILE, train_codebook(features))
+    return CODEBOOK_FILE
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from bench.quality import family_split
+    from bench.support.product_stores import split_store
+    from shapedb.signature.surface_words import words_distance
+
+    ap = argparse.ArgumentParser(prog="python -m bench.studies.surface_words", description=__doc__)
+    ap.add_argument("--write-codebook", action="store_true", help="train and write the codebook")
+    ap.add_argument("--families", nargs="+", default=list(RIGID + JOINTED))
+    ap.add_argument("--out", type=Path, default=OUT)
+    args = ap.parse_args(argv)
+    if args.write_codebook:
+        print(f"wrote {write_codebook()}")
+        return 0
+    rows: dict[str, dict[str, Any]] = {"validation": {}, "test": {}}
+    for split, found in rows.items():
+        for name in args.families:
+            ds = family_split(name, split)
+            db = split_store(ds, {})
+            names = [m.name for m in ds.models]
+            h = _stored_words(db, names)
+            words = np.stack([words_distance(x, h) for x in h])
+            found[name] = {"stage": _stage_ranks(db, names), "words": _ranks(words),
+                           "labels": np.asarray(ds.labels)}  # fmt: skip
+            print(f"  {split} {name}: {len(names)} shapes", flush=True)
+    rigid = [n for n in args.families if n in RIGID]
+    val = rows["validation"]
+    base = {n: _scores(-val[n]["stage"], val[n]["labels"]) for n in rigid}
+    grid = {}
+    for o in OFFSETS:
+        for w in WEIGHTS:
+            s = {n: _scores(fused(val[n]["stage"], val[n]["words"], o, w), val[n]["labels"])
+                 for n in rigid}  # fmt: skip
+            worst = min(s[n][0] - base[n][0] for n in rigid)
+            grid[(o, w)] = (float(np.mean([np.mean(v) for v in s.values()])), worst)
+    allowed = {k: v for k, v in grid.items() if v[1] >= 0} or grid
+    offset, weight = max(allowed, key=lambda k: allowed[k][0])
+    result: dict[str, Any] = {
+        "offset": offset, "weight": weight,
+        "validation_grid": {f"{o},{w}": [round(v[0], 4), round(v[1], 4)]
+                            for (o, w), v in grid.items()},
+    }  # fmt: skip
+    print(f"chosen on validation: offset {offset}, weight {weight}")
+    print(f"{'split':10s} {'family':11s} {'stage':>22s} {'words':>22s} {'fused':>22s}")
+    for split, found in rows.items():
+        result[split] = {}
+        for name, row in found.items():
+            lab = row["labels"]
+            out = {"stage": _scores(-row["stage"], lab), "words": _scores(-row["words"], lab),
+                   "fused": _scores(fused(row["stage"], row["words"], offset, weight), lab)}  # fmt: skip
+            result[split][name] = out
+            cells = [" / ".join(f"{v:.3f}" for v in out[k]) for k in ("stage", "words", "fused")]
+            print(f"{split:10s} {name:11s} {cells[0]:>22s} {cells[1]:>22s} {cells[2]:>22s}",
+                  flush=True)  # fmt: skip
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
