@@ -15,7 +15,8 @@ of :data:`OFFSETS` x :data:`WEIGHTS`. The setting with the highest validation ob
 the product's (``StageTuning.word_offset``, ``word_weight``); the jointed families are
 reported fused too, though the stage's pose gate keeps the words from them. Written to
 ``bench/results/studies/surface_words.json``; the product's own figures are
-``python -m bench.quality``'s.
+``python -m bench.quality``'s. ``--cost`` measures what the words cost at ingest and in a
+search (``surface_words_cost.json``).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["RIGID", "JOINTED", "OFFSETS", "WEIGHTS", "fused", "main"]
+__all__ = ["RIGID", "JOINTED", "OFFSETS", "WEIGHTS", "fused", "cost", "write_codebook", "main"]
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "surface_words.json"
 #: Rigid families (the codebook's and the fusion's choice) and jointed ones.
@@ -103,6 +104,53 @@ def write_codebook() -> Path:
     return CODEBOOK_FILE
 
 
+def cost(family: str = "web", split: str = "validation", models: int = 20) -> dict[str, float]:
+    """What the words cost in the split's store: at ingest (their share of each record's
+    build time, median), in a search by stored id (median ms with and without them, 3 x
+    ``models`` searches interleaved) and in a search by a mesh (the words' seconds against
+    the whole search's, median over ``models`` meshes)."""
+    import time
+
+    from bench.quality import family_split
+    from bench.sets.datasets import mesh_arrays
+    from bench.support.product_stores import split_store
+    from query.search.tuning import PRODUCT, tuned
+    from shapedb.geometry.mesh import TriangleMesh
+    from shapedb.signature.surface_words import surface_points, surface_words
+
+    ds = family_split(family, split)
+    db = split_store(ds, {})
+    rows = db.sql("SELECT build_seconds, timings FROM shapes").to_pylist()
+    share = [dict(r["timings"])["surface_words"] / r["build_seconds"] for r in rows]
+    names = [m.name for m in ds.models[:models]]
+    on, off = [], []
+    for _ in range(3):
+        for name in names:
+            t = time.perf_counter()
+            db.search(name, k=10)
+            on.append(time.perf_counter() - t)
+            with tuned(replace(PRODUCT, word_weight=0.0)):
+                t = time.perf_counter()
+                db.search(name, k=10)
+                off.append(time.perf_counter() - t)
+    words, whole = [], []
+    for m in ds.models[:models]:
+        mesh = TriangleMesh(*mesh_arrays(m), name=m.name)
+        t = time.perf_counter()
+        surface_words(surface_points(mesh, 0.0))
+        words.append(time.perf_counter() - t)
+        t = time.perf_counter()
+        db.search(mesh, k=10)
+        whole.append(time.perf_counter() - t)
+    return {
+        "ingest_share_median": round(float(np.median(share)), 3),
+        "search_by_id_ms_with": round(1e3 * float(np.median(on)), 2),
+        "search_by_id_ms_without": round(1e3 * float(np.median(off)), 2),
+        "mesh_query_words_s": round(float(np.median(words)), 3),
+        "mesh_query_s": round(float(np.median(whole)), 3),
+    }
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     from bench.quality import family_split
     from bench.support.product_stores import split_store
@@ -111,10 +159,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.studies.surface_words", description=__doc__)
     ap.add_argument("--write-codebook", action="store_true", help="train and write the codebook")
     ap.add_argument("--families", nargs="+", default=list(RIGID + JOINTED))
+    ap.add_argument("--cost", action="store_true", help="measure the words' cost only")
     ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args(argv)
     if args.write_codebook:
         print(f"wrote {write_codebook()}")
+        return 0
+    if args.cost:
+        measured = cost()
+        print(json.dumps(measured, indent=1))
+        out = args.out.with_name("surface_words_cost.json")
+        out.write_text(json.dumps(measured, indent=1))
         return 0
     rows: dict[str, dict[str, Any]] = {"validation": {}, "test": {}}
     for split, found in rows.items():

@@ -166,7 +166,9 @@ def test_an_outside_copy_differs_from_the_stored_id_by_the_reciprocal_term_only(
 
 def test_a_closed_gate_leaves_the_term_out_and_reads_no_lists(dbs: dict[str, Any]) -> None:
     db = dbs["on"]
-    shut = LightFieldFusion(db.config, tuning=replace(ON, contrast_floor=1.0))  # gates shut
+    # the light field's gates shut (the contrast floor), the words off (their own gate is
+    # the pose gate alone: test_word_fusion)
+    shut = LightFieldFusion(db.config, tuning=replace(ON, contrast_floor=1.0, word_weight=0.0))
     reader = stored_arrays(db)
     asked: list[str] = []
 

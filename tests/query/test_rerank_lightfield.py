@@ -173,7 +173,8 @@ def test_hits_are_in_the_stage_s_order_with_the_stored_distance(lf_db: Any) -> N
                       strict=True))  # fmt: skip
     hits = lf_db.search(int(ids[0]), k=7)
     order, _ = rerank.search(index, x[:1].astype(np.float64), 7, config=lf_db.config,
-                             query_ids=ids[:1], arrays=stored_arrays(lf_db))  # fmt: skip
+                             query_ids=ids[:1], arrays=stored_arrays(lf_db),
+                             scorer=scorer_for(lf_db.config))  # fmt: skip
     assert [h.id for h in hits] == order[0].tolist()
     assert [h.distance for h in hits] == pytest.approx([stored[h.id] for h in hits])
     assert hits[0].id == ids[0] and hits[0].distance == 0.0 and hits[0].similarity == 1.0
