@@ -126,27 +126,7 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
         timings = dict(decomposition.timings)
         if view is not None:
             timings["view"] = time.perf_counter() - t2
-        light_field = None
-        if config.stores_light_fields:
-            from shapedb.signature.lightfield import decomposition_light_field
-
-            t3 = time.perf_counter()
-            light_field = decomposition_light_field(decomposition, config.light_field)
-            timings["light_field"] = time.perf_counter() - t3
-        field_vector = None
-        if config.stores_field_vectors:
-            from shapedb.signature.field_vector import decomposition_field_vector
-
-            t4 = time.perf_counter()
-            field_vector = decomposition_field_vector(decomposition, config.field_vector)
-            timings["field_vector"] = time.perf_counter() - t4
-        words = None
-        if config.stores_surface_words:
-            from shapedb.signature.surface_words import surface_points, surface_words
-
-            t5 = time.perf_counter()
-            words = surface_words(surface_points(geometry, decomposition.spacing))
-            timings["surface_words"] = time.perf_counter() - t5
+        stage = _stage_signatures(geometry, decomposition, config, timings)
         timings["load"] = t_load
         timings["features"] = t2 - t1
         timings["cpu"] = time.process_time() - c0  # this process's CPU seconds
@@ -168,10 +148,36 @@ def build_record(item: _Item, config: Config) -> ShapeRecord | Failure:
         source=item.source if item.path is not None else None,
         build_seconds=time.perf_counter() - t0,
         view_feature=view,
-        light_field=light_field,
-        field_vector=field_vector,
-        surface_words=words,
+        **stage,
     )
+
+
+def _stage_signatures(
+    geometry: Any, decomposition: Any, config: Config, timings: dict[str, float]
+) -> dict[str, Any]:
+    """The record's signatures for the re-ranking stage, as ``ShapeRecord`` fields: its
+    light fields, field vector and surface words, each None when the store keeps none;
+    each one's seconds added to ``timings``."""
+    out: dict[str, Any] = {"light_field": None, "field_vector": None, "surface_words": None}
+    if config.stores_light_fields:
+        from shapedb.signature.lightfield import decomposition_light_field
+
+        t = time.perf_counter()
+        out["light_field"] = decomposition_light_field(decomposition, config.light_field)
+        timings["light_field"] = time.perf_counter() - t
+    if config.stores_field_vectors:
+        from shapedb.signature.field_vector import decomposition_field_vector
+
+        t = time.perf_counter()
+        out["field_vector"] = decomposition_field_vector(decomposition, config.field_vector)
+        timings["field_vector"] = time.perf_counter() - t
+    if config.stores_surface_words:
+        from shapedb.signature.surface_words import surface_points, surface_words
+
+        t = time.perf_counter()
+        out["surface_words"] = surface_words(surface_points(geometry, decomposition.spacing))
+        timings["surface_words"] = time.perf_counter() - t
+    return out
 
 
 def _view_feature(geometry: Any, decomposition: Any, config: Config) -> NDArray[np.float32] | None:
