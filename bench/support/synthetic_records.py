@@ -1,7 +1,7 @@
 """Store records made fast from a few hundred real ones, for the scale benchmark.
 
-A real store's records (its decompositions, Eq. 1 descriptors, light fields and field
-vectors) are the seeds. Synthetic record ``i`` is made from one seed ``a`` and a second
+A real store's records (its decompositions, Eq. 1 descriptors, light fields, field
+vectors and surface words) are the seeds. Synthetic record ``i`` is made from one seed ``a`` and a second
 seed ``b`` of the same label (any seed when unlabelled):
 
 * **balls**: ``a``'s centres moved by N(0, 3 % of ``a``'s mean radius) per coordinate, its
@@ -12,6 +12,7 @@ seed ``b`` of the same label (any seed when unlabelled):
   seed has one): ``(1 - t) a + t b`` with ``t ~ U(0, 0.3)``, each number then scaled by
   ``1 + N(0, 0.02)``: neighbours that vary continuously within a class instead of
   exact copies of 200 points;
+* **surface words**: ``(1 - t) a + t b`` with the same ``t``, no noise (still a histogram);
 * name ``syn-<i>-<a's name>``, ``a``'s label, a unique content hash, the store's config.
 
 Nothing here decomposes or renders: a record costs tens of microseconds to make, so the
@@ -54,6 +55,19 @@ def _mix(
         b = a
     mixed = (1.0 - t) * a + t * np.asarray(b, np.float32)
     return (mixed * (1.0 + VECTOR_NOISE * rng.standard_normal(a.shape))).astype(np.float32)
+
+
+def _mix_histograms(
+    a: NDArray[np.float32] | None, b: NDArray[np.float32] | None, t: float
+) -> NDArray[np.float32] | None:
+    """The two histograms mixed, still summing to 1 (no noise: a histogram stays one)."""
+    if a is None:
+        return None
+    if b is None or np.shape(b) != np.shape(a):
+        b = a
+    return ((1.0 - t) * np.asarray(a, np.float32) + t * np.asarray(b, np.float32)).astype(
+        np.float32
+    )
 
 
 def _balls(rng: np.random.Generator, d: Decomposition) -> Decomposition:
@@ -125,6 +139,7 @@ class RecordMaker:
             view_feature=_mix(rng, a.view_feature, b.view_feature, t),
             light_field=_mix(rng, a.light_field, b.light_field, t),
             field_vector=_mix(rng, a.field_vector, b.field_vector, t),
+            surface_words=_mix_histograms(a.surface_words, b.surface_words, t),
         )
 
     def batch(self, start: int, count: int) -> list[ShapeRecord]:
