@@ -42,6 +42,7 @@ __all__ = [
     "with_extras",
     "stage_batch",
     "search",
+    "list_ranks",
 ]
 
 log = logging.getLogger(__name__)
@@ -49,6 +50,13 @@ log = logging.getLogger(__name__)
 #: Queries scored together (bounds the (queries, candidates, d) temporaries).
 _CHUNK = 16
 _NO_ID = np.iinfo(np.int64).max
+
+
+def list_ranks(d: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(c,) rank of each entry of ``d`` (c,), 0 first, ties in list order."""
+    r = np.empty(len(d))
+    r[np.argsort(d, kind="stable")] = np.arange(len(d), dtype=np.float64)
+    return r
 
 
 @dataclass(frozen=True)

@@ -59,7 +59,7 @@ from query.search.lightfield_neighbours import (
     shared_scores,
 )
 from query.search.lightfield_spread import calibration, local_statistic, pooled, spread_table
-from query.search.rerank import Candidates
+from query.search.rerank import Candidates, list_ranks
 from query.search.tuning import PRODUCT, StageTuning, active
 from query.search.word_fusion import WORDS_COLUMN, fuse_words
 from shapedb.signature.surface_words import words_distance
@@ -85,13 +85,6 @@ COLUMN = "light_field"
 #: The per-record array of the stored shapes' local light field spreads
 #: (:mod:`query.search.lightfield_spread`), read through ``Candidates.arrays`` like a column.
 SPREAD = "light_field_spread"
-
-
-def _ranks(d: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(c,) rank of each entry (0 first), ties in list order."""
-    r = np.empty(len(d))
-    r[np.argsort(d, kind="stable")] = np.arange(len(d), dtype=np.float64)
-    return r
 
 
 class LightFieldFusion:
@@ -186,17 +179,17 @@ class LightFieldFusion:
         w = f.weight if weight is None else float(weight)
         d4 = d / self.calibration
         if context is not None and ids is not None:
-            fused = 1.0 / (f.offset + _ranks(keep_first(d4, context, own, ids)))
+            fused = 1.0 / (f.offset + list_ranks(keep_first(d4, context, own, ids)))
         else:
-            fused = 1.0 / (f.offset + _ranks(d4))
+            fused = 1.0 / (f.offset + list_ranks(d4))
         g = self.gate(d4, dl, own, spreads) if gate is None else float(gate)
         if g <= 0:
             return np.maximum(1.0 / f.offset - fused, 0.0)
         top = (1.0 + w * g) / f.offset
-        plain = np.maximum(top - (fused + w * g / (f.offset + _ranks(dl))), 0.0)
+        plain = np.maximum(top - (fused + w * g / (f.offset + list_ranks(dl))), 0.0)
         if shared is None or ids is None:
             return plain
-        rank_s = _ranks(dl / self.scale - f.shared_weight * np.asarray(shared, np.float64))
+        rank_s = list_ranks(dl / self.scale - f.shared_weight * np.asarray(shared, np.float64))
         term = np.maximum(top - (fused + w * g / (f.offset + rank_s)), 0.0)
         return keep_first(plain, term, own, ids)
 

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from query.search.rerank import list_ranks
 from query.search.tuning import StageTuning
 
 __all__ = ["WORDS_COLUMN", "query_words", "fuse_words"]
@@ -42,13 +43,6 @@ def query_words(words: Sequence[Any]) -> NDArray[np.float64]:
         if w is not None:
             out[k] = np.asarray(w, np.float64).ravel()
     return out
-
-
-def _ranks(d: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(c,) rank of each entry (0 first), ties in list order."""
-    r = np.empty(len(d))
-    r[np.argsort(d, kind="stable")] = np.arange(len(d), dtype=np.float64)
-    return r
 
 
 def fuse_words(
@@ -73,6 +67,6 @@ def fuse_words(
     o, v = float(tuning.word_offset), float(tuning.word_weight) * float(gate)
     if v <= 0:
         return np.array(stage, dtype=np.float64, copy=True)
-    rank_s = _ranks(np.asarray(stage, np.float64))
-    rank_w = _ranks(np.asarray(words, np.float64))
+    rank_s = list_ranks(np.asarray(stage, np.float64))
+    rank_w = list_ranks(np.asarray(words, np.float64))
     return np.maximum((1.0 + v) / o - (1.0 / (o + rank_s) + v / (o + rank_w)), 0.0)

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from shapedb.config.core import Config
-from shapedb.geometry.implicit import Box, Capsule, Cylinder, Torus
+from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus
 from shapedb.mdbd.decomposition import decompose
 from shapedb.signature.kernel import features
 from shapedb.store.schema import ShapeRecord
@@ -56,6 +56,20 @@ def _shapes() -> list[tuple[str, str, Any]]:
     for k, (big, small) in enumerate([(1.0, 0.3), (1.2, 0.3), (1.0, 0.2)]):
         out.append((f"torus{k}", "torus", Torus([0, 0, 0], big, small)))
     return out
+
+
+def shape_pairs() -> dict[str, Any]:
+    """Seven analytic shapes by name: two boxes, two rods, two rings (a kind's pair shares
+    the name's prefix, its label) and a ball."""
+    return {
+        "box_a": Box((0, 0, 0), (2.0, 1.0, 1.0)),
+        "box_b": Box((0, 0, 0), (2.4, 1.0, 0.9)),
+        "rod_a": Capsule((0, 0, 0), (3.0, 0, 0), 0.4),
+        "rod_b": Cylinder((0, 0, 0), (3.2, 0, 0), 0.45),
+        "ring_a": Torus((0, 0, 0), 1.0, 0.3),
+        "ring_b": Torus((0, 0, 0), 1.1, 0.35),
+        "ball": Sphere((0, 0, 0), 1.0),
+    }
 
 
 def make_record(

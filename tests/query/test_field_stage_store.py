@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from query_helpers import CONFIG
+from query_helpers import CONFIG, shape_pairs
 
 from query.evaluate import evaluate, retrieval_scores
 from query.search.field_fusion import FIELD, FieldFusion, query_field_vectors
@@ -17,7 +17,6 @@ from query.search.field_index import field_index
 from query.search.lightfield_spread import SPREAD_DIR, spread_table, store_spreads
 from query.search.rerank_lightfield import stored_arrays
 from query.search.tuning import PRODUCT, tuned
-from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus
 from shapedb.mdbd.decomposition import decompose
 
 #: The stage with field vectors: K = 3 of version 4 and K2 = 2 by the field vectors, the
@@ -38,25 +37,13 @@ def _stage() -> Iterator[None]:
         yield
 
 
-def _shapes() -> dict[str, Any]:
-    return {
-        "box_a": Box((0, 0, 0), (2.0, 1.0, 1.0)),
-        "box_b": Box((0, 0, 0), (2.4, 1.0, 0.9)),
-        "rod_a": Capsule((0, 0, 0), (3.0, 0, 0), 0.4),
-        "rod_b": Cylinder((0, 0, 0), (3.2, 0, 0), 0.45),
-        "ring_a": Torus((0, 0, 0), 1.0, 0.3),
-        "ring_b": Torus((0, 0, 0), 1.1, 0.35),
-        "ball": Sphere((0, 0, 0), 1.0),
-    }
-
-
 @pytest.fixture(scope="module")
 def fv_db(tmp_path_factory: pytest.TempPathFactory, forget: Callable[[Any], None]) -> Iterator[Any]:
     """Seven analytic shapes in a store whose stage reads field vectors."""
     import query.database as database
 
     db = database.connect(tmp_path_factory.mktemp("fv") / "store", config=FIELD_STAGE)
-    shapes = _shapes()
+    shapes = shape_pairs()
     with tuned(TUNING):
         db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
     yield db
@@ -89,7 +76,7 @@ def test_evaluation_ranks_as_search_does(fv_db: Any) -> None:
 
 def test_an_outside_query_uses_its_own_field_vector(fv_db: Any) -> None:
     config = fv_db.config
-    shapes = _shapes()
+    shapes = shape_pairs()
     d = decompose(shapes["rod_b"], config=config.mdbd, keep_inside=True)
     own = query_field_vectors(config, [d, None])
     sid = fv_db.store.resolve("rod_b")
@@ -132,7 +119,7 @@ def test_a_where_filter_and_a_deletion_keep_the_union_within_the_store(
     import query.database as database
 
     db = database.connect(tmp_path / "s", config=FIELD_STAGE)
-    db.ingest([(n, n.split("_")[0], g) for n, g in _shapes().items()], workers=1)
+    db.ingest([(n, n.split("_")[0], g) for n, g in shape_pairs().items()], workers=1)
     hits = db.search("box_a", k=7, where="label <> 'ring'")
     assert {h.label for h in hits} == {"box", "rod", "ball"} and len(hits) == 5
     db.delete(["box_b"])

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from query_helpers import CONFIG, SMALL_STAGE
+from query_helpers import CONFIG, SMALL_STAGE, shape_pairs
 
 import query.search.lightfield_neighbours as neighbours
 from query.evaluate import evaluate, retrieval_scores
@@ -40,7 +40,7 @@ from query.search.lightfield_neighbours import (
 from query.search.rerank import stage_batch
 from query.search.rerank_lightfield import COLUMN, LightFieldFusion, stored_arrays
 from query.search.tuning import PRODUCT, StageTuning, tuned
-from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus
+from shapedb.geometry.implicit import Box
 
 STAGE = CONFIG.with_options(rerank="lightfield", fv_enabled=True)
 #: K 5 and K2 2, the gate open, the term at k 2, beta 0.8 (``ON``) and off (``OFF``).
@@ -62,24 +62,12 @@ LISTS = {
 }  # fmt: skip
 
 
-def _shapes() -> dict[str, Any]:
-    return {
-        "box_a": Box((0, 0, 0), (2.0, 1.0, 1.0)),
-        "box_b": Box((0, 0, 0), (2.4, 1.0, 0.9)),
-        "rod_a": Capsule((0, 0, 0), (3.0, 0, 0), 0.4),
-        "rod_b": Cylinder((0, 0, 0), (3.2, 0, 0), 0.45),
-        "ring_a": Torus((0, 0, 0), 1.0, 0.3),
-        "ring_b": Torus((0, 0, 0), 1.1, 0.35),
-        "ball": Sphere((0, 0, 0), 1.0),
-    }
-
-
 def _connect(root: Path, tuning: StageTuning = ON) -> Any:
     import query.database as database
 
     db = database.connect(root, config=STAGE)
     with tuned(tuning):
-        db.ingest([(n, n.split("_")[0], g) for n, g in _shapes().items()], workers=1)
+        db.ingest([(n, n.split("_")[0], g) for n, g in shape_pairs().items()], workers=1)
     return db
 
 
@@ -101,7 +89,7 @@ def _names(db: Any) -> dict[int, str]:
 
 def _orders(db: Any, tuning: StageTuning = ON) -> dict[str, list[str]]:
     with tuned(tuning):
-        return {n: [h.name for h in db.search(n, k=7)] for n in _shapes()}
+        return {n: [h.name for h in db.search(n, k=7)] for n in shape_pairs()}
 
 
 def test_the_lists_and_the_order_with_the_term_on_and_off(dbs: dict[str, Any]) -> None:
@@ -114,7 +102,7 @@ def test_the_lists_and_the_order_with_the_term_on_and_off(dbs: dict[str, Any]) -
     assert on["box_a"] == ["box_a", "box_b", "rod_b", "rod_a", "ring_b", "ring_a", "ball"]
     assert off["box_b"] == ["box_b", "box_a", "rod_b", "ring_b", "rod_a", "ring_a", "ball"]
     assert on["box_b"] == ["box_b", "box_a", "rod_b", "rod_a", "ring_b", "ring_a", "ball"]
-    for name in _shapes():  # the first result never changes
+    for name in shape_pairs():  # the first result never changes
         assert on[name][:2] == off[name][:2] and sorted(on[name]) == sorted(off[name]), name
         if name not in ("box_a", "box_b"):
             assert on[name] == off[name], name
@@ -137,7 +125,7 @@ def test_an_outside_copy_differs_from_the_stored_id_by_the_reciprocal_term_only(
     dbs: dict[str, Any],
 ) -> None:
     db = dbs["on"]
-    shapes = _shapes()
+    shapes = shape_pairs()
     scorer = LightFieldFusion(db.config, tuning=ON)
     reader = stored_arrays(db)
     index = open_index(db)
@@ -232,7 +220,7 @@ def test_the_table_is_kept_per_version_and_read_back_by_a_new_connection(
     lists3 = neighbour_table(again, stored_arrays(again), LightFieldFusion(again.config, tuning=ON))
     assert lists3.complete and lists3.version == again.store.version
     assert all(box_b not in v for v in lists3.values.values())
-    for name in [*_shapes(), "box_c"]:
+    for name in [*shape_pairs(), "box_c"]:
         if name != "box_b":
             hits = again.search(name, k=8)
             assert len(hits) == 7 and "box_b" not in [h.name for h in hits]
@@ -241,7 +229,7 @@ def test_the_table_is_kept_per_version_and_read_back_by_a_new_connection(
 
 def test_a_where_filter_is_honoured(dbs: dict[str, Any]) -> None:
     db = dbs["on"]
-    for name in _shapes():
+    for name in shape_pairs():
         hits = db.search(name, k=7, where="label <> 'rod'")
         assert [h.label for h in hits].count("rod") == 0 and len(hits) == 5, name
     hits = db.search("box_a", k=7, where="label IN ('box', 'ring')")

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from query_helpers import CONFIG
+from query_helpers import CONFIG, shape_pairs
 
 from bench.studies.lightfield_balls import fuse
 from query.evaluate import evaluate, retrieval_scores
@@ -23,7 +23,6 @@ from query.search.stage import scorer_for
 from query.search.tuning import PRODUCT
 from shapedb.config.core import Config, parse_options
 from shapedb.errors import ConfigError
-from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus
 from shapedb.signature.kernel import weights
 from shapedb.signature.lightfield import light_field_distance
 
@@ -113,25 +112,13 @@ def test_bad_stage_numbers_and_light_field_options_name_the_field() -> None:
     assert Config.from_json(STAGE.to_json()) == STAGE
 
 
-def _shapes() -> dict[str, Any]:
-    return {
-        "box_a": Box((0, 0, 0), (2.0, 1.0, 1.0)),
-        "box_b": Box((0, 0, 0), (2.4, 1.0, 0.9)),
-        "rod_a": Capsule((0, 0, 0), (3.0, 0, 0), 0.4),
-        "rod_b": Cylinder((0, 0, 0), (3.2, 0, 0), 0.45),
-        "ring_a": Torus((0, 0, 0), 1.0, 0.3),
-        "ring_b": Torus((0, 0, 0), 1.1, 0.35),
-        "ball": Sphere((0, 0, 0), 1.0),
-    }
-
-
 @pytest.fixture(scope="module")
 def lf_db(tmp_path_factory: pytest.TempPathFactory, forget: Callable[[Any], None]) -> Iterator[Any]:
     """Seven analytic shapes ingested by a store with the "lightfield" scorer (K = 6)."""
     import query.database as database
 
     db = database.connect(tmp_path_factory.mktemp("lf") / "store", config=STAGE)
-    shapes = _shapes()
+    shapes = shape_pairs()
     labels = {n: n.split("_")[0] for n in shapes}
     db.ingest([(n, labels[n], g) for n, g in shapes.items()], workers=1)
     yield db
@@ -158,7 +145,7 @@ def test_ingest_stores_the_light_fields_and_a_reopened_store_searches_the_same(
 
 
 def test_a_stored_query_and_the_same_shape_from_outside_rank_alike(lf_db: Any) -> None:
-    for name, shape in _shapes().items():
+    for name, shape in shape_pairs().items():
         inside = [h.id for h in lf_db.search(name, k=7)]
         outside = [h.id for h in lf_db.search(shape, k=7)]
         assert outside == inside, name
@@ -199,7 +186,7 @@ def test_a_store_written_before_the_column_searches_in_the_stored_order(
     import query.database as database
 
     db = database.connect(tmp_path / "old", config=STAGE)
-    db.ingest([(n, g) for n, g in list(_shapes().items())[:4]], workers=1)
+    db.ingest([(n, g) for n, g in list(shape_pairs().items())[:4]], workers=1)
     forget(db)
     for seg in (tmp_path / "old").rglob("*.parquet"):
         if "shapes" in str(seg):
@@ -236,7 +223,7 @@ def test_a_store_with_filled_silhouettes_fills_its_records_and_its_queries(
     balls = BALLS.with_options(lf_n_balls=0)  # the decomposition's balls
     filled = replace(balls, light_field=replace(balls.light_field, edges=True))  # a study's fill
     db = database.connect(tmp_path / "store", config=filled)
-    shapes = {n: g for n, g in _shapes().items() if n in ("box_a", "rod_a", "ring_a")}
+    shapes = {n: g for n, g in shape_pairs().items() if n in ("box_a", "rod_a", "ring_a")}
     db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
     again = database.connect(tmp_path / "store")
     assert again.config.light_field.edges is True
@@ -261,7 +248,7 @@ def test_a_store_with_a_longer_packing_renders_records_and_queries_from_it(
 
     longer = BALLS.with_options(lf_n_balls=STAGE.mdbd.n_balls + 200)
     db = database.connect(tmp_path / "store", config=longer)
-    shapes = {n: g for n, g in _shapes().items() if n in ("box_a", "box_b", "rod_a", "ring_a")}
+    shapes = {n: g for n, g in shape_pairs().items() if n in ("box_a", "box_b", "rod_a", "ring_a")}
     db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
     again = database.connect(tmp_path / "store")
     assert again.config.light_field.n_balls == longer.light_field.n_balls
@@ -289,7 +276,7 @@ def test_a_decomposition_query_without_the_store_s_tail_is_warned_about(
     from shapedb.mdbd.decomposition import decompose
 
     db = database.connect(tmp_path / "store", config=BALLS)
-    shapes = {n: g for n, g in _shapes().items() if n in ("box_a", "rod_a", "ring_a")}
+    shapes = {n: g for n, g in shape_pairs().items() if n in ("box_a", "rod_a", "ring_a")}
     db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
     cfg = db.config
     assert cfg.light_field_tail > 0
@@ -312,7 +299,7 @@ def test_a_store_of_the_field_s_light_fields_renders_records_and_queries_from_th
 
     field = STAGE.with_options(lf_source="field")
     db = database.connect(tmp_path / "store", config=field)
-    shapes = {n: g for n, g in _shapes().items() if n in ("box_a", "box_b", "rod_a", "ring_a")}
+    shapes = {n: g for n, g in shape_pairs().items() if n in ("box_a", "box_b", "rod_a", "ring_a")}
     db.ingest([(n, n.split("_")[0], g) for n, g in shapes.items()], workers=1)
     again = database.connect(tmp_path / "store")
     assert again.config.light_field.source == "field" and again.config.light_field_tail == 0

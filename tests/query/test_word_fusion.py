@@ -8,14 +8,13 @@ from typing import Any
 
 import numpy as np
 import pytest
-from query_helpers import CONFIG
+from query_helpers import CONFIG, shape_pairs
 
 from query.search.rerank_lightfield import stored_arrays
 from query.search.tuning import PRODUCT, StageTuning, tuned
 from query.search.word_fusion import WORDS_COLUMN, fuse_words
 from shapedb.config.surface_words import SurfaceWordsConfig
 from shapedb.errors import ConfigError
-from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus
 from shapedb.signature.surface_words import WORDS
 
 
@@ -50,18 +49,6 @@ def test_the_word_offset_must_be_positive() -> None:
         StageTuning(word_weight=-1.0)
 
 
-def _shapes() -> dict[str, Any]:
-    return {
-        "box_a": Box((0, 0, 0), (2.0, 1.0, 1.0)),
-        "box_b": Box((0, 0, 0), (2.4, 1.0, 0.9)),
-        "rod_a": Capsule((0, 0, 0), (3.0, 0, 0), 0.4),
-        "rod_b": Cylinder((0, 0, 0), (3.2, 0, 0), 0.45),
-        "ring_a": Torus((0, 0, 0), 1.0, 0.3),
-        "ring_b": Torus((0, 0, 0), 1.1, 0.35),
-        "ball": Sphere((0, 0, 0), 1.0),
-    }
-
-
 #: The stage of the small analytic stores with its gates open, so that the words count.
 OPEN = replace(PRODUCT, candidates=7, ceiling=0.0, contrast_floor=0.0, pool=0)
 
@@ -77,7 +64,7 @@ def _store(path: Any, *, words: bool = True) -> Any:
 
     config = replace(CONFIG, surface_words=SurfaceWordsConfig(enabled=words))
     db = database.connect(path, config=config)
-    db.ingest([(n, n.split("_")[0], g) for n, g in _shapes().items()], workers=1)
+    db.ingest([(n, n.split("_")[0], g) for n, g in shape_pairs().items()], workers=1)
     return db
 
 
@@ -95,7 +82,7 @@ def stores(
 
 
 def _ranked(db: Any) -> list[list[tuple[str, float]]]:
-    names = sorted(n for n in _shapes())
+    names = sorted(n for n in shape_pairs())
     return [[(h.name, h.similarity) for h in db.search(n, k=7)] for n in names]
 
 
@@ -129,7 +116,7 @@ def test_the_words_move_the_ranks_of_a_store(stores: tuple[Any, Any]) -> None:
 def test_an_outside_query_ranks_as_its_stored_copy(stores: tuple[Any, Any]) -> None:
     """A geometry query computes its own words: it ranks as the stored shape does."""
     words, _ = stores
-    for name, geometry in _shapes().items():
+    for name, geometry in shape_pairs().items():
         stored = [h.name for h in words.search(name, k=7)]
         outside = [h.name for h in words.search(geometry, k=7)]
         assert outside == stored, name
