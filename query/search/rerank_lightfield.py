@@ -207,19 +207,26 @@ class LightFieldFusion:
         own: NDArray[np.bool_],
         spreads: NDArray[np.float64] | None,
     ) -> float:
-        """``g(q)`` in [0, 1]: overlap, spread ceiling and contrast floor (the config's).
+        """``g(q)`` in [0, 1]: overlap, spread ceiling and contrast floor (the config's):
+        :meth:`pose_gate` times :meth:`contrast_gate`.
 
         ``d4`` in calibrated units, list order; the arguments as :meth:`fuse`'s.
         """
-        f = self.tuning
         g = self.pose_gate(d4, dl, own, spreads)
-        if g > 0 and f.contrast_floor > 0:
-            others = np.flatnonzero(~own)
-            others = others[np.argsort(d4[others], kind="stable")]  # nearest by d first
-            far = d4[others[min(f.contrast_depth, len(others)) - 1]]
-            contrast = float(np.median(d4[others[: f.neighbours]])) / max(float(far), 1e-300)
-            g *= float(np.clip((contrast - f.contrast_floor) / f.contrast_ramp, 0.0, 1.0))
-        return float(g)
+        return g * self.contrast_gate(d4, own) if g > 0 else 0.0
+
+    def contrast_gate(self, d4: NDArray[np.float64], own: NDArray[np.bool_]) -> float:
+        """The gate's contrast floor in [0, 1]: 0 where the stored distance already sets the
+        query's nearest others apart (their median over a farther one's is low); 1 without
+        a floor. The arguments as :meth:`gate`'s."""
+        f = self.tuning
+        others = np.flatnonzero(~own)
+        if f.contrast_floor <= 0 or not len(others):
+            return 1.0
+        others = others[np.argsort(d4[others], kind="stable")]  # nearest by d first
+        far = d4[others[min(f.contrast_depth, len(others)) - 1]]
+        contrast = float(np.median(d4[others[: f.neighbours]])) / max(float(far), 1e-300)
+        return float(np.clip((contrast - f.contrast_floor) / f.contrast_ramp, 0.0, 1.0))
 
     def pose_gate(
         self,
@@ -329,19 +336,20 @@ class LightFieldFusion:
             got = batch.arrays(SPREAD, wanted)
             if got is not None:
                 spreads = dict(zip(wanted.tolist(), got, strict=True))
-        gates, pose_spreads = [], []
+        gates, poses = [], []
         for row, cols, dl, own in rows:
             sp = None
             if spreads is not None:
                 sp = np.array([spreads[int(i)] for i in batch.ids[row, cols]])
-            pose_spreads.append(sp)
-            gates.append(self.gate(batch.distances[row, cols] / self.calibration, dl, own, sp))
+            d4 = batch.distances[row, cols] / self.calibration
+            gates.append(self.gate(d4, dl, own, sp))  # a study's scorer may gate otherwise
+            poses.append(self.pose_gate(d4, dl, own, sp))
         w = self.tuning.weight
         on = [r for r, g in zip(rows, gates, strict=True) if g > 0 and w > 0]
         lists = self._lists(batch, on)
         k = int(self.tuning.shared_neighbours)
         words = self._words(batch, rows)
-        for (row, cols, dl, own), g, sp in zip(rows, gates, pose_spreads, strict=True):
+        for (row, cols, dl, own), g, pose in zip(rows, gates, poses, strict=True):
             ids = batch.ids[row, cols]
             shared = None
             if lists is not None and g > 0:
@@ -354,8 +362,6 @@ class LightFieldFusion:
                 context=context, weight=w,
             )  # fmt: skip
             if words is not None and row in words:
-                d4 = batch.distances[row, cols] / self.calibration
-                pose = self.pose_gate(d4, dl, own, sp)
                 out[row, cols] = fuse_words(out[row, cols], words[row], pose, self.tuning)
         return out
 
