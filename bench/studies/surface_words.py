@@ -16,7 +16,8 @@ the product's (``StageTuning.word_offset``, ``word_weight``); the jointed famili
 reported fused too, though the stage's pose gate keeps the words from them. Written to
 ``bench/results/studies/surface_words.json``; the product's own figures are
 ``python -m bench.quality``'s. ``--cost`` measures what the words cost at ingest and in a
-search (``surface_words_cost.json``).
+search (``surface_words_cost.json``); ``--mixed`` the web and figures validation meshes in one
+store, each family's queries among all its shapes (``surface_words_mixed.json``).
 """
 
 from __future__ import annotations
@@ -31,7 +32,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["RIGID", "JOINTED", "OFFSETS", "WEIGHTS", "fused", "cost", "write_codebook", "main"]
+__all__ = [
+    "RIGID", "JOINTED", "OFFSETS", "WEIGHTS", "fused", "cost", "mixed", "write_codebook", "main",
+]  # fmt: skip
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "surface_words.json"
 #: Rigid families (the codebook's and the fusion's choice) and jointed ones.
@@ -54,13 +57,14 @@ def _ranks(distance: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.argsort(np.argsort(d, axis=1, kind="stable"), axis=1).astype(np.float64)
 
 
-def _stage_ranks(db: Any, names: list[str]) -> NDArray[np.float64]:
-    """(n, n) 0-based ranks of each shape's others as the stage without words orders them."""
+def _stage_ranks(db: Any, names: list[str], *, words: bool = False) -> NDArray[np.float64]:
+    """(n, n) 0-based ranks of each shape's others as the stage orders them, without the
+    words (``words`` False) or as the product does."""
     from query.search.tuning import PRODUCT, tuned
 
     column = {name: j for j, name in enumerate(names)}
     ranks = np.full((len(names), len(names)), np.inf)
-    with tuned(replace(PRODUCT, word_weight=0.0)):
+    with tuned(PRODUCT if words else replace(PRODUCT, word_weight=0.0)):
         for i, name in enumerate(names):
             r = 0
             for hit in db.search(name, k=len(names)):
@@ -77,10 +81,10 @@ def _stored_words(db: Any, names: list[str]) -> NDArray[np.float64]:
 
 
 def _scores(similarity: NDArray[np.float64], labels: NDArray[Any]) -> list[float]:
-    from bench.common import retrieval_scores
+    from query.evaluate import retrieval_scores
 
-    s = retrieval_scores(similarity, labels)
-    return [round(float(s[k]), 4) for k in ("nn", "first_tier", "dcg")]
+    s = retrieval_scores(np.where(np.isfinite(similarity), similarity, np.nan), labels)
+    return [round(float(getattr(s, k)), 4) for k in ("nn", "first_tier", "dcg")]
 
 
 def write_codebook() -> Path:
@@ -151,6 +155,33 @@ def cost(family: str = "web", split: str = "validation", models: int = 20) -> di
     }
 
 
+def mixed(
+    families: Sequence[str] = ("web", "figures"), split: str = "validation"
+) -> dict[str, Any]:
+    """The families' meshes in one store (labels kept apart by family): each family's NN /
+    1-T / DCG among all the store's shapes, by the stage without and with the words."""
+    from bench.quality import family_split
+    from bench.sets.datasets import Dataset
+    from bench.support.product_stores import split_store
+
+    parts = {name: family_split(name, split) for name in families}
+    models = tuple(replace(m, label=f"{name}:{m.label}") for name, ds in parts.items()
+                   for m in ds.models)  # fmt: skip
+    ds = Dataset("+".join(families), models)
+    db = split_store(ds, {})
+    names = [m.name for m in models]
+    labels = np.asarray(ds.labels)
+    out: dict[str, Any] = {}
+    for way, words in (("without the words", False), ("default", True)):
+        ranks = _stage_ranks(db, names, words=words)
+        for name in families:
+            # the family's queries, ranked among the whole store (the others unlabelled:
+            # never queries, never relevant)
+            mine = np.array([lab if lab.startswith(f"{name}:") else None for lab in labels])
+            out.setdefault(name, {})[way] = _scores(-ranks, mine)
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     from bench.quality import family_split
     from bench.support.product_stores import split_store
@@ -160,10 +191,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--write-codebook", action="store_true", help="train and write the codebook")
     ap.add_argument("--families", nargs="+", default=list(RIGID + JOINTED))
     ap.add_argument("--cost", action="store_true", help="measure the words' cost only")
+    ap.add_argument("--mixed", action="store_true", help="web and figures in one store only")
     ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args(argv)
     if args.write_codebook:
         print(f"wrote {write_codebook()}")
+        return 0
+    if args.mixed:
+        measured = mixed()
+        print(json.dumps(measured, indent=1))
+        args.out.with_name("surface_words_mixed.json").write_text(json.dumps(measured, indent=1))
         return 0
     if args.cost:
         measured = cost()
