@@ -71,7 +71,7 @@ def surface_points(geometry: Geometry, spacing: float) -> NDArray[np.float64]:
         The geometry has no surface to sample (no zero crossing, zero area).
     """
     from shapedb.geometry.pointcloud import PointCloud
-    from shapedb.geometry.view import boundary_mesh
+    from shapedb.geometry.view import boundary_mesh, surface_area
 
     name = getattr(geometry, "name", None) or "shape"
     if isinstance(geometry, PointCloud):
@@ -81,9 +81,8 @@ def surface_points(geometry: Geometry, spacing: float) -> NDArray[np.float64]:
         surface = boundary_mesh(geometry, spacing)
     if surface is None:
         raise DegenerateGeometryError("no surface to sample for its words", source=name)
-    tri = np.asarray(surface.vertices, np.float64)[np.asarray(surface.faces, np.int64)]
-    area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    if not np.isfinite(area).all() or area.sum() <= 0:
+    area = surface_area(surface.vertices, surface.faces)
+    if not np.isfinite(area) or area <= 0:
         raise DegenerateGeometryError("its surface has no area to sample", source=name)
     return np.asarray(surface.sample_surface(SAMPLES, seed=0), np.float64)
 
