@@ -42,14 +42,15 @@ __all__ = [
 
 #: Surface samples drawn (by area) before the thinning. The voxel of the thinning, and
 #: the radii of the normals and of the features, are in units of the sample's bounding
-#: radius: the validation grid of ``python -m bench.studies.surface_words`` (words alone,
-#: web and generic: 0.02 / 0.05 / 0.12 against 0.04 / 0.08 / 0.2 and 0.06 / 0.12 / 0.3).
+#: radius: the first setting measured, not tuned (one-off scripts, docs/results.md
+#: "Surface words"; 0.04 / 0.08 / 0.2 and 0.06 / 0.12 / 0.3 were tried for one-sided scans
+#: only, no better).
 SAMPLES = 6000
 VOXEL = 0.02
 NORMAL_RADIUS = 0.05
 FEATURE_RADIUS = 0.12
 #: Words of the codebook: 256 against 64 and 128 (words alone, web validation NN 0.730
-#: against 0.692 and 0.702).
+#: against 0.692 and 0.702, each family's own codebook; one-off scripts).
 WORDS = 256
 #: Bins of one FPFH feature.
 FEATURE_BINS = 33
