@@ -15,6 +15,13 @@ index (:mod:`query.parts.index`, built on demand as ``db.match`` does):
    finds among all the shape's neighbourhoods; the score is the mean of those, each
    query neighbourhood weighted by its centre ball's volume (``r^3``). A shape holding
    every part of the query scores high, one holding a few parts low.
+3. *Words*, in a store with surface words: a part keeps its whole's local surface, so
+   the query's words, read at a ladder of scales (:mod:`query.parts.part_words`), rank
+   the stored shapes; the :data:`CANDIDATES` nearest join the voted ones, and the
+   candidates are ordered by their ranks by words and by parts fused
+   (:data:`WORD_OFFSET`, :data:`PARTS_WEIGHT`). The words lead (a half's words found its
+   class far more often than its parts); the parts tell a solid from a hollow shell
+   with the same faces.
 
 ``partial=True`` takes the partial path for every query of a call; ``False`` the whole
 one. ``None`` (the default) lets the search decide: a point cloud whose normals lie on
@@ -28,9 +35,9 @@ search"), so it runs on request.
 A triangle mesh is closed over its cuts before its parts are read
 (:meth:`~shapedb.geometry.mesh.TriangleMesh.capped`, where that makes it a closed solid):
 cut open, a solid part's mesh bounds a shell one cell thick whose parts are a hollow
-shape's. Validation halves (``bench.sets.scans.cropped_mesh``) by the partial path, NN:
-parts 0.083 -> 0.438 (the whole path 0.188), CAPOD 0.267 -> 0.367 (whole 0.383). The
-whole path keeps a mesh's holes: an open basin is a basin.
+shape's (its words are read from its own faces, the cut left open). The whole path keeps
+a mesh's holes: an open basin is a basin. The figures: docs/results.md, "Scans and
+clouds".
 """
 
 from __future__ import annotations
@@ -63,6 +70,11 @@ __all__ = [
     "VOTING_PARTS",
     "SHAPES_PER_PART",
     "CANDIDATES",
+    "WORD_OFFSET",
+    "PARTS_WEIGHT",
+    "PartialCandidates",
+    "partial_candidates",
+    "fused_similarity",
 ]
 
 #: Query neighbourhoods (the largest balls first) that vote for candidate shapes; with the
@@ -72,7 +84,14 @@ VOTING_PARTS = 32
 SHAPES_PER_PART = 16
 #: Best-voted shapes scored exactly (``k`` more when k is larger): on 200 generated shapes
 #: the ranking equalled scoring every shape exactly (same class NN on 63 cut and scanned queries).
+#: In a store with words, as many again are the nearest by words.
 CANDIDATES = 32
+#: The reciprocal ranks' offset and the parts' weight against the words' (1) in the
+#: fused order: the best validation halves' NN and 1-T summed over CAPOD, parts and
+#: enclosures of a grid of offsets 2-16 and weights 0-1 (``python -m
+#: bench.studies.part_words``).
+WORD_OFFSET = 4.0
+PARTS_WEIGHT = 0.5
 
 
 def search(
@@ -208,7 +227,7 @@ def partial_search(
     where: str | None = None,
     config: PartConfig | None = None,
 ) -> list[Hit]:
-    """The k stored shapes that hold the most of ``query``'s parts, best first.
+    """The k stored shapes that hold the most of ``query``, best first.
 
     Parameters
     ----------
@@ -226,8 +245,74 @@ def partial_search(
     Returns
     -------
     list of Hit
-        ``path="partial"``; ``similarity`` the volume-weighted mean best similarity of
-        the query's neighbourhoods in the shape, in (0, 1]; ties by ascending id.
+        ``path="partial"``, best first, ties by ascending id. ``similarity`` in (0, 1]:
+        in a store with surface words, the fused reciprocal ranks by words and by parts
+        over their largest value (1: first by both), ``distance`` its ``-log``; in a
+        store without, the volume-weighted mean best similarity of the query's
+        neighbourhoods in the shape, ``distance`` ``-log(similarity) / lam``.
+    """
+    found = partial_candidates(db, query, k=k, where=where, config=config)
+    if not len(found.ids):
+        return []
+    if found.words is None:
+        similarity = found.parts
+        with np.errstate(divide="ignore"):
+            distance = -np.log(similarity) / found.lam
+    else:
+        similarity = fused_similarity(found.parts, found.words)
+        distance = -np.log(similarity)
+    order = np.lexsort((found.ids, -similarity))[:k]
+    names = catalog(db, db.store.version).lookup(found.ids[order])
+    hits = []
+    for sid, sim, dist, name in zip(
+        found.ids[order], similarity[order], distance[order], names, strict=True
+    ):
+        if name is None:  # deleted by a commit made while we searched
+            continue
+        hits.append(Hit(int(sid), name[0], name[1], float(sim), float(dist), "partial"))
+    return hits
+
+
+@dataclass(frozen=True)
+class PartialCandidates:
+    """A partial search's candidates with what ranks them, before they are fused.
+
+    Attributes
+    ----------
+    ids : (c,) int64
+        Candidate shape ids, ascending.
+    parts : (c,) float64
+        Each one's parts score in [0, 1]: the volume-weighted mean best similarity of the
+        query's neighbourhoods in the shape.
+    words : (c,) float64 or None
+        Each one's least chi-square distance by words (inf: a shape without words); None
+        in a store without words or for a query without a surface.
+    lam : float
+        The part kernel's ``lam``.
+    """
+
+    ids: NDArray[np.int64]
+    parts: NDArray[np.float64]
+    words: NDArray[np.float64] | None
+    lam: float
+
+
+def partial_candidates(
+    db: StoreHandle,
+    query: Any,
+    *,
+    k: int = 10,
+    where: str | None = None,
+    config: PartConfig | None = None,
+) -> PartialCandidates:
+    """The candidates :func:`partial_search` orders (same arguments): the
+    :data:`CANDIDATES` (at least ``k``) best-voted shapes and, in a store with words,
+    as many nearest by words, each scored both ways.
+
+    Raises
+    ------
+    QueryError
+        A feature vector, or a query without balls.
     """
     from query.parts.match import resolve
     from query.parts.store_index import open_parts_index
@@ -239,9 +324,10 @@ def partial_search(
         )
     k = checked_k(k)
     cfg = part_config(config)
-    if isinstance(query, TriangleMesh):
-        query = query.capped()  # a part cut from a solid is that solid's part, not a shell
-    graph = resolve(db, query, part=cfg).graph
+    capped = query.capped() if isinstance(query, TriangleMesh) else query
+    # a part cut from a solid is that solid's part, not a shell (its words: its own faces)
+    model = resolve(db, capped, part=cfg)
+    graph = model.graph
     if not graph.n_nodes:
         raise QueryError("the query has no balls: nothing to search by parts", source="query")
     index = open_parts_index(db, cfg)
@@ -251,20 +337,80 @@ def partial_search(
 
         allowed = allowed_ids(db, where)
     volume = np.asarray(graph.radii, np.float64) ** 3
-    parts = _Parts(neighbourhood_features(graph, cfg), volume / volume.sum(), float(cfg.kernel.lam))
+    lam = float(cfg.kernel.lam)
+    parts = _Parts(neighbourhood_features(graph, cfg), volume / volume.sum(), lam)
     shapes = _candidates(index, parts, k, allowed)
-    if not len(shapes):
-        return []
-    scores = np.array([_score(index, parts, int(s)) for s in shapes])
-    order = np.lexsort((shapes, -scores))[:k]
-    names = catalog(db, db.store.version).lookup(shapes[order])
-    hits = []
-    for sid, score, found in zip(shapes[order], scores[order], names, strict=True):
-        if found is None:  # deleted by a commit made while we searched
-            continue
-        distance = float(-np.log(score) / parts.lam) if score > 0 else float("inf")
-        hits.append(Hit(int(sid), found[0], found[1], float(score), distance, "partial"))
-    return hits
+    ladder = _query_words(db, query, model)
+    near = None
+    if ladder is not None:
+        shapes, near = _with_words(db, shapes, ladder, k, allowed)
+    scores = np.array([_score(index, parts, int(s)) for s in shapes], np.float64)
+    return PartialCandidates(shapes, scores, near, lam)
+
+
+def fused_similarity(
+    parts: NDArray[np.float64],
+    words: NDArray[np.float64],
+    *,
+    offset: float = WORD_OFFSET,
+    weight: float = PARTS_WEIGHT,
+) -> NDArray[np.float64]:
+    """(c,) similarities in (0, 1] of candidates from their parts scores (c,) (higher
+    first) and words distances (c,) (lower first), by their ranks among the candidates:
+    ``(1 / (o + rank_w) + v / (o + rank_p)) * o / (1 + v)``, ranks from 0, ``o`` the
+    ``offset``, ``v`` the parts' ``weight`` (>= 0); 1 for a shape first both ways."""
+    from query.search.rerank import list_ranks
+
+    o, v = float(offset), float(weight)
+    fused = 1.0 / (o + list_ranks(np.asarray(words, np.float64)))
+    fused += v / (o + list_ranks(-np.asarray(parts, np.float64)))
+    return np.asarray(fused * o / (1.0 + v), np.float64)
+
+
+def _query_words(db: StoreHandle, query: Any, model: Any) -> NDArray[np.float64] | None:
+    """The query's words at each of :data:`~query.parts.part_words.PART_REACHES`
+    (a geometry), its stored words (a stored shape), or None (no words in the store, or
+    nothing to draw them from)."""
+    from query.parts.part_words import part_words, stored_words
+    from shapedb.errors import DegenerateGeometryError
+    from shapedb.geometry.base import Geometry
+    from shapedb.store.schema import ShapeRecord
+
+    if not db.config.stores_surface_words:
+        return None
+    if isinstance(query, Geometry) and model.decomposition is not None:
+        try:
+            return part_words(query, model.decomposition.spacing).astype(np.float64)
+        except DegenerateGeometryError:
+            return None
+    if isinstance(query, ShapeRecord) and query.surface_words is not None:
+        return np.asarray(query.surface_words, np.float64)[None, :]
+    if model.id is not None:
+        ids, rows = stored_words(db, np.array([model.id], np.int64))
+        return rows if len(ids) else None
+    return None
+
+
+def _with_words(
+    db: StoreHandle,
+    shapes: NDArray[np.int64],
+    words: NDArray[np.float64],
+    k: int,
+    allowed: NDArray[np.int64] | None,
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """The voted shapes and the :data:`CANDIDATES` (at least ``k``) nearest by words,
+    ascending ids, with each one's words distance (inf: a shape without words)."""
+    from query.parts.part_words import stored_words, words_distances
+
+    ids, rows = stored_words(db, allowed)
+    near = words_distances(words, rows)
+    best = ids[np.lexsort((ids, near))[: max(CANDIDATES, k)]]
+    every = np.union1d(shapes, best)
+    out = np.full(len(every), np.inf)
+    at = np.searchsorted(ids, every)
+    known = (at < len(ids)) & (ids[np.minimum(at, len(ids) - 1)] == every)
+    out[known] = near[at[known]]
+    return every, out
 
 
 @dataclass(frozen=True)

@@ -88,14 +88,25 @@ def surface_points(geometry: Geometry, spacing: float) -> NDArray[np.float64]:
     return np.asarray(surface.sample_surface(SAMPLES, seed=0), np.float64)
 
 
-def surface_features(points: ArrayLike) -> NDArray[np.float32]:
+def surface_features(points: ArrayLike, *, reach: float = 1.0) -> NDArray[np.float32]:
     """(m, 33) float32 FPFH features of a surface sample ``points`` (n, 3), model units.
 
     Scale-, rotation- and translation-invariant: the sample is centred on its bounding
-    box and scaled into the unit sphere, thinned to one point per :data:`VOXEL` cube;
-    normals by local PCA within :data:`NORMAL_RADIUS`, turned away from the thinned
-    sample's centroid. ``m`` is 0 for fewer than two distinct points.
+    box and scaled into the sphere of radius ``1 / reach``, thinned to one point per
+    :data:`VOXEL` cube; normals by local PCA within :data:`NORMAL_RADIUS`, turned away
+    from the thinned sample's centroid. ``m`` is 0 for fewer than two distinct points.
+
+    ``reach`` is the bounding radius of the whole the sample is part of, in units of the
+    sample's own: 1 for a whole shape; a half of a shape, read at its whole's scale, is
+    about 1.2 (:mod:`query.parts.part_words`).
+
+    Raises
+    ------
+    ValueError
+        ``reach`` not a finite number > 0.
     """
+    if not (np.isfinite(reach) and reach > 0):
+        raise ValueError(f"reach must be a finite number > 0, got {reach!r}")
     import open3d as o3d
 
     p = np.asarray(points, np.float64).reshape(-1, 3)
@@ -104,7 +115,7 @@ def surface_features(points: ArrayLike) -> NDArray[np.float32]:
         return np.zeros((0, FEATURE_BINS), np.float32)
     lo, hi = p.min(axis=0), p.max(axis=0)
     centre = (lo + hi) / 2
-    radius = float(np.linalg.norm(p - centre, axis=1).max())
+    radius = float(np.linalg.norm(p - centre, axis=1).max()) * float(reach)
     if not radius > 0:
         return np.zeros((0, FEATURE_BINS), np.float32)
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector((p - centre) / radius))
@@ -140,15 +151,18 @@ def codebook() -> Any:
     return index
 
 
-def surface_words(points: ArrayLike, words: Any = None) -> NDArray[np.float32]:
+def surface_words(
+    points: ArrayLike, words: Any = None, *, reach: float = 1.0
+) -> NDArray[np.float32]:
     """(WORDS,) float32 histogram of the sample's features over the codebook, summing to 1.
 
     ``points``: (n, 3) a surface sample (:func:`surface_points`); ``words``: a faiss index
-    of centroids (default: the shipped :func:`codebook`). All zeros when the sample has no
-    features.
+    of centroids (default: the shipped :func:`codebook`); ``reach``: as
+    :func:`surface_features` takes it (a part of a shape read at its whole's scale). All
+    zeros when the sample has no features.
     """
     book = codebook() if words is None else words
-    f = surface_features(points)
+    f = surface_features(points, reach=reach)
     h = np.zeros(book.ntotal, np.float64)
     if len(f):
         _, word = book.search(f, 1)

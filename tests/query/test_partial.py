@@ -153,3 +153,49 @@ def test_a_mesh_cut_in_half_is_searched_as_half_a_solid(tmp_path: Path) -> None:
     half = TriangleMesh(mesh.vertices[used], faces.reshape(-1, 3))
     assert not half.closed
     assert store.search(half, k=1, partial=True)[0].name == "block"
+
+
+def test_fused_similarity_is_the_reciprocal_ranks_over_their_largest() -> None:
+    from query.parts.partial import fused_similarity
+
+    parts = np.array([0.9, 0.5, 0.1])  # ranks 0, 1, 2
+    words = np.array([0.3, 0.1, 0.2])  # ranks 2, 0, 1
+    got = fused_similarity(parts, words, offset=4.0, weight=0.5)
+    want = np.array([1 / 6 + 0.5 / 4, 1 / 4 + 0.5 / 5, 1 / 5 + 0.5 / 6]) * 4 / 1.5
+    np.testing.assert_allclose(got, want)
+    assert fused_similarity(np.array([1.0]), np.array([0.0]))[0] == pytest.approx(1.0)
+
+
+def test_in_a_words_store_the_hits_are_ordered_by_words_and_parts(db: Any) -> None:
+    from query.parts.partial import fused_similarity, partial_candidates
+
+    half = _half(SHAPES["dumbbell"])
+    found = partial_candidates(db, half, k=6)
+    assert found.words is not None and len(found.ids) == len(SHAPES)
+    assert np.all(np.diff(found.ids) > 0) and np.all((found.parts >= 0) & (found.parts <= 1))
+    hits = db.search(half, k=6, partial=True)
+    fused = dict(zip(found.ids.tolist(), fused_similarity(found.parts, found.words), strict=True))
+    assert [h.similarity for h in hits] == pytest.approx([fused[h.id] for h in hits])
+    assert [h.distance for h in hits] == pytest.approx([-np.log(h.similarity) for h in hits])
+
+
+def test_the_words_bring_shapes_the_votes_missed(
+    db: Any, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """One voting part asking for one shape finds one candidate; the words add the rest.
+    A store without words (``rerank="none"``) keeps to the voted shapes and their scores."""
+    import shapedb
+    from query.parts import partial
+
+    monkeypatch.setattr(partial, "VOTING_PARTS", 1)
+    monkeypatch.setattr(partial, "SHAPES_PER_PART", 1)
+    monkeypatch.setattr(partial, "CANDIDATES", 1)
+    half = _half(SHAPES["dumbbell"])
+    assert len(db.search(half, k=6, partial=True)) == len(SHAPES)
+    plain = shapedb.connect(tmp_path / "plain", resolution=32, n_balls=32, rerank="none")
+    plain.ingest([(n, n, g) for n, g in SHAPES.items()], workers=1, progress=False)
+    found = partial.partial_candidates(plain, half, k=6)
+    assert found.words is None and len(found.ids) == 1
+    hits = plain.search(half, k=6, partial=True)
+    assert [h.id for h in hits] == found.ids.tolist()
+    assert hits[0].similarity == pytest.approx(found.parts[0])
