@@ -99,6 +99,21 @@ def test_no_points_give_no_features() -> None:
     assert not surface_words(np.ones((5, 3))).any()
 
 
+def test_reach_reads_a_sample_as_part_of_a_larger_whole() -> None:
+    """At reach 1 the sample is read at its own scale; at reach 2 as a part of a whole
+    twice its bounding radius: its neighbourhoods hold more of it, so fewer thinned points
+    and other features. A reach that is no length is refused."""
+    points = surface_points(_mesh(trimesh.creation.box(extents=(1.8, 1.0, 0.5)), "box"), 0.0)
+    own = surface_features(points)
+    np.testing.assert_array_equal(surface_features(points, reach=1.0), own)
+    larger = surface_features(points, reach=2.0)
+    assert len(larger) < len(own)
+    assert not np.array_equal(surface_words(points, reach=2.0), surface_words(points))
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="reach"):
+            surface_features(points, reach=bad)
+
+
 def test_a_geometry_without_a_surface_is_refused() -> None:
     """A field that is never positive has no zero crossing: no surface, a clear error."""
     nothing = Implicit(lambda p: -np.ones(len(p)), [[0, 0, 0], [1, 1, 1]], name="nothing")
