@@ -400,16 +400,12 @@ def _with_words(
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """The voted shapes and the :data:`CANDIDATES` (at least ``k``) nearest by words,
     ascending ids, with each one's words distance (inf: a shape without words)."""
-    from query.parts.part_words import stored_words, words_distances
+    from query.parts.part_words import nearest_by_words, stored_words, words_distances
 
-    ids, rows = stored_words(db, allowed)
-    near = words_distances(words, rows)
-    best = ids[np.lexsort((ids, near))[: max(CANDIDATES, k)]]
-    every = np.union1d(shapes, best)
+    every = np.union1d(shapes, nearest_by_words(db, words, max(CANDIDATES, k), allowed))
+    ids, rows = stored_words(db, every)
     out = np.full(len(every), np.inf)
-    at = np.searchsorted(ids, every)
-    known = (at < len(ids)) & (ids[np.minimum(at, len(ids) - 1)] == every)
-    out[known] = near[at[known]]
+    out[np.searchsorted(every, ids)] = words_distances(words, rows)
     return every, out
 
 

@@ -99,3 +99,25 @@ def test_a_store_without_words_has_none(tmp_path: Path) -> None:
     store.ingest([("box", "box", SHAPES["box"])], workers=1, progress=False)
     ids, rows = stored_words(store)
     assert ids.shape == (0,) and len(rows) == 0
+
+
+@pytest.mark.parametrize("block", [2, 32768])
+def test_nearest_by_words_is_the_exact_ranking_block_by_block(
+    db: Any, block: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import query.parts.part_words as part_words_module
+    import query.search.array_cache as array_cache
+    from query.parts.part_words import nearest_by_words
+
+    monkeypatch.setattr(part_words_module, "BLOCK", block)
+    ids, rows = stored_words(db)
+    ladder = part_words(_half_dumbbell(), 0.05)
+    d = words_distances(ladder, rows)
+    exact = ids[np.lexsort((ids, d))]
+    for n in (1, 3, len(ids), len(ids) + 4):
+        np.testing.assert_array_equal(nearest_by_words(db, ladder, n), exact[:n])
+    allowed = exact[1::2]
+    np.testing.assert_array_equal(nearest_by_words(db, ladder, 2, allowed), exact[1::2][:2])
+    assert nearest_by_words(db, ladder, 0).shape == (0,)
+    monkeypatch.setattr(array_cache, "open_column", lambda *a, **k: None)
+    np.testing.assert_array_equal(nearest_by_words(db, ladder, 3), exact[:3])
