@@ -260,7 +260,7 @@ def partial_search(
             distance = -np.log(similarity) / found.lam
     else:
         similarity = fused_similarity(found.parts, found.words)
-        distance = -np.log(similarity)
+        distance = np.abs(np.log(similarity))  # similarity <= 1: no -0.0
     order = np.lexsort((found.ids, -similarity))[:k]
     names = catalog(db, db.store.version).lookup(found.ids[order])
     hits = []

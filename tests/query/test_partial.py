@@ -71,6 +71,7 @@ def test_a_stored_shape_matches_itself_fully(db: Any) -> None:
     (hit, *_) = db.search("capsule", k=2, partial=True)
     assert hit.name == "capsule" and hit.similarity == pytest.approx(1.0)
     assert hit.distance == pytest.approx(0.0, abs=1e-9)
+    assert np.copysign(1.0, hit.distance) == 1.0  # 0.0, not -0.0
 
 
 def test_the_whole_path_is_todays_search(db: Any) -> None:
@@ -177,6 +178,7 @@ def test_in_a_words_store_the_hits_are_ordered_by_words_and_parts(db: Any) -> No
     fused = dict(zip(found.ids.tolist(), fused_similarity(found.parts, found.words), strict=True))
     assert [h.similarity for h in hits] == pytest.approx([fused[h.id] for h in hits])
     assert [h.distance for h in hits] == pytest.approx([-np.log(h.similarity) for h in hits])
+    assert all(np.copysign(1.0, h.distance) == 1.0 for h in hits)
 
 
 def test_the_words_bring_shapes_the_votes_missed(
