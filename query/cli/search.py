@@ -76,8 +76,9 @@ def search_arguments(s: argparse.ArgumentParser) -> None:
         dest="partial",
         action="store_const",
         const=True,
-        help="find the shapes that contain QUERY (a scan, a crop, a part), by its parts "
-        "(default: whole shapes; a one-sided scan by its silhouette)",
+        help="find the shapes that contain QUERY (a crop, a broken model, a part), by its "
+        "surface words and its parts (default: whole shapes; a one-sided scan by its "
+        "silhouette)",
     )
     path.add_argument(
         "--whole",
