@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from query_helpers import CONFIG, _shapes, make_record, synthetic_features  # noqa: F401
+from query_helpers import CONFIG, _shapes, make_record, solids, synthetic_features  # noqa: F401
 
 from shapedb.store.schema import ShapeRecord
 
@@ -16,6 +16,16 @@ from shapedb.store.schema import ShapeRecord
 def example_records() -> list[ShapeRecord]:
     """14 decomposed implicit shapes in 4 classes (resolution 32, 64 balls)."""
     return [make_record(name, label, g) for name, label, g in _shapes()]
+
+
+@pytest.fixture(scope="session")
+def solids_db(tmp_path_factory: pytest.TempPathFactory) -> Any:
+    """A store of the six :func:`query_helpers.solids` (resolution 32, 32 balls), read only."""
+    import shapedb
+
+    store = shapedb.connect(tmp_path_factory.mktemp("solids") / "store", resolution=32, n_balls=32)
+    store.ingest([(n, n, g) for n, g in solids().items()], workers=1, progress=False)
+    return store
 
 
 @pytest.fixture()

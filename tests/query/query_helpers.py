@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from shapedb.config.core import Config
-from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus
+from shapedb.geometry.implicit import Box, Capsule, Cylinder, Sphere, Torus, Union
 from shapedb.mdbd.decomposition import decompose
 from shapedb.signature.kernel import features
 from shapedb.store.schema import ShapeRecord
@@ -69,6 +69,23 @@ def shape_pairs() -> dict[str, Any]:
         "ring_a": Torus((0, 0, 0), 1.0, 0.3),
         "ring_b": Torus((0, 0, 0), 1.1, 0.35),
         "ball": Sphere((0, 0, 0), 1.0),
+    }
+
+
+def solids() -> dict[str, Any]:
+    """Six analytic solids by name, one of a kind: sphere, box, capsule, cylinder, snowman
+    (two balls) and dumbbell (two balls on a bar)."""
+    return {
+        "sphere": Sphere([0, 0, 0], 1.0),
+        "box": Box([0, 0, 0], [2.4, 1.2, 0.8]),
+        "capsule": Capsule([-1.2, 0, 0], [1.2, 0, 0], 0.4),
+        "cylinder": Cylinder([0, 0, -1], [0, 0, 1], 0.6),
+        "snowman": Union(Sphere([0, 0, 0], 0.8), Sphere([0, 0, 1.1], 0.5)),
+        "dumbbell": Union(
+            Sphere([-1.2, 0, 0], 0.5),
+            Sphere([1.2, 0, 0], 0.5),
+            Cylinder([-1.2, 0, 0], [1.2, 0, 0], 0.2),
+        ),
     }
 
 

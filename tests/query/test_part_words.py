@@ -7,31 +7,18 @@ from typing import Any
 
 import numpy as np
 import pytest
+from query_helpers import solids
 
 from query.parts.part_words import PART_REACHES, part_words, stored_words, words_distances
-from shapedb.geometry.implicit import Box, Cylinder, Intersection, Sphere, Union
+from shapedb.geometry.implicit import Box, Intersection
 from shapedb.signature.surface_words import WORDS, surface_points, surface_words
 
-SHAPES = {
-    "sphere": Sphere([0, 0, 0], 1.0),
-    "box": Box([0, 0, 0], [2.4, 1.2, 0.8]),
-    "cylinder": Cylinder([0, 0, -1], [0, 0, 1], 0.6),
-    "snowman": Union(Sphere([0, 0, 0], 0.8), Sphere([0, 0, 1.1], 0.5)),
-    "dumbbell": Union(
-        Sphere([-1.2, 0, 0], 0.5),
-        Sphere([1.2, 0, 0], 0.5),
-        Cylinder([-1.2, 0, 0], [1.2, 0, 0], 0.2),
-    ),
-}
+SHAPES = solids()
 
 
-@pytest.fixture(scope="module")
-def db(tmp_path_factory: pytest.TempPathFactory) -> Any:
-    import shapedb
-
-    store = shapedb.connect(tmp_path_factory.mktemp("words") / "store", resolution=32, n_balls=32)
-    store.ingest([(n, n, g) for n, g in SHAPES.items()], workers=1, progress=False)
-    return store
+@pytest.fixture()
+def db(solids_db: Any) -> Any:
+    return solids_db
 
 
 def _names(db: Any) -> dict[int, str]:
