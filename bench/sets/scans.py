@@ -103,6 +103,7 @@ def one_sided_scan(
     seed: int,
     points: int = SCAN_POINTS,
     noise: float = SCAN_NOISE,
+    eye: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """What one depth camera sees of the mesh: (k, 3) float64 points, k <= ``points``.
 
@@ -125,6 +126,8 @@ def one_sided_scan(
         Most points returned.
     noise : float
         Depth noise as a fraction of the range at ``distance`` (0: exact hits).
+    eye : (3,) float, optional
+        The camera's position (default: :func:`viewpoint` of ``seed``).
 
     Raises
     ------
@@ -135,7 +138,7 @@ def one_sided_scan(
 
     v = np.asarray(vertices, dtype=np.float64)
     centre, radius = bounding_sphere(v)
-    eye = viewpoint(v, seed=seed)
+    eye = viewpoint(v, seed=seed) if eye is None else np.asarray(eye, np.float64)
     rng = np.random.default_rng([seed, 1])
     distance = float(np.linalg.norm(eye - centre))
     half_angle = 1.05 * float(np.arcsin(min(radius / distance, 1.0)))
