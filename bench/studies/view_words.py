@@ -7,7 +7,8 @@ depth noise) and keeps each view's surface words (:mod:`shapedb.signature.surfac
 Each model's own one-sided scan (``bench.quality --queries one-sided``) is then ranked
 against the other models by the least chi-square distance over their views, at depth
 noises :data:`NOISES` (the bench's scans are 0.003), as it is and after
-:func:`flattened` (each point moved onto the plane of its neighbours), and fused with the
+:func:`flattened` (each point moved onto the plane of its neighbours; against the views as
+they are and flattened alike), and fused with the
 product's view path (``db.search``, reciprocal ranks, :data:`OFFSETS` x :data:`WEIGHTS`).
 Class NN / 1-T, the scan's own model left out. Writes
 ``bench/results/studies/view_words.json``. Not in the product (docs/studies.md, "One-sided
@@ -96,16 +97,21 @@ def family_rows(name: str, split: str) -> dict[str, Any]:
     own = np.eye(n, dtype=bool)
     directions = view_directions(VIEWS)
     views = np.zeros((n, VIEWS, WORDS))
+    flat_views = np.zeros((n, VIEWS, WORDS))
     for j, model in enumerate(ds.models):
         v, f = mesh_arrays(model)
         centre, radius = scans.bounding_sphere(v)
         for k, d in enumerate(directions):
             eye = centre + d * VIEW_DISTANCE * radius
-            views[j, k] = surface_words(scans.one_sided_scan(v, f, seed=k, noise=0.0, eye=eye))
+            view = scans.one_sided_scan(v, f, seed=k, noise=0.0, eye=eye)
+            views[j, k] = surface_words(view)
+            flat_views[j, k] = surface_words(flattened(view))
         print(f"  {name} views {j + 1}/{n}", flush=True)
 
-    def by_views(words: list[NDArray[np.float32]]) -> NDArray[np.float64]:
-        d = np.array([[words_distance(w, views[j]).min() for j in range(n)] for w in words])
+    def by_views(
+        words: list[NDArray[np.float32]], stored: NDArray[np.float64] = views
+    ) -> NDArray[np.float64]:
+        d = np.array([[words_distance(w, stored[j]).min() for j in range(n)] for w in words])
         return np.where(own, np.inf, d)
 
     out: dict[str, Any] = {"models": n, "views": VIEWS}
@@ -121,6 +127,9 @@ def family_rows(name: str, split: str) -> dict[str, Any]:
         out[f"scans at noise {noise}"] = _scores(by_views(raw), labels)
         d_flat = by_views(flat)
         out[f"scans at noise {noise}, flattened"] = _scores(d_flat, labels)
+        out[f"scans at noise {noise}, flattened, against flattened views"] = _scores(
+            by_views(flat, flat_views), labels
+        )
         if noise == scans.SCAN_NOISE:
             flat_at_scan_noise = d_flat
     db = split_store(ds, {})
