@@ -114,8 +114,9 @@ def nearest_by_words(
     from query.search.array_cache import open_column
     from query.search.word_fusion import WORDS_COLUMN
 
-    q = np.sqrt(np.maximum(np.atleast_2d(np.asarray(ladder, np.float64)), 0.0))
-    if n <= 0 or not len(q):
+    rungs = np.atleast_2d(np.asarray(ladder, np.float64))
+    root = np.sqrt(np.maximum(rungs, 0.0))
+    if n <= 0 or not len(rungs):
         return np.zeros(0, np.int64)
     cache = open_column(db, WORDS_COLUMN)
     if cache is None:  # no cache to stream from (a read-only store): its rows at once
@@ -130,12 +131,12 @@ def nearest_by_words(
             if got is None:
                 continue
             known = np.isfinite(got).all(axis=1)
-            bc = (np.sqrt(np.maximum(got[known], 0.0)) @ q.T).max(axis=1)
+            bc = (np.sqrt(np.maximum(got[known], 0.0)) @ root.T).max(axis=1)
             best_ids = np.concatenate([best_ids, block[known]])
             best_bc = np.concatenate([best_bc, bc])
             if len(best_ids) > keep:
                 top = np.lexsort((best_ids, -best_bc))[:keep]
                 best_ids, best_bc = best_ids[top], best_bc[top]
         ids, rows = stored_words(db, best_ids)
-    near = words_distances(np.square(q), rows)
+    near = words_distances(rungs, rows)
     return np.asarray(ids[np.lexsort((ids, near))[:n]], np.int64)

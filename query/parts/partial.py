@@ -344,6 +344,8 @@ def partial_candidates(
     near = None
     if ladder is not None:
         shapes, near = _with_words(db, shapes, ladder, k, allowed)
+    else:
+        shapes = np.sort(shapes)
     scores = np.array([_score(index, parts, int(s)) for s in shapes], np.float64)
     return PartialCandidates(shapes, scores, near, lam)
 

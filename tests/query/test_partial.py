@@ -187,3 +187,6 @@ def test_the_words_bring_shapes_the_votes_missed(
     hits = plain.search(half, k=6, partial=True)
     assert [h.id for h in hits] == found.ids.tolist()
     assert hits[0].similarity == pytest.approx(found.parts[0])
+    monkeypatch.undo()
+    every = partial.partial_candidates(plain, half, k=6)
+    assert len(every.ids) > 1 and np.all(np.diff(every.ids) > 0)  # ascending, as documented
