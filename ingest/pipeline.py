@@ -28,7 +28,7 @@ from ingest.loaders import AS_OPTIONS, load
 from ingest.progress import Progress, ProgressOption
 from ingest.workers import executor, result, wait_any
 from shapedb.config.core import Config
-from shapedb.errors import ConfigError, LoadError, ShapeDBError
+from shapedb.errors import ConfigError, DegenerateGeometryError, LoadError, ShapeDBError
 from shapedb.geometry.base import Geometry
 from shapedb.results import IngestReport  # defined there, re-exported here
 from shapedb.store.schema import Failure, ShapeRecord, safe_text
@@ -156,9 +156,12 @@ def _stage_signatures(
     geometry: Any, decomposition: Any, config: Config, timings: dict[str, float]
 ) -> dict[str, Any]:
     """The record's signatures for the re-ranking stage, as ``ShapeRecord`` fields: its
-    light fields, field vector and surface words, each None when the store keeps none;
-    each one's seconds added to ``timings``."""
-    out: dict[str, Any] = {"light_field": None, "field_vector": None, "surface_words": None}
+    light fields, field vector, surface words and view words, each None when the store
+    keeps none (the view words also when the shape has no surface to see: logged, its
+    scans are then ranked by their silhouettes); each one's seconds added to ``timings``."""
+    out: dict[str, Any] = {
+        "light_field": None, "field_vector": None, "surface_words": None, "view_words": None,
+    }  # fmt: skip
     if config.stores_light_fields:
         from shapedb.signature.lightfield import decomposition_light_field
 
@@ -177,6 +180,15 @@ def _stage_signatures(
         t = time.perf_counter()
         out["surface_words"] = surface_words(surface_points(geometry, decomposition.spacing))
         timings["surface_words"] = time.perf_counter() - t
+    if config.stores_view_words:
+        from shapedb.signature.view_words import view_words
+
+        t = time.perf_counter()
+        try:
+            out["view_words"] = view_words(geometry, decomposition.spacing)
+        except DegenerateGeometryError as exc:
+            log.warning("%s: no view words (%s)", getattr(geometry, "name", "shape"), exc)
+        timings["view_words"] = time.perf_counter() - t
     return out
 
 

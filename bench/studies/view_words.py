@@ -1,18 +1,18 @@
-"""One-sided scans against each model's simulated scans, by their surface words.
+"""One-sided scans by their silhouette and their view words: the view path's fusion.
 
-``python -m bench.studies.view_words --sets capod parts`` scans every validation model
-from :data:`VIEWS` fixed directions (a Fibonacci lattice on the sphere, the camera at
-:data:`VIEW_DISTANCE` bounding radii, :func:`bench.sets.scans.one_sided_scan` without
-depth noise) and keeps each view's surface words (:mod:`shapedb.signature.surface_words`).
-Each model's own one-sided scan (``bench.quality --queries one-sided``) is then ranked
-against the other models by the least chi-square distance over their views, at depth
-noises :data:`NOISES` (the bench's scans are 0.003), as it is and after
-:func:`flattened` (each point moved onto the plane of its neighbours; against the views as
-they are and flattened alike), and fused with the
-product's view path (``db.search``, reciprocal ranks, :data:`OFFSETS` x :data:`WEIGHTS`).
-Class NN / 1-T, the scan's own model left out. Writes
-``bench/results/studies/view_words.json``. Not in the product (docs/studies.md, "One-sided
-scans by their silhouette").
+``python -m bench.studies.view_words --sets capod parts`` builds each family's validation
+store (the product's: every record keeps its view words,
+:mod:`shapedb.signature.view_words`) and ranks every model's one-sided scan
+(``bench.quality --queries one-sided``: depth noise ``bench.sets.scans.SCAN_NOISE``)
+against the other models three ways: by the silhouette alone
+(:func:`query.search.view_search.view_distances`), by the view words alone (the scan's
+words :func:`~shapedb.signature.view_words.scan_words` against each shape's views), and
+by the two ranks fused (:func:`query.search.view_search.fused_scores`) over a grid of
+:data:`OFFSETS` x :data:`WEIGHTS`, the words ranked over the
+:data:`~query.search.view_search.WORD_CANDIDATES` nearest as the product does. Class NN
+/ 1-T, the scan's own model left out. The scans' words before flattening are a row of
+their own. Writes ``bench/results/studies/view_words.json``; the product's
+``WORD_OFFSET`` and ``WORDS_WEIGHT`` are the grid's best NN + 1-T summed over the sets.
 """
 
 from __future__ import annotations
@@ -25,48 +25,12 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
-__all__ = ["view_directions", "flattened", "family_rows", "main"]
+__all__ = ["family_rows", "main"]
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "studies" / "view_words.json"
-#: Simulated views of each model.
-VIEWS = 20
-#: The simulated camera's distance from the bounding sphere's centre, in radii.
-VIEW_DISTANCE = 2.5
-#: Depth noises of the scans ranked (``bench.sets.scans.SCAN_NOISE`` is 0.003).
-NOISES = (0.0, 0.0015, 0.003, 0.006)
-#: Neighbourhood of :func:`flattened`, in units of the scan's bounding radius.
-FLAT_RADIUS = 0.06
-OFFSETS = (4.0, 16.0)
-WEIGHTS = (0.5, 1.0, 2.0)
-
-
-def view_directions(n: int) -> NDArray[np.float64]:
-    """(n, 3) unit vectors spread evenly over the sphere (a Fibonacci lattice)."""
-    i = np.arange(n) + 0.5
-    polar = np.arccos(1.0 - 2.0 * i / n)
-    azimuth = np.pi * (1.0 + 5.0**0.5) * i
-    return np.stack(
-        [np.cos(azimuth) * np.sin(polar), np.sin(azimuth) * np.sin(polar), np.cos(polar)], axis=1
-    )
-
-
-def flattened(points: NDArray[np.float64], radius: float = FLAT_RADIUS) -> NDArray[np.float64]:
-    """(n, 3) ``points`` each moved onto the least-squares plane of its neighbours within
-    ``radius`` x the points' bounding radius (points with fewer than 5 stay)."""
-    p = np.asarray(points, np.float64)
-    lo, hi = p.min(axis=0), p.max(axis=0)
-    reach = float(np.linalg.norm(p - (lo + hi) / 2, axis=1).max())
-    out = p.copy()
-    for i, near in enumerate(cKDTree(p).query_ball_point(p, radius * reach)):
-        if len(near) < 5:
-            continue
-        q = p[near]
-        centre = q.mean(axis=0)
-        normal = np.linalg.svd(q - centre, full_matrices=False)[2][2]
-        out[i] = p[i] - np.dot(p[i] - centre, normal) * normal
-    return out
+OFFSETS = (2.0, 4.0, 8.0, 16.0, 32.0)
+WEIGHTS = (0.25, 0.5, 1.0, 2.0, 4.0)
 
 
 def _scores(distance: NDArray[np.float64], labels: NDArray[Any]) -> dict[str, float]:
@@ -83,72 +47,106 @@ def _ranks(distance: NDArray[np.float64]) -> NDArray[np.float64]:
     return out
 
 
+def _words_ratio(db: Any, points: NDArray[np.float64]) -> float:
+    """The ratio :func:`query.parts.partial.words_say_one_sided` compares with its bound."""
+    from query.parts.part_words import nearest_by_words, stored_words
+    from query.search.scan_words import nearest_by_view_words
+    from shapedb.signature.surface_words import surface_words, words_distance
+    from shapedb.signature.view_words import scan_words
+
+    whole = surface_words(points)
+    _, near_view = nearest_by_view_words(db, scan_words(points), 1)
+    _, rows = stored_words(db, nearest_by_words(db, whole[None, :], 1))
+    return float(near_view[0] / max(float(words_distance(whole, rows).min()), 1e-12))
+
+
 def family_rows(name: str, split: str) -> dict[str, Any]:
-    """One family's scores, every way of ranking its scans."""
+    """One family's scores, every way of ranking its scans, and how its clouds are routed."""
     from bench.quality import family_split
-    from bench.sets import scans
-    from bench.sets.datasets import mesh_arrays, stable_seed
     from bench.support.product_stores import split_store
     from bench.support.scan_queries import query_geometry
-    from shapedb.signature.surface_words import WORDS, surface_words, words_distance
+    from query.parts.partial import WORDS_ONE_SIDED
+    from query.search.scan_words import stored_view_words
+    from query.search.view_search import WORD_CANDIDATES, fused_scores, view_distances
+    from shapedb.geometry.view import viewing_direction
+    from shapedb.signature.scan_view import scan_view_features
+    from shapedb.signature.surface_words import surface_words
+    from shapedb.signature.view_words import scan_words, view_words_distances
 
     ds = family_split(name, split)
     n, labels = len(ds), np.asarray(ds.labels)
     own = np.eye(n, dtype=bool)
-    directions = view_directions(VIEWS)
-    views = np.zeros((n, VIEWS, WORDS))
-    flat_views = np.zeros((n, VIEWS, WORDS))
-    for j, model in enumerate(ds.models):
-        v, f = mesh_arrays(model)
-        centre, radius = scans.bounding_sphere(v)
-        for k, d in enumerate(directions):
-            eye = centre + d * VIEW_DISTANCE * radius
-            view = scans.one_sided_scan(v, f, seed=k, noise=0.0, eye=eye)
-            views[j, k] = surface_words(view)
-            flat_views[j, k] = surface_words(flattened(view))
-        print(f"  {name} views {j + 1}/{n}", flush=True)
-
-    def by_views(
-        words: list[NDArray[np.float32]], stored: NDArray[np.float64] = views
-    ) -> NDArray[np.float64]:
-        d = np.array([[words_distance(w, stored[j]).min() for j in range(n)] for w in words])
-        return np.where(own, np.inf, d)
-
-    out: dict[str, Any] = {"models": n, "views": VIEWS}
-    flat_at_scan_noise = None
-    for noise in NOISES:
-        raw, flat = [], []
-        for model in ds.models:
-            v, f = mesh_arrays(model)
-            seed = stable_seed(model.name, "one-sided")
-            points = scans.one_sided_scan(v, f, seed=seed, noise=noise)
-            raw.append(surface_words(points))
-            flat.append(surface_words(flattened(points)))
-        out[f"scans at noise {noise}"] = _scores(by_views(raw), labels)
-        d_flat = by_views(flat)
-        out[f"scans at noise {noise}, flattened"] = _scores(d_flat, labels)
-        out[f"scans at noise {noise}, flattened, against flattened views"] = _scores(
-            by_views(flat, flat_views), labels
-        )
-        if noise == scans.SCAN_NOISE:
-            flat_at_scan_noise = d_flat
     db = split_store(ds, {})
     at = {m.name: j for j, m in enumerate(ds.models)}
-    view_path = np.full((n, n), np.inf)
+    ids, rows = stored_view_words(db)
+    names = db.sql("SELECT id, name FROM shapes").to_pydict()
+    row_of = {at[nm]: i for i, nm in zip(names["id"], names["name"], strict=True)}
+    id_at = np.array([row_of[j] for j in range(n)])
+    words_at = np.searchsorted(ids, id_at)
+    silhouette = np.full((n, n), np.inf)
+    by_words = np.full((n, n), np.inf)
+    raw_words = np.full((n, n), np.inf)
+    whole = np.full((n, n), np.inf)
+    seen, ratio = np.zeros(n, bool), np.zeros(n)
     for i, model in enumerate(ds.models):
-        for r, hit in enumerate(db.search(query_geometry(model, "one-sided"), k=n)):
-            view_path[i, at[hit.name]] = r
-    view_path = np.where(own, np.inf, view_path)
-    out["the view path (db.search)"] = _scores(view_path, labels)
-    if flat_at_scan_noise is not None:
-        rv, rw = _ranks(view_path), _ranks(flat_at_scan_noise)
-        out["fused with the view path"] = {
-            f"offset {o:g}, weight {w:g}": _scores(
-                np.where(own, np.inf, -(1 / (o + rv) + w / (o + rw))), labels
-            )
-            for o in OFFSETS
-            for w in WEIGHTS
-        }
+        cloud = query_geometry(model, "one-sided")
+        direction = viewing_direction(cloud)
+        seen[i] = direction is not None
+        if direction is not None:
+            features = scan_view_features(cloud.points, direction, db.config.light_field)
+            sid, dist = view_distances(db, features) or (np.zeros(0, np.int64), np.zeros(0))
+            silhouette[i] = dist[np.searchsorted(sid, id_at)]
+        by_words[i] = view_words_distances(scan_words(cloud.points), rows)[words_at]
+        raw_words[i] = view_words_distances(surface_words(cloud.points), rows)[words_at]
+        for r, hit in enumerate(db.search(cloud, k=n, partial=False)):
+            whole[i, at[hit.name]] = r
+        ratio[i] = _words_ratio(db, cloud.points)
+        print(f"  {name} scans {i + 1}/{n}", flush=True)
+    silhouette, by_words = np.where(own, np.inf, silhouette), np.where(own, np.inf, by_words)
+    whole = np.where(own, np.inf, whole)
+    said = ~seen & (ratio < WORDS_ONE_SIDED)
+    rs, rw, rh = _ranks(silhouette), np.minimum(_ranks(by_words), WORD_CANDIDATES), _ranks(whole)
+    before = np.where(seen[:, None], rs, rh)
+    out: dict[str, Any] = {
+        "models": n,
+        "one-sided by their geometry": int(seen.sum()),
+        "one-sided by their words (of the rest)": int(said.sum()),
+        "words ratio of the rest": sorted(np.round(ratio[~seen], 3).tolist()),
+        "before (silhouettes; the whole path where the geometry misses)": _scores(
+            np.where(own, np.inf, before), labels
+        ),
+        "view words alone, every scan": _scores(by_words, labels),
+        "view words alone, the scans not flattened": _scores(
+            np.where(own, np.inf, raw_words), labels
+        ),
+    }
+    fused: dict[str, Any] = {}
+    for o in OFFSETS:
+        for w in WEIGHTS:
+            f = -fused_scores(rs, rw, o, w)
+            routed = np.where(seen[:, None], f, np.where(said[:, None], by_words, rh))
+            fused[f"offset {o:g}, weight {w:g}"] = _scores(np.where(own, np.inf, routed), labels)
+    out["fused (words alone where only they say one-sided)"] = fused
+    out["clouds around the whole (20 % vertices, even, fall-off)"] = _routing(db, ds)
+    return out
+
+
+def _routing(db: Any, ds: Any) -> dict[str, Any]:
+    """How many of the family's whole clouds each test calls one-sided."""
+    from bench.support.scan_queries import query_geometry
+    from query.parts.partial import WORDS_ONE_SIDED
+    from shapedb.geometry.view import viewing_direction
+
+    out: dict[str, Any] = {}
+    for kind in ("vertex", "even", "falloff"):
+        geometry = words = 0
+        for model in ds.models:
+            cloud = query_geometry(model, kind)
+            if viewing_direction(cloud) is not None:
+                geometry += 1
+            elif _words_ratio(db, cloud.points) < WORDS_ONE_SIDED:
+                words += 1
+        out[kind] = {"clouds": len(ds), "by the geometry": geometry, "by the words": words}
     return out
 
 
@@ -165,9 +163,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     from bench.common import write_json
 
     rows = {name: family_rows(name, args.split) for name in args.sets}
+    grid = next(iter(rows.values()))["fused"]
+    total = {
+        key: round(
+            sum(r["fused"][key]["nn"] + r["fused"][key]["first_tier"] for r in rows.values()), 4
+        )
+        for key in grid
+    }
+    best = max(total, key=lambda key: total[key])
     for name, row in rows.items():
         print(name, json.dumps(row, indent=1))
-    write_json(args.out, {"split": args.split, "families": rows})
+    print("best over the sets (NN + 1-T summed):", best, total[best])
+    write_json(args.out, {"split": args.split, "families": rows, "best": best, "sums": total})
     return 0
 
 

@@ -49,7 +49,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from query.search.catalog import catalog
 from query.search.engine import checked_k
@@ -75,6 +75,8 @@ __all__ = [
     "PartialCandidates",
     "partial_candidates",
     "fused_similarity",
+    "WORDS_ONE_SIDED",
+    "words_say_one_sided",
 ]
 
 #: Query neighbourhoods (the largest balls first) that vote for candidate shapes; with the
@@ -92,6 +94,13 @@ CANDIDATES = 32
 #: bench.studies.part_words``).
 WORD_OFFSET = 4.0
 PARTS_WEIGHT = 0.5
+#: A cloud whose flattened words are nearer a stored view's than this share of its words'
+#: distance to the nearest stored whole's looks one-sided (:func:`words_say_one_sided`).
+#: Validation clouds the geometry does not call one-sided (``python -m
+#: bench.studies.view_words``): one-sided scans 0.23-0.93 (CAPOD 12 of 14 below, parts 5
+#: of 5), clouds around the whole surface (20 % of the vertices, even, fall-off) 0.45 and
+#: up, 4 of 310 below (CAPOD vertex clouds crowded on one side).
+WORDS_ONE_SIDED = 0.75
 
 
 def search(
@@ -173,9 +182,12 @@ def _whole(
 def _whole_or_view(
     db: StoreHandle, queries: Sequence[Any], k: int, where: str | None, metric: Any
 ) -> list[list[Hit]]:
-    """One-sided clouds by their silhouette (:mod:`query.search.view_search`) where the
-    store keeps light fields and no learned metric is asked for; the rest by the whole
-    path, in one engine call."""
+    """One-sided clouds by their silhouette and view words (:mod:`query.search.view_search`)
+    where the store keeps light fields and no learned metric is asked for; the rest by
+    the whole path, in one engine call. A cloud is one-sided when its geometry says so
+    (:func:`~shapedb.geometry.view.viewing_direction`) or, in a store with view words,
+    its words do (:func:`words_say_one_sided`: ranked by its words alone, the direction
+    being unknown)."""
     from shapedb.geometry.pointcloud import PointCloud
     from shapedb.geometry.view import viewing_direction
 
@@ -186,13 +198,21 @@ def _whole_or_view(
     for i, query in enumerate(queries):
         if metric is None and not isinstance(query, (np.ndarray, list, tuple, int, np.integer)):
             loaded[i] = _load(query)
-        direction = viewing_direction(loaded[i]) if isinstance(loaded[i], PointCloud) else None
-        if direction is not None:
+        cloud = loaded[i] if isinstance(loaded[i], PointCloud) else None
+        direction = viewing_direction(cloud) if cloud is not None else None
+        if cloud is not None and (
+            direction is not None
+            or (
+                metric is None
+                and db.config.stores_view_words
+                and words_say_one_sided(db, cloud.points)
+            )
+        ):
             if allowed is None and where is not None:
                 from query.sql import allowed_ids
 
                 allowed = allowed_ids(db, where)
-            out[i] = view_search(db, loaded[i], direction, k=checked_k(k), allowed=allowed)
+            out[i] = view_search(db, cloud, direction, k=checked_k(k), allowed=allowed)
         if out[i] is None:
             whole.append(i)
     if whole:
@@ -200,6 +220,34 @@ def _whole_or_view(
         for i, hits in zip(whole, found, strict=True):
             out[i] = hits
     return [hits if hits is not None else [] for hits in out]
+
+
+def words_say_one_sided(db: StoreHandle, points: ArrayLike) -> bool:
+    """Whether a cloud's words look like one side of a stored shape rather than a whole.
+
+    ``points`` (n, 3): the cloud. True when the least distance of its flattened words
+    (:func:`~shapedb.signature.view_words.scan_words`) to a stored view is below
+    :data:`WORDS_ONE_SIDED` x the least distance of its words
+    (:func:`~shapedb.signature.surface_words.surface_words`) to a stored shape's surface
+    words. False in a store without view words or surface words, and for a cloud without
+    features.
+    """
+    from query.parts.part_words import nearest_by_words, stored_words
+    from query.search.scan_words import nearest_by_view_words
+    from shapedb.signature.surface_words import surface_words, words_distance
+    from shapedb.signature.view_words import scan_words
+
+    flat = scan_words(points)
+    whole = surface_words(points)
+    if not flat.any() or not whole.any():
+        return False
+    _, near_view = nearest_by_view_words(db, flat, 1)
+    nearest = nearest_by_words(db, whole[None, :], 1)
+    if not len(near_view) or not len(nearest):
+        return False
+    _, rows = stored_words(db, nearest)
+    near_whole = float(words_distance(whole, rows).min()) if len(rows) else 0.0
+    return bool(near_view[0] < WORDS_ONE_SIDED * near_whole)
 
 
 def _load(query: Any) -> Any:

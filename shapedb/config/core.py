@@ -372,7 +372,7 @@ SPECIFICATION: dict[str, tuple[str, ...]] = {
         "depth_resolution", "depth_frequencies", "harmonic_shells", "harmonic_bands",
         "harmonic_angles",
     ),
-    "surface_words": ("enabled",),
+    "surface_words": ("enabled", "view_words"),
 }  # fmt: skip
 
 #: Every flat option (``connect(path, **options)``, ``--set KEY=VALUE``) and the
@@ -468,6 +468,12 @@ class Config:
         searches run the ``"lightfield"`` stage, which fuses the words).
         """
         return self.surface_words.enabled and self.stores_light_fields
+
+    @property
+    def stores_view_words(self) -> bool:
+        """Whether ingest computes and stores each record's view words (``view_words``):
+        ``SurfaceWordsConfig.view_words`` in a store that keeps surface words."""
+        return self.surface_words.view_words and self.stores_surface_words
 
     @property
     def dim(self) -> int:

@@ -32,6 +32,8 @@ Store configuration layouts (``Config.to_dict()``):
 * **7**: layout 6 plus ``"surface_words"`` (``SurfaceWordsConfig``: the bag of local
   surface features a store keeps per record); a store of an earlier layout kept none
   (``enabled`` False).
+* **8**: layout 7 plus ``surface_words.view_words`` (the view words a store keeps per record,
+  :mod:`shapedb.signature.view_words`); a store of an earlier layout kept none (False).
 
 Part-index configuration layouts (``PartConfig.to_dict()``):
 
@@ -68,7 +70,7 @@ __all__ = [
 ]
 
 #: The layout :meth:`Config.to_dict` writes.
-LAYOUT = 7
+LAYOUT = 8
 #: The layout :meth:`PartConfig.to_dict` writes.
 PART_LAYOUT = 2
 
@@ -103,7 +105,7 @@ ADDED: dict[str, dict[str, Any]] = {
         "framing": "sphere",
     },
     "field_vector": {"enabled": False},
-    "surface_words": {"enabled": False},
+    "surface_words": {"enabled": False, "view_words": False},
 }
 
 #: Fields added to a section after stores first wrote that section, and the value that
@@ -114,6 +116,8 @@ STORED_ADDED: dict[str, dict[str, Any]] = {
     # source, always of balls; before centre, the field was seen about its volume centroid;
     # before framing, every view spanned the unit disc about that centre
     "light_field": {"n_balls": 0, "source": "balls", "centre": "volume", "framing": "sphere"},
+    # before view_words, no view words were kept
+    "surface_words": {"view_words": False},
 }
 
 #: Sections added to the store configuration, by the first layout that writes them:

@@ -98,6 +98,10 @@ def shapes_schema(dim: int) -> pa.Schema:
         # the surface words (shapedb.signature.surface_words): a histogram of local surface
         # features; null unless the store keeps them, and in rows older than it
         pa.field("surface_words", pa.list_(pa.float32())),
+        # the view words (shapedb.signature.view_words): (VIEWS, WORDS) row-major, the words
+        # of the shape seen from fixed directions; null unless the store keeps them, and in
+        # rows older than it
+        pa.field("view_words", pa.list_(pa.float32())),
     ]
     return pa.schema(fields, metadata={"shapedb.schema_version": str(SCHEMA_VERSION)})
 
@@ -215,6 +219,11 @@ class ShapeRecord:
         The surface words (:func:`shapedb.signature.surface_words.surface_words` of the
         shape's surface, summing to 1), when the store keeps them
         (``config.stores_surface_words``); None otherwise and in rows older than them.
+    view_words : (VIEWS, WORDS) float32 or None
+        The view words (:func:`shapedb.signature.view_words.view_words`: the words of the
+        shape seen from each of the fixed directions, each row summing to 1 or all zeros),
+        when the store keeps them (``config.stores_view_words``); None otherwise and in
+        rows older than them.
     """
 
     name: str
@@ -233,6 +242,7 @@ class ShapeRecord:
     light_field: NDArray[np.float32] | None = None
     field_vector: NDArray[np.float32] | None = None
     surface_words: NDArray[np.float32] | None = None
+    view_words: NDArray[np.float32] | None = None
 
     @property
     def n_balls(self) -> int:
@@ -345,6 +355,9 @@ def shapes_table(records: Sequence[ShapeRecord], dim: int) -> pa.Table:
         "surface_words": [
             None if r.surface_words is None else _surface_words(r, r.surface_words) for r in records
         ],
+        "view_words": [
+            None if r.view_words is None else _view_words(r, r.view_words) for r in records
+        ],
     }
     schema = shapes_schema(dim)
     arrays = [
@@ -378,6 +391,18 @@ def _surface_words(record: ShapeRecord, words: Any) -> NDArray[np.float32]:
     if v.shape != (WORDS,) or not np.all(np.isfinite(v)) or (v < 0).any():
         raise ValueError(
             f"record {record.name!r}: surface words must be {WORDS} finite values >= 0"
+        )
+    return v
+
+
+def _view_words(record: ShapeRecord, words: Any) -> NDArray[np.float32]:
+    from shapedb.signature.surface_words import WORDS
+    from shapedb.signature.view_words import VIEWS
+
+    v = np.asarray(words, dtype=np.float32).ravel()
+    if v.shape != (VIEWS * WORDS,) or not np.all(np.isfinite(v)) or (v < 0).any():
+        raise ValueError(
+            f"record {record.name!r}: view words must be {VIEWS} x {WORDS} finite values >= 0"
         )
     return v
 
@@ -523,7 +548,17 @@ def record_from_rows(row: Mapping[str, Any], balls: pa.Table, edges: pa.Table) -
             if row.get("surface_words") is None
             else np.asarray(row["surface_words"], dtype=np.float32)
         ),
+        view_words=_view_words_cell(row.get("view_words")),
     )
+
+
+def _view_words_cell(value: Any) -> NDArray[np.float32] | None:
+    """(VIEWS, WORDS) float32 from a ``view_words`` cell; None when absent."""
+    if value is None:
+        return None
+    from shapedb.signature.surface_words import WORDS
+
+    return np.asarray(value, dtype=np.float32).reshape(-1, WORDS)
 
 
 def _light_field(value: Any, config: Config) -> NDArray[np.float32] | None:

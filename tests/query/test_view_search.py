@@ -1,4 +1,8 @@
-"""One-sided scans found by their silhouette against the stored light fields' views."""
+"""One-sided scans found by their silhouette against the stored light fields' views.
+
+The store here keeps no view words, so its scans are ranked by their silhouettes alone;
+``test_scan_words.py`` tests the words and their fusion.
+"""
 
 from __future__ import annotations
 
@@ -46,11 +50,23 @@ def scan(mesh: trimesh.Trimesh, axis: np.ndarray = AXIS, grid: int = 60) -> np.n
     return np.asarray(origins[hit] + d * t[hit, None])
 
 
+def _silhouettes(resolution: int, n_balls: int) -> Any:
+    """The default configuration at this size, without view words."""
+    from dataclasses import replace
+
+    from shapedb.config import Config, SurfaceWordsConfig
+
+    return replace(
+        Config().with_options(resolution=resolution, n_balls=n_balls),
+        surface_words=SurfaceWordsConfig(enabled=True, view_words=False),
+    )
+
+
 @pytest.fixture(scope="module")
 def db(tmp_path_factory: pytest.TempPathFactory) -> Any:
     import shapedb
 
-    store = shapedb.connect(tmp_path_factory.mktemp("view") / "store", resolution=48, n_balls=64)
+    store = shapedb.connect(tmp_path_factory.mktemp("view") / "store", config=_silhouettes(48, 64))
     store.ingest(
         [(n, n, TriangleMesh(m.vertices, m.faces)) for n, m in MESHES.items()],
         workers=1,
@@ -143,7 +159,7 @@ def test_without_the_array_cache_the_column_is_read(
 def test_a_deleted_shape_is_not_found(tmp_path_factory: pytest.TempPathFactory) -> None:
     import shapedb
 
-    store = shapedb.connect(tmp_path_factory.mktemp("gone") / "store", resolution=32, n_balls=32)
+    store = shapedb.connect(tmp_path_factory.mktemp("gone") / "store", config=_silhouettes(32, 32))
     store.ingest(
         [
             (n, n, TriangleMesh(MESHES[n].vertices, MESHES[n].faces))

@@ -336,3 +336,23 @@ def test_stores_written_before_the_surface_words_keep_none() -> None:
     assert replace(old, surface_words=new.surface_words) == new
     # a store without the stage keeps no words, whatever the section says
     assert not new.with_options(rerank="none").stores_surface_words
+
+
+def test_stores_written_before_the_view_words_keep_none() -> None:
+    new = Config()
+    assert new.stores_view_words
+    stored = new.to_dict()
+    assert stored["surface_words"] == {"enabled": True, "view_words": True}
+    # a layout-7 store: surface words without the view words' field
+    del stored["surface_words"]["view_words"]
+    stored["layout"] = 7
+    old = Config.from_dict(stored)
+    assert old.surface_words == SurfaceWordsConfig(enabled=True, view_words=False)
+    assert old.stores_surface_words and not old.stores_view_words
+    assert replace(old, surface_words=new.surface_words) == new
+    # no view words without the surface words, nor without the stage
+    off = replace(new, surface_words=SurfaceWordsConfig(enabled=False, view_words=True))
+    assert not off.stores_view_words
+    assert not new.with_options(rerank="none").stores_view_words
+    with pytest.raises(ConfigError, match="view_words"):
+        SurfaceWordsConfig(enabled=True, view_words="yes")  # type: ignore[arg-type]
