@@ -97,9 +97,9 @@ PARTS_WEIGHT = 0.5
 #: A cloud whose flattened words are nearer a stored view's than this share of its words'
 #: distance to the nearest stored whole's looks one-sided (:func:`words_say_one_sided`).
 #: Validation clouds the geometry does not call one-sided (``python -m
-#: bench.studies.view_words``): one-sided scans 0.23-0.93 (CAPOD 12 of 14 below, parts 5
-#: of 5), clouds around the whole surface (20 % of the vertices, even, fall-off) 0.45 and
-#: up, 4 of 310 below (CAPOD vertex clouds crowded on one side).
+#: bench.studies.view_words``): one-sided scans 0.21-0.90 (CAPOD 12 of 14 below, parts 5
+#: of 5); of 324 clouds around the whole surface (20 % of the vertices, even, fall-off) 4
+#: below (CAPOD vertex clouds crowded on one side).
 WORDS_ONE_SIDED = 0.75
 
 
