@@ -13,7 +13,7 @@ words fused (:func:`query.search.view_search.fused_scores`, a grid of :data:`OFF
 :data:`WEIGHTS`, the words ranked over the
 :data:`~query.search.view_search.WORD_CANDIDATES` nearest) where the geometry calls it
 one-sided, the words alone where only its words do
-(:func:`query.parts.partial.words_say_one_sided`), the whole path otherwise. Class NN /
+(:func:`query.parts.partial.is_one_sided_cloud`), the whole path otherwise. Class NN /
 1-T, the scan's own model left out. It also counts the family's clouds around the whole
 surface (20 % of the vertices, even, fall-off) that either test calls one-sided. Writes
 ``bench/results/studies/view_words.json``; the product's ``WORD_OFFSET`` and
@@ -52,25 +52,12 @@ def _ranks(distance: NDArray[np.float64]) -> NDArray[np.float64]:
     return out
 
 
-def _words_ratio(db: Any, points: NDArray[np.float64]) -> float:
-    """The ratio :func:`query.parts.partial.words_say_one_sided` compares with its bound."""
-    from query.parts.part_words import nearest_by_words, stored_words
-    from query.search.scan_words import nearest_by_view_words
-    from shapedb.signature.surface_words import surface_words, words_distance
-    from shapedb.signature.view_words import scan_words
-
-    whole = surface_words(points)
-    _, near_view = nearest_by_view_words(db, scan_words(points), 1)
-    _, rows = stored_words(db, nearest_by_words(db, whole[None, :], 1))
-    return float(near_view[0] / max(float(words_distance(whole, rows).min()), 1e-12))
-
-
 def family_rows(name: str, split: str) -> dict[str, Any]:
     """One family's scores, every way of ranking its scans, and how its clouds are routed."""
     from bench.quality import family_split
     from bench.support.product_stores import split_store
     from bench.support.scan_queries import query_geometry
-    from query.parts.partial import WORDS_ONE_SIDED
+    from query.parts.partial import is_one_sided_cloud, words_ratio
     from query.search.scan_words import stored_view_words
     from query.search.view_search import WORD_CANDIDATES, fused_scores, view_distances
     from shapedb.geometry.view import viewing_direction
@@ -92,7 +79,7 @@ def family_rows(name: str, split: str) -> dict[str, Any]:
     by_words = np.full((n, n), np.inf)
     raw_words = np.full((n, n), np.inf)
     whole = np.full((n, n), np.inf)
-    seen, ratio = np.zeros(n, bool), np.zeros(n)
+    seen, ratio, taken = np.zeros(n, bool), np.zeros(n), np.zeros(n, bool)
     for i, model in enumerate(ds.models):
         cloud = query_geometry(model, "one-sided")
         direction = viewing_direction(cloud)
@@ -105,18 +92,22 @@ def family_rows(name: str, split: str) -> dict[str, Any]:
         raw_words[i] = view_words_distances(surface_words(cloud.points), rows)[words_at]
         for r, hit in enumerate(db.search(cloud, k=n, partial=False)):
             whole[i, at[hit.name]] = r
-        ratio[i] = _words_ratio(db, cloud.points)
+        found = words_ratio(db, cloud.points)
+        ratio[i] = np.inf if found is None else found
+        taken[i] = is_one_sided_cloud(db, cloud, direction)
         print(f"  {name} scans {i + 1}/{n}", flush=True)
     silhouette, by_words = np.where(own, np.inf, silhouette), np.where(own, np.inf, by_words)
     whole = np.where(own, np.inf, whole)
-    said = ~seen & (ratio < WORDS_ONE_SIDED)
+    fuse, said = seen & taken, ~seen & taken
     rs, rw, rh = _ranks(silhouette), np.minimum(_ranks(by_words), WORD_CANDIDATES), _ranks(whole)
     before = np.where(seen[:, None], rs, rh)
     out: dict[str, Any] = {
         "models": n,
         "one-sided by their geometry": int(seen.sum()),
-        "one-sided by their words (of the rest)": int(said.sum()),
-        "words ratio of the rest": sorted(np.round(ratio[~seen], 3).tolist()),
+        "of those, whole by their words": int((seen & ~taken).sum()),
+        "one-sided by their words alone": int(said.sum()),
+        "words ratio, geometry one-sided": sorted(np.round(ratio[seen], 3).tolist()),
+        "words ratio, the rest": sorted(np.round(ratio[~seen], 3).tolist()),
         "before (silhouettes; the whole path where the geometry misses)": _scores(
             np.where(own, np.inf, before), labels
         ),
@@ -129,7 +120,7 @@ def family_rows(name: str, split: str) -> dict[str, Any]:
     for o in OFFSETS:
         for w in WEIGHTS:
             f = -fused_scores(rs, rw, o, w)
-            routed = np.where(seen[:, None], f, np.where(said[:, None], by_words, rh))
+            routed = np.where(fuse[:, None], f, np.where(said[:, None], by_words, rh))
             fused[f"offset {o:g}, weight {w:g}"] = _scores(np.where(own, np.inf, routed), labels)
     out["fused (words alone where only they say one-sided)"] = fused
     out["clouds around the whole (20 % vertices, even, fall-off)"] = _routing(db, ds)
@@ -139,19 +130,23 @@ def family_rows(name: str, split: str) -> dict[str, Any]:
 def _routing(db: Any, ds: Any) -> dict[str, Any]:
     """How many of the family's whole clouds each test calls one-sided."""
     from bench.support.scan_queries import query_geometry
-    from query.parts.partial import WORDS_ONE_SIDED
+    from query.parts.partial import is_one_sided_cloud, words_ratio
     from shapedb.geometry.view import viewing_direction
 
     out: dict[str, Any] = {}
     for kind in ("vertex", "even", "falloff"):
-        geometry = words = 0
+        geometry, taken, ratios = 0, 0, []
         for model in ds.models:
             cloud = query_geometry(model, kind)
-            if viewing_direction(cloud) is not None:
-                geometry += 1
-            elif _words_ratio(db, cloud.points) < WORDS_ONE_SIDED:
-                words += 1
-        out[kind] = {"clouds": len(ds), "by the geometry": geometry, "by the words": words}
+            direction = viewing_direction(cloud)
+            geometry += direction is not None
+            taken += is_one_sided_cloud(db, cloud, direction)
+            found = words_ratio(db, cloud.points)
+            ratios.append(np.inf if found is None else round(found, 3))
+        out[kind] = {
+            "clouds": len(ds), "one-sided by the geometry": geometry,
+            "taken by the view path": taken, "least words ratios": sorted(ratios)[:8],
+        }  # fmt: skip
     return out
 
 

@@ -76,7 +76,9 @@ __all__ = [
     "partial_candidates",
     "fused_similarity",
     "WORDS_ONE_SIDED",
-    "words_say_one_sided",
+    "WORDS_WHOLE",
+    "words_ratio",
+    "is_one_sided_cloud",
 ]
 
 #: Query neighbourhoods (the largest balls first) that vote for candidate shapes; with the
@@ -94,13 +96,17 @@ CANDIDATES = 32
 #: bench.studies.part_words``).
 WORD_OFFSET = 4.0
 PARTS_WEIGHT = 0.5
-#: A cloud whose flattened words are nearer a stored view's than this share of its words'
-#: distance to the nearest stored whole's looks one-sided (:func:`words_say_one_sided`).
-#: Validation clouds the geometry does not call one-sided (``python -m
-#: bench.studies.view_words``): one-sided scans 0.21-0.90 (CAPOD 12 of 14 below, parts 5
-#: of 5); of 324 clouds around the whole surface (20 % of the vertices, even, fall-off) 4
-#: below (CAPOD vertex clouds crowded on one side).
-WORDS_ONE_SIDED = 0.75
+#: The words' ratio of a cloud (:func:`words_ratio`: how much nearer its flattened words
+#: lie to a stored view's than its words to a stored whole's) below which it is one-sided
+#: and at or above which it is not, whatever its geometry says; between the two, its
+#: geometry decides (:func:`~shapedb.geometry.view.viewing_direction`). On validation
+#: clouds (CAPOD and parts, ``python -m bench.studies.view_words``): one-sided scans the
+#: geometry calls one-sided 0.76 at most, whole clouds it calls one-sided 1.05 at least
+#: (:data:`WORDS_WHOLE` lies between); one-sided scans it misses 0.21-0.90, whole clouds it
+#: rightly passes 0.46 at least (:data:`WORDS_ONE_SIDED` lies below: 8 of the 19 missed
+#: scans are taken, none of the whole clouds).
+WORDS_ONE_SIDED = 0.45
+WORDS_WHOLE = 0.9
 
 
 def search(
@@ -184,10 +190,8 @@ def _whole_or_view(
 ) -> list[list[Hit]]:
     """One-sided clouds by their silhouette and view words (:mod:`query.search.view_search`)
     where the store keeps light fields and no learned metric is asked for; the rest by
-    the whole path, in one engine call. A cloud is one-sided when its geometry says so
-    (:func:`~shapedb.geometry.view.viewing_direction`) or, in a store with view words,
-    its words do (:func:`words_say_one_sided`: ranked by its words alone, the direction
-    being unknown)."""
+    the whole path, in one engine call (:func:`is_one_sided_cloud` decides; a one-sided
+    cloud without a viewing direction is ranked by its words alone)."""
     from shapedb.geometry.pointcloud import PointCloud
     from shapedb.geometry.view import viewing_direction
 
@@ -200,14 +204,7 @@ def _whole_or_view(
             loaded[i] = _load(query)
         cloud = loaded[i] if isinstance(loaded[i], PointCloud) else None
         direction = viewing_direction(cloud) if cloud is not None else None
-        if cloud is not None and (
-            direction is not None
-            or (
-                metric is None
-                and db.config.stores_view_words
-                and words_say_one_sided(db, cloud.points)
-            )
-        ):
+        if cloud is not None and is_one_sided_cloud(db, cloud, direction, metric is None):
             if allowed is None and where is not None:
                 from query.sql import allowed_ids
 
@@ -222,15 +219,15 @@ def _whole_or_view(
     return [hits if hits is not None else [] for hits in out]
 
 
-def words_say_one_sided(db: StoreHandle, points: ArrayLike) -> bool:
-    """Whether a cloud's words look like one side of a stored shape rather than a whole.
+def words_ratio(db: StoreHandle, points: ArrayLike) -> float | None:
+    """How much a cloud's words look like one side of a stored shape rather than a whole.
 
-    ``points`` (n, 3): the cloud. True when the least distance of its flattened words
-    (:func:`~shapedb.signature.view_words.scan_words`) to a stored view is below
-    :data:`WORDS_ONE_SIDED` x the least distance of its words
-    (:func:`~shapedb.signature.surface_words.surface_words`) to a stored shape's surface
-    words. False in a store without view words or surface words, and for a cloud without
-    features.
+    ``points`` (n, 3): the cloud. The least distance of its flattened words
+    (:func:`~shapedb.signature.view_words.scan_words`) to a stored view's words, over the
+    least distance of its words (:func:`~shapedb.signature.surface_words.surface_words`) to
+    a stored shape's surface words: well below 1 for a one-sided scan, about 1 and above
+    for a cloud around a whole surface. None in a store without view words or surface
+    words, and for a cloud without features.
     """
     from query.parts.part_words import nearest_by_words, stored_words
     from query.search.scan_words import nearest_by_view_words
@@ -240,14 +237,34 @@ def words_say_one_sided(db: StoreHandle, points: ArrayLike) -> bool:
     flat = scan_words(points)
     whole = surface_words(points)
     if not flat.any() or not whole.any():
-        return False
+        return None
     _, near_view = nearest_by_view_words(db, flat, 1)
     nearest = nearest_by_words(db, whole[None, :], 1)
     if not len(near_view) or not len(nearest):
-        return False
+        return None
     _, rows = stored_words(db, nearest)
-    near_whole = float(words_distance(whole, rows).min()) if len(rows) else 0.0
-    return bool(near_view[0] < WORDS_ONE_SIDED * near_whole)
+    if not len(rows):
+        return None
+    near_whole = float(words_distance(whole, rows).min())
+    return float(near_view[0]) / near_whole if near_whole > 0 else float("inf")
+
+
+def is_one_sided_cloud(
+    db: StoreHandle, cloud: Any, direction: NDArray[np.float64] | None, words: bool = True
+) -> bool:
+    """Whether the view path takes ``cloud`` (a PointCloud): its viewing ``direction``
+    (:func:`~shapedb.geometry.view.viewing_direction`, None when its geometry does not
+    call it one-sided) and, in a store with view words and when ``words``, its
+    :func:`words_ratio`: below :data:`WORDS_ONE_SIDED` always, at or above
+    :data:`WORDS_WHOLE` never, between as its geometry says."""
+    if not (words and db.config.stores_view_words):
+        return direction is not None
+    ratio = words_ratio(db, cloud.points)
+    if ratio is None:
+        return direction is not None
+    if ratio < WORDS_ONE_SIDED:
+        return True
+    return direction is not None and ratio < WORDS_WHOLE
 
 
 def _load(query: Any) -> Any:

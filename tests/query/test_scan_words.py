@@ -178,12 +178,24 @@ def test_a_deleted_shape_is_not_found_by_its_view_words(tmp_path: Path) -> None:
 def test_a_cloud_the_geometry_misses_is_one_sided_by_its_words(
     db: Any, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from query.parts.partial import words_say_one_sided
+    from query.parts import partial
     from shapedb.geometry import view
 
     scan = _scan("dumbbell")
     around = boundary_mesh(SHAPES["dumbbell"], 0.03).sample_surface(3000, seed=0)
-    assert words_say_one_sided(db, scan) and not words_say_one_sided(db, around)
+    ratio, whole = partial.words_ratio(db, scan), partial.words_ratio(db, around)
+    assert ratio is not None and whole is not None
+    assert ratio < partial.WORDS_ONE_SIDED and whole >= partial.WORDS_WHOLE
+    # the words overrule the geometry either way; between the bounds it decides
+    direction = np.array([0.0, 0.0, 1.0])
+    assert partial.is_one_sided_cloud(db, PointCloud(scan), None)
+    assert not partial.is_one_sided_cloud(db, PointCloud(around), direction)
+    bound = partial.WORDS_ONE_SIDED
+    monkeypatch.setattr(partial, "WORDS_ONE_SIDED", ratio / 2)
+    assert not partial.is_one_sided_cloud(db, PointCloud(scan), None)
+    assert partial.is_one_sided_cloud(db, PointCloud(scan), direction)
+    assert partial.is_one_sided_cloud(db, PointCloud(around), direction, words=False)
+    monkeypatch.setattr(partial, "WORDS_ONE_SIDED", bound)
     monkeypatch.setattr(view, "viewing_direction", lambda geometry: None)
     hits = db.search(PointCloud(scan), k=3)
     assert {h.path for h in hits} == {"view"} and hits[0].name == "dumbbell"
