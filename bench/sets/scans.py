@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from bench.sets.datasets import point_cloud
 from bench.support.baselines import sample_surface
+from shapedb.signature.view_words import image_rays
 
 __all__ = [
     "SCAN_POINTS", "SCAN_NOISE", "bounding_sphere", "viewpoint", "one_sided_scan",
@@ -81,21 +82,6 @@ def _scene(v: NDArray[np.float64], faces: NDArray[np.int64]) -> object:
     return scene
 
 
-def _image_rays(
-    eye: NDArray[np.float64], target: NDArray[np.float64], half_angle: float, grid: int
-) -> NDArray[np.float64]:
-    """Unit directions (grid * grid, 3) of a square perspective image looking at ``target``."""
-    forward = (target - eye) / np.linalg.norm(target - eye)
-    helper = np.eye(3)[int(np.argmin(np.abs(forward)))]
-    right = np.cross(forward, helper)
-    right /= np.linalg.norm(right)
-    up = np.cross(right, forward)
-    s = np.linspace(-1.0, 1.0, grid) * np.tan(half_angle)
-    u, w = np.meshgrid(s, s, indexing="ij")
-    d = forward + u.reshape(-1, 1) * right + w.reshape(-1, 1) * up
-    return np.asarray(d / np.linalg.norm(d, axis=1, keepdims=True))
-
-
 def one_sided_scan(
     vertices: NDArray[np.float64],
     faces: NDArray[np.int64],
@@ -143,7 +129,7 @@ def one_sided_scan(
     distance = float(np.linalg.norm(eye - centre))
     half_angle = 1.05 * float(np.arcsin(min(radius / distance, 1.0)))
     grid = int(np.ceil(np.sqrt(RAYS_PER_POINT * points)))
-    dirs = _image_rays(eye, centre, half_angle, grid)
+    dirs = image_rays((centre - eye) / distance, half_angle, grid)
     origin = np.broadcast_to(eye - centre, dirs.shape)
     rays = np.hstack([origin, dirs]).astype(np.float32)
     cast = _scene(v - centre, faces).cast_rays(o3d.core.Tensor(rays))  # type: ignore[attr-defined]

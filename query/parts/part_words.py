@@ -111,7 +111,7 @@ def nearest_by_words(
     (one matrix product; ``1 - BC`` lies between half the chi-square distance and all of
     it), the best ``4 n`` overall are then ranked exactly. Shapes without words are left out.
     """
-    from query.search.array_cache import open_column
+    from query.search.array_cache import best_rows, open_column
     from query.search.word_fusion import WORDS_COLUMN
 
     rungs = np.atleast_2d(np.asarray(ladder, np.float64))
@@ -123,20 +123,10 @@ def nearest_by_words(
         ids, rows = stored_words(db, allowed)
     else:
         ids = cache.ids if allowed is None else np.intersect1d(cache.ids, allowed)
-        keep = max(_SHORTLIST * n, n)
-        best_ids, best_bc = np.zeros(0, np.int64), np.zeros(0)
-        for start in range(0, len(ids), BLOCK):
-            block = ids[start : start + BLOCK]
-            got = cache.get(block)
-            if got is None:
-                continue
-            known = np.isfinite(got).all(axis=1)
-            bc = (np.sqrt(np.maximum(got[known], 0.0)) @ root.T).max(axis=1)
-            best_ids = np.concatenate([best_ids, block[known]])
-            best_bc = np.concatenate([best_bc, bc])
-            if len(best_ids) > keep:
-                top = np.lexsort((best_ids, -best_bc))[:keep]
-                best_ids, best_bc = best_ids[top], best_bc[top]
+        best_ids = best_rows(
+            cache, ids, max(_SHORTLIST * n, n),
+            lambda rows: (np.sqrt(np.maximum(rows, 0.0)) @ root.T).max(axis=1), block=BLOCK,
+        )  # fmt: skip
         ids, rows = stored_words(db, best_ids)
     near = words_distances(rungs, rows)
     return np.asarray(ids[np.lexsort((ids, near))[:n]], np.int64)

@@ -58,6 +58,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ColumnCache",
+    "best_rows",
     "CACHE_DIR",
     "REBUILD_DEAD_FRACTION",
     "open_column",
@@ -513,3 +514,31 @@ def forget(path: str) -> None:
     """Drop the in-process caches of the store at ``path`` (as a new process would)."""
     for key in [k for k in _OPEN if k[0] == path]:
         _OPEN.pop(key, None)
+
+
+def best_rows(
+    cache: ColumnCache,
+    ids: NDArray[np.int64],
+    keep: int,
+    score: Any,
+    *,
+    block: int,
+    width: int | None = None,
+) -> NDArray[np.int64]:
+    """The (at most) ``keep`` of ``ids`` whose rows ``score`` highest, best first (ties by
+    ascending id): ``score`` maps (m, L) float64 rows to (m,) numbers. The rows are read
+    ``block`` ids at a time (bounded memory at any store size); ids without a row (or a
+    row of another ``width`` than asked) are left out."""
+    best_ids, best = np.zeros(0, np.int64), np.zeros(0)
+    for start in range(0, len(ids), block):
+        chunk = ids[start : start + block]
+        got = cache.get(chunk)
+        if got is None or (width is not None and got.shape[1] != width):
+            continue
+        known = np.isfinite(got).all(axis=1)
+        best_ids = np.concatenate([best_ids, chunk[known]])
+        best = np.concatenate([best, np.asarray(score(got[known]), np.float64)])
+        if len(best_ids) > keep:
+            top = np.lexsort((best_ids, -best))[:keep]
+            best_ids, best = best_ids[top], best[top]
+    return np.asarray(best_ids[np.lexsort((best_ids, -best))], np.int64)

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from query.search.array_cache import open_column
+from query.search.array_cache import best_rows, open_column
 from shapedb.signature.surface_words import WORDS
 from shapedb.signature.view_words import VIEWS, view_words_distances
 
@@ -89,21 +89,14 @@ def nearest_by_view_words(
     else:
         ids = cache.ids if allowed is None else np.intersect1d(cache.ids, allowed)
         root = np.sqrt(np.maximum(q, 0.0))
-        keep = SHORTLIST * n
-        best_ids, best_bc = np.zeros(0, np.int64), np.zeros(0)
-        for start in range(0, len(ids), BLOCK):
-            block = ids[start : start + BLOCK]
-            got = cache.get(block)
-            if got is None or got.shape[1] != VIEWS * WORDS:
-                continue
-            known = np.isfinite(got).all(axis=1)
-            views = np.sqrt(np.maximum(got[known], 0.0)).reshape(-1, VIEWS, WORDS)
-            bc = (views @ root).max(axis=1)
-            best_ids = np.concatenate([best_ids, block[known]])
-            best_bc = np.concatenate([best_bc, bc])
-            if len(best_ids) > keep:
-                top = np.lexsort((best_ids, -best_bc))[:keep]
-                best_ids, best_bc = best_ids[top], best_bc[top]
+
+        def bhattacharyya(rows: NDArray[np.float64]) -> NDArray[np.float64]:
+            views = np.sqrt(np.maximum(rows, 0.0)).reshape(-1, VIEWS, WORDS)
+            return np.asarray((views @ root).max(axis=1))
+
+        best_ids = best_rows(
+            cache, ids, SHORTLIST * n, bhattacharyya, block=BLOCK, width=VIEWS * WORDS
+        )
         ids, rows = stored_view_words(db, best_ids)
     near = view_words_distances(q, rows)
     order = np.lexsort((ids, near))[:n]

@@ -35,6 +35,7 @@ __all__ = [
     "RANGE_POWER",
     "FLAT_RADIUS",
     "view_directions",
+    "image_rays",
     "flattened",
     "visible_points",
     "view_words",
@@ -104,13 +105,15 @@ def flattened(points: ArrayLike, radius: float = FLAT_RADIUS) -> NDArray[np.floa
     return np.where((count >= _PLANE_POINTS)[:, None], moved, p)
 
 
-def _image_rays(forward: NDArray[np.float64], half_angle: float) -> NDArray[np.float64]:
-    """(VIEW_RAYS ** 2, 3) unit directions of a square perspective image along ``forward``."""
+def image_rays(forward: ArrayLike, half_angle: float, rays: int = VIEW_RAYS) -> NDArray[np.float64]:
+    """(rays ** 2, 3) unit directions of a square perspective image looking along the unit
+    vector ``forward``, ``half_angle`` (radians) from its centre to an edge's middle."""
+    forward = np.asarray(forward, np.float64)
     helper = np.eye(3)[int(np.argmin(np.abs(forward)))]
     right = np.cross(forward, helper)
     right /= np.linalg.norm(right)
     up = np.cross(right, forward)
-    s = np.linspace(-1.0, 1.0, VIEW_RAYS) * np.tan(half_angle)
+    s = np.linspace(-1.0, 1.0, rays) * np.tan(half_angle)
     u, w = np.meshgrid(s, s, indexing="ij")
     d = forward + u.reshape(-1, 1) * right + w.reshape(-1, 1) * up
     return np.asarray(d / np.linalg.norm(d, axis=1, keepdims=True))
@@ -143,7 +146,7 @@ def visible_points(
     out = []
     for k, d in enumerate(np.asarray(directions, np.float64).reshape(-1, 3)):
         d = d / np.linalg.norm(d)
-        rays = _image_rays(-d, half_angle)
+        rays = image_rays(-d, half_angle)
         eye = np.broadcast_to(d * VIEW_DISTANCE, rays.shape)
         ray_table = np.ascontiguousarray(np.hstack([eye, rays]), np.float32)
         cast = scene.cast_rays(o3d.core.Tensor.from_numpy(ray_table))

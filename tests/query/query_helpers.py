@@ -89,6 +89,12 @@ def solids() -> dict[str, Any]:
     }
 
 
+def names_by_id(db: Any) -> dict[int, str]:
+    """Every stored shape's name by its id."""
+    t = db.sql("select id, name from shapes")
+    return dict(zip(t.column("id").to_pylist(), t.column("name").to_pylist(), strict=True))
+
+
 def make_record(
     name: str, label: str | None, geometry: Any, config: Config = CONFIG
 ) -> ShapeRecord:

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from query_helpers import solids
+from query_helpers import names_by_id, solids
 
 from query.parts.part_words import PART_REACHES, part_words, stored_words, words_distances
 from shapedb.geometry.implicit import Box, Intersection
@@ -19,11 +19,6 @@ SHAPES = solids()
 @pytest.fixture()
 def db(solids_db: Any) -> Any:
     return solids_db
-
-
-def _names(db: Any) -> dict[int, str]:
-    t = db.sql("select id, name from shapes")
-    return dict(zip(t.column("id").to_pylist(), t.column("name").to_pylist(), strict=True))
 
 
 def _half_dumbbell() -> Intersection:
@@ -53,7 +48,7 @@ def test_words_distances_is_the_least_over_the_ladder() -> None:
 def test_a_half_finds_its_whole_only_at_the_wholes_scale(db: Any) -> None:
     """Read at its own scale, half a dumbbell's bell and bar look like a snowman's balls;
     read as a part of a larger whole, it is the dumbbell's."""
-    names = _names(db)
+    names = names_by_id(db)
     ids, rows = stored_words(db)
     assert sorted(names[int(i)] for i in ids) == sorted(SHAPES)
     ladder = part_words(_half_dumbbell(), 0.05)

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from query_helpers import solids
+from query_helpers import names_by_id, solids
 
 from query.search import scan_words as scan_words_module
 from query.search.scan_words import nearest_by_view_words, stored_view_words
@@ -30,11 +30,6 @@ def db(solids_db: Any) -> Any:
     return solids_db
 
 
-def _names(db: Any) -> dict[int, str]:
-    t = db.sql("select id, name from shapes")
-    return dict(zip(t.column("id").to_pylist(), t.column("name").to_pylist(), strict=True))
-
-
 def _scan(name: str, direction: Any = (0.3, -0.5, 0.81)) -> np.ndarray:
     """What a camera sees of one of the solids, from a direction none of the views has."""
     mesh = boundary_mesh(SHAPES[name], 0.03)
@@ -45,7 +40,7 @@ def _scan(name: str, direction: Any = (0.3, -0.5, 0.81)) -> np.ndarray:
 def test_every_shape_keeps_its_view_words(db: Any) -> None:
     assert db.config.stores_view_words
     ids, rows = stored_view_words(db)
-    assert sorted(_names(db)[int(i)] for i in ids) == sorted(SHAPES)
+    assert sorted(names_by_id(db)[int(i)] for i in ids) == sorted(SHAPES)
     assert rows.shape == (len(SHAPES), VIEWS * WORDS)
     np.testing.assert_allclose(rows.reshape(-1, VIEWS, WORDS).sum(axis=2), 1.0, atol=1e-5)
     record = db.get(int(ids[0]))
@@ -171,7 +166,7 @@ def test_a_deleted_shape_is_not_found_by_its_view_words(tmp_path: Path) -> None:
     assert {h.path for h in hits} == {"view"} and {h.name for h in hits} == {"box", "capsule"}
     words = scan_words(cloud.points)
     assert "dumbbell" not in {
-        _names(store)[int(i)] for i in nearest_by_view_words(store, words, 3)[0]
+        names_by_id(store)[int(i)] for i in nearest_by_view_words(store, words, 3)[0]
     }
 
 
