@@ -67,7 +67,7 @@ VIEW_UNIT = 1.3
 WORD_CANDIDATES = 64
 #: The reciprocal ranks' offset and the words' weight against the silhouette's (1): the
 #: best NN + 1-T summed over CAPOD and parts validation scans of offsets 2-32 and weights
-#: 0.25-4 (``python -m bench.studies.view_words``): CAPOD 0.800, parts 0.771 NN, against
+#: 0.25-4 (``python -m bench.studies.view_words``): CAPOD 0.817, parts 0.750 NN, against
 #: the words alone 0.700, 0.667 and the view path before (silhouettes) 0.617, 0.271.
 WORD_OFFSET = 16.0
 WORDS_WEIGHT = 2.0
