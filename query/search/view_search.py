@@ -19,9 +19,10 @@ by their ranks by silhouette and by words fused (:func:`fused_scores`,
 :data:`WORD_OFFSET`, :data:`WORDS_WEIGHT`), over the :data:`WORD_CANDIDATES` nearest by
 words (the rest rank after them).
 
-``db.search`` takes this path by itself for a point cloud whose normals lie on one side
-(:func:`shapedb.geometry.view.viewing_direction`), in a store that keeps light fields;
-each hit's ``path`` is ``"view"``.
+``db.search`` takes this path by itself for a point cloud it calls one-sided
+(:func:`query.parts.partial.is_one_sided_cloud`: its geometry,
+:func:`shapedb.geometry.view.viewing_direction`, and in a store with view words its
+words), in a store that keeps light fields; each hit's ``path`` is ``"view"``.
 """
 
 from __future__ import annotations
