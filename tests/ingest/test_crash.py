@@ -13,6 +13,7 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -20,13 +21,22 @@ import pytest
 import trimesh
 
 import query.database as database
+from shapedb.config import Config, SurfaceWordsConfig
 from shapedb.store.store import MANIFEST, Store
 
-OPTIONS = {"resolution": 24, "n_balls": 32}
+#: Small stores, without view words: these tests do not search scans, and the views would
+#: be most of their ingest time (``tests/query/test_scan_words.py`` tests them). The
+#: child process below builds the same configuration.
+CONFIG = replace(
+    Config().with_options(resolution=24, n_balls=32),
+    surface_words=SurfaceWordsConfig(enabled=True, view_words=False),
+)
 N_FILES = 12
 
 SCRIPT = r"""
 import os, signal, sys
+from dataclasses import replace
+from shapedb.config import Config, SurfaceWordsConfig
 import pyarrow.parquet as pq
 import query.database as database
 from shapedb.store.store import Store
@@ -70,7 +80,11 @@ def logged(self, *a, **k):
 Store.commit = logged
 
 if __name__ == "__main__":
-    db = database.connect(db_path, resolution=24, n_balls=32)
+    config = replace(
+        Config().with_options(resolution=24, n_balls=32),
+        surface_words=SurfaceWordsConfig(enabled=True, view_words=False),
+    )
+    db = database.connect(db_path, config=config)
     print("START", flush=True)
     db.ingest(folder, workers=int(os.environ.get("WORKERS", "1")), batch_size=batch)
     print("DONE", flush=True)
@@ -184,7 +198,7 @@ def _names(store: Store) -> list[str]:
 
 def _complete(path: Path, folder: Path, already: int) -> None:
     """A re-run adds exactly the missing shapes and leaves no leftovers."""
-    db = database.connect(path, **OPTIONS)
+    db = database.connect(path, config=CONFIG)
     report = db.ingest(folder, workers=1)
     assert len(report.skipped) == already
     assert len(report.ingested) == N_FILES - already and report.failed == ()
@@ -212,7 +226,7 @@ def test_sigkill_at_random_moments(tmp_path: Path, models: Path) -> None:
     outcomes = []
     for trial in range(5):
         path = tmp_path / f"db{trial}"
-        database.connect(path, **OPTIONS)  # the store exists before the child starts
+        database.connect(path, config=CONFIG)  # the store exists before the child starts
         # after a random number of commits, at a random moment of the next batch
         kill_after = (rng.randrange(n_batches - 1), rng.uniform(0.05, 0.95) * per_batch)
         out, code, _ = _run(tmp_path, path, models, batch=batch, kill_after=kill_after)
@@ -244,7 +258,7 @@ def test_sigkill_at_each_commit_step(
     tmp_path: Path, models: Path, kill_at: str, expect: str
 ) -> None:
     path = tmp_path / "db"
-    database.connect(path, **OPTIONS)
+    database.connect(path, config=CONFIG)
     batch = 3
     out, code, _ = _run(tmp_path, path, models, batch=batch, kill_at=kill_at)
     assert code == -signal.SIGKILL, out
@@ -256,7 +270,7 @@ def test_sigkill_at_each_commit_step(
 
 def test_sigkill_with_worker_processes(tmp_path: Path, models: Path) -> None:
     path = tmp_path / "db"
-    database.connect(path, **OPTIONS)
+    database.connect(path, config=CONFIG)
     out, code, _ = _run(tmp_path, path, models, batch=2, kill_at="replace:3", workers=2)
     assert code == -signal.SIGKILL, out
     store = check_consistent(path)
